@@ -1,0 +1,1 @@
+"""hammerbit: resonance-hammer drilling model, FMU and drillstring coupling."""

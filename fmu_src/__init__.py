@@ -1,0 +1,1 @@
+"""hammerbit.model: the runtime the HammerBitRock FMU carries (parameters, kernels, stepping)."""

@@ -1,0 +1,965 @@
+"""numba kernels of the hybrid hammer–bit–rock dynamics.
+
+Pure functions on arrays and floats, nopython mode, no Python objects in
+inner loops.  They are split into small named pieces:
+
+* the vector field in one hybrid mode (``rhs``);
+* the signed event indicators of a mode and their time derivatives
+  (``watch_value``, ``watch_slope``);
+* sign-change and grazing detection over a step (``detect``);
+* localisation of the event time on the dense output (``localise``);
+* the reset map at an event (``apply_event``);
+* one generic Runge–Kutta step for any tableau (``rk_step``) and its dense
+  output (``dense_prepare``, ``dense_eval``);
+* the driver ``advance`` that ties them together and records only what the
+  scene asked for.
+
+State layout (nondimensional, see ``model.md``)::
+
+    y = [x1, x2, x3, x4,  z[0:nz],  e[0:ne]]
+
+``x1, x2`` hammer position and velocity, ``x3, x4`` bit position
+(penetration) and velocity; ``z`` the states of an optional linear subsystem
+(the drillstring of the monolithic reference) that obeys
+``z' = A z + H[:, 0] x1 + H[:, 1] x2`` and pushes on the hammer with
+``f_link = G . z + g[0] x1 + g[1] x2``; ``e`` four optional energy
+accumulators (external work, damper, contact and friction dissipation).
+
+Each watched indicator ``w`` is signed so that its event happens when ``w``
+crosses from ``w <= 0`` to ``w > 0``.
+"""
+import math
+
+import numpy as np
+from numba import njit
+
+from . import _numba_cache  # noqa: F401  (registers the content-hash cache locator)
+
+# ---------------------------------------------------------------------------
+# Layouts (kept in sync with params.P_*)
+# ---------------------------------------------------------------------------
+P_RHO, P_XI, P_ETA, P_A, P_B, P_R, P_MU, P_GAMMA, P_KC, P_N, P_LAM, P_PHI, P_FEXT, P_CONTACT = range(14)
+
+# hybrid modes
+STICK = 0
+SLIP = 1
+FREE = 0
+CONTACT = 1
+CLAMPED = 2
+
+# event kinds (= watched indicators)
+EV_SLIP_START = 0     # stick -> slip: drive F_d rises through the static threshold
+EV_STICK = 1          # slip -> stick: v_s falls to 0 with F_d <= F_s
+EV_SLIP_ON = 2        # v_s touches 0 but F_d > F_s: slip goes on
+EV_IMPACT = 3         # contact onset (gap closes)
+EV_SEPARATION = 4     # contact end
+EV_CLAMP = 5          # Hunt–Crossley tensile clamp engages (1 + lam d' falls to 0)
+EV_UNCLAMP = 6        # clamp releases
+EV_BOUNCE = 7         # bounce violation starts: F_d < -F_s while stuck (rock would pull)
+EV_BOUNCE_END = 8     # bounce violation ends
+N_EVENT_KINDS = 9
+EVENT_NAMES = ("slip_start", "stick", "slip_on", "impact", "separation",
+               "clamp", "unclamp", "bounce", "bounce_end")
+
+# integer state
+I_STICK = 0       # STICK / SLIP
+I_CONTACT = 1     # FREE / CONTACT / CLAMPED
+I_BOUNCE = 2      # 1 while the bounce condition holds
+I_WIN = 3         # index of the forcing period of the event-storm window
+I_WIN_EVENTS = 4  # events counted in that window
+I_POIN_NEXT = 5   # index of the next Poincaré sample
+I_SAMP_NEXT = 6   # index of the next requested sample time
+I_NLOG = 7        # rows written in the event log
+I_STEPS = 8       # accepted steps
+I_REJECTS = 9     # rejected steps
+I_RHS = 10        # right-hand-side evaluations
+I_COUNT0 = 11     # first of N_EVENT_KINDS event counters
+N_ISTATE = I_COUNT0 + N_EVENT_KINDS
+
+# float state
+F_T = 0           # current time
+F_H = 1           # proposed next step
+F_PEAK = 2        # peak contact force of the current contact
+F_IMPACT_V = 3    # relative velocity of the last impact
+F_H_MODE = 4      # last step used in each regime: stick, slip, contact (3 slots)
+N_FSTATE = 7
+
+# options
+O_RTOL = 0
+O_ATOL = 1
+O_HMAX = 2
+O_HFIXED = 3      # > 0: fixed-step method with this step (the paper's RK4)
+O_EVCAP = 4       # max events per forcing period before EventStorm
+O_BISECT = 5      # time tolerance of the fixed-step bisection (paper: 1e-6)
+O_MAXSTEPS = 6    # max accepted steps in one call (0: unlimited)
+O_POIN_T0 = 7     # time of Poincaré sample 0
+O_POIN_DT = 8     # Poincaré sampling interval (the forcing period)
+O_GRAZE = 9       # extremum value above which a grazing event counts
+N_OPTS = 10
+
+# status codes of advance()
+ST_DONE = 0
+ST_LOG_FULL = 1
+ST_EVENT_STORM = 2
+ST_STEP_TOO_SMALL = 3
+ST_NONFINITE = 4
+ST_MAX_STEPS = 5
+
+# event log columns
+L_T, L_KIND, L_X1, L_X2, L_X3, L_X4, L_VREL, L_PEAK = range(8)
+N_LOG_COLS = 8
+
+# sample columns: x1, x2, x3, x4, contact force, link force, stick/slip, contact mode
+N_SAMPLE_COLS = 8
+
+SAFETY = 0.9
+MIN_FACTOR = 0.2
+MAX_FACTOR = 10.0
+
+
+# ---------------------------------------------------------------------------
+# Forces and vector field
+# ---------------------------------------------------------------------------
+@njit(cache=True, inline="always", _nrt=False)
+def contact_force(d, dd, p, mode_c):
+    """Hunt–Crossley force kc d^n (1 + lam d') in the active contact mode, else 0.
+
+    The power is extended oddly to d < 0 so the force is smooth across the
+    event inside a step (the event itself is located, never skipped).
+    """
+    if mode_c != CONTACT:
+        return 0.0
+    ad = abs(d)
+    dn = ad ** p[P_N] if ad > 0.0 else 0.0
+    if d < 0.0:
+        dn = -dn
+    return p[P_KC] * dn * (1.0 + p[P_LAM] * dd)
+
+
+@njit(cache=True, inline="always", _nrt=False)
+def friction_kinetic(v, p):
+    """Kinetic friction over F0: mu + (1 - mu) exp(-gamma_hat v)."""
+    return p[P_MU] + (1.0 - p[P_MU]) * math.exp(-p[P_GAMMA] * v)
+
+
+@njit(cache=True, inline="always", _nrt=False)
+def link_force(y, nz, Gz, g12):
+    """Force of the linear subsystem on the hammer, G . z + g1 x1 + g2 x2."""
+    f = g12[0] * y[0] + g12[1] * y[1]
+    for i in range(nz):
+        f += Gz[i] * y[4 + i]
+    return f
+
+
+@njit(cache=True, _nrt=False)
+def rhs(t, y, p, mode_s, mode_c, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, out):
+    """Vector field of one hybrid mode; writes dy/dtau into ``out``.
+
+    Parameters
+    ----------
+    t : float
+        Nondimensional time tau.
+    y : ndarray, shape (4 + nz + ne,)
+        State.
+    p : ndarray, shape (N_P,)
+        Kernel parameters (``params.P_*`` layout).
+    mode_s, mode_c : int
+        Stick/slip mode and contact mode.
+    nz, ne : int
+        Sizes of the linear subsystem and of the energy block (0 or 4).
+    Ap, Ai, Ax : ndarray
+        The subsystem matrix A in CSR form (indptr, indices, data).
+    Hz : ndarray, shape (nz, 2)
+        Input matrix of (x1, x2) into the subsystem.
+    Gz : ndarray, shape (nz,), g12 : ndarray, shape (2,)
+        Output row of the link force on the hammer.
+    out : ndarray, shape like y
+        Derivative (written).
+    """
+    x1 = y[0]
+    x2 = y[1]
+    x3 = y[2]
+    x4 = y[3]
+    d = x1 - x3 - p[P_R]
+    dd = x2 - x4
+    fk = (x1 - x3) + 2.0 * p[P_XI] * dd
+    fc = contact_force(d, dd, p, mode_c)
+    drive = p[P_B] + p[P_FEXT] + p[P_A] * math.sin(p[P_ETA] * t + p[P_PHI])
+    if nz > 0:
+        drive += link_force(y, nz, Gz, g12)
+    out[0] = x2
+    out[1] = drive - fk - fc
+    ff = 0.0
+    if mode_s == SLIP:
+        ff = friction_kinetic(x4, p)
+        out[2] = x4
+        out[3] = (fk + fc - ff) / p[P_RHO]
+    else:
+        out[2] = 0.0
+        out[3] = 0.0
+    for i in range(nz):
+        acc = Hz[i, 0] * x1 + Hz[i, 1] * x2
+        for k in range(Ap[i], Ap[i + 1]):
+            acc += Ax[k] * y[4 + Ai[k]]
+        out[4 + i] = acc
+    if ne > 0:
+        j = 4 + nz
+        out[j] = drive * x2
+        out[j + 1] = 2.0 * p[P_XI] * dd * dd
+        if mode_c != FREE and d > 0.0:
+            # dissipated contact power: actual contact power minus elastic power
+            out[j + 2] = (fc - p[P_KC] * d ** p[P_N]) * dd
+        else:
+            out[j + 2] = 0.0
+        out[j + 3] = ff * x4
+
+
+@njit(cache=True, inline="always", _nrt=False)
+def drive_on_bit(y, p, mode_c):
+    """F_d / F0 = spring + damper + contact force on the bit."""
+    d = y[0] - y[2] - p[P_R]
+    dd = y[1] - y[3]
+    return (y[0] - y[2]) + 2.0 * p[P_XI] * dd + contact_force(d, dd, p, mode_c)
+
+
+# ---------------------------------------------------------------------------
+# Event indicators
+# ---------------------------------------------------------------------------
+@njit(cache=True, _nrt=False)
+def watched(istate, p, out):
+    """Event kinds watched in the current mode; returns how many (<= 3) in ``out``."""
+    n = 0
+    if istate[I_STICK] == STICK:
+        if istate[I_BOUNCE] == 0:
+            out[n] = EV_SLIP_START
+            n += 1
+            out[n] = EV_BOUNCE
+            n += 1
+        else:
+            out[n] = EV_BOUNCE_END
+            n += 1
+    else:
+        out[n] = EV_STICK
+        n += 1
+    if p[P_CONTACT] > 0.0:
+        mc = istate[I_CONTACT]
+        if mc == FREE:
+            out[n] = EV_IMPACT
+            n += 1
+        else:
+            out[n] = EV_SEPARATION
+            n += 1
+            if p[P_LAM] > 0.0:
+                out[n] = EV_CLAMP if mc == CONTACT else EV_UNCLAMP
+                n += 1
+    return n
+
+
+@njit(cache=True, _nrt=False)
+def watch_value(kind, y, p, mode_c):
+    """Signed indicator of ``kind``: the event happens when it becomes > 0."""
+    if kind == EV_SLIP_START:
+        return drive_on_bit(y, p, mode_c) - 1.0
+    if kind == EV_BOUNCE:
+        return -(drive_on_bit(y, p, mode_c) + 1.0)
+    if kind == EV_BOUNCE_END:
+        return drive_on_bit(y, p, mode_c) + 1.0
+    if kind == EV_STICK:
+        return -y[3]
+    if kind == EV_IMPACT:
+        return y[0] - y[2] - p[P_R]
+    if kind == EV_SEPARATION:
+        return -(y[0] - y[2] - p[P_R])
+    if kind == EV_CLAMP:
+        return -(1.0 + p[P_LAM] * (y[1] - y[3]))
+    if kind == EV_UNCLAMP:
+        return 1.0 + p[P_LAM] * (y[1] - y[3])
+    return -1.0
+
+
+@njit(cache=True, _nrt=False)
+def watch_slope(kind, y, f, p, mode_c):
+    """Time derivative of ``watch_value`` from the state ``y`` and its derivative ``f``."""
+    dd = y[1] - y[3]
+    ddd = f[1] - f[3]
+    if kind == EV_SLIP_START or kind == EV_BOUNCE or kind == EV_BOUNCE_END:
+        s = (f[0] - f[2]) + 2.0 * p[P_XI] * ddd
+        if mode_c == CONTACT:
+            d = y[0] - y[2] - p[P_R]
+            ad = abs(d)
+            if ad > 0.0:
+                n = p[P_N]
+                dn = ad ** n
+                dn1 = n * ad ** (n - 1.0)
+                s += p[P_KC] * (dn1 * dd * (1.0 + p[P_LAM] * dd) + dn * p[P_LAM] * ddd)
+        return -s if kind == EV_BOUNCE else s
+    if kind == EV_STICK:
+        return -f[3]
+    if kind == EV_IMPACT:
+        return dd
+    if kind == EV_SEPARATION:
+        return -dd
+    if kind == EV_CLAMP:
+        return -p[P_LAM] * ddd
+    if kind == EV_UNCLAMP:
+        return p[P_LAM] * ddd
+    return 0.0
+
+
+# ---------------------------------------------------------------------------
+# Runge–Kutta step and dense output (one routine for every tableau)
+# ---------------------------------------------------------------------------
+@njit(cache=True, _nrt=False)
+def rk_stages(t, y, h, A, C, s_from, s_to, K, ytmp, act, n_act,
+              p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12):
+    """Stages ``s_from <= s < s_to`` of an explicit RK method into ``K[s]``."""
+    for i in range(y.shape[0]):
+        ytmp[i] = y[i]  # inactive components (a stuck bit) keep their values
+    for s in range(s_from, s_to):
+        for q in range(n_act):
+            i = act[q]
+            acc = 0.0
+            for j in range(s):
+                a = A[s, j]
+                if a != 0.0:
+                    acc += a * K[j, i]
+            ytmp[i] = y[i] + h * acc
+        rhs(t + C[s] * h, ytmp, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, K[s])
+
+
+@njit(cache=True, _nrt=False)
+def rk_step(t, y, h, A, B, C, ns, K, ynew, ytmp, act, n_act,
+            p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12):
+    """One step of any explicit tableau; K[0] must hold f(t, y).
+
+    Writes the solution ``ynew`` and the FSAL stage ``K[ns] = f(t + h, ynew)``.
+    """
+    rk_stages(t, y, h, A, C, 1, ns, K, ytmp, act, n_act, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+    for i in range(y.shape[0]):
+        ynew[i] = y[i]
+    for q in range(n_act):
+        i = act[q]
+        acc = 0.0
+        for j in range(ns):
+            acc += B[j] * K[j, i]
+        ynew[i] = y[i] + h * acc
+    rhs(t + h, ynew, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, K[ns])
+
+
+@njit(cache=True, _nrt=False)
+def error_norm(y, ynew, h, K, E, E3, err_kind, ns, act, n_act, rtol, atol):
+    """RMS norm of the embedded error estimate, scaled by atol + rtol |y|.
+
+    ``err_kind`` 1: single estimate with weights E over ns + 1 stages;
+    2: Hairer's DOP853 combination of the 5th (E) and 3rd (E3) order estimates.
+    Returns inf when the estimate is not finite (the step is then rejected).
+    """
+    e5 = 0.0
+    e3 = 0.0
+    for q in range(n_act):
+        i = act[q]
+        sc = atol + rtol * max(abs(y[i]), abs(ynew[i]))
+        a5 = 0.0
+        a3 = 0.0
+        for j in range(ns + 1):
+            a5 += E[j] * K[j, i]
+            if err_kind == 2:
+                a3 += E3[j] * K[j, i]
+        a5 /= sc
+        a3 /= sc
+        e5 += a5 * a5
+        e3 += a3 * a3
+    if err_kind == 2:
+        if e5 == 0.0 and e3 == 0.0:
+            return 0.0
+        den = e5 + 0.01 * e3
+        r = abs(h) * e5 / math.sqrt(den * n_act)
+    else:
+        r = abs(h) * math.sqrt(e5 / n_act)
+    if not math.isfinite(r):
+        return math.inf
+    return r
+
+
+@njit(cache=True, _nrt=False)
+def dense_prepare(t, y, ynew, h, A, C, W, ns, n_ext, K, F, ytmp, act, n_act,
+                  p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12):
+    """Extra stages (if the method has them) and nested coefficients F of the dense output."""
+    if n_ext > ns + 1:
+        rk_stages(t, y, h, A, C, ns + 1, n_ext, K, ytmp, act, n_act, p, ms, mc, nz, ne,
+                  Ap, Ai, Ax, Hz, Gz, g12)
+    nF = W.shape[0]
+    for q in range(n_act):
+        i = act[q]
+        F[0, i] = ynew[i] - y[i]
+        for k in range(1, nF):
+            acc = 0.0
+            for s in range(n_ext):
+                w = W[k, s]
+                if w != 0.0:
+                    acc += w * K[s, i]
+            F[k, i] = h * acc
+
+
+@njit(cache=True, _nrt=False)
+def dense_eval(x, y, F, act, n_act, out):
+    """State at fraction ``x`` of the step from the nested dense coefficients F."""
+    nF = F.shape[0]
+    for i in range(y.shape[0]):
+        out[i] = y[i]
+    for q in range(n_act):
+        i = act[q]
+        acc = 0.0
+        for k in range(nF - 1, -1, -1):
+            acc += F[k, i]
+            if k % 2 == 0:
+                acc *= x
+            else:
+                acc *= 1.0 - x
+        out[i] = y[i] + acc
+
+
+@njit(cache=True, _nrt=False)
+def state_at(tq, t0, y0, h, fixed, F, act, n_act, A, B, C, ns, K2, ytmp, out,
+             p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12):
+    """State at time ``tq`` inside the current step.
+
+    Adaptive methods evaluate their dense output.  The fixed-step method (the
+    paper's RK4 with bisection) re-integrates one step of length tq - t0.
+    K2[0] must hold f(t0, y0) for the fixed-step case.
+    """
+    if fixed:
+        rk_step(t0, y0, tq - t0, A, B, C, ns, K2, out, ytmp, act, n_act,
+                p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+    else:
+        x = (tq - t0) / h
+        dense_eval(x, y0, F, act, n_act, out)
+
+
+# ---------------------------------------------------------------------------
+# Reset map
+# ---------------------------------------------------------------------------
+@njit(cache=True, _nrt=False)
+def apply_event(kind, y, istate, fstate, p):
+    """Apply the reset map of ``kind`` at the event state ``y`` (modified in place).
+
+    Returns the kind actually taken (slip -> stick becomes EV_SLIP_ON when the
+    drive still exceeds the static threshold).
+    """
+    mc = istate[I_CONTACT]
+    if kind == EV_SLIP_START:
+        istate[I_STICK] = SLIP
+        y[3] = 0.0
+    elif kind == EV_STICK:
+        y[3] = 0.0
+        if drive_on_bit(y, p, mc) <= 1.0:
+            istate[I_STICK] = STICK
+            if drive_on_bit(y, p, mc) < -1.0:
+                istate[I_BOUNCE] = 1
+                istate[I_COUNT0 + EV_BOUNCE] += 1
+        else:
+            kind = EV_SLIP_ON
+    elif kind == EV_IMPACT:
+        istate[I_CONTACT] = CONTACT if 1.0 + p[P_LAM] * (y[1] - y[3]) > 0.0 else CLAMPED
+        fstate[F_IMPACT_V] = y[1] - y[3]
+        fstate[F_PEAK] = 0.0
+    elif kind == EV_SEPARATION:
+        istate[I_CONTACT] = FREE
+    elif kind == EV_CLAMP:
+        istate[I_CONTACT] = CLAMPED
+    elif kind == EV_UNCLAMP:
+        istate[I_CONTACT] = CONTACT
+    elif kind == EV_BOUNCE:
+        istate[I_BOUNCE] = 1
+    elif kind == EV_BOUNCE_END:
+        istate[I_BOUNCE] = 0
+    istate[I_COUNT0 + kind] += 1
+    return kind
+
+
+@njit(cache=True, inline="always", _nrt=False)
+def step_slot(ms, mc):
+    """Regime whose last step size is remembered: 0 stick, 1 slip, 2 contact."""
+    if mc != FREE:
+        return 2
+    return ms
+
+
+@njit(cache=True, _nrt=False)
+def set_active(istate, n, nz, ne, act):
+    """Indices of the integrated components: m2 is not integrated while it sticks."""
+    k = 0
+    for i in range(n):
+        if istate[I_STICK] == STICK and (i == 2 or i == 3):
+            continue
+        act[k] = i
+        k += 1
+    return k
+
+
+# ---------------------------------------------------------------------------
+# Event detection and localisation
+# ---------------------------------------------------------------------------
+@njit(cache=True, _nrt=False)
+def localise(kind, ta, tb, t0, y0, h, fixed, tol, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
+             p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12):
+    """Event time in (ta, tb] where w(ta) <= 0 < w(tb).
+
+    Adaptive methods: Illinois false position on the dense output down to a few
+    ulp of t.  Fixed step: bisection down to ``tol`` (the paper's 1e-6).
+    Returns the end of the final bracket, where w > 0: after the reset the
+    event cannot re-trigger.
+    """
+    state_at(ta, t0, y0, h, fixed, F, act, n_act, A, B, C, ns, K2, ytmp, ys, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+    wa = watch_value(kind, ys, p, mc)
+    state_at(tb, t0, y0, h, fixed, F, act, n_act, A, B, C, ns, K2, ytmp, ys, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+    wb = watch_value(kind, ys, p, mc)
+    side = 0
+    for it in range(200):
+        width = tb - ta
+        if fixed:
+            if width <= tol:
+                break
+            tm = 0.5 * (ta + tb)
+        else:
+            if width <= 4.0 * 2.220446049250313e-16 * max(abs(tb), 1.0):
+                break
+            if it % 8 == 7 or not (wb > wa):
+                tm = 0.5 * (ta + tb)
+            else:
+                tm = ta - wa * width / (wb - wa)
+                if not (tm > ta and tm < tb):
+                    tm = 0.5 * (ta + tb)
+        state_at(tm, t0, y0, h, fixed, F, act, n_act, A, B, C, ns, K2, ytmp, ys, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+        wm = watch_value(kind, ys, p, mc)
+        if wm > 0.0:
+            tb = tm
+            wb = wm
+            if side == 1:
+                wa *= 0.5
+            side = 1
+        else:
+            ta = tm
+            wa = wm
+            if side == -1:
+                wb *= 0.5
+            side = -1
+    return tb
+
+
+@njit(cache=True, _nrt=False)
+def find_extremum(kind, t0, t1, y0, h, F, act, n_act, ys, fs,
+                  p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12):
+    """Time in (t0, t1) where the slope of w changes from + to - (a local max of w)."""
+    ta = t0
+    tb = t1
+    for it in range(60):
+        tm = 0.5 * (ta + tb)
+        dense_eval((tm - t0) / h, y0, F, act, n_act, ys)
+        rhs(tm, ys, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, fs)
+        if watch_slope(kind, ys, fs, p, mc) > 0.0:
+            ta = tm
+        else:
+            tb = tm
+        if tb - ta <= 1e-9 * (t1 - t0):
+            break
+    return 0.5 * (ta + tb)
+
+
+@njit(cache=True, inline="always", _nrt=False)
+def hermite_peak(w0, w1, m0, m1):
+    """Maximum over [0, 1] of the cubic Hermite interpolant of (w0, m0), (w1, m1).
+
+    A cheap gate: the exact (dense-output) search for a grazing extremum runs
+    only when this estimate comes near zero.
+    """
+    a = 6.0 * w0 + 3.0 * m0 - 6.0 * w1 + 3.0 * m1
+    b = -6.0 * w0 - 4.0 * m0 + 6.0 * w1 - 2.0 * m1
+    c = m0
+    best = max(w0, w1)
+    if a == 0.0:
+        roots0 = -c / b if b != 0.0 else -1.0
+        roots1 = -1.0
+    else:
+        disc = b * b - 4.0 * a * c
+        if disc < 0.0:
+            return best
+        sq = math.sqrt(disc)
+        roots0 = (-b - sq) / (2.0 * a)
+        roots1 = (-b + sq) / (2.0 * a)
+    for x in (roots0, roots1):
+        if 0.0 < x < 1.0:
+            x2 = x * x
+            x3 = x2 * x
+            v = ((2 * x3 - 3 * x2 + 1) * w0 + (x3 - 2 * x2 + x) * m0
+                 + (-2 * x3 + 3 * x2) * w1 + (x3 - x2) * m1)
+            if v > best:
+                best = v
+    return best
+
+
+# ---------------------------------------------------------------------------
+# Recording
+# ---------------------------------------------------------------------------
+@njit(cache=True, _nrt=False)
+def write_sample(row, t, y, p, istate, nz, Gz, g12):
+    """One sample row: x1..x4, contact force, link force, stick/slip, contact mode."""
+    row[0] = y[0]
+    row[1] = y[1]
+    row[2] = y[2]
+    row[3] = y[3]
+    row[4] = contact_force(y[0] - y[2] - p[P_R], y[1] - y[3], p, istate[I_CONTACT])
+    row[5] = link_force(y, nz, Gz, g12) if nz > 0 else 0.0
+    row[6] = istate[I_STICK]
+    row[7] = istate[I_CONTACT]
+
+
+@njit(cache=True, _nrt=False)
+def record_until(t_stop, y_stop, t0, y0, h, fixed, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
+                 p, istate, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, opts, poin, samp_t, samp):
+    """Record Poincaré samples and requested samples with times in (t0, t_stop]."""
+    tol = 8.0 * 2.220446049250313e-16 * max(abs(t_stop), 1.0)
+    ms = istate[I_STICK]
+    mc = istate[I_CONTACT]
+    npoin = poin.shape[0]
+    k = istate[I_POIN_NEXT]
+    while k < npoin:
+        tk = opts[O_POIN_T0] + k * opts[O_POIN_DT]
+        if tk > t_stop + tol:
+            break
+        if tk >= t_stop:
+            for i in range(ys.shape[0]):
+                ys[i] = y_stop[i]
+        else:
+            state_at(tk, t0, y0, h, fixed, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
+                     p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+        poin[k, 0] = tk
+        poin[k, 1] = ys[0]
+        poin[k, 2] = ys[1]
+        poin[k, 3] = ys[2]
+        poin[k, 4] = ys[3]
+        k += 1
+    istate[I_POIN_NEXT] = k
+    j = istate[I_SAMP_NEXT]
+    nsamp = samp_t.shape[0]
+    while j < nsamp:
+        tj = samp_t[j]
+        if tj > t_stop + tol:
+            break
+        if tj >= t_stop:
+            for i in range(ys.shape[0]):
+                ys[i] = y_stop[i]
+        else:
+            state_at(max(tj, t0), t0, y0, h, fixed, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
+                     p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+        write_sample(samp[j], tj, ys, p, istate, nz, Gz, g12)
+        j += 1
+    istate[I_SAMP_NEXT] = j
+
+
+@njit(cache=True, _nrt=False)
+def needs_record(t_stop, istate, opts, poin, samp_t):
+    """True if a Poincaré or requested sample falls in the step ending at t_stop."""
+    tol = 8.0 * 2.220446049250313e-16 * max(abs(t_stop), 1.0)
+    k = istate[I_POIN_NEXT]
+    if k < poin.shape[0] and opts[O_POIN_T0] + k * opts[O_POIN_DT] <= t_stop + tol:
+        return True
+    j = istate[I_SAMP_NEXT]
+    if j < samp_t.shape[0] and samp_t[j] <= t_stop + tol:
+        return True
+    return False
+
+
+# ---------------------------------------------------------------------------
+# Driver
+# ---------------------------------------------------------------------------
+@njit(cache=True, nogil=True)
+def advance(y, istate, fstate, t_end, p, opts,
+            A, B, C, E, E3, W, ns, err_kind, err_exp,
+            Ap, Ai, Ax, Hz, Gz, g12, ne,
+            poin, samp_t, samp, log):
+    """Advance the hybrid system from ``fstate[F_T]`` to ``t_end``.
+
+    Resumable: all solver state lives in ``y``, ``istate`` and ``fstate``, so a
+    call that returns early (event log full, step cap) continues where it
+    stopped, and an FMU saves and restores it as plain numbers.
+
+    Parameters
+    ----------
+    y : ndarray, shape (4 + nz + ne,)
+        State, advanced in place.
+    istate : ndarray of int64, shape (N_ISTATE,)
+        Modes, counters and record cursors (``I_*``).
+    fstate : ndarray, shape (N_FSTATE,)
+        Time, proposed step and contact bookkeeping (``F_*``).
+    t_end : float
+        Final time tau.
+    p : ndarray, shape (N_P,)
+        Kernel parameters.
+    opts : ndarray, shape (N_OPTS,)
+        Solver options (``O_*``).
+    A, B, C, E, E3, W : ndarray
+        Tableau (``tableaux``): A (n_ext, n_ext), B (ns,), C (n_ext,),
+        error weights E and E3 (ns + 1,), nested dense weights W (nF, n_ext).
+    ns, err_kind : int
+        Number of stages of the step; error-estimate kind (0 = fixed step).
+    err_exp : float
+        Controller exponent 1 / (error order + 1).
+    Ap, Ai, Ax, Hz, Gz, g12 : ndarray
+        Linear subsystem (see ``rhs``); nz = Hz.shape[0] may be 0.
+    ne : int
+        4 to accumulate energies, else 0.
+    poin : ndarray, shape (n_poin, 5)
+        Poincaré samples [tau, x1, x2, x3, x4] at O_POIN_T0 + k O_POIN_DT.
+    samp_t : ndarray, shape (n_samp,)
+        Requested sample times, sorted.
+    samp : ndarray, shape (n_samp, N_SAMPLE_COLS)
+        Samples (written).
+    log : ndarray, shape (cap, N_LOG_COLS)
+        Event log (written while rows remain; cap 0 disables it).
+
+    Returns
+    -------
+    status : int
+        ``ST_*`` code.
+    """
+    n = y.shape[0]
+    nz = Hz.shape[0]
+    n_ext = A.shape[0]
+    fixed = err_kind == 0
+    rtol = opts[O_RTOL]
+    atol = opts[O_ATOL]
+    hmax = opts[O_HMAX]
+    evcap = opts[O_EVCAP]
+    maxsteps = int(opts[O_MAXSTEPS])
+    graze = opts[O_GRAZE]
+    period = 2.0 * math.pi / p[P_ETA]
+    log_cap = log.shape[0]
+
+    K = np.empty((n_ext, n))
+    K2 = np.empty((n_ext, n))
+    F = np.empty((W.shape[0], n))
+    ynew = np.empty(n)
+    ytmp = np.empty(n)
+    ys = np.empty(n)
+    fs = np.empty(n)
+    act = np.empty(n, dtype=np.int64)
+    kinds = np.empty(4, dtype=np.int64)
+    w0s = np.empty(4)
+
+    t = fstate[F_T]
+    h = fstate[F_H]
+    n_act = set_active(istate, n, nz, ne, act)
+    ms = istate[I_STICK]
+    mc = istate[I_CONTACT]
+    rhs(t, y, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, K[0])
+    istate[I_RHS] += 1
+    steps_here = 0
+
+    while True:
+        remaining = t_end - t
+        if remaining <= 4.0 * 2.220446049250313e-16 * max(abs(t_end), 1.0):
+            break
+        if log_cap > 0 and istate[I_NLOG] >= log_cap:
+            fstate[F_T] = t
+            fstate[F_H] = h
+            return ST_LOG_FULL
+        if maxsteps > 0 and steps_here >= maxsteps:
+            fstate[F_T] = t
+            fstate[F_H] = h
+            return ST_MAX_STEPS
+
+        # -- an indicator already positive at the start: immediate event --------
+        nw = watched(istate, p, kinds)
+        immediate = -1
+        for q in range(nw):
+            w0s[q] = watch_value(kinds[q], y, p, mc)
+            if w0s[q] > 0.0:
+                immediate = kinds[q]
+                break
+
+        hit_kind = -1
+        t_hit = 0.0
+        h_next = h
+        if immediate < 0:
+            # -- one accepted step -------------------------------------------
+            if fixed:
+                h = min(opts[O_HFIXED], remaining)
+                rk_step(t, y, h, A, B, C, ns, K, ynew, ytmp, act, n_act,
+                        p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+                istate[I_RHS] += ns
+                for i in range(n):
+                    if not math.isfinite(ynew[i]):
+                        fstate[F_T] = t
+                        return ST_NONFINITE
+            else:
+                hmin = 10.0 * 2.220446049250313e-16 * max(abs(t), 1.0)
+                rejected = False
+                while True:
+                    if h > hmax:
+                        h = hmax
+                    if h >= remaining:
+                        h = remaining
+                    if h < hmin:
+                        fstate[F_T] = t
+                        fstate[F_H] = h
+                        return ST_STEP_TOO_SMALL
+                    rk_step(t, y, h, A, B, C, ns, K, ynew, ytmp, act, n_act,
+                            p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+                    istate[I_RHS] += ns
+                    err = error_norm(y, ynew, h, K, E, E3, err_kind, ns, act, n_act, rtol, atol)
+                    finite = math.isfinite(err)
+                    if finite:
+                        for i in range(n):
+                            if not math.isfinite(ynew[i]):
+                                finite = False
+                                break
+                    if finite and err <= 1.0:
+                        break
+                    istate[I_REJECTS] += 1
+                    if not finite:
+                        h *= MIN_FACTOR
+                    else:
+                        h *= max(MIN_FACTOR, SAFETY * err ** (-err_exp))
+                    rejected = True
+                # next step proposal
+                if err == 0.0:
+                    fac = MAX_FACTOR
+                else:
+                    fac = min(MAX_FACTOR, SAFETY * err ** (-err_exp))
+                if rejected:
+                    fac = min(1.0, fac)
+                h_next = h * fac
+            istate[I_STEPS] += 1
+            steps_here += 1
+            t1 = t + h
+            if h >= remaining:
+                t1 = t_end
+
+            # -- detection over [t, t1] ------------------------------------
+            dense_ok = False
+            for q in range(nw):
+                kd = kinds[q]
+                w1 = watch_value(kd, ynew, p, mc)
+                tb = -1.0
+                if w1 > 0.0:
+                    tb = t1
+                elif not fixed:
+                    # grazing: a local maximum of w inside the step
+                    s0 = watch_slope(kd, y, K[0], p, mc)
+                    s1 = watch_slope(kd, ynew, K[ns], p, mc)
+                    if s0 > 0.0 and s1 < 0.0 and hermite_peak(w0s[q], w1, s0 * h, s1 * h) > -0.1 * (
+                            abs(w0s[q]) + abs(w1) + abs(s0 * h) + abs(s1 * h)):
+                        if not dense_ok:
+                            dense_prepare(t, y, ynew, h, A, C, W, ns, n_ext, K, F, ytmp, act, n_act,
+                                          p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+                            istate[I_RHS] += n_ext - ns - 1
+                            dense_ok = True
+                        tm = find_extremum(kd, t, t1, y, h, F, act, n_act, ys, fs,
+                                           p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+                        dense_eval((tm - t) / h, y, F, act, n_act, ys)
+                        if watch_value(kd, ys, p, mc) > graze:
+                            tb = tm
+                if tb > 0.0:
+                    if not fixed and not dense_ok:
+                        dense_prepare(t, y, ynew, h, A, C, W, ns, n_ext, K, F, ytmp, act, n_act,
+                                      p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+                        istate[I_RHS] += n_ext - ns - 1
+                        dense_ok = True
+                    if fixed:
+                        for i in range(n):
+                            K2[0, i] = K[0, i]
+                    te = localise(kd, t, tb, t, y, h, fixed, opts[O_BISECT], F, act, n_act,
+                                  A, B, C, ns, K2, ytmp, ys, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+                    if hit_kind < 0 or te < t_hit:
+                        hit_kind = kd
+                        t_hit = te
+
+            if hit_kind < 0:
+                # -- no event: record and accept ----------------------------
+                if needs_record(t1, istate, opts, poin, samp_t):
+                    if not fixed and not dense_ok:
+                        dense_prepare(t, y, ynew, h, A, C, W, ns, n_ext, K, F, ytmp, act, n_act,
+                                      p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+                        istate[I_RHS] += n_ext - ns - 1
+                        dense_ok = True
+                    if fixed:
+                        for i in range(n):
+                            K2[0, i] = K[0, i]
+                    record_until(t1, ynew, t, y, h, fixed, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
+                                 p, istate, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, opts, poin, samp_t, samp)
+                if mc == CONTACT:
+                    fc1 = contact_force(ynew[0] - ynew[2] - p[P_R], ynew[1] - ynew[3], p, mc)
+                    if fc1 > fstate[F_PEAK]:
+                        fstate[F_PEAK] = fc1
+                for i in range(n):
+                    y[i] = ynew[i]
+                    K[0, i] = K[ns, i]
+                t = t1
+                if not fixed:
+                    h = h_next
+                continue
+
+            # -- event inside the step: move to it ------------------------
+            if fixed:
+                for i in range(n):
+                    K2[0, i] = K[0, i]
+            state_at(t_hit, t, y, h, fixed, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
+                     p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+            if needs_record(t_hit, istate, opts, poin, samp_t):
+                record_until(t_hit, ys, t, y, h, fixed, F, act, n_act, A, B, C, ns, K2, ytmp, ynew,
+                             p, istate, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, opts, poin, samp_t, samp)
+            for i in range(n):
+                y[i] = ys[i]
+            t = t_hit
+            if not fixed:
+                h = h_next
+        else:
+            hit_kind = immediate
+
+        # -- reset map, bookkeeping ------------------------------------------
+        if mc == CONTACT:
+            fc1 = contact_force(y[0] - y[2] - p[P_R], y[1] - y[3], p, mc)
+            if fc1 > fstate[F_PEAK]:
+                fstate[F_PEAK] = fc1
+        vrel = y[1] - y[3]
+        fstate[F_H_MODE + step_slot(ms, mc)] = h
+        taken = apply_event(hit_kind, y, istate, fstate, p)
+        if log_cap > 0:
+            r = istate[I_NLOG]
+            log[r, L_T] = t
+            log[r, L_KIND] = taken
+            log[r, L_X1] = y[0]
+            log[r, L_X2] = y[1]
+            log[r, L_X3] = y[2]
+            log[r, L_X4] = y[3]
+            log[r, L_VREL] = vrel
+            log[r, L_PEAK] = fstate[F_PEAK] if taken == EV_SEPARATION else 0.0
+            istate[I_NLOG] = r + 1
+        win = int(math.floor(t / period))
+        if win != istate[I_WIN]:
+            istate[I_WIN] = win
+            istate[I_WIN_EVENTS] = 0
+        istate[I_WIN_EVENTS] += 1
+        if istate[I_WIN_EVENTS] > evcap:
+            fstate[F_T] = t
+            fstate[F_H] = h
+            return ST_EVENT_STORM
+        ms = istate[I_STICK]
+        mc = istate[I_CONTACT]
+        if not fixed and fstate[F_H_MODE + step_slot(ms, mc)] > 0.0:
+            h = fstate[F_H_MODE + step_slot(ms, mc)]
+        n_act = set_active(istate, n, nz, ne, act)
+        rhs(t, y, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, K[0])
+        istate[I_RHS] += 1
+
+    # final: samples that sit exactly on t_end
+    t = t_end
+    fstate[F_T] = t
+    fstate[F_H] = h
+    if needs_record(t, istate, opts, poin, samp_t):
+        for i in range(n):
+            ynew[i] = y[i]
+        record_until(t, ynew, t, y, 1.0, False, F, act, 0, A, B, C, ns, K2, ytmp, ys,
+                     p, istate, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, opts, poin, samp_t, samp)
+    return ST_DONE

@@ -1,0 +1,331 @@
+"""Resumable stepping of the hybrid system: the Python side of the kernels.
+
+:class:`Stepper` owns the solver state as plain numpy arrays (``y``,
+``istate``, ``fstate``) and advances it with :func:`kernels.advance`.  The
+library's ``simulate``, the FMU's ``doStep`` and the monolithic
+drillstring reference all use it; only the recording buffers and the optional
+linear subsystem differ.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Optional
+
+import numpy as np
+
+from . import kernels as K
+from . import tableaux as T
+from .params import Groups, ParameterError, _check
+
+__all__ = [
+    "SolverOptions", "LinearSubsystem", "Stepper", "SolverError", "EventStormError",
+    "StepSizeError", "NonFiniteStateError", "MaxStepsError", "EVENT_NAMES", "method_tableau",
+]
+
+EVENT_NAMES = K.EVENT_NAMES
+
+
+class SolverError(RuntimeError):
+    """The integration could not continue.
+
+    Attributes
+    ----------
+    time : float
+        Nondimensional time tau where it stopped.
+    status : int
+        Kernel status code.
+    """
+
+    def __init__(self, message: str, *, time: float, status: int):
+        self.time = time
+        self.status = status
+        super().__init__(message)
+
+
+class EventStormError(SolverError):
+    """More events in one forcing period than ``max_events_per_period`` allows."""
+
+
+class StepSizeError(SolverError):
+    """The adaptive step fell below the floating-point resolution of t."""
+
+
+class NonFiniteStateError(SolverError):
+    """The state became NaN or infinite."""
+
+
+class MaxStepsError(SolverError):
+    """More steps than ``max_steps`` in one call."""
+
+
+METHODS = ("adaptive", "dp54", "rk4")
+
+
+def method_tableau(name: str):
+    """Tableau arrays of a method name: (A, B, C, E, E3, W, ns, err_kind, err_exp)."""
+    if name in ("adaptive", "dop853"):
+        return (T.DOP853_A, T.DOP853_B, T.DOP853_C, T.DOP853_E,
+                T.DOP853_E3, T.DOP853_W, T.DOP853_N_STAGES, T.ERR_DOP853, 1.0 / 8.0)
+    if name == "dp54":
+        return (T.DP54_A, T.DP54_B, T.DP54_C, T.DP54_E, T.DP54_E, T.DP54_W,
+                T.DP54_N_STAGES, T.ERR_EMBEDDED, 1.0 / 5.0)
+    if name == "rk4":
+        z = np.zeros(T.RK4_N_STAGES + 1)
+        return (T.RK4_A, T.RK4_B, T.RK4_C, z, z, T.RK4_W, T.RK4_N_STAGES, T.ERR_NONE, 0.25)
+    raise ParameterError("method", name, "one of " + ", ".join(METHODS))
+
+
+@dataclass(frozen=True)
+class SolverOptions:
+    """Options of the hybrid integrators.
+
+    Attributes
+    ----------
+    method : {'adaptive', 'dp54', 'rk4'}
+        ``adaptive``: DOP853 with 7th-order dense output, events located on the
+        dense output to a few ulp.  ``dp54``: Dormand–Prince 5(4), same event
+        logic.  ``rk4``: the paper's fixed-step RK4 with bisection.
+    rtol, atol : float
+        Tolerances of the adaptive methods [-].
+    steps_per_period : int
+        rk4: N in dtau = 2 pi / (N eta) (the paper: 1000).
+    bisection_tol : float
+        rk4: event-time tolerance of the bisection in tau (the paper: 1e-6).
+    max_events_per_period : int
+        Events allowed in one forcing period before :class:`EventStormError`.
+    max_step : float
+        Largest step in tau (inf: no limit).
+    graze_tol : float
+        A grazing extremum of an indicator counts as an event above this value.
+    max_steps : int
+        Accepted steps allowed in one call (0: no limit).
+    """
+
+    method: str = "adaptive"
+    rtol: float = 1e-8
+    atol: float = 1e-10
+    steps_per_period: int = 1000
+    bisection_tol: float = 1e-6
+    max_events_per_period: int = 2000
+    max_step: float = math.inf
+    graze_tol: float = 1e-13
+    max_steps: int = 0
+
+    def __post_init__(self):
+        if self.method not in METHODS:
+            raise ParameterError("method", self.method, "one of " + ", ".join(METHODS))
+        _check("rtol", self.rtol, 1e-15, 1.0)
+        _check("atol", self.atol, 1e-300, 1.0)
+        _check("steps_per_period", self.steps_per_period, 4, 1e9)
+        _check("bisection_tol", self.bisection_tol, 1e-15, 1.0)
+        _check("max_events_per_period", self.max_events_per_period, 1, 1e12)
+        _check("max_step", self.max_step, 0.0, math.inf, lo_open=True, allow_inf=True)
+        _check("graze_tol", self.graze_tol, 0.0, 1.0)
+        _check("max_steps", self.max_steps, 0, 1e15)
+
+
+@dataclass(frozen=True)
+class LinearSubsystem:
+    """A linear subsystem joined to the hammer (nondimensional).
+
+    ``z' = A z + H[:, 0] x1 + H[:, 1] x2`` and the force on the hammer
+    ``f_link = G . z + g[0] x1 + g[1] x2``, all in the hammer's scales.
+
+    Attributes
+    ----------
+    A : scipy.sparse matrix or ndarray, shape (nz, nz)
+    H : ndarray, shape (nz, 2)
+    G : ndarray, shape (nz,)
+    g : ndarray, shape (2,)
+    z0 : ndarray, shape (nz,)
+        Initial state.
+    """
+
+    A: object
+    H: np.ndarray
+    G: np.ndarray
+    g: np.ndarray
+    z0: np.ndarray
+
+    def csr(self):
+        """(indptr, indices, data) of A."""
+        import scipy.sparse as sp
+        A = sp.csr_matrix(self.A)
+        A.sum_duplicates()
+        return (A.indptr.astype(np.int64), A.indices.astype(np.int64), A.data.astype(np.float64))
+
+    @property
+    def size(self) -> int:
+        return int(np.asarray(self.G).shape[0])
+
+
+_EMPTY_I = np.zeros(1, dtype=np.int64)
+_EMPTY_F = np.zeros(0)
+_EMPTY_H = np.zeros((0, 2))
+_EMPTY_G2 = np.zeros(2)
+
+
+class Stepper:
+    """Resumable integrator of the hybrid hammer–bit–rock system.
+
+    Parameters
+    ----------
+    groups : Groups
+        Nondimensional parameters.
+    solver : SolverOptions, optional
+        Method and tolerances.
+    linear : LinearSubsystem, optional
+        A linear subsystem joined to the hammer (the monolithic reference).
+    energy : bool
+        Accumulate external work and dissipations as four extra states.
+    y0 : array_like, shape (4,), optional
+        Initial (x1, x2, x3, x4); zero by default (the paper's start).
+    extra_force : float
+        Constant extra force on the hammer / F0 (the FMU's ``harmonic_force`` input).
+
+    Notes
+    -----
+    The state is plain numbers: :meth:`get_state` returns a flat float64
+    array that :meth:`set_state` restores exactly.
+    """
+
+    def __init__(self, groups: Groups, *, solver: SolverOptions = SolverOptions(),
+                 linear: Optional[LinearSubsystem] = None, energy: bool = False,
+                 y0=None, extra_force: float = 0.0):
+        self.groups = groups
+        self.solver = solver
+        self.p = groups.to_kernel(extra_force=extra_force)
+        self._tab = method_tableau(solver.method)
+        nz = 0
+        if linear is not None:
+            nz = linear.size
+            Ap, Ai, Ax = linear.csr()
+            self._lin = (Ap, Ai, Ax, np.ascontiguousarray(linear.H, dtype=np.float64).reshape(nz, 2),
+                         np.ascontiguousarray(linear.G, dtype=np.float64),
+                         np.ascontiguousarray(linear.g, dtype=np.float64))
+        else:
+            self._lin = (_EMPTY_I, _EMPTY_I[:0], _EMPTY_F, _EMPTY_H, _EMPTY_F, _EMPTY_G2)
+        self.nz = nz
+        self.ne = 4 if energy else 0
+        n = 4 + nz + self.ne
+        self.y = np.zeros(n)
+        if y0 is not None:
+            y0 = np.asarray(y0, dtype=float)
+            self.y[: y0.shape[0]] = y0
+        if linear is not None:
+            self.y[4:4 + nz] = np.asarray(linear.z0, dtype=float)
+        self.istate = np.zeros(K.N_ISTATE, dtype=np.int64)
+        self.fstate = np.zeros(K.N_FSTATE)
+        period = groups.period
+        if solver.method == "rk4":
+            h0 = period / solver.steps_per_period
+        else:
+            h0 = min(0.01 * period, solver.max_step)
+        self.fstate[K.F_H] = h0
+        self.opts = np.zeros(K.N_OPTS)
+        self.opts[K.O_RTOL] = solver.rtol
+        self.opts[K.O_ATOL] = solver.atol
+        self.opts[K.O_HMAX] = solver.max_step
+        self.opts[K.O_HFIXED] = period / solver.steps_per_period if solver.method == "rk4" else 0.0
+        self.opts[K.O_EVCAP] = solver.max_events_per_period
+        self.opts[K.O_BISECT] = solver.bisection_tol
+        self.opts[K.O_MAXSTEPS] = solver.max_steps
+        self.opts[K.O_POIN_T0] = 0.0
+        self.opts[K.O_POIN_DT] = period
+        self.opts[K.O_GRAZE] = solver.graze_tol
+        self._init_modes()
+
+    def _init_modes(self):
+        """Modes consistent with the initial state (at rest: stick, free)."""
+        ist, y, p = self.istate, self.y, self.p
+        ist[K.I_STICK] = K.SLIP if y[3] > 0.0 else K.STICK
+        if p[K.P_CONTACT] > 0.0 and y[0] - y[2] - p[K.P_R] > 0.0:
+            ist[K.I_CONTACT] = K.CONTACT if 1.0 + p[K.P_LAM] * (y[1] - y[3]) > 0.0 else K.CLAMPED
+        else:
+            ist[K.I_CONTACT] = K.FREE
+        ist[K.I_WIN] = -1
+
+    # ------------------------------------------------------------------
+    @property
+    def time(self) -> float:
+        """Current nondimensional time tau."""
+        return float(self.fstate[K.F_T])
+
+    @property
+    def counts(self) -> dict:
+        """Event counts by kind name."""
+        c = self.istate[K.I_COUNT0:K.I_COUNT0 + K.N_EVENT_KINDS]
+        return {name: int(c[i]) for i, name in enumerate(EVENT_NAMES)}
+
+    def advance(self, t_end: float, *, poincare=None, sample_times=None, samples=None, log=None):
+        """Advance to ``t_end`` (tau), filling the given record buffers.
+
+        Parameters
+        ----------
+        t_end : float
+            Final nondimensional time.
+        poincare : ndarray, shape (n, 5), optional
+            Poincaré rows [tau, x1, x2, x3, x4]; row k at ``opts[O_POIN_T0] + k T``.
+        sample_times, samples : ndarray, shapes (m,) and (m, 8), optional
+            Requested times (sorted) and their rows (``kernels.N_SAMPLE_COLS``).
+        log : ndarray, shape (cap, 8), optional
+            Event log; when full, :meth:`advance` returns ``'log_full'`` and a
+            later call with a larger buffer continues.
+
+        Returns
+        -------
+        str
+            ``'done'``, ``'log_full'`` or ``'max_steps'``.
+        """
+        poin = poincare if poincare is not None else _NO_POIN
+        st = sample_times if sample_times is not None else _EMPTY_F
+        sa = samples if samples is not None else _NO_SAMP
+        lg = log if log is not None else _NO_LOG
+        A, B, C, E, E3, W, ns, ek, ee = self._tab
+        Ap, Ai, Ax, Hz, Gz, g12 = self._lin
+        status = K.advance(self.y, self.istate, self.fstate, float(t_end), self.p, self.opts,
+                           A, B, C, E, E3, W, ns, ek, ee, Ap, Ai, Ax, Hz, Gz, g12, self.ne,
+                           poin, st, sa, lg)
+        if status == K.ST_DONE:
+            return "done"
+        if status == K.ST_LOG_FULL:
+            return "log_full"
+        t = self.time
+        if status == K.ST_MAX_STEPS:
+            return "max_steps"
+        if status == K.ST_EVENT_STORM:
+            raise EventStormError(
+                f"event storm: more than {self.solver.max_events_per_period} events in the forcing "
+                f"period around tau = {t:.9g} (counts {self.counts}); raise max_events_per_period "
+                f"or check the parameters (e.g. a chattering contact or a force at the friction threshold)",
+                time=t, status=status)
+        if status == K.ST_STEP_TOO_SMALL:
+            raise StepSizeError(f"step size fell below the resolution of t at tau = {t:.9g} "
+                                f"(rtol={self.solver.rtol:g}); the problem is too stiff for these "
+                                f"tolerances", time=t, status=status)
+        if status == K.ST_NONFINITE:
+            raise NonFiniteStateError(f"state became non-finite at tau = {t:.9g}", time=t, status=status)
+        raise SolverError(f"solver stopped with status {status} at tau = {t:.9g}", time=t, status=status)
+
+    # ------------------------------------------------------------------
+    def get_state(self) -> np.ndarray:
+        """Whole solver state as one flat float64 array (y, istate, fstate, p)."""
+        return np.concatenate([self.y, self.istate.astype(np.float64), self.fstate, self.p])
+
+    def set_state(self, s: np.ndarray) -> None:
+        """Restore a state returned by :meth:`get_state` (same configuration)."""
+        s = np.asarray(s, dtype=np.float64)
+        n, ni, nf = self.y.shape[0], self.istate.shape[0], self.fstate.shape[0]
+        if s.shape != (n + ni + nf + self.p.shape[0],):
+            raise ValueError(f"state of length {s.shape} does not fit this stepper "
+                             f"(expected {n + ni + nf + self.p.shape[0]})")
+        self.y[:] = s[:n]
+        self.istate[:] = s[n:n + ni].astype(np.int64)
+        self.fstate[:] = s[n + ni:n + ni + nf]
+        self.p[:] = s[n + ni + nf:]
+
+
+_NO_POIN = np.zeros((0, 5))
+_NO_SAMP = np.zeros((0, K.N_SAMPLE_COLS))
+_NO_LOG = np.zeros((0, K.N_LOG_COLS))
