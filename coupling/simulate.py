@@ -1,0 +1,227 @@
+"""One simulation request (a *scene*) of the hammer–bit–rock model.
+
+:func:`simulate` takes the parameters, a horizon in forcing periods and a
+small :class:`Record` specification, and returns a :class:`SimResult` that
+holds exactly what was asked for, as numpy structured arrays with ``time``
+first.  Buffers are sized for the request: a scene that wants only the
+penetration allocates no trajectory.
+"""
+from __future__ import annotations
+
+import math
+import time as _time
+import warnings
+from dataclasses import dataclass, field
+from typing import Optional
+
+import numpy as np
+
+from hammerbit.model import kernels as K
+from hammerbit.model.params import Groups, ParameterError, Scales, RIG_SCALES
+from hammerbit.model.stepping import EVENT_NAMES, SolverOptions, Stepper
+
+__all__ = ["Record", "SimResult", "simulate", "BounceWarning", "POINCARE_DTYPE",
+           "SAMPLE_DTYPE", "EVENT_DTYPE"]
+
+
+class BounceWarning(UserWarning):
+    """The drive on the bit fell below -F_s while stuck: the rock would have to
+    pull the bit back (bit bounce, outside the model).  m2 is kept stuck and the
+    violation is counted, never hidden."""
+
+
+POINCARE_DTYPE = np.dtype([("time", "f8"), ("hammer_position", "f8"), ("hammer_velocity", "f8"),
+                           ("bit_position", "f8"), ("bit_velocity", "f8")])
+SAMPLE_DTYPE = np.dtype([("time", "f8"), ("hammer_position", "f8"), ("hammer_velocity", "f8"),
+                         ("bit_position", "f8"), ("bit_velocity", "f8"), ("contact_force", "f8"),
+                         ("link_force", "f8"), ("slip", "i1"), ("contact", "i1")])
+EVENT_DTYPE = np.dtype([("time", "f8"), ("kind", "U12"), ("hammer_position", "f8"),
+                        ("hammer_velocity", "f8"), ("bit_position", "f8"), ("bit_velocity", "f8"),
+                        ("relative_velocity", "f8"), ("peak_contact_force", "f8")])
+
+
+@dataclass(frozen=True)
+class Record:
+    """What a scene wants back (everything nondimensional).
+
+    Attributes
+    ----------
+    poincare : bool
+        Stroboscopic samples once per forcing period.
+    poincare_phase : float
+        Sampling phase as a fraction of the forcing period, in [0, 1).
+    times : array_like, optional
+        Sorted times tau at which to sample the state densely.
+    events : bool
+        An event log (slip starts and stops, impacts with their relative
+        velocity, separations with the peak contact force, ...).
+    energy : bool
+        Integrate the energy balance (external work and dissipations).
+    """
+
+    poincare: bool = False
+    poincare_phase: float = 0.0
+    times: Optional[np.ndarray] = None
+    events: bool = False
+    energy: bool = False
+
+    def __post_init__(self):
+        if not (0.0 <= self.poincare_phase < 1.0):
+            raise ParameterError("poincare_phase", self.poincare_phase, "[0, 1)")
+        if self.times is not None:
+            t = np.asarray(self.times, dtype=float)
+            if t.ndim != 1 or not np.all(np.isfinite(t)) or np.any(np.diff(t) < 0) or (t.size and t[0] < 0):
+                raise ParameterError("times", "array", "a 1-D sorted array of finite times >= 0")
+            object.__setattr__(self, "times", t)
+
+
+@dataclass
+class SimResult:
+    """Result of :func:`simulate`.
+
+    Attributes
+    ----------
+    groups : Groups
+        Parameters of the scene.
+    periods : float
+        Horizon in forcing periods.
+    final : ndarray, shape (4,)
+        Final (x1, x2, x3, x4).
+    poincare, samples, events : structured ndarray or None
+        Only when requested (``POINCARE_DTYPE``, ``SAMPLE_DTYPE``, ``EVENT_DTYPE``).
+    counts : dict
+        Event counts by kind (``slip_start``, ``stick``, ``impact``, ``bounce`` ...).
+    stats : dict
+        Accepted and rejected steps, right-hand-side evaluations.
+    energy : dict or None
+        ``work``, ``kinetic``, ``spring``, ``contact``, ``damper``, ``contact_loss``,
+        ``friction`` and the residual ``balance`` of the energy equation.
+    wall_time_s : float
+        Solver time, excluding compilation and set-up.
+    """
+
+    groups: Groups
+    periods: float
+    final: np.ndarray
+    counts: dict
+    stats: dict
+    wall_time_s: float
+    poincare: Optional[np.ndarray] = None
+    samples: Optional[np.ndarray] = None
+    events: Optional[np.ndarray] = None
+    energy: Optional[dict] = None
+
+    @property
+    def penetration(self) -> float:
+        """Bit position x3 at the end [x0]."""
+        return float(self.final[2])
+
+    def penetration_m(self, scales: Scales = RIG_SCALES) -> float:
+        """Bit position at the end [m]."""
+        return self.penetration * scales.length
+
+
+def _energy_terms(y, ne_start, g: Groups) -> dict:
+    x1, x2, x3, x4 = y[:4]
+    d = x1 - x3 - g.r
+    e = y[ne_start:ne_start + 4]
+    contact = g.kc * d ** (g.n + 1.0) / (g.n + 1.0) if (g.has_gap and d > 0) else 0.0
+    terms = {
+        "work": float(e[0]),
+        "kinetic": float(0.5 * x2 * x2 + 0.5 * g.rho * x4 * x4),
+        "spring": float(0.5 * (x1 - x3) ** 2),
+        "contact": float(contact),
+        "damper": float(e[1]),
+        "contact_loss": float(e[2]),
+        "friction": float(e[3]),
+    }
+    terms["balance"] = terms["work"] - sum(terms[k] for k in ("kinetic", "spring", "contact", "damper",
+                                                              "contact_loss", "friction"))
+    return terms
+
+
+def simulate(groups: Groups, periods: float, *, record: Record = Record(),
+             solver: SolverOptions = SolverOptions(), y0=None) -> SimResult:
+    """Simulate a scene of the hammer–bit–rock model from rest.
+
+    Parameters
+    ----------
+    groups : Groups
+        Nondimensional parameters (see :func:`hammerbit.model.params.preset`).
+    periods : float
+        Horizon in forcing periods (> 0).
+    record : Record
+        What to return besides the final state and the counters.
+    solver : SolverOptions
+        Method (``adaptive``, ``dp54`` or ``rk4``) and tolerances.
+    y0 : array_like, shape (4,), optional
+        Initial state; zero by default.
+
+    Returns
+    -------
+    SimResult
+
+    Raises
+    ------
+    ParameterError
+        Bad horizon or record.
+    EventStormError, StepSizeError, NonFiniteStateError
+        The integration could not continue; the message says where and why.
+    """
+    if not (isinstance(periods, (int, float, np.integer, np.floating)) and math.isfinite(periods)
+            and 0 < periods <= 1e9):
+        raise ParameterError("periods", periods, "(0, 1e9]")
+    T = groups.period
+    tau_end = periods * T
+    st = Stepper(groups, solver=solver, energy=record.energy, y0=y0)
+    st.opts[K.O_POIN_T0] = record.poincare_phase * T
+    poin = samp_t = samp = None
+    if record.poincare:
+        n_poin = int(math.floor(periods - record.poincare_phase + 1e-9)) + 1
+        poin = np.zeros((n_poin, 5))
+    if record.times is not None:
+        samp_t = np.ascontiguousarray(record.times[record.times <= tau_end * (1 + 1e-15)])
+        samp = np.zeros((samp_t.shape[0], K.N_SAMPLE_COLS))
+    log = np.zeros((max(64, int(8 * periods)) if record.events else 0, K.N_LOG_COLS))
+    st.advance(st.time, poincare=poin, sample_times=samp_t, samples=samp, log=log)  # load compiled code
+    t0 = _time.perf_counter()
+    while True:
+        status = st.advance(tau_end, poincare=poin, sample_times=samp_t, samples=samp, log=log)
+        if status != "log_full":
+            break
+        log = np.concatenate([log, np.zeros_like(log)])
+    wall = _time.perf_counter() - t0
+    counts = st.counts
+    if counts["bounce"] > 0:
+        warnings.warn(f"bit bounce: the drive on the bit fell below -F_s {counts['bounce']} time(s) "
+                      f"(a={groups.a:g} >= b={groups.b:g}?); the bit was held stuck, outside the "
+                      f"model's validity", BounceWarning, stacklevel=2)
+    res = SimResult(
+        groups=groups, periods=periods, final=st.y[:4].copy(), counts=counts,
+        stats={"steps": int(st.istate[K.I_STEPS]), "rejected": int(st.istate[K.I_REJECTS]),
+               "rhs": int(st.istate[K.I_RHS])},
+        wall_time_s=wall,
+    )
+    if poin is not None:
+        k = int(st.istate[K.I_POIN_NEXT])
+        res.poincare = np.rec.fromarrays(poin[:k].T, dtype=POINCARE_DTYPE).view(np.ndarray)
+    if samp is not None:
+        out = np.zeros(samp_t.shape[0], dtype=SAMPLE_DTYPE)
+        out["time"] = samp_t
+        for i, name in enumerate(SAMPLE_DTYPE.names[1:]):
+            out[name] = samp[:, i]
+        res.samples = out
+    if record.events:
+        n = int(st.istate[K.I_NLOG])
+        ev = np.zeros(n, dtype=EVENT_DTYPE)
+        rows = log[:n]
+        ev["time"] = rows[:, K.L_T]
+        ev["kind"] = np.asarray(EVENT_NAMES)[rows[:, K.L_KIND].astype(int)] if n else []
+        for name, col in (("hammer_position", K.L_X1), ("hammer_velocity", K.L_X2),
+                          ("bit_position", K.L_X3), ("bit_velocity", K.L_X4),
+                          ("relative_velocity", K.L_VREL), ("peak_contact_force", K.L_PEAK)):
+            ev[name] = rows[:, col]
+        res.events = ev
+    if record.energy:
+        res.energy = _energy_terms(st.y, 4, groups)
+    return res
