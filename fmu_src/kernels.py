@@ -138,8 +138,19 @@ def contact_force(d, dd, p, mode_c):
 
 @njit(cache=True, inline="always", _nrt=False)
 def friction_kinetic(v, p):
-    """Kinetic friction over F0: mu + (1 - mu) exp(-gamma_hat v)."""
-    return p[P_MU] + (1.0 - p[P_MU]) * math.exp(-p[P_GAMMA] * v)
+    """Kinetic friction over F0: mu + (1 - mu) exp(-gamma_hat v) for v >= 0.
+
+    Trial stages of a step that crosses the slip -> stick event see v < 0.
+    There the exponential is replaced by its second-order Taylor polynomial
+    (C2 at v = 0), so the overshoot does not blow up the error estimate; the
+    solution beyond the event is never used.
+    """
+    gv = p[P_GAMMA] * v
+    if gv >= 0.0:
+        e = math.exp(-gv)
+    else:
+        e = 1.0 - gv + 0.5 * gv * gv
+    return p[P_MU] + (1.0 - p[P_MU]) * e
 
 
 @njit(cache=True, inline="always", _nrt=False)
