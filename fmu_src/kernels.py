@@ -974,3 +974,29 @@ def advance(y, istate, fstate, t_end, p, opts,
         record_until(t, ynew, t, y, 1.0, False, F, act, 0, A, B, C, ns, K2, ytmp, ys,
                      p, istate, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, opts, poin, samp_t, samp)
     return ST_DONE
+
+
+# ---------------------------------------------------------------------------
+# Entry points with the tableau and an empty subsystem bound as constants.
+# Fewer arguments make a call from Python cheaper (the FMU calls once per
+# communication step).
+# ---------------------------------------------------------------------------
+from . import tableaux as _T  # noqa: E402
+
+_DOP_A, _DOP_B, _DOP_C, _DOP_E, _DOP_E3, _DOP_W = (_T.DOP853_A, _T.DOP853_B, _T.DOP853_C, _T.DOP853_E,
+                                                   _T.DOP853_E3, _T.DOP853_W)
+_NO_AP = np.zeros(1, dtype=np.int64)
+_NO_AI = np.zeros(0, dtype=np.int64)
+_NO_AX = np.zeros(0)
+_NO_H = np.zeros((0, 2))
+_NO_G = np.zeros(0)
+_NO_G2 = np.zeros(2)
+
+
+@njit(cache=True, nogil=True)
+def advance_hammer(y, istate, fstate, t_end, p, opts, poin, samp_t, samp, log):
+    """``advance`` with DOP853, no linear subsystem and no energy block."""
+    return advance(y, istate, fstate, t_end, p, opts,
+                   _DOP_A, _DOP_B, _DOP_C, _DOP_E, _DOP_E3, _DOP_W, 12, 2, 0.125,
+                   _NO_AP, _NO_AI, _NO_AX, _NO_H, _NO_G, _NO_G2, 0,
+                   poin, samp_t, samp, log)

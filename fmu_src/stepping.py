@@ -208,6 +208,7 @@ class Stepper:
             self._lin = (_EMPTY_I, _EMPTY_I[:0], _EMPTY_F, _EMPTY_H, _EMPTY_F, _EMPTY_G2)
         self.nz = nz
         self.ne = 4 if energy else 0
+        self._fast = solver.method == "adaptive" and nz == 0 and self.ne == 0
         n = 4 + nz + self.ne
         self.y = np.zeros(n)
         if y0 is not None:
@@ -282,11 +283,21 @@ class Stepper:
         st = sample_times if sample_times is not None else _EMPTY_F
         sa = samples if samples is not None else _NO_SAMP
         lg = log if log is not None else _NO_LOG
+        if self._fast:
+            status = K.advance_hammer(self.y, self.istate, self.fstate, float(t_end), self.p, self.opts,
+                                      poin, st, sa, lg)
+        else:
+            status = self._advance_general(t_end, poin, st, sa, lg)
+        return self._status(status)
+
+    def _advance_general(self, t_end, poin, st, sa, lg):
         A, B, C, E, E3, W, ns, ek, ee = self._tab
         Ap, Ai, Ax, Hz, Gz, g12 = self._lin
-        status = K.advance(self.y, self.istate, self.fstate, float(t_end), self.p, self.opts,
-                           A, B, C, E, E3, W, ns, ek, ee, Ap, Ai, Ax, Hz, Gz, g12, self.ne,
-                           poin, st, sa, lg)
+        return K.advance(self.y, self.istate, self.fstate, float(t_end), self.p, self.opts,
+                         A, B, C, E, E3, W, ns, ek, ee, Ap, Ai, Ax, Hz, Gz, g12, self.ne,
+                         poin, st, sa, lg)
+
+    def _status(self, status):
         if status == K.ST_DONE:
             return "done"
         if status == K.ST_LOG_FULL:
