@@ -47,7 +47,7 @@ def main(argv=None):
                          f"lambda_max = {lam['lambda_per_period']:.3f}/period")
     summary["chaos"] = {"lambda_per_period": lam["lambda_per_period"]}
     (OUT / "paper_figures.json").write_text(json.dumps(summary, indent=1))
-    print(json.dumps({k: v["periods_per_second"] for k, v in summary.items()}))
+    print(json.dumps({k: v.get("periods_per_second", v.get("lambda_per_period")) for k, v in summary.items()}))
 
 
 if __name__ == "__main__":
