@@ -98,7 +98,7 @@ def plot_attractor(poincare, path, *, title=""):
             poincare["hammer_velocity"] - poincare["bit_velocity"], "k.", ms=1)
     ax.set_xlabel("x1 - x3")
     ax.set_ylabel("x2 - x4")
-    ax.set_title(title)
+    ax.set_title(title, fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)

@@ -43,7 +43,7 @@ def main(argv=None):
     lam = largest_lyapunov(g, windows=100)
     r = simulate(g, 5000, record=Record(poincare=True))
     plot_attractor(r.poincare[200:], OUT / "chaos_fig15.png",
-                   title=f"strange attractor: eta=0.8, b=0.3, r=0.84, mu=0.6, a=0.1967; "
+                   title=f"strange attractor: eta=0.8, b=0.3, r=0.84, mu=0.6, a=0.1967\n"
                          f"lambda_max = {lam['lambda_per_period']:.3f}/period")
     summary["chaos"] = {"lambda_per_period": lam["lambda_per_period"]}
     (OUT / "paper_figures.json").write_text(json.dumps(summary, indent=1))

@@ -82,7 +82,8 @@ F_H = 1           # proposed next step
 F_PEAK = 2        # peak contact force of the current contact
 F_IMPACT_V = 3    # relative velocity of the last impact
 F_H_MODE = 4      # last step used in each regime: stick, slip, contact (3 slots)
-N_FSTATE = 7
+F_V4_PEAK = 7     # peak bit velocity of the current slip (error scale of x4)
+N_FSTATE = 8
 
 # options
 O_RTOL = 0
@@ -141,15 +142,17 @@ def friction_kinetic(v, p):
     """Kinetic friction over F0: mu + (1 - mu) exp(-gamma_hat v) for v >= 0.
 
     Trial stages of a step that crosses the slip -> stick event see v < 0.
-    There the exponential is replaced by its second-order Taylor polynomial
-    (C2 at v = 0), so the overshoot does not blow up the error estimate; the
-    solution beyond the event is never used.
+    The exponential is kept (analytic, so the error estimate of a step across
+    the stop stays honest) down to gamma_hat v = -4, and continued by its
+    second-order Taylor polynomial beyond, so a long overshoot cannot blow up.
+    The solution beyond the event is never used.
     """
     gv = p[P_GAMMA] * v
-    if gv >= 0.0:
+    if gv >= -4.0:
         e = math.exp(-gv)
     else:
-        e = 1.0 - gv + 0.5 * gv * gv
+        u = gv + 4.0  # < 0
+        e = 54.598150033144236 * (1.0 - u + 0.5 * u * u)
     return p[P_MU] + (1.0 - p[P_MU]) * e
 
 
@@ -358,8 +361,13 @@ def rk_step(t, y, h, A, B, C, ns, K, ynew, ytmp, act, n_act,
 
 
 @njit(cache=True, _nrt=False)
-def error_norm(y, ynew, h, K, E, E3, err_kind, ns, act, n_act, rtol, atol):
+def error_norm(y, ynew, h, K, E, E3, err_kind, ns, act, n_act, rtol, atol, v4_peak):
     """RMS norm of the embedded error estimate, scaled by atol + rtol |y|.
+
+    The bit velocity x4 is scaled by its peak in the current slip instead of
+    its instantaneous value: as the bit decelerates to a stop, a scale that
+    shrinks with x4 would demand ever smaller steps for no gain in the
+    accuracy of the stop time (which depends on the absolute error of x4).
 
     ``err_kind`` 1: single estimate with weights E over ns + 1 stages;
     2: Hairer's DOP853 combination of the 5th (E) and 3rd (E3) order estimates.
@@ -370,6 +378,8 @@ def error_norm(y, ynew, h, K, E, E3, err_kind, ns, act, n_act, rtol, atol):
     for q in range(n_act):
         i = act[q]
         sc = atol + rtol * max(abs(y[i]), abs(ynew[i]))
+        if i == 3:
+            sc = max(sc, atol + rtol * v4_peak)
         a5 = 0.0
         a3 = 0.0
         for j in range(ns + 1):
@@ -461,6 +471,7 @@ def apply_event(kind, y, istate, fstate, p):
     if kind == EV_SLIP_START:
         istate[I_STICK] = SLIP
         y[3] = 0.0
+        fstate[F_V4_PEAK] = 0.0
     elif kind == EV_STICK:
         y[3] = 0.0
         if drive_on_bit(y, p, mc) <= 1.0:
@@ -806,6 +817,12 @@ def advance(y, istate, fstate, t_end, p, opts,
             else:
                 hmin = 10.0 * 2.220446049250313e-16 * max(abs(t), 1.0)
                 rejected = False
+                if ms == SLIP and K[0, 3] < 0.0:
+                    # the bit decelerates to a stop: do not step far past the
+                    # predicted stop, where the friction law is extrapolated
+                    t_stop = -y[3] / K[0, 3]
+                    if h > 1.3 * t_stop:
+                        h = max(1.3 * t_stop, 1e-3 * h)
                 while True:
                     if h > hmax:
                         h = hmax
@@ -818,7 +835,8 @@ def advance(y, istate, fstate, t_end, p, opts,
                     rk_step(t, y, h, A, B, C, ns, K, ynew, ytmp, act, n_act,
                             p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
                     istate[I_RHS] += ns
-                    err = error_norm(y, ynew, h, K, E, E3, err_kind, ns, act, n_act, rtol, atol)
+                    err = error_norm(y, ynew, h, K, E, E3, err_kind, ns, act, n_act, rtol, atol,
+                                     fstate[F_V4_PEAK])
                     finite = math.isfinite(err)
                     if finite:
                         for i in range(n):
@@ -906,6 +924,8 @@ def advance(y, istate, fstate, t_end, p, opts,
                 for i in range(n):
                     y[i] = ynew[i]
                     K[0, i] = K[ns, i]
+                if y[3] > fstate[F_V4_PEAK]:
+                    fstate[F_V4_PEAK] = y[3]
                 t = t1
                 if not fixed:
                     h = h_next
