@@ -1,0 +1,194 @@
+"""``hammerbit cosim`` and ``hammerbit sweep``: the co-simulation from the command line.
+
+``hammerbit cosim --string FILE --fmu dist/HammerBitRock.fmu --stop T --step H
+[--scheme jacobi|gauss-seidel] [--extrapolation 0|1|2] [--json] [--out results.csv]``
+
+``hammerbit sweep --string FILE --fmu ... --frequencies LO HI N [--plot FILE] [--csv FILE]``
+
+``--string`` takes a TOML file or a built-in example name (``field-2200m``).
+Without ``--fmu`` the hammer runs in process (the FMU's own kernels,
+:class:`hammerbit.cosim.StepperHammer`).  The hammer is the field hammer
+(:func:`hammerbit.cosim.field_hammer`) unless ``--set`` changes it.
+"""
+from __future__ import annotations
+
+import json
+import math
+import sys
+import time
+
+__all__ = ["register", "cmd_cosim", "cmd_sweep"]
+
+
+def _common(p):
+    p.add_argument("--string", required=True, help="drillstring TOML file or example name (field-2200m)")
+    p.add_argument("--fmu", default=None, help="HammerBitRock.fmu (default: the same model in process)")
+    p.add_argument("--step", type=float, default=1e-3, help="macro step H [s] (default 1e-3)")
+    p.add_argument("--scheme", default="jacobi", choices=["jacobi", "gauss-seidel"])
+    p.add_argument("--extrapolation", type=int, default=2, choices=[0, 1, 2],
+                   help="polynomial order of the exchanged signals (default 2)")
+    p.add_argument("--wob", type=float, default=None, help="weight on bit of the static equilibrium [N] "
+                                                            "(default: the hammer's preload, 55 kN)")
+    p.add_argument("--interface-stiffness", type=float, default=None, help="k_i [N/m] (default 2e6)")
+    p.add_argument("--interface-damping", type=float, default=None, help="c_i [N s/m] (default 2e3)")
+    p.add_argument("--f-max", type=float, default=None, help="modal truncation of the string [Hz]")
+    p.add_argument("--set", action="append", metavar="FIELD=VALUE",
+                   help="change a field of the hammer's RigParameters (SI), e.g. amplitude=5000")
+
+
+def _config(args, **extra):
+    from .cosim import CosimConfig, field_hammer
+    rig = field_hammer()
+    changes = {}
+    for item in args.set or []:
+        if "=" not in item:
+            raise SystemExit(f"hammerbit: --set expects FIELD=VALUE, got {item!r}")
+        k, v = item.split("=", 1)
+        try:
+            changes[k.strip()] = float(v)
+        except ValueError:
+            raise SystemExit(f"hammerbit: --set {k.strip()}: {v!r} is not a number") from None
+    if changes:
+        try:
+            rig = rig.replace(**changes)
+        except TypeError as e:
+            raise SystemExit(f"hammerbit: --set: {e}") from None
+    kw = dict(step=args.step, scheme=args.scheme, extrapolation=args.extrapolation, rig=rig,
+              wob=args.wob, f_max=args.f_max)
+    if args.interface_stiffness is not None:
+        kw["interface_stiffness"] = args.interface_stiffness
+    if args.interface_damping is not None:
+        kw["interface_damping"] = args.interface_damping
+    kw.update(extra)
+    try:
+        return CosimConfig(**kw)
+    except ValueError as e:
+        raise SystemExit(f"hammerbit: {e}") from None
+
+
+def _string(args):
+    from .drillstring import DrillStringError, load_string
+    try:
+        return load_string(args.string)
+    except (DrillStringError, FileNotFoundError, OSError, ValueError) as e:
+        raise SystemExit(f"hammerbit: --string {args.string}: {e}") from None
+
+
+def _fmu(args):
+    if args.fmu is None:
+        return None
+    from pathlib import Path
+    if not Path(args.fmu).is_file():
+        raise SystemExit(f"hammerbit: --fmu {args.fmu}: no such file (build it with python build_fmu.py)")
+    return args.fmu
+
+
+def cmd_cosim(args) -> int:
+    from .cosim import CouplingInstabilityError, cosimulate
+    cfg = _config(args, stop=args.stop, record=("wob", "interface_force", "hammer_position",
+                                                "hammer_velocity", "bit_position", "bit_velocity",
+                                                "hook_load"),
+                  progress=None if not args.json else False)
+    string = _string(args)
+    t0 = time.perf_counter()
+    try:
+        res = cosimulate(string, cfg, fmu=_fmu(args))
+    except CouplingInstabilityError as e:
+        print(f"hammerbit cosim: {e}", file=sys.stderr)
+        return 3
+    total = time.perf_counter() - t0
+    out = res.summary()
+    out["total_time_s"] = total
+    out["hammer"] = "fmu" if args.fmu else "in-process"
+    out["string"] = string.name
+    out["wob_static_n"] = cfg.weight_on_bit
+    if args.out:
+        res.to_csv(args.out)
+        out["csv"] = str(args.out)
+    if args.json:
+        print(json.dumps(out, indent=2, default=float))
+    else:
+        print(f"{string.name}: {res.macro_steps} macro steps of {cfg.step:g} s ({cfg.scheme}, "
+              f"extrapolation order {cfg.extrapolation}, hammer {out['hammer']})")
+        print(f"  WOB mean {out['wob_mean_n']:.1f} N, dynamic amplitude {out['wob_amplitude_n']:.1f} N "
+              f"(second half of the run)")
+        print(f"  penetration {out['penetration_m']:.6g} m, wall time {out['wall_time_s']:.3f} s "
+              f"(+ set-up {out['setup_time_s']:.3f} s)")
+        if args.out:
+            print(f"  wrote {args.out}")
+    return 0
+
+
+def cmd_sweep(args) -> int:
+    import numpy as np
+    from .cosim import CouplingInstabilityError, coupled_modes, plot_sweep, sweep, write_sweep_csv
+    lo, hi, n = args.frequencies
+    n = int(n)
+    if not (0 < lo < hi) or n < 1:
+        raise SystemExit("hammerbit sweep: --frequencies LO HI N needs 0 < LO < HI and N >= 1")
+    freqs = np.linspace(lo, hi, n) if n > 1 else np.array([lo])
+    cfg = _config(args, stop=args.duration, progress=False)
+    string = _string(args)
+
+    def prog(i, total, row):
+        if not args.json:
+            print(f"  {row['frequency_hz']:8.3f} Hz  WOB amplitude {row['wob_amplitude_n']:10.1f} N  "
+                  f"bounce margin {row['bounce_margin']:7.3f}  ROP {row['rop_m_per_h']:8.4f} m/h",
+                  file=sys.stderr)
+
+    t0 = time.perf_counter()
+    try:
+        res = sweep(string, freqs, cfg, fmu=_fmu(args), progress=prog)
+    except CouplingInstabilityError as e:
+        print(f"hammerbit sweep: {e}", file=sys.stderr)
+        return 3
+    modes = coupled_modes(string, cfg, f_max=hi * 1.2)
+    in_band = [float(f) for f in modes if lo <= f <= hi]
+    i_pk = int(np.argmax(res["wob_amplitude_n"]))
+    out = {"string": string.name, "frequencies_hz": [float(f) for f in freqs],
+           "duration_s": args.duration, "wall_time_s": time.perf_counter() - t0,
+           "peak_frequency_hz": float(res["frequency_hz"][i_pk]),
+           "peak_wob_amplitude_n": float(res["wob_amplitude_n"][i_pk]),
+           "coupled_modes_hz": in_band,
+           "rows": [{k: float(r[k]) for k in res.dtype.names} for r in res]}
+    if in_band:
+        out["nearest_mode_to_peak_hz"] = min(in_band, key=lambda f: abs(f - out["peak_frequency_hz"]))
+    if args.csv:
+        write_sweep_csv(res, args.csv)
+        out["csv"] = str(args.csv)
+    if args.plot:
+        plot_sweep(res, args.plot, modes=np.array(in_band),
+                   title=f"{string.name}: hammer frequency sweep (A = {cfg.rig.amplitude:g} N)")
+        out["plot"] = str(args.plot)
+    if args.json:
+        print(json.dumps(out, indent=2))
+    else:
+        print(f"peak dynamic WOB amplitude {out['peak_wob_amplitude_n']:.1f} N at "
+              f"{out['peak_frequency_hz']:.3f} Hz; coupled natural frequencies (bit on bottom) in band: "
+              + ", ".join(f"{f:.2f}" for f in in_band))
+    return 0
+
+
+def register(subparsers) -> None:
+    """Add ``cosim`` and ``sweep`` to the ``hammerbit`` command."""
+    p = subparsers.add_parser("cosim", help="co-simulate the drillstring with the hammer FMU",
+                              description="Co-simulation: the drillstring stepped exactly by the master, "
+                                          "the hammer as an FMU, from static equilibrium.")
+    _common(p)
+    p.add_argument("--stop", type=float, required=True, help="simulated time [s]")
+    p.add_argument("--json", action="store_true", help="print a JSON summary")
+    p.add_argument("--out", default=None, help="CSV of the recorded variables")
+    p.set_defaults(func=cmd_cosim)
+
+    p = subparsers.add_parser("sweep", help="frequency sweep of the hammer excitation",
+                              description="Steady dynamic WOB amplitude, bounce margin and rate of "
+                                          "penetration against the hammer's excitation frequency.")
+    _common(p)
+    p.add_argument("--frequencies", nargs=3, type=float, required=True, metavar=("LO", "HI", "N"),
+                   help="LO HI [Hz] and the number of frequencies N")
+    p.add_argument("--duration", type=float, default=6.0,
+                   help="simulated time per frequency [s]; the last third is the steady window (default 6)")
+    p.add_argument("--plot", default=None, help="figure file (png, svg, pdf)")
+    p.add_argument("--csv", default=None, help="CSV of the sweep")
+    p.add_argument("--json", action="store_true", help="print a JSON summary")
+    p.set_defaults(func=cmd_sweep)

@@ -1,0 +1,1088 @@
+"""Co-simulation master: a linear drillstring stepped exactly, a hammer FMU.
+
+The coupled system (everything positive downward)::
+
+    hook (fixed) -- drillstring (linear, n nodes) -- interface (k_i, c_i) -- hammer m1
+                 -- spring/damper (K, C) and impact gap -- bit m2 -- rock (stick/slip)
+
+Causality
+---------
+* **String side** (stepped by this master): the string *and* the interface
+  spring-dashpot.  Input: the hammer's position and velocity ``(x_h, v_h)``;
+  output: the interface force on the hammer
+  ``F_i = W + k_i (u_b - u_b,eq - (x_h - x_h,eq)) + c_i (v_b - v_h)`` (pushing
+  the hammer down; ``-F_i`` acts on the string's bottom node).
+* **Hammer side** (the FMU ``HammerBitRock.fmu``, or the same kernels in
+  process, :class:`StepperHammer`): input ``preload`` = ``F_i`` (held
+  constant over a macro step, FMI 2.0 co-simulation); outputs hammer and bit
+  position and velocity.
+
+Exact string step
+-----------------
+Over a macro step ``[t_n, t_n + H]`` the hammer motion seen by the string is
+a polynomial (degree 0, 1 or 2) given by its Taylor coefficients.  The string
+state ``xi`` (deviation from static equilibrium) obeys
+``xi' = A' xi + E w(s)``, ``A' = A - B (k_i C_u + c_i C_v)``, ``E = B [k_i, c_i]``.
+Appending the polynomial's coefficients as a nilpotent chain and the time
+integral of the interface force as one more state gives one linear
+autonomous system whose matrix exponential ``expm(Z H)`` (computed once per
+``H``, :func:`scipy.linalg.expm`) maps ``[xi_n, coefficients]`` exactly to
+``[xi_{n+1}, int F_i dt]``: one dense mat-vec per macro step, no loops over
+elements.  ``CosimConfig.f_max`` truncates to the modes below ``f_max``.
+
+Schemes
+-------
+* ``jacobi``: both sides step from the data at ``t_n``.  The hammer gets the
+  mean over the step of the force extrapolated (order 0, 1, 2) from
+  ``F(t_n), F(t_{n-1}), F(t_{n-2})`` (weights 1; 3/2, -1/2; 23/12, -16/12, 5/12);
+  the string gets the hammer motion extrapolated from ``t_n, t_{n-1}, t_{n-2}``.
+* ``gauss-seidel``: the hammer steps first (as above); the string then
+  *interpolates* the hammer motion through the new value: order 0 holds the
+  value at ``t_{n+1}``, order 1 is linear between ``t_n`` and ``t_{n+1}``,
+  order 2 the parabola through ``t_{n-1}, t_n, t_{n+1}``.
+
+Communication times are ``t0 + n H`` (never accumulated).
+
+Coupling instability
+--------------------
+As ECCO's power-bond residual (Sadjina et al. 2017): over each macro step the
+energy the string side delivers through the interface,
+``int F_i v_h,used dt`` (trapezoid on the step ends), is compared with the
+work the held force does on the hammer, ``F_held (x_h(t_{n+1}) - x_h(t_n))``
+(exact).  Their difference is the energy the coupling creates or destroys.
+The absolute residual is summed over windows of ``stability_window`` steps;
+when a window's residual exceeds ``energy_tol`` times the reference energy of
+the interface (``W^2/(2 k_i) + W^2/(2 K) + A^2/K``) *and* has grown by
+``growth`` over each of ``growth_windows`` consecutive windows, or when the
+interface force leaves ``blowup`` times its physical scale, or a value is
+not finite, :class:`CouplingInstabilityError` is raised.
+
+Field hammer
+------------
+:func:`field_hammer` scales the rig of the paper to field size keeping all
+dimensionless groups; see its docstring.
+"""
+from __future__ import annotations
+
+import math
+import sys
+import time as _time
+from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
+from typing import Optional, Sequence
+
+import numpy as np
+import scipy.linalg as sla
+
+from hammerbit.model.params import RigParameters, Scales, RIG
+
+__all__ = [
+    "CosimConfig", "CosimResult", "CouplingInstabilityError", "field_hammer", "StringSide",
+    "StepperHammer", "FMUHammer", "cosimulate", "monolithic", "RECORDABLE", "SCHEMES",
+    "extrapolation_weights", "coupled_modes", "sweep", "plot_sweep", "write_sweep_csv", "SWEEP_DTYPE", "wob_frf",
+]
+
+SCHEMES = ("jacobi", "gauss-seidel")
+
+#: Variables a run can record (all SI), in output order after ``time``.
+RECORDABLE = {
+    "wob": "weight on bit: drive of the hammer assembly on the bit K(x_h-x_b)+C(v_h-v_b)+F_c [N]",
+    "interface_force": "force of the string (interface spring-dashpot) on the hammer [N]",
+    "hammer_force": "force held on the hammer's preload input over the step [N]",
+    "hammer_position": "hammer position [m] (downward)",
+    "hammer_velocity": "hammer velocity [m/s]",
+    "bit_position": "bit position = penetration [m]",
+    "bit_velocity": "bit velocity [m/s]",
+    "string_bit_displacement": "displacement of the string's bottom node from equilibrium [m]",
+    "string_bit_velocity": "velocity of the string's bottom node [m/s]",
+    "hook_load": "hook load [N]: static hook load plus the dynamic tension of the top element",
+    "energy_residual": "coupling energy residual of the step (power-bond residual x H) [J]",
+}
+
+
+class CouplingInstabilityError(RuntimeError):
+    """The co-simulation coupling became unstable (energy growth at the interface).
+
+    Attributes
+    ----------
+    time : float
+        Communication time [s] where it was detected.
+    step : int
+        Macro-step index.
+    residual : float
+        Absolute energy residual of the last window [J].
+    reference : float
+        Reference energy [J] it was compared with.
+    """
+
+    def __init__(self, message: str, *, time: float, step: int, residual: float, reference: float):
+        self.time = time
+        self.step = step
+        self.residual = residual
+        self.reference = reference
+        super().__init__(message)
+
+
+# ---------------------------------------------------------------------------
+# field hammer
+# ---------------------------------------------------------------------------
+def field_hammer(*, hammer_mass: float = 400.0, natural_frequency: float = 20.0,
+                 friction_force: float = 100e3, groups=None) -> RigParameters:
+    """A field-size resonance hammer with the dimensionless groups of the rig.
+
+    The rig of Franca & Weber (``RigParameters()``: m1 = 25.3 kg,
+    K = 2170 N/m, F0 = 54 N, natural frequency 1.47 Hz) is scaled by choosing
+    the three scales the nondimensional form loses:
+
+    * hammer mass ``m1 = 400 kg`` -- a downhole hammer body of a few hundred
+      kilograms (an 8 in percussion hammer piston and housing);
+    * natural frequency ``Omega/2pi = 20 Hz`` -- the middle of the 10-30 Hz
+      band of downhole resonance/percussion tools, so ``K = m1 Omega^2 =
+      6.32e6 N/m``;
+    * friction force ``F0 = 100 kN`` -- so the rig's preload group
+      ``b = 0.55`` is a weight on bit of 55 kN (5.6 t), a usual WOB for an
+      8.5 in hard-rock bit, and ``a = 0.15`` is a 15 kN harmonic force.
+
+    Every group (rho, xi, eta, a, b, r, mu, gamma_hat, kc, n, lam_hat, phi)
+    is that of ``RigParameters().to_groups()`` (or ``groups`` if given), so
+    the nondimensional dynamics are the rig's; the length scale becomes
+    ``x0 = F0/K = 15.8 mm``.  ``preload`` is the WOB of the static
+    equilibrium, ``frequency`` = 20 Hz (eta = 1).
+    """
+    g = RIG.to_groups() if groups is None else groups
+    K = hammer_mass * (2.0 * math.pi * natural_frequency) ** 2
+    return g.to_rig(Scales(hammer_mass, K, friction_force), mu_static=RIG.mu_static)
+
+
+# ---------------------------------------------------------------------------
+# configuration
+# ---------------------------------------------------------------------------
+@dataclass(frozen=True, kw_only=True)
+class CosimConfig:
+    """Options of a co-simulation run (SI units; keyword-only).
+
+    Attributes
+    ----------
+    stop : float
+        End time [s] (start at ``start``).
+    step : float
+        Macro step H [s].
+    start : float
+        Start time t0 [s].
+    scheme : {'jacobi', 'gauss-seidel'}
+    extrapolation : {0, 1, 2}
+        Polynomial order of the exchanged signals over a step.
+    rig : RigParameters
+        Hammer; its ``preload`` is replaced by the interface force and its
+        amplitude/frequency/phase drive the internal harmonic source.
+    wob : float, optional
+        Weight on bit of the static equilibrium [N] (default ``rig.preload``).
+    interface_stiffness, interface_damping : float
+        k_i [N/m], c_i [N s/m] between the string's bottom node and the hammer.
+        Default 2e6 N/m and 2e3 N s/m: a shock sub.  With the 400 kg field
+        hammer it puts the hammer-on-interface mode at 11 Hz, below the
+        20 Hz drive, so the string is isolated and the hammer resonates and
+        drills.  A stiff interface (>= 1e7 N/m) clamps the hammer to the
+        collars (impedance ~ 7e5 N s/m against ``omega m1`` = 5e4 N s/m), the
+        hammer cannot resonate and the bit does not progress.
+    mass : str
+        Mass scheme of the string (``mixed``, ``lumped``, ``consistent``).
+    f_max : float, optional
+        Modal truncation of the string at f_max [Hz] (None: all nodal DOFs).
+    record : tuple of str
+        Variables to record (keys of :data:`RECORDABLE`); ``time`` is always first.
+    record_every : int
+        Record every n-th communication point.
+    check_stability : bool
+        Watch the power-bond residual (see module docstring).
+    energy_tol, growth, growth_windows, stability_window, blowup : float/int
+        Thresholds of the instability detector.
+    progress : bool, optional
+        Progress bar on stderr (None: only for runs above 20000 steps on a tty).
+    rtol : float
+        Tolerance of the in-process hammer / the monolithic reference.
+    """
+
+    stop: float = 1.0
+    step: float = 1e-3
+    start: float = 0.0
+    scheme: str = "jacobi"
+    extrapolation: int = 2
+    rig: RigParameters = field(default_factory=field_hammer)
+    wob: Optional[float] = None
+    interface_stiffness: float = 2.0e6
+    interface_damping: float = 2.0e3
+    mass: str = "mixed"
+    f_max: Optional[float] = None
+    record: tuple = ("wob", "interface_force", "hammer_position", "hammer_velocity",
+                     "bit_position", "bit_velocity")
+    record_every: int = 1
+    check_stability: bool = True
+    energy_tol: float = 0.05
+    growth: float = 1.2
+    growth_windows: int = 3
+    stability_window: int = 10
+    blowup: float = 50.0
+    progress: Optional[bool] = None
+    rtol: float = 1e-10
+
+    def __post_init__(self):
+        if self.scheme not in SCHEMES:
+            raise ValueError(f"scheme = {self.scheme!r}: allowed {', '.join(SCHEMES)}")
+        if self.extrapolation not in (0, 1, 2):
+            raise ValueError(f"extrapolation = {self.extrapolation!r}: allowed 0, 1, 2")
+        if not (self.step > 0 and math.isfinite(self.step)):
+            raise ValueError(f"step = {self.step!r}: must be > 0 s")
+        if not self.stop > self.start:
+            raise ValueError(f"stop = {self.stop!r}: must be > start = {self.start!r}")
+        if self.interface_stiffness <= 0 or self.interface_damping < 0:
+            raise ValueError("interface_stiffness must be > 0 and interface_damping >= 0")
+        bad = [r for r in self.record if r not in RECORDABLE]
+        if bad:
+            raise ValueError(f"record: unknown variable(s) {bad}; allowed {', '.join(RECORDABLE)}")
+        if self.record_every < 1:
+            raise ValueError("record_every must be >= 1")
+        if self.wob is not None and self.wob < 0:
+            raise ValueError("wob must be >= 0 N")
+
+    @property
+    def weight_on_bit(self) -> float:
+        """WOB of the static equilibrium [N]."""
+        return float(self.rig.preload if self.wob is None else self.wob)
+
+    @property
+    def macro_steps(self) -> int:
+        """Number of macro steps ``round((stop - start)/step)``."""
+        return int(round((self.stop - self.start) / self.step))
+
+    def replace(self, **changes) -> "CosimConfig":
+        return replace(self, **changes)
+
+
+def _dtype(record: Sequence[str]) -> np.dtype:
+    return np.dtype([("time", "f8")] + [(r, "f8") for r in record])
+
+
+@dataclass
+class CosimResult:
+    """Result of :func:`cosimulate` or :func:`monolithic`.
+
+    Attributes
+    ----------
+    data : structured ndarray
+        ``time`` then the recorded variables (SI).
+    config : CosimConfig
+    macro_steps : int
+    wall_time_s : float
+        Time of the stepping loop (set-up excluded).
+    setup_time_s : float
+    penetration_m : float
+        Bit position at the end [m].
+    stats : dict
+        Maximum window energy residual, hammer calls, ...
+    method : str
+        ``cosim`` or ``monolithic``.
+    """
+
+    data: np.ndarray
+    config: CosimConfig
+    macro_steps: int
+    wall_time_s: float
+    setup_time_s: float
+    penetration_m: float
+    stats: dict
+    method: str = "cosim"
+
+    def window(self, t_from: Optional[float] = None) -> np.ndarray:
+        """Rows with time >= t_from (default: the second half of the run)."""
+        if t_from is None:
+            t_from = 0.5 * (self.config.start + self.config.stop)
+        return self.data[self.data["time"] >= t_from - 1e-12]
+
+    def wob_amplitude(self, t_from: Optional[float] = None) -> float:
+        """Dynamic WOB amplitude (max - min)/2 over the window [N]."""
+        w = self.window(t_from)["wob"]
+        return float(0.5 * (w.max() - w.min()))
+
+    def wob_mean(self, t_from: Optional[float] = None) -> float:
+        """Mean WOB over the window [N]."""
+        return float(np.mean(self.window(t_from)["wob"]))
+
+    def summary(self, t_from: Optional[float] = None) -> dict:
+        """JSON-ready figures."""
+        out = {"method": self.method, "scheme": self.config.scheme,
+               "extrapolation": self.config.extrapolation, "step_s": self.config.step,
+               "stop_s": self.config.stop, "macro_steps": self.macro_steps,
+               "wall_time_s": self.wall_time_s, "setup_time_s": self.setup_time_s,
+               "penetration_m": self.penetration_m}
+        if "wob" in self.data.dtype.names:
+            out["wob_mean_n"] = self.wob_mean(t_from)
+            out["wob_amplitude_n"] = self.wob_amplitude(t_from)
+        out.update({k: v for k, v in self.stats.items() if isinstance(v, (int, float, str))})
+        return out
+
+    def to_csv(self, path) -> Path:
+        """Write the recorded array as CSV (header = field names)."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        names = self.data.dtype.names
+        arr = np.column_stack([self.data[n] for n in names]) if len(self.data) else np.zeros((0, len(names)))
+        np.savetxt(path, arr, delimiter=",", header=",".join(names), comments="", fmt="%.17g")
+        return path
+
+
+# ---------------------------------------------------------------------------
+# extrapolation
+# ---------------------------------------------------------------------------
+def extrapolation_weights(order: int) -> np.ndarray:
+    """Weights on (F_n, F_{n-1}, F_{n-2}) of the mean over [t_n, t_n+H] of the
+    extrapolation polynomial of the given order (Adams–Bashforth weights)."""
+    return {0: np.array([1.0, 0.0, 0.0]), 1: np.array([1.5, -0.5, 0.0]),
+            2: np.array([23.0, -16.0, 5.0]) / 12.0}[order]
+
+
+def _taylor_extrap(order: int, w0, w1, w2, H: float) -> np.ndarray:
+    """Taylor coefficients (value, slope, 2nd derivative) at s = 0 of the polynomial
+    through samples w0 (s=0), w1 (s=-H), w2 (s=-2H); each of shape (2,)."""
+    out = np.zeros(6)
+    out[0:2] = w0
+    if order >= 1:
+        if order == 1:
+            out[2:4] = (w0 - w1) / H
+        else:
+            out[2:4] = (3.0 * w0 - 4.0 * w1 + w2) / (2.0 * H)
+            out[4:6] = (w0 - 2.0 * w1 + w2) / (H * H)
+    return out
+
+
+def _taylor_interp(order: int, wnew, w0, w1, H: float) -> np.ndarray:
+    """Taylor coefficients at s = 0 through wnew (s=H), w0 (s=0), w1 (s=-H)."""
+    out = np.zeros(6)
+    if order == 0:
+        out[0:2] = wnew
+    elif order == 1:
+        out[0:2] = w0
+        out[2:4] = (wnew - w0) / H
+    else:
+        out[0:2] = w0
+        out[2:4] = (wnew - w1) / (2.0 * H)
+        out[4:6] = (wnew - 2.0 * w0 + w1) / (H * H)
+    return out
+
+
+def _poly_at(c: np.ndarray, s: float) -> np.ndarray:
+    return c[0:2] + c[2:4] * s + 0.5 * c[4:6] * s * s
+
+
+# ---------------------------------------------------------------------------
+# string side
+# ---------------------------------------------------------------------------
+class StringSide:
+    """The drillstring plus interface spring, stepped exactly over a macro step.
+
+    Parameters
+    ----------
+    string : DrillString
+    config : CosimConfig
+
+    Attributes
+    ----------
+    ss : StateSpace
+        Exported model (``hammerbit.drillstring.state_space``) at the WOB.
+    A1, E : ndarray
+        Closed-interface state matrix and the input matrix of ``(x_h, v_h)``.
+    Cu, Cv, Ct : ndarray
+        Output rows: bit displacement, bit velocity, top tension.
+    """
+
+    def __init__(self, string, config: CosimConfig):
+        from hammerbit.drillstring import Boundary, state_space
+        self.config = config
+        ki, ci = config.interface_stiffness, config.interface_damping
+        self.ki, self.ci = ki, ci
+        self.wob = config.weight_on_bit
+        ss = state_space(string, None, Boundary.hammer(ki, ci), mass=config.mass,
+                         wob=self.wob, f_max=config.f_max)
+        if ss.x0 is None:
+            raise ValueError("the string has a rigid-body mode: the top must hold it (fixed or spring hook)")
+        self.ss = ss
+        B = ss.B[:, 0]
+        self.Cu, self.Cv, self.Ct = ss.C[0].copy(), ss.C[1].copy(), ss.C[2].copy()
+        self.A1 = ss.A - np.outer(B, ki * self.Cu + ci * self.Cv)
+        self.E = np.column_stack((B * ki, B * ci))
+        self.n = ss.A.shape[0]
+        self.frow = ki * self.Cu + ci * self.Cv   # F_i - W = frow.xi - ki x_dev - ci v
+        self.hook_eq = float(ss.hook_load)
+        self.xi = np.zeros(self.n)
+        self._H = None
+
+    def discretise(self, H: float) -> None:
+        """Precompute ``expm`` of the augmented system for the macro step H."""
+        n = self.n
+        N = n + 6 + 1
+        Z = np.zeros((N, N))
+        Z[:n, :n] = self.A1
+        Z[:n, n:n + 2] = self.E
+        Z[n:n + 2, n + 2:n + 4] = np.eye(2)
+        Z[n + 2:n + 4, n + 4:n + 6] = np.eye(2)
+        Z[N - 1, :n] = self.frow
+        Z[N - 1, n:n + 2] = (-self.ki, -self.ci)
+        Phi = sla.expm(Z * H)
+        rows = np.r_[np.arange(n), N - 1]
+        self.P = np.ascontiguousarray(Phi[np.ix_(rows, np.arange(n + 6))])
+        self._H = H
+        self._buf = np.zeros(n + 6)
+
+    def step(self, coeffs: np.ndarray) -> float:
+        """Advance xi over one step with hammer-motion Taylor coefficients
+        (6,) = (x, v, x', v', x'', v''); x as deviation from equilibrium.
+        Returns the integral of (F_i - W) over the step [N s]."""
+        b = self._buf
+        b[:self.n] = self.xi
+        b[self.n:] = coeffs
+        out = self.P @ b
+        self.xi = out[:self.n]
+        return float(out[self.n])
+
+    def force(self, x_dev: float, v: float) -> float:
+        """Interface force on the hammer [N] for hammer deviation x_dev and velocity v."""
+        return self.wob + float(self.frow @ self.xi) - self.ki * x_dev - self.ci * v
+
+    def bit(self) -> tuple:
+        """(displacement deviation [m], velocity [m/s]) of the string's bottom node."""
+        return float(self.Cu @ self.xi), float(self.Cv @ self.xi)
+
+    def hook_load(self) -> float:
+        return self.hook_eq + float(self.Ct @ self.xi)
+
+
+# ---------------------------------------------------------------------------
+# hammer sides
+# ---------------------------------------------------------------------------
+class StepperHammer:
+    """The hammer–bit–rock model in process (the FMU's kernels, same stepper).
+
+    Starts in static equilibrium under the WOB ``W``: hammer at ``x_h = W/K``
+    (its spring compressed by ``W/K``), bit stuck at 0, both at rest.  The
+    ``preload`` (interface force) is held over each step as in the FMU.
+    """
+
+    def __init__(self, rig: RigParameters, wob: float, *, rtol: float = 1e-10, t0: float = 0.0):
+        from hammerbit.model import kernels as K
+        from hammerbit.model.stepping import SolverOptions, Stepper
+        self.rig = rig
+        s = rig.scales
+        self.F0, self.x0, self.Om, self.v0 = s.friction_force, s.length, s.omega, s.velocity
+        g = rig.to_groups().replace(b=0.0)
+        self.groups = g
+        self._K = K
+        self.st = Stepper(g, solver=SolverOptions(rtol=rtol, atol=rtol * 1e-2),
+                          y0=[wob / self.F0, 0.0, 0.0, 0.0])
+        self.st.fstate[K.F_T] = self.Om * t0
+        self.x_eq = wob / rig.stiffness
+
+    def step(self, t: float, H: float, force: float) -> None:
+        self.st.p[self._K.P_B] = force / self.F0
+        self.st.advance(self.Om * (t + H))
+
+    def read(self) -> np.ndarray:
+        """(x_h [m], v_h [m/s], x_bit [m], v_bit [m/s], drive on bit [N])."""
+        y, g = self.st.y, self.groups
+        fk = (y[0] - y[2]) + 2.0 * g.xi * (y[1] - y[3])
+        fc = 0.0
+        if g.has_gap:
+            d = y[0] - y[2] - g.r
+            if d > 0:
+                fc = max(0.0, g.kc * d ** g.n * (1.0 + g.lam_hat * (y[1] - y[3])))
+        return np.array([y[0] * self.x0, y[1] * self.v0, y[2] * self.x0, y[3] * self.v0,
+                         (fk + fc) * self.F0])
+
+    def close(self):
+        pass
+
+
+#: Candidate variable names of the FMU (first match wins).
+FMU_NAMES = {
+    "preload": ("preload",),
+    "hammer_position": ("hammer_position", "x_hammer", "hammer.position"),
+    "hammer_velocity": ("hammer_velocity", "v_hammer", "hammer.velocity"),
+    "bit_position": ("bit_position", "x_bit", "bit.position", "penetration"),
+    "bit_velocity": ("bit_velocity", "v_bit", "bit.velocity"),
+    "contact_force": ("contact_force", "impact_force"),
+    "rock_force": ("rock_force", "drive_on_bit"),
+    "hammer_position_start": ("hammer_position_start", "initial_hammer_position", "hammer_position0",
+                              "x_hammer_start"),
+}
+
+
+class FMUHammer:
+    """The hammer FMU driven through fmpy's ``FMU2Slave``.
+
+    Value references come from ``read_model_description`` by name.  The
+    hammer's parameters are set from the ``RigParameters`` fields the FMU
+    exposes (same names); ``preload`` is the input.  If the FMU exposes a
+    start value of the hammer position (``hammer_position_start`` or the
+    names in :data:`FMU_NAMES`), the run starts in equilibrium
+    (``W/K``); otherwise the initial preload step is the FMU's own start-up.
+    """
+
+    def __init__(self, path, rig: RigParameters, wob: float, *, t0: float = 0.0, rtol: float = 1e-8,
+                 instance: str = "hammer"):
+        from fmpy import extract, read_model_description
+        from fmpy.fmi2 import FMU2Slave
+        self.path = str(path)
+        md = read_model_description(self.path)
+        self.md = md
+        self.vr = {v.name: v.valueReference for v in md.modelVariables}
+        self.causality = {v.name: v.causality for v in md.modelVariables}
+        self._unzip = extract(self.path)
+        self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=self._unzip,
+                             modelIdentifier=md.coSimulation.modelIdentifier, instanceName=instance)
+        self.fmu.instantiate()
+        self.fmu.setupExperiment(startTime=t0)
+        self.fmu.enterInitializationMode()
+        # parameters by name
+        names, vals = [], []
+        for f in fields(RigParameters):
+            if f.name in ("preload", "gap") or f.name not in self.vr:
+                continue
+            if self.causality[f.name] == "parameter":
+                names.append(self.vr[f.name])
+                vals.append(float(getattr(rig, f.name)))
+        if "gap" in self.vr and math.isfinite(rig.gap):
+            names.append(self.vr["gap"])
+            vals.append(float(rig.gap))
+        if "tolerance" in self.vr:
+            names.append(self.vr["tolerance"])
+            vals.append(float(rtol))
+        if names:
+            self.fmu.setReal(names, vals)
+        if "impact_enabled" in self.vr:
+            self.fmu.setBoolean([self.vr["impact_enabled"]], [bool(math.isfinite(rig.gap))])
+        self.equilibrium_start = False
+        vs = self._find("hammer_position_start", required=False)
+        if vs is not None:
+            self.fmu.setReal([vs], [wob / rig.stiffness])
+            self.equilibrium_start = True
+        self.vr_in = self._find("preload")
+        self.fmu.setReal([self.vr_in], [wob])
+        self.fmu.exitInitializationMode()
+        out = [self._find(k) for k in ("hammer_position", "hammer_velocity", "bit_position", "bit_velocity")]
+        self.vr_rock = self._find("rock_force", required=False)
+        self.vr_fc = None if self.vr_rock is not None else self._find("contact_force", required=False)
+        extra = self.vr_rock if self.vr_rock is not None else self.vr_fc
+        self.vr_out = out + ([extra] if extra is not None else [])
+        self.rig = rig
+        self.x_eq = wob / rig.stiffness if self.equilibrium_start else 0.0
+        self._K, self._C = rig.stiffness, rig.damping
+
+    def _find(self, key: str, *, required: bool = True):
+        for nm in FMU_NAMES[key]:
+            if nm in self.vr:
+                return self.vr[nm]
+        if required:
+            raise KeyError(f"FMU {self.path}: no variable for {key!r} (tried {FMU_NAMES[key]}); "
+                           f"it has {sorted(self.vr)}")
+        return None
+
+    def step(self, t: float, H: float, force: float) -> None:
+        self.fmu.setReal([self.vr_in], [force])
+        self.fmu.doStep(currentCommunicationPoint=t, communicationStepSize=H)
+
+    def read(self) -> np.ndarray:
+        v = self.fmu.getReal(self.vr_out)
+        if self.vr_rock is not None:
+            wob = v[4]
+        else:
+            fc = v[4] if len(v) > 4 else 0.0
+            wob = self._K * (v[0] - v[2]) + self._C * (v[1] - v[3]) + fc
+        return np.array([v[0], v[1], v[2], v[3], wob])
+
+    def close(self):
+        import shutil
+        try:
+            self.fmu.terminate()
+            self.fmu.freeInstance()
+        finally:
+            shutil.rmtree(self._unzip, ignore_errors=True)
+
+
+# ---------------------------------------------------------------------------
+# progress
+# ---------------------------------------------------------------------------
+class _Progress:
+    def __init__(self, total: int, enabled: bool):
+        self.total, self.enabled = total, enabled
+        self.t0 = _time.perf_counter()
+        self.next = 0
+
+    def update(self, k: int):
+        if not self.enabled or k < self.next:
+            return
+        self.next = k + max(1, self.total // 100)
+        frac = k / self.total
+        el = _time.perf_counter() - self.t0
+        eta = el / frac - el if frac > 0 else 0.0
+        bar = "#" * int(30 * frac)
+        sys.stderr.write(f"\rcosim [{bar:<30}] {100 * frac:5.1f}%  {el:6.1f}s  eta {eta:6.1f}s")
+        sys.stderr.flush()
+
+    def close(self):
+        if self.enabled:
+            self.update(self.total)
+            sys.stderr.write("\n")
+
+
+# ---------------------------------------------------------------------------
+# per-step exchange kernel (numba): coefficients, exact string step, residual
+# ---------------------------------------------------------------------------
+from numba import njit as _njit  # noqa: E402
+
+
+@_njit(cache=True, fastmath=True)
+def _matvec(P, b, out):
+    """out[i] = sum_k P[i, k] b[k] for the first len(out) rows (SIMD reduction)."""
+    m = b.shape[0]
+    for i in range(out.shape[0]):
+        acc = 0.0
+        for k in range(m):
+            acc += P[i, k] * b[k]
+        out[i] = acc
+
+
+@_njit(cache=True)
+def _exchange(gs, order, H, P, xi, buf, frow, ki, ci, W, wh, Fh, x_new, v_new, F_held, out):
+    """One macro step of the string side after the hammer's step.
+
+    ``wh`` (3, 2): hammer (x deviation, v) at t_n, t_{n-1}, t_{n-2}; ``Fh`` (3,):
+    interface forces at the same times.  Builds the Taylor coefficients of the
+    hammer motion (Jacobi: extrapolated from ``wh``; Gauss–Seidel: interpolated
+    through the new value), advances ``xi`` with the precomputed ``P``, shifts
+    the histories and writes ``out = [F(t_{n+1}), energy residual of the step]``.
+    """
+    n = xi.shape[0]
+    c = buf[n:]
+    for k in range(2):
+        w0 = wh[0, k]
+        w1 = wh[1, k]
+        w2 = wh[2, k]
+        wn = x_new if k == 0 else v_new
+        c[k] = 0.0
+        c[2 + k] = 0.0
+        c[4 + k] = 0.0
+        if not gs:
+            c[k] = w0
+            if order == 1:
+                c[2 + k] = (w0 - w1) / H
+            elif order == 2:
+                c[2 + k] = (3.0 * w0 - 4.0 * w1 + w2) / (2.0 * H)
+                c[4 + k] = (w0 - 2.0 * w1 + w2) / (H * H)
+        else:
+            if order == 0:
+                c[k] = wn
+            elif order == 1:
+                c[k] = w0
+                c[2 + k] = (wn - w0) / H
+            else:
+                c[k] = w0
+                c[2 + k] = (wn - w1) / (2.0 * H)
+                c[4 + k] = (wn - 2.0 * w0 + w1) / (H * H)
+    f_xi = 0.0
+    for i in range(n):
+        f_xi += frow[i] * xi[i]
+        buf[i] = xi[i]
+    F_start = W + f_xi - ki * c[0] - ci * c[1]
+    # P @ buf by hand: no BLAS call (its thread pool costs more than this small mat-vec)
+    _matvec(P, buf, xi)
+    f_xi = 0.0
+    for i in range(n):
+        f_xi += frow[i] * xi[i]
+    xe = c[0] + c[2] * H + 0.5 * c[4] * H * H
+    ve = c[1] + c[3] * H + 0.5 * c[5] * H * H
+    F_end = W + f_xi - ki * xe - ci * ve
+    e_string = 0.5 * H * (F_start * c[1] + F_end * ve)
+    e_hammer = F_held * (x_new - wh[0, 0])
+    F = W + f_xi - ki * x_new - ci * v_new
+    wh[2, 0] = wh[1, 0]
+    wh[2, 1] = wh[1, 1]
+    wh[1, 0] = wh[0, 0]
+    wh[1, 1] = wh[0, 1]
+    wh[0, 0] = x_new
+    wh[0, 1] = v_new
+    Fh[2] = Fh[1]
+    Fh[1] = Fh[0]
+    Fh[0] = F
+    out[0] = F
+    out[1] = e_string - e_hammer
+
+
+# ---------------------------------------------------------------------------
+# the master
+# ---------------------------------------------------------------------------
+def cosimulate(string, config: CosimConfig = CosimConfig(), *, fmu=None, hammer=None) -> CosimResult:
+    """Co-simulate the drillstring (stepped here) with the hammer.
+
+    Parameters
+    ----------
+    string : DrillString
+        E.g. ``hammerbit.drillstring.load_string('field-2200m')``.
+    config : CosimConfig
+    fmu : path, optional
+        ``HammerBitRock.fmu``; the hammer is then the FMU (fmpy ``FMU2Slave``).
+    hammer : object, optional
+        A ready hammer side with ``step(t, H, force)``, ``read()``, ``close()``
+        and ``x_eq``; default: the FMU if ``fmu`` is given, else
+        :class:`StepperHammer` (the same kernels in process).
+
+    Raises
+    ------
+    CouplingInstabilityError
+        When the interface energy residual grows (see module docstring).
+    """
+    c = config
+    ts = _time.perf_counter()
+    side = StringSide(string, c)
+    H = c.step
+    side.discretise(H)
+    W = side.wob
+    rig = c.rig
+    own = hammer is None
+    if hammer is None:
+        hammer = FMUHammer(fmu, rig, W, t0=c.start, rtol=c.rtol) if fmu is not None else \
+            StepperHammer(rig, W, rtol=c.rtol, t0=c.start)
+    setup = _time.perf_counter() - ts
+    n_steps = c.macro_steps
+    rec = tuple(c.record)
+    nrec = n_steps // c.record_every + 1
+    data = np.zeros(nrec, dtype=_dtype(rec))
+    cols = {r: data[r] for r in rec}
+    tcol = data["time"]
+    ext_w = extrapolation_weights(c.extrapolation)
+    order = c.extrapolation
+    gs = c.scheme == "gauss-seidel"
+    x_eq = hammer.x_eq
+    # histories (index 0 newest): hammer motion (x_dev, v), forces
+    out = hammer.read()
+    wh = np.zeros((3, 2))
+    wh[:] = (out[0] - x_eq, out[1])
+    F = side.force(wh[0, 0], wh[0, 1])
+    Fh = np.array([F, F, F])
+    E_ref = W * W / (2 * side.ki) + W * W / (2 * rig.stiffness) + rig.amplitude ** 2 / rig.stiffness
+    E_ref = max(E_ref, 1e-12)
+    F_scale = c.blowup * (W + rig.amplitude + rig.scales.friction_force)
+    win_sum, win_prev, n_grow, max_win, k_in_win = 0.0, math.inf, 0, 0.0, 0
+    res_total = 0.0
+    progress = _Progress(n_steps, c.progress if c.progress is not None
+                         else (n_steps > 20000 and sys.stderr.isatty()))
+    F_held = F
+    r_step = 0.0
+
+    def record(j, t, out, F, F_held, r_step):
+        tcol[j] = t
+        for name, col in cols.items():
+            if name == "wob":
+                col[j] = out[4]
+            elif name == "interface_force":
+                col[j] = F
+            elif name == "hammer_force":
+                col[j] = F_held
+            elif name == "hammer_position":
+                col[j] = out[0]
+            elif name == "hammer_velocity":
+                col[j] = out[1]
+            elif name == "bit_position":
+                col[j] = out[2]
+            elif name == "bit_velocity":
+                col[j] = out[3]
+            elif name == "string_bit_displacement":
+                col[j] = side.bit()[0]
+            elif name == "string_bit_velocity":
+                col[j] = side.bit()[1]
+            elif name == "hook_load":
+                col[j] = side.hook_load()
+            elif name == "energy_residual":
+                col[j] = r_step
+
+    def _hammer_step(hammer, t, H, F_held, n, n_grow):
+        try:
+            hammer.step(t, H, F_held)
+        except Exception as err:
+            # the hammer side gave up; if the interface was already growing, that is the cause
+            if c.check_stability and (n_grow > 0 or abs(F_held - W) > 0.2 * F_scale
+                                      or not math.isfinite(F_held)):
+                raise CouplingInstabilityError(
+                    f"coupling unstable: the hammer side failed at t = {t:.6g} s (step {n + 1}, "
+                    f"H = {H:g} s, k_i = {side.ki:g} N/m) under a growing interface force "
+                    f"{F_held:.4g} N: {err}", time=t, step=n + 1, residual=math.nan,
+                    reference=E_ref) from err
+            raise
+
+    record(0, c.start, out, F, F, 0.0)
+    j = 1
+    P, xi, frow = side.P, side.xi, side.frow
+    buf = np.zeros(P.shape[1])
+    scratch = np.zeros(4)
+    ki, ci = side.ki, side.ci
+    check = c.check_stability
+    t_loop = _time.perf_counter()
+    progress.t0 = t_loop
+    try:
+        for n in range(n_steps):
+            t = c.start + n * H
+            F_held = ext_w[0] * Fh[0] + ext_w[1] * Fh[1] + ext_w[2] * Fh[2]
+            _hammer_step(hammer, t, H, F_held, n, n_grow)
+            out = hammer.read()
+            _exchange(gs, order, H, P, xi, buf, frow, ki, ci, W, wh, Fh, out[0] - x_eq, out[1],
+                      F_held, scratch)
+            F, r_step = scratch[0], scratch[1]
+            res_total += r_step
+            if check:
+                if not (math.isfinite(F) and math.isfinite(out[0]) and math.isfinite(out[1])):
+                    raise CouplingInstabilityError(
+                        f"coupling unstable: non-finite interface values at t = {t + H:.6g} s "
+                        f"(step {n + 1}, H = {H:g} s, k_i = {side.ki:g} N/m)",
+                        time=t + H, step=n + 1, residual=math.inf, reference=E_ref)
+                if abs(F - W) > F_scale:
+                    raise CouplingInstabilityError(
+                        f"coupling unstable: interface force {F:.4g} N left {c.blowup:g} x its scale "
+                        f"at t = {t + H:.6g} s (step {n + 1}, H = {H:g} s, k_i = {side.ki:g} N/m); "
+                        f"reduce H or the interface stiffness",
+                        time=t + H, step=n + 1, residual=win_sum, reference=E_ref)
+                win_sum += abs(r_step)
+                k_in_win += 1
+                if k_in_win == c.stability_window:
+                    max_win = max(max_win, win_sum)
+                    if win_sum > c.growth * win_prev:
+                        n_grow += 1
+                    else:
+                        n_grow = 0
+                    if win_sum > c.energy_tol * E_ref and n_grow >= c.growth_windows:
+                        raise CouplingInstabilityError(
+                            f"coupling unstable: interface energy residual {win_sum:.4g} J over "
+                            f"{c.stability_window} steps (reference {E_ref:.4g} J) grew {n_grow} "
+                            f"windows in a row, at t = {t + H:.6g} s (step {n + 1}, H = {H:g} s, "
+                            f"k_i = {side.ki:g} N/m, scheme {c.scheme}, order {order}); "
+                            f"reduce H or the interface stiffness",
+                            time=t + H, step=n + 1, residual=win_sum, reference=E_ref)
+                    win_prev = win_sum
+                    win_sum, k_in_win = 0.0, 0
+            if (n + 1) % c.record_every == 0:
+                record(j, c.start + (n + 1) * H, out, F, F_held, r_step)
+                j += 1
+            if progress.enabled:
+                progress.update(n + 1)
+    finally:
+        progress.close()
+        if own:
+            hammer.close()
+    wall = _time.perf_counter() - t_loop
+    stats = {"max_window_energy_residual_j": max_win, "energy_residual_total_j": res_total,
+             "reference_energy_j": E_ref, "string_states": side.n}
+    return CosimResult(data[:j], c, n_steps, wall, setup, float(out[2]), stats, "cosim")
+
+
+# ---------------------------------------------------------------------------
+# monolithic reference
+# ---------------------------------------------------------------------------
+def monolithic(string, config: CosimConfig = CosimConfig()) -> CosimResult:
+    """The same coupled system as one hybrid system (reference solution).
+
+    The string with the interface spring is the linear subsystem of
+    :class:`hammerbit.model.stepping.Stepper` (nondimensional: lengths in
+    ``x0``, velocities in ``x0 Omega``, time ``tau = Omega t``, forces in
+    ``F0``), integrated by the same adaptive event-located solver as the
+    hammer at ``config.rtol``.  A constant state (``z_c = 1``) carries the
+    equilibrium offsets.  Samples at the communication times ``t0 + n H``;
+    string-side variables that the sampler does not return
+    (``string_bit_*``, ``hook_load``, ``energy_residual``, ``hammer_force``)
+    are NaN, except ``hammer_force`` = ``interface_force``.
+    """
+    from hammerbit.model.stepping import LinearSubsystem, SolverOptions, Stepper
+    c = config
+    ts = _time.perf_counter()
+    side = StringSide(string, c)
+    rig = c.rig
+    s = rig.scales
+    F0, x0, Om, v0 = s.friction_force, s.length, s.omega, s.velocity
+    W = side.wob
+    n = side.n
+    nq = n // 2
+    D = np.r_[np.full(nq, x0), np.full(n - nq, v0)]
+    x1eq = W / F0  # hammer position [x0] with the bit at 0: spring compressed by W/K
+    # z = [xi / D, 1]
+    A = np.zeros((n + 1, n + 1))
+    A[:n, :n] = (side.A1 * D[None, :]) / D[:, None] / Om
+    Hm = (side.E * np.array([x0, v0])[None, :]) / D[:, None] / Om
+    A[:n, n] = -Hm[:, 0] * x1eq
+    Hz = np.zeros((n + 1, 2))
+    Hz[:n] = Hm
+    G = np.zeros(n + 1)
+    G[:n] = side.frow * D / F0
+    G[n] = (W + side.ki * x0 * x1eq) / F0
+    g = np.array([-side.ki * x0 / F0, -side.ci * v0 / F0])
+    z0 = np.zeros(n + 1)
+    z0[n] = 1.0
+    lin = LinearSubsystem(A=A, H=Hz, G=G, g=g, z0=z0)
+    grp = rig.to_groups().replace(b=0.0)
+    st = Stepper(grp, solver=SolverOptions(rtol=c.rtol, atol=c.rtol * 1e-2), linear=lin,
+                 y0=[x1eq, 0.0, 0.0, 0.0])
+    from hammerbit.model import kernels as K
+    st.fstate[K.F_T] = Om * c.start
+    n_steps = c.macro_steps
+    idx = np.arange(0, n_steps + 1, c.record_every)
+    t_s = c.start + idx * c.step
+    samples = np.zeros((len(t_s), K.N_SAMPLE_COLS))
+    setup = _time.perf_counter() - ts
+    t_loop = _time.perf_counter()
+    st.advance(Om * (c.start + n_steps * c.step), sample_times=Om * t_s, samples=samples)
+    wall = _time.perf_counter() - t_loop
+    data = np.full(len(t_s), np.nan, dtype=_dtype(c.record))
+    data["time"] = t_s
+    x1, x2, x3, x4, fc, fl = (samples[:, i] for i in range(6))
+    wob = ((x1 - x3) + 2 * grp.xi * (x2 - x4) + fc) * F0
+    m = {"wob": wob, "interface_force": fl * F0, "hammer_force": fl * F0,
+         "hammer_position": x1 * x0, "hammer_velocity": x2 * v0, "bit_position": x3 * x0,
+         "bit_velocity": x4 * v0}
+    for r in c.record:
+        if r in m:
+            data[r] = m[r]
+    stats = {"string_states": n, "events": st.counts}
+    return CosimResult(data, c, n_steps, wall, setup, float(st.y[2] * x0), stats, "monolithic")
+
+
+# ---------------------------------------------------------------------------
+# linear modes of the coupled system and frequency sweep
+# ---------------------------------------------------------------------------
+def coupled_modes(string, config: CosimConfig = CosimConfig(), *, f_max: float = 100.0) -> np.ndarray:
+    """Natural frequencies [Hz] of the coupled linear system with the bit on bottom.
+
+    The modal check of this configuration: the string (hook at the top) with the
+    hammer as its bottom boundary -- interface ``(k_i, c_i)``, hammer mass ``m1``,
+    hammer spring ``(K, C)`` -- and the bit held by the rock (stuck).  Damped
+    natural frequencies ``|Im lambda| / 2 pi`` of the state matrix, sorted, up
+    to ``f_max``.
+    """
+    side = StringSide(string, config)
+    rig = config.rig
+    n = side.n
+    m1, K, C = rig.hammer_mass, rig.stiffness, rig.damping
+    A = np.zeros((n + 2, n + 2))
+    A[:n, :n] = side.A1
+    A[:n, n:n + 2] = side.E
+    A[n, n + 1] = 1.0
+    A[n + 1, :n] = side.frow / m1
+    A[n + 1, n] = -(side.ki + K) / m1
+    A[n + 1, n + 1] = -(side.ci + C) / m1
+    lam = np.linalg.eigvals(A)
+    f = np.abs(lam.imag[lam.imag > 0]) / (2 * math.pi)
+    f = np.sort(f)
+    return f[f <= f_max]
+
+
+SWEEP_DTYPE = np.dtype([("frequency_hz", "f8"), ("wob_mean_n", "f8"), ("wob_amplitude_n", "f8"),
+                        ("wob_min_n", "f8"), ("bounce_margin", "f8"), ("rop_m_per_h", "f8"),
+                        ("penetration_m", "f8")])
+
+
+def sweep(string, frequencies, config: CosimConfig = CosimConfig(), *, fmu=None,
+          window: Optional[float] = None, progress=None) -> np.ndarray:
+    """Frequency sweep of the hammer excitation (one co-simulation per frequency).
+
+    For each frequency ``f`` the hammer's harmonic source runs at ``f`` from
+    the static equilibrium for ``config.stop - config.start`` seconds; the last
+    ``window`` seconds (default: the last third) give the steady figures:
+
+    * ``wob_amplitude_n``: dynamic WOB amplitude at the bit, (max - min)/2 [N];
+    * ``bounce_margin``: ``1 + min(WOB)/F_s`` with ``F_s = mu_e F_N`` the static
+      friction threshold; <= 0 means bit bounce (the rock would have to pull
+      the bit back, model.md);
+    * ``rop_m_per_h``: rate of penetration over the window [m/h].
+
+    Returns a structured array (:data:`SWEEP_DTYPE`), one row per frequency.
+    """
+    freqs = np.asarray(frequencies, dtype=float)
+    out = np.zeros(len(freqs), dtype=SWEEP_DTYPE)
+    dur = config.stop - config.start
+    win = dur / 3.0 if window is None else float(window)
+    F_s = config.rig.scales.friction_force
+    cfg0 = config.replace(record=("wob", "bit_position"), record_every=1, progress=False)
+    for i, f in enumerate(freqs):
+        cfg = cfg0.replace(rig=config.rig.replace(frequency=float(f)))
+        r = cosimulate(string, cfg, fmu=fmu)
+        w = r.window(config.stop - win)
+        out[i] = (f, w["wob"].mean(), 0.5 * np.ptp(w["wob"]), w["wob"].min(),
+                  1.0 + w["wob"].min() / F_s,
+                  (w["bit_position"][-1] - w["bit_position"][0]) / (w["time"][-1] - w["time"][0]) * 3600.0,
+                  r.penetration_m)
+        if progress:
+            progress(i + 1, len(freqs), out[i])
+    return out
+
+
+def plot_sweep(result: np.ndarray, path, *, modes: Optional[np.ndarray] = None, title: str = "") -> Path:
+    """Sweep figure: WOB amplitude, bounce margin and ROP against frequency,
+    with the coupled natural frequencies (bit on bottom) as vertical lines."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    f = result["frequency_hz"]
+    fig, ax = plt.subplots(3, 1, figsize=(8, 8), sharex=True)
+    ax[0].plot(f, result["wob_amplitude_n"] / 1e3, ".-")
+    ax[0].set_ylabel("dynamic WOB amplitude [kN]")
+    ax[1].plot(f, result["bounce_margin"], ".-")
+    ax[1].axhline(0.0, color="r", lw=0.8)
+    ax[1].set_ylabel("bounce margin [-]")
+    ax[2].plot(f, result["rop_m_per_h"], ".-")
+    ax[2].set_ylabel("ROP [m/h]")
+    ax[2].set_xlabel("hammer excitation frequency [Hz]")
+    if modes is not None:
+        for a in ax:
+            for fm in modes:
+                if f.min() <= fm <= f.max():
+                    a.axvline(fm, color="0.6", lw=0.6, ls="--")
+    if title:
+        ax[0].set_title(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def write_sweep_csv(result: np.ndarray, path) -> Path:
+    """CSV of a sweep (header = field names)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savetxt(path, np.column_stack([result[n] for n in result.dtype.names]), delimiter=",",
+               header=",".join(result.dtype.names), comments="", fmt="%.10g")
+    return path
+
+
+def wob_frf(string, frequencies, config: CosimConfig = CosimConfig()) -> np.ndarray:
+    """Linear frequency response of the WOB at the bit per newton of hammer force
+    (bit stuck, the system of :func:`coupled_modes`), complex (F,) [N/N].
+
+    With a small harmonic amplitude the bit stays stuck, the coupled system is
+    linear and :func:`sweep`'s ``wob_amplitude_n`` equals ``A |frf|``; its peaks
+    are at :func:`coupled_modes`.
+    """
+    side = StringSide(string, config)
+    rig = config.rig
+    n = side.n
+    m1, K, C = rig.hammer_mass, rig.stiffness, rig.damping
+    A = np.zeros((n + 2, n + 2))
+    A[:n, :n] = side.A1
+    A[:n, n:n + 2] = side.E
+    A[n, n + 1] = 1.0
+    A[n + 1, :n] = side.frow / m1
+    A[n + 1, n] = -(side.ki + K) / m1
+    A[n + 1, n + 1] = -(side.ci + C) / m1
+    b = np.zeros(n + 2)
+    b[n + 1] = 1.0 / m1
+    out = []
+    I = np.eye(n + 2)
+    for f in np.atleast_1d(np.asarray(frequencies, dtype=float)):
+        x = np.linalg.solve(2j * math.pi * f * I - A, b)
+        out.append(K * x[n] + C * x[n + 1])
+    return np.array(out)
