@@ -54,6 +54,10 @@ def register(subparsers: "argparse._SubParsersAction") -> tuple[argparse.Argumen
     pm.add_argument("--mass", choices=MASS_SCHEMES, default=DEFAULT_MASS, help="mass matrix (default mixed)")
     pm.add_argument("--exact", action="store_true",
                     help="also give the exact (transfer-matrix) frequencies and relative errors")
+    pm.add_argument("--hammer-on-bottom", action="store_true",
+                    help="bit on bottom with the field hammer (hammerbit.cosim.field_hammer, default "
+                         "interface of the co-simulation) as the bottom boundary; the frequencies the "
+                         "co-simulation sweep resonates at")
     pm.add_argument("--json", action="store_true", help="JSON on stdout")
     pm.set_defaults(func=cmd_modes)
 
@@ -92,6 +96,8 @@ def _error(msg: str) -> int:
 
 def cmd_modes(args: argparse.Namespace) -> int:
     """Handler of ``hammerbit modes``."""
+    if getattr(args, "hammer_on_bottom", False):
+        return _cmd_hammer_modes(args)
     try:
         string = load_string(args.string)
         top = parse_boundary(args.top, where="--top") if args.top else None
@@ -178,3 +184,32 @@ def cmd_check(args: argparse.Namespace) -> int:
     if args.plot:
         print(f"figure: {args.plot}")
     return code
+
+
+def _cmd_hammer_modes(args: argparse.Namespace) -> int:
+    """``hammerbit modes --hammer-on-bottom``: the hammer as the bottom boundary."""
+    from .cosim import CosimConfig, field_hammer
+    from .modal_check import hammer_on_bottom_frequencies
+    try:
+        string = load_string(args.string)
+        top = parse_boundary(args.top, where="--top") if args.top else None
+        cfg = CosimConfig()
+        rig = field_hammer()
+        f = hammer_on_bottom_frequencies(string, interface_stiffness=cfg.interface_stiffness,
+                                         hammer_mass=rig.hammer_mass, hammer_stiffness=rig.stiffness,
+                                         top=top, f_max=args.fmax or 100.0, mass=args.mass)
+        if args.count:
+            f = f[: args.count]
+    except (DrillStringError, ValueError) as err:
+        return _error(str(err))
+    out = {"string": string.name, "bottom": "hammer-on-bottom", "hammer_mass_kg": rig.hammer_mass,
+           "hammer_stiffness_n_per_m": rig.stiffness, "interface_stiffness_n_per_m": cfg.interface_stiffness,
+           "frequencies_hz": [float(x) for x in f]}
+    if args.json:
+        print(json.dumps(out, indent=2))
+    else:
+        print(f"{string.name}, hammer on bottom (m1 = {rig.hammer_mass:g} kg, K = {rig.stiffness:.3g} N/m, "
+              f"k_i = {cfg.interface_stiffness:.3g} N/m):")
+        for i, x in enumerate(f, start=1):
+            print(f"{i:>4} {x:>12.6g} Hz")
+    return 0

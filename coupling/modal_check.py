@@ -77,6 +77,7 @@ import scipy.linalg as sla
 
 from .drillstring import (
     DEFAULT_MASS,
+    DrillStringError,
     Assembly,
     Boundary,
     DrillString,
@@ -881,3 +882,58 @@ def plot_check(result: CheckResult, path: "str | Path", rpm_max: float | None = 
     fig.savefig(path, dpi=120)
     plt.close(fig)
     return path
+
+
+# --------------------------------------------------------------------------
+# the hammer as the bottom boundary (bit on bottom)
+# --------------------------------------------------------------------------
+def hammer_on_bottom_frequencies(string: DrillString, *, interface_stiffness: float,
+                                 hammer_mass: float, hammer_stiffness: float,
+                                 top: "Boundary | str | None" = None, f_max: float = 100.0,
+                                 mass: str = "mixed") -> np.ndarray:
+    """Undamped natural frequencies [Hz] with the hammer as the string's bottom boundary.
+
+    The string's bottom node carries the interface spring ``k_i`` to the hammer
+    body (mass ``m1``), and the hammer's spring ``K`` holds it to the bit, which
+    the rock holds (bit on bottom, stuck).  The chain stays tridiagonal: the
+    hammer is one more node below the bit node.
+
+    Parameters
+    ----------
+    string : DrillString
+    interface_stiffness : float
+        k_i, string-to-hammer interface [N/m].
+    hammer_mass : float
+        m1 [kg].
+    hammer_stiffness : float
+        K, hammer-to-bit spring [N/m].
+    top : Boundary or str, optional
+        Top end (default the string's).
+    f_max : float
+        Highest frequency returned [Hz].
+    mass : {'mixed', 'lumped', 'consistent'}
+
+    Returns
+    -------
+    ndarray, shape (m,)
+        Natural frequencies up to ``f_max`` [Hz], ascending.
+    """
+    import scipy.linalg as sla
+    from .drillstring import assemble
+    for name, v in (("interface_stiffness", interface_stiffness), ("hammer_mass", hammer_mass),
+                    ("hammer_stiffness", hammer_stiffness)):
+        if not (np.isfinite(v) and v > 0):
+            raise DrillStringError("hammer boundary", name, v, "a finite value > 0")
+    asm = assemble(string, top, "free", mass=mass)
+    n = asm.n_dof
+    K = np.zeros((n + 1, n + 1))
+    M = np.zeros((n + 1, n + 1))
+    K[:n, :n] = asm.K
+    M[:n, :n] = asm.M
+    K[n - 1, n - 1] += interface_stiffness
+    K[n - 1, n] = K[n, n - 1] = -interface_stiffness
+    K[n, n] = interface_stiffness + hammer_stiffness
+    M[n, n] = hammer_mass
+    hi = (2.0 * math.pi * f_max) ** 2
+    lam = sla.eigh(K, M, eigvals_only=True, subset_by_value=(-1.0, hi))
+    return np.sqrt(np.maximum(lam, 0.0)) / (2.0 * math.pi)
