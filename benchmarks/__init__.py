@@ -1,0 +1,235 @@
+"""Benchmarks of hammerbit and the harness that runs them (``python -m benchmarks``).
+
+Conventions every ``benchmarks/bench_*.py`` module follows
+------------------------------------------------------------
+* It exposes ``run(quick: bool = False) -> dict``.  ``quick=True`` is a fast,
+  smaller run (seconds to a minute) for development and CI; the full run is
+  what the README reports.
+* Its result name is the module name without ``bench_`` (``bench_solvers`` ->
+  ``solvers``).  ``run`` writes ``benchmarks/results/<name>.json`` (and, if it
+  draws one, ``<name>.png``) through :func:`save_result`; if it does not, the
+  harness writes the returned dict itself.
+* The dict is JSON-serialisable and has at least:
+
+  ``benchmark``
+      the result name;
+  ``quick``
+      whether it was a quick run;
+  ``command``
+      the exact command that reproduces it (e.g.
+      ``python -m benchmarks --only solvers``);
+  ``machine``
+      :func:`machine_info` (CPU count and model, load average, Python, numpy,
+      numba, scipy versions ...);
+  ``summary``
+      a list of rows for the README's performance table, each made by
+      :func:`summary_row`: ``{metric, ours, peer, ratio, goal, met, command}``.
+      ``ours``/``peer``/``ratio`` are display strings with units (the raw
+      numbers live elsewhere in the dict); ``peer``, ``ratio``, ``goal`` may be
+      ``None`` and ``met`` is ``True``/``False``/``None`` (no goal).
+
+* Every number is measured in that run; nothing is hard-coded.  Timings are
+  the minimum over a few repeats and exclude numba compilation (warm up first).
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import math
+import os
+import platform
+import sys
+
+__all__ = ["RESULTS_DIR", "REPO_ROOT", "machine_info", "summary_row", "save_result",
+           "fmt_time", "fmt_ratio", "fmt_num", "harness_command", "result_name", "kernel_source"]
+
+BENCH_DIR = os.path.dirname(os.path.abspath(__file__))
+REPO_ROOT = os.path.dirname(BENCH_DIR)
+RESULTS_DIR = os.path.join(BENCH_DIR, "results")
+
+
+def result_name(module_name: str) -> str:
+    """Result name of a benchmark module: ``benchmarks.bench_solvers`` -> ``solvers``."""
+    base = module_name.rsplit(".", 1)[-1]
+    return base[len("bench_"):] if base.startswith("bench_") else base
+
+
+def harness_command(name: str, quick: bool) -> str:
+    """The command that reproduces one benchmark's results."""
+    return f"python -m benchmarks --only {name}" + (" --quick" if quick else "")
+
+
+def _cpu_model() -> str | None:
+    try:
+        with open("/proc/cpuinfo") as fh:
+            for line in fh:
+                if line.lower().startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or None
+
+
+def machine_info() -> dict:
+    """Machine and library versions, for every results JSON.
+
+    Returns
+    -------
+    dict
+        ``cpu_count``, ``cpu_affinity`` (usable cores), ``cpu_model``,
+        ``load_average`` (1, 5, 15 min at call time: the machine may be
+        shared), ``platform``, ``python``, and versions of numpy, numba, scipy
+        and hammerbit.
+    """
+    info = {
+        "cpu_count": os.cpu_count(),
+        "cpu_model": _cpu_model(),
+        "platform": platform.platform(),
+        "python": sys.version.split()[0],
+        "timestamp": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+    }
+    try:
+        info["cpu_affinity"] = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        info["cpu_affinity"] = None
+    try:
+        info["load_average"] = [round(x, 2) for x in os.getloadavg()]
+    except OSError:
+        info["load_average"] = None
+    for mod in ("numpy", "numba", "scipy", "matplotlib", "fmpy"):
+        try:
+            m = __import__(mod)
+            info[mod] = getattr(m, "__version__", "?")
+        except Exception:  # pragma: no cover - optional
+            info[mod] = None
+    try:
+        from importlib.metadata import version
+        info["hammerbit"] = version("hammerbit")
+    except Exception:  # pragma: no cover
+        info["hammerbit"] = None
+    return info
+
+
+def kernel_source() -> dict:
+    """Where this process got its compiled kernels: loaded from the on-disk cache or compiled.
+
+    Call after the kernels ran once.  The two run at different speeds on some
+    machines, so every timing result should record it.
+    """
+    try:
+        from hammerbit.model import _numba_cache, kernels as K
+    except Exception:  # pragma: no cover
+        return {"source": None}
+    out = {"cache_dir": _numba_cache.cache_root(), "functions": {}}
+    for name in ("advance_hammer", "advance"):
+        d = getattr(K, name, None)
+        if d is None or not getattr(d, "signatures", None):
+            continue
+        hits = sum(d.stats.cache_hits.values())
+        misses = sum(d.stats.cache_misses.values())
+        out["functions"][name] = {"cache_hits": hits, "cache_misses": misses}
+    hits = sum(v["cache_hits"] for v in out["functions"].values())
+    miss = sum(v["cache_misses"] for v in out["functions"].values())
+    out["source"] = ("cache" if hits and not miss else "compiled" if miss and not hits
+                     else "mixed" if hits else None)
+    return out
+
+
+def summary_row(metric: str, ours, *, peer=None, ratio=None, goal=None, met=None,
+                command: str = "") -> dict:
+    """One row of the README performance table.
+
+    Parameters
+    ----------
+    metric : str
+        What is measured, with the scene (e.g. ``"work-precision, no impact:
+        time at rel. error 1e-8"``).
+    ours, peer, ratio : str or None
+        Display values with units (use :func:`fmt_time`, :func:`fmt_ratio`).
+    goal : str or None
+        The goal as stated in the issue (e.g. ``">= 300x"``).
+    met : bool or None
+        Whether the goal is met in this run (None: no goal / not decidable).
+    command : str
+        Command that reproduces the number.
+    """
+    return {"metric": metric, "ours": ours, "peer": peer, "ratio": ratio, "goal": goal,
+            "met": None if met is None else bool(met), "command": command}
+
+
+def fmt_num(x, digits: int = 3) -> str:
+    """A number with ``digits`` significant digits ('n/a' for None/NaN)."""
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "n/a"
+    return f"{x:.{digits}g}"
+
+
+def fmt_time(s) -> str:
+    """Seconds as a readable string with units (µs, ms, s)."""
+    if s is None or not math.isfinite(s):
+        return "n/a"
+    if s < 1e-3:
+        return f"{s * 1e6:.3g} µs"
+    if s < 1.0:
+        return f"{s * 1e3:.3g} ms"
+    return f"{s:.3g} s"
+
+
+def fmt_ratio(r) -> str:
+    """A speed ratio as ``'123x'``."""
+    if r is None or not math.isfinite(r):
+        return "n/a"
+    return f"{r:.3g}x" if r < 10 else f"{r:.0f}x"
+
+
+def _jsonable(o):
+    """Make numpy scalars/arrays and non-finite floats JSON-safe."""
+    try:
+        import numpy as np
+    except ImportError:  # pragma: no cover
+        np = None
+    if isinstance(o, dict):
+        return {str(k): _jsonable(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_jsonable(v) for v in o]
+    if np is not None:
+        if isinstance(o, np.ndarray):
+            return _jsonable(o.tolist())
+        if isinstance(o, np.generic):
+            return _jsonable(o.item())
+    if isinstance(o, float) and not math.isfinite(o):
+        return None if math.isnan(o) else ("inf" if o > 0 else "-inf")
+    return o
+
+
+def save_result(name: str, result: dict, fig=None) -> str:
+    """Write ``results/<name>.json`` (and ``<name>.png`` if a figure is given).
+
+    Parameters
+    ----------
+    name : str
+        Result name (module name without ``bench_``).
+    result : dict
+        The benchmark's result; numpy values and non-finite floats are converted.
+    fig : matplotlib.figure.Figure, optional
+        Saved as ``results/<name>.png`` (150 dpi) and closed.
+
+    Returns
+    -------
+    str
+        Path of the JSON file.
+    """
+    os.makedirs(RESULTS_DIR, exist_ok=True)
+    if fig is not None:
+        png = os.path.join(RESULTS_DIR, f"{name}.png")
+        fig.savefig(png, dpi=150, bbox_inches="tight")
+        import matplotlib.pyplot as plt
+        plt.close(fig)
+        result.setdefault("png", os.path.relpath(png, REPO_ROOT))
+    path = os.path.join(RESULTS_DIR, f"{name}.json")
+    tmp = path + ".tmp"
+    with open(tmp, "w") as fh:
+        json.dump(_jsonable(result), fh, indent=1, allow_nan=False)
+        fh.write("\n")
+    os.replace(tmp, path)
+    return path
