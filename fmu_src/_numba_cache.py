@@ -36,8 +36,11 @@ class ContentHashCacheLocator(_caching._SourceFileBackedLocatorMixin, _caching._
         self._lineno = py_func.__code__.co_firstlineno
         with open(py_file, "rb") as fh:
             digest = hashlib.sha256(fh.read()).hexdigest()[:20]
-        stem = os.path.splitext(os.path.basename(py_file))[0]
-        self._cache_path = os.path.join(cache_root(), f"{stem}-{digest}")
+        # numba's cache entries remember the module they were compiled in (and
+        # re-import it on load): the library (hammerbit.model.kernels) and the
+        # FMU (hammerbit_fmu_runtime.kernels) must not share entries.
+        module = getattr(py_func, "__module__", None) or os.path.splitext(os.path.basename(py_file))[0]
+        self._cache_path = os.path.join(cache_root(), f"{module}-{digest}")
 
     def get_cache_path(self):
         return self._cache_path

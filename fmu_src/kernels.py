@@ -83,7 +83,8 @@ F_PEAK = 2        # peak contact force of the current contact
 F_IMPACT_V = 3    # relative velocity of the last impact
 F_H_MODE = 4      # last step used in each regime: stick, slip, contact (3 slots)
 F_V4_PEAK = 7     # peak bit velocity of the current slip (error scale of x4)
-N_FSTATE = 8
+F_X3_SLIP = 8     # bit position at the start of the current slip
+N_FSTATE = 9
 
 # options
 O_RTOL = 0
@@ -292,6 +293,23 @@ def watch_value(kind, y, p, mode_c):
 
 
 @njit(cache=True, _nrt=False)
+def watch_tol(kind, y, p):
+    """Round-off level of ``watch_value``: an indicator counts as crossed only above it.
+
+    The indicators subtract positions of order of the penetration (x1 - x3),
+    so near a switch their computed value is noise of a few ulp of |x1| + |x3|.
+    Without this threshold a separation followed by a re-impact inside the
+    next step could chatter on that noise.
+    """
+    if kind == EV_STICK:
+        return 0.0
+    if kind == EV_CLAMP or kind == EV_UNCLAMP:
+        return 8.0 * 2.220446049250313e-16 * (1.0 + p[P_LAM] * (abs(y[1]) + abs(y[3])))
+    r = p[P_R] if (kind == EV_IMPACT or kind == EV_SEPARATION) else 1.0
+    return 8.0 * 2.220446049250313e-16 * (abs(y[0]) + abs(y[2]) + abs(r))
+
+
+@njit(cache=True, _nrt=False)
 def watch_slope(kind, y, f, p, mode_c):
     """Time derivative of ``watch_value`` from the state ``y`` and its derivative ``f``."""
     dd = y[1] - y[3]
@@ -472,8 +490,12 @@ def apply_event(kind, y, istate, fstate, p):
         istate[I_STICK] = SLIP
         y[3] = 0.0
         fstate[F_V4_PEAK] = 0.0
+        fstate[F_X3_SLIP] = y[2]
     elif kind == EV_STICK:
         y[3] = 0.0
+        # the drift only moves forward: no round-off step backwards
+        if y[2] < fstate[F_X3_SLIP]:
+            y[2] = fstate[F_X3_SLIP]
         if drive_on_bit(y, p, mc) <= 1.0:
             istate[I_STICK] = STICK
             if drive_on_bit(y, p, mc) < -1.0:
@@ -523,9 +545,9 @@ def set_active(istate, n, nz, ne, act):
 # Event detection and localisation
 # ---------------------------------------------------------------------------
 @njit(cache=True, _nrt=False)
-def localise(kind, ta, tb, t0, y0, h, fixed, tol, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
+def localise(kind, ta, tb, t0, y0, h, fixed, tol, wtol, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
              p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12):
-    """Event time in (ta, tb] where w(ta) <= 0 < w(tb).
+    """Event time in (ta, tb] where w(ta) <= wtol < w(tb) (``wtol``: round-off level).
 
     Adaptive methods: Illinois false position on the dense output down to a few
     ulp of t.  Fixed step: bisection down to ``tol`` (the paper's 1e-6).
@@ -533,9 +555,9 @@ def localise(kind, ta, tb, t0, y0, h, fixed, tol, F, act, n_act, A, B, C, ns, K2
     event cannot re-trigger.
     """
     state_at(ta, t0, y0, h, fixed, F, act, n_act, A, B, C, ns, K2, ytmp, ys, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
-    wa = watch_value(kind, ys, p, mc)
+    wa = watch_value(kind, ys, p, mc) - wtol
     state_at(tb, t0, y0, h, fixed, F, act, n_act, A, B, C, ns, K2, ytmp, ys, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
-    wb = watch_value(kind, ys, p, mc)
+    wb = watch_value(kind, ys, p, mc) - wtol
     side = 0
     for it in range(200):
         width = tb - ta
@@ -553,7 +575,7 @@ def localise(kind, ta, tb, t0, y0, h, fixed, tol, F, act, n_act, A, B, C, ns, K2
                 if not (tm > ta and tm < tb):
                     tm = 0.5 * (ta + tb)
         state_at(tm, t0, y0, h, fixed, F, act, n_act, A, B, C, ns, K2, ytmp, ys, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
-        wm = watch_value(kind, ys, p, mc)
+        wm = watch_value(kind, ys, p, mc) - wtol
         if wm > 0.0:
             tb = tm
             wb = wm
@@ -586,6 +608,17 @@ def find_extremum(kind, t0, t1, y0, h, F, act, n_act, ys, fs,
         if tb - ta <= 1e-9 * (t1 - t0):
             break
     return 0.5 * (ta + tb)
+
+
+@njit(cache=True, _nrt=False)
+def peak_in_step(t0, t1, y0, h, F, act, n_act, ys, fs, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, fstate):
+    """Contact force at the deepest penetration inside a step (d' changes sign)."""
+    tm = find_extremum(EV_IMPACT, t0, t1, y0, h, F, act, n_act, ys, fs,
+                       p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+    dense_eval((tm - t0) / h, y0, F, act, n_act, ys)
+    fc = contact_force(ys[0] - ys[2] - p[P_R], ys[1] - ys[3], p, mc)
+    if fc > fstate[F_PEAK]:
+        fstate[F_PEAK] = fc
 
 
 @njit(cache=True, inline="always", _nrt=False)
@@ -630,7 +663,9 @@ def write_sample(row, t, y, p, istate, nz, Gz, g12):
     row[1] = y[1]
     row[2] = y[2]
     row[3] = y[3]
-    row[4] = contact_force(y[0] - y[2] - p[P_R], y[1] - y[3], p, istate[I_CONTACT])
+    d = y[0] - y[2] - p[P_R]
+    # the physical force: zero out of contact and never tensile
+    row[4] = max(contact_force(d, y[1] - y[3], p, istate[I_CONTACT]), 0.0) if d > 0.0 else 0.0
     row[5] = link_force(y, nz, Gz, g12) if nz > 0 else 0.0
     row[6] = istate[I_STICK]
     row[7] = istate[I_CONTACT]
@@ -768,6 +803,7 @@ def advance(y, istate, fstate, t_end, p, opts,
     act = np.empty(n, dtype=np.int64)
     kinds = np.empty(4, dtype=np.int64)
     w0s = np.empty(4)
+    wtols = np.empty(4)
 
     t = fstate[F_T]
     h = fstate[F_H]
@@ -777,10 +813,12 @@ def advance(y, istate, fstate, t_end, p, opts,
     rhs(t, y, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, K[0])
     istate[I_RHS] += 1
     steps_here = 0
+    refine = 0
 
     while True:
         remaining = t_end - t
-        if remaining <= 4.0 * 2.220446049250313e-16 * max(abs(t_end), 1.0):
+        # a sliver below the time resolution is no dynamics: done
+        if remaining <= 10.0 * 2.220446049250313e-16 * max(abs(t_end), 1.0):
             break
         if log_cap > 0 and istate[I_NLOG] >= log_cap:
             fstate[F_T] = t
@@ -796,12 +834,14 @@ def advance(y, istate, fstate, t_end, p, opts,
         immediate = -1
         for q in range(nw):
             w0s[q] = watch_value(kinds[q], y, p, mc)
-            if w0s[q] > 0.0:
+            wtols[q] = watch_tol(kinds[q], y, p)
+            if w0s[q] > wtols[q]:
                 immediate = kinds[q]
                 break
 
         hit_kind = -1
         t_hit = 0.0
+        wtol_hit = 0.0
         h_next = h
         if immediate < 0:
             # -- one accepted step -------------------------------------------
@@ -817,7 +857,19 @@ def advance(y, istate, fstate, t_end, p, opts,
             else:
                 hmin = 10.0 * 2.220446049250313e-16 * max(abs(t), 1.0)
                 rejected = False
-                if ms == SLIP and K[0, 3] < 0.0:
+                if mc != FREE:
+                    # stiff contact: keep h within the explicit method's
+                    # stability region, h omega_c <= 1.5, omega_c^2 = dF_c/dd / m_eff
+                    dpen = y[0] - y[2] - p[P_R]
+                    if dpen > 0.0:
+                        kcl = p[P_KC] * p[P_N] * dpen ** (p[P_N] - 1.0)
+                        if mc == CONTACT:
+                            kcl *= 1.0 + p[P_LAM] * max(y[1] - y[3], 0.0)
+                        minv = 1.0 + (1.0 / p[P_RHO] if ms == SLIP else 0.0)
+                        hcap = 1.5 / math.sqrt(kcl * minv + 1e-300)
+                        if h > hcap:
+                            h = hcap
+                if ms == SLIP and K[0, 3] < 0.0 and y[3] > 0.0:
                     # the bit decelerates to a stop: do not step far past the
                     # predicted stop, where the friction law is extrapolated
                     t_stop = -y[3] / K[0, 3]
@@ -826,8 +878,8 @@ def advance(y, istate, fstate, t_end, p, opts,
                 while True:
                     if h > hmax:
                         h = hmax
-                    if h >= remaining:
-                        h = remaining
+                    if h >= remaining or remaining - h < 1e3 * hmin:
+                        h = remaining  # never leave a sliver behind
                     if h < hmin:
                         fstate[F_T] = t
                         fstate[F_H] = h
@@ -871,7 +923,7 @@ def advance(y, istate, fstate, t_end, p, opts,
                 kd = kinds[q]
                 w1 = watch_value(kd, ynew, p, mc)
                 tb = -1.0
-                if w1 > 0.0:
+                if w1 > wtols[q]:
                     tb = t1
                 elif not fixed:
                     # grazing: a local maximum of w inside the step
@@ -887,7 +939,7 @@ def advance(y, istate, fstate, t_end, p, opts,
                         tm = find_extremum(kd, t, t1, y, h, F, act, n_act, ys, fs,
                                            p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
                         dense_eval((tm - t) / h, y, F, act, n_act, ys)
-                        if watch_value(kd, ys, p, mc) > graze:
+                        if watch_value(kd, ys, p, mc) > max(graze, wtols[q]):
                             tb = tm
                 if tb > 0.0:
                     if not fixed and not dense_ok:
@@ -898,11 +950,12 @@ def advance(y, istate, fstate, t_end, p, opts,
                     if fixed:
                         for i in range(n):
                             K2[0, i] = K[0, i]
-                    te = localise(kd, t, tb, t, y, h, fixed, opts[O_BISECT], F, act, n_act,
+                    te = localise(kd, t, tb, t, y, h, fixed, opts[O_BISECT], wtols[q], F, act, n_act,
                                   A, B, C, ns, K2, ytmp, ys, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
                     if hit_kind < 0 or te < t_hit:
                         hit_kind = kd
                         t_hit = te
+                        wtol_hit = wtols[q]
 
             if hit_kind < 0:
                 # -- no event: record and accept ----------------------------
@@ -918,6 +971,14 @@ def advance(y, istate, fstate, t_end, p, opts,
                     record_until(t1, ynew, t, y, h, fixed, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
                                  p, istate, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, opts, poin, samp_t, samp)
                 if mc == CONTACT:
+                    if not fixed and y[1] - y[3] > 0.0 and ynew[1] - ynew[3] <= 0.0:
+                        if not dense_ok:
+                            dense_prepare(t, y, ynew, h, A, C, W, ns, n_ext, K, F, ytmp, act, n_act,
+                                          p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+                            istate[I_RHS] += n_ext - ns - 1
+                            dense_ok = True
+                        peak_in_step(t, t1, y, h, F, act, n_act, ys, fs, p, ms, mc, nz, ne,
+                                     Ap, Ai, Ax, Hz, Gz, g12, fstate)
                     fc1 = contact_force(ynew[0] - ynew[2] - p[P_R], ynew[1] - ynew[3], p, mc)
                     if fc1 > fstate[F_PEAK]:
                         fstate[F_PEAK] = fc1
@@ -932,11 +993,28 @@ def advance(y, istate, fstate, t_end, p, opts,
                 continue
 
             # -- event inside the step: move to it ------------------------
-            if fixed:
-                for i in range(n):
-                    K2[0, i] = K[0, i]
-            state_at(t_hit, t, y, h, fixed, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
-                     p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+            # The event state comes from a real step of the method from t to
+            # t_hit (the dense output near a nonsmooth switch is less accurate
+            # than a step that ends on it).  If that state has not crossed
+            # yet, move there and locate again from nearer (at most twice).
+            for i in range(n):
+                K2[0, i] = K[0, i]
+            rk_step(t, y, t_hit - t, A, B, C, ns, K2, ys, ytmp, act, n_act,
+                    p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+            istate[I_RHS] += ns
+            confirmed = fixed or watch_value(hit_kind, ys, p, mc) > wtol_hit
+            if not confirmed and refine >= 2:
+                # give up refining: take the dense-output state, crossed by construction
+                state_at(t_hit, t, y, h, False, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
+                         p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+                confirmed = True
+            if not confirmed:
+                refine += 1
+            else:
+                refine = 0
+            if mc == CONTACT and not fixed and y[1] - y[3] > 0.0 and ys[1] - ys[3] <= 0.0 and dense_ok:
+                peak_in_step(t, t_hit, y, h, F, act, n_act, ynew, fs, p, ms, mc, nz, ne,
+                             Ap, Ai, Ax, Hz, Gz, g12, fstate)
             if needs_record(t_hit, istate, opts, poin, samp_t):
                 record_until(t_hit, ys, t, y, h, fixed, F, act, n_act, A, B, C, ns, K2, ytmp, ynew,
                              p, istate, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, opts, poin, samp_t, samp)
@@ -945,6 +1023,10 @@ def advance(y, istate, fstate, t_end, p, opts,
             t = t_hit
             if not fixed:
                 h = h_next
+            if not confirmed:
+                for i in range(n):
+                    K[0, i] = K2[ns, i]
+                continue
         else:
             hit_kind = immediate
 

@@ -94,10 +94,6 @@ def test_bounce_scene_matches_reference_at_tight_tolerance():
     assert abs(ours.penetration - ref.penetration) <= 1e-9 * abs(ref.penetration)
 
 
-@pytest.mark.xfail(raises=EventStormError, strict=True,
-                   reason="kernel bug: a separation followed by a re-impact inside the next step is "
-                          "localised at the step start (indicator 0 +- roundoff): endless zero-length "
-                          "impact/separation loop at tau = 5.5403 (see the helper's report)")
 @pytest.mark.parametrize("rtol", [1e-8])
 def test_reimpact_right_after_separation(rtol):
     g = preset("paper-fig12").replace(**BOUNCE)

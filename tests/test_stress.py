@@ -286,8 +286,6 @@ def test_grazing_contact_detected_at_default_tolerance(eps):
     assert res.counts["impact"] >= 1 and "impact" in set(res.events["kind"])
 
 
-@pytest.mark.xfail(strict=True, reason="peak_contact_force is the max over step ends inside the contact: "
-                                       "a contact that fits inside one step is logged with peak 0")
 def test_short_contact_peak_force_is_logged():
     base = preset("paper-fig12").replace(a=0.2)
     if "M" not in _GRAZE_CACHE:
@@ -453,8 +451,6 @@ def test_event_cap_raises_clear_error():
     assert res.counts == free.counts
 
 
-@pytest.mark.xfail(strict=True, reason="simulate() returns silently at an intermediate time when the "
-                                       "step cap max_steps is hit (status 'max_steps' is ignored)")
 def test_step_cap_is_not_silent():
     g = preset("paper-fig9")
     try:
@@ -477,9 +473,6 @@ FALSE_STORM = {'rho': 3.11457, 'xi': 0.38784, 'eta': 0.90806, 'b': 1.28768, 'a':
                'phi': 2.7965}
 
 
-@pytest.mark.xfail(strict=True, reason="stiff contact: steps beyond the explicit stability limit give "
-                                       "spurious impact/separation pairs and garbage dense output "
-                                       "(v_s = -37, F_c = -1.4e6 on samples)")
 def test_stiff_contact_no_spurious_events():
     g = preset("paper-fig12").replace(**STIFF)
     ref, _ = bounded(simulate, g, 20, solver=SolverOptions(rtol=1e-11, atol=1e-13))
@@ -495,9 +488,6 @@ def test_stiff_contact_no_spurious_events():
     assert not bad, f"reference {ref.counts['impact']} impacts; (energy, rtol, impacts, min F_c, min v_s): {bad}"
 
 
-@pytest.mark.xfail(raises=EventStormError, strict=True,
-                   reason="false event storm: a re-impact inside the step after a separation is "
-                          "localised at the step start (zero-length impact/separation loop)")
 def test_no_false_event_storm():
     g = preset("paper-fig12").replace(**FALSE_STORM)
     tight, _ = bounded(simulate, g, 34, solver=TIGHT)
@@ -629,9 +619,6 @@ def test_solver_agreement_on_paper_scenes(name, a, n):
 AGREE = dict(xi=0.0625, eta=1.0, a=0.11055978514917525, b=0.5, r=0.625, mu=0.75)
 
 
-@pytest.mark.xfail(strict=True, reason="event states are read from the DOP853 dense output: at a "
-                                       "separation in stiff contact its error is ~500x rtol "
-                                       "(x4 error 4.6e-6 at rtol 1e-8)")
 def test_event_state_accuracy():
     """The state at an event must be as accurate as a step end (<= 100 rtol here)."""
     from hammerbit.model import kernels as K
