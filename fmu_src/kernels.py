@@ -166,7 +166,7 @@ def link_force(y, nz, Gz, g12):
     return f
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, inline="always", _nrt=False)
 def rhs(t, y, p, mode_s, mode_c, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, out):
     """Vector field of one hybrid mode; writes dy/dtau into ``out``.
 
