@@ -458,18 +458,92 @@ def dense_eval(x, y, F, act, n_act, out):
         out[i] = y[i] + acc
 
 
+# how a state inside the current step is evaluated
+HOW_DENSE = 0     # the adaptive method's dense output
+HOW_RESTEP = 1    # a fresh step of the fixed-step method (the paper's RK4 with bisection)
+HOW_STICK = 2     # the closed-form stick solution (constants in F, see stick_prepare)
+
+
 @njit(cache=True, _nrt=False)
-def state_at(tq, t0, y0, h, fixed, F, act, n_act, A, B, C, ns, K2, ytmp, out,
+def stick_closed_form_ok(p):
+    """The stuck hammer is an underdamped forced linear oscillator off resonance."""
+    eta = p[P_ETA]
+    xi = p[P_XI]
+    den = (1.0 - eta * eta) ** 2 + (2.0 * xi * eta) ** 2
+    return xi < 0.99 and den > 1e-12
+
+
+@njit(cache=True, _nrt=False)
+def stick_prepare(t0, y0, p, F):
+    """Constants of the exact stick solution from (t0, y0) into F[0:2, 0:4].
+
+    While the bit sticks and the gap is open, the hammer obeys
+    x1'' + 2 xi x1' + x1 = x3 + b + f_ext + a sin(eta t + phi): a forced damped
+    oscillator whose solution is a particular harmonic plus a decaying
+    homogeneous part.
+    """
+    xi = p[P_XI]
+    eta = p[P_ETA]
+    a = p[P_A]
+    den = (1.0 - eta * eta) ** 2 + (2.0 * xi * eta) ** 2
+    P = a * (1.0 - eta * eta) / den
+    Q = -a * 2.0 * xi * eta / den
+    c = y0[2] + p[P_B] + p[P_FEXT]
+    th = eta * t0 + p[P_PHI]
+    sn = math.sin(th)
+    cs = math.cos(th)
+    u0 = y0[0] - c - (P * sn + Q * cs)
+    v0 = y0[1] - eta * (P * cs - Q * sn)
+    wd = math.sqrt(1.0 - xi * xi)
+    F[0, 0] = t0
+    F[0, 1] = c
+    F[0, 2] = P
+    F[0, 3] = Q
+    F[1, 0] = u0
+    F[1, 1] = (v0 + xi * u0) / wd
+    F[1, 2] = v0
+    F[1, 3] = wd
+
+
+@njit(cache=True, _nrt=False)
+def stick_state(tq, y0, F, p, out):
+    """Exact stick state at time tq from the constants of ``stick_prepare``."""
+    xi = p[P_XI]
+    eta = p[P_ETA]
+    s = tq - F[0, 0]
+    th = eta * tq + p[P_PHI]
+    sn = math.sin(th)
+    cs = math.cos(th)
+    P = F[0, 2]
+    Q = F[0, 3]
+    u0 = F[1, 0]
+    Bc = F[1, 1]
+    v0 = F[1, 2]
+    wd = F[1, 3]
+    e = math.exp(-xi * s)
+    cw = math.cos(wd * s)
+    sw = math.sin(wd * s)
+    for i in range(y0.shape[0]):
+        out[i] = y0[i]
+    out[0] = F[0, 1] + P * sn + Q * cs + e * (u0 * cw + Bc * sw)
+    out[1] = eta * (P * cs - Q * sn) + e * (v0 * cw - (xi * Bc + wd * u0) * sw)
+    out[3] = 0.0
+
+
+@njit(cache=True, _nrt=False)
+def state_at(tq, t0, y0, h, how, F, act, n_act, A, B, C, ns, K2, ytmp, out,
              p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12):
-    """State at time ``tq`` inside the current step.
+    """State at time ``tq`` inside the current step (``how``: HOW_*).
 
     Adaptive methods evaluate their dense output.  The fixed-step method (the
-    paper's RK4 with bisection) re-integrates one step of length tq - t0.
-    K2[0] must hold f(t0, y0) for the fixed-step case.
+    paper's RK4 with bisection) re-integrates one step of length tq - t0
+    (K2[0] must hold f(t0, y0)).  A stick chunk evaluates the exact solution.
     """
-    if fixed:
+    if how == HOW_RESTEP:
         rk_step(t0, y0, tq - t0, A, B, C, ns, K2, out, ytmp, act, n_act,
                 p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+    elif how == HOW_STICK:
+        stick_state(tq, y0, F, p, out)
     else:
         x = (tq - t0) / h
         dense_eval(x, y0, F, act, n_act, out)
@@ -545,7 +619,7 @@ def set_active(istate, n, nz, ne, act):
 # Event detection and localisation
 # ---------------------------------------------------------------------------
 @njit(cache=True, _nrt=False)
-def localise(kind, ta, tb, t0, y0, h, fixed, tol, wtol, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
+def localise(kind, ta, tb, t0, y0, h, how, tol, wtol, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
              p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12):
     """Event time in (ta, tb] where w(ta) <= wtol < w(tb) (``wtol``: round-off level).
 
@@ -554,14 +628,14 @@ def localise(kind, ta, tb, t0, y0, h, fixed, tol, wtol, F, act, n_act, A, B, C, 
     Returns the end of the final bracket, where w > 0: after the reset the
     event cannot re-trigger.
     """
-    state_at(ta, t0, y0, h, fixed, F, act, n_act, A, B, C, ns, K2, ytmp, ys, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+    state_at(ta, t0, y0, h, how, F, act, n_act, A, B, C, ns, K2, ytmp, ys, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
     wa = watch_value(kind, ys, p, mc) - wtol
-    state_at(tb, t0, y0, h, fixed, F, act, n_act, A, B, C, ns, K2, ytmp, ys, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+    state_at(tb, t0, y0, h, how, F, act, n_act, A, B, C, ns, K2, ytmp, ys, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
     wb = watch_value(kind, ys, p, mc) - wtol
     side = 0
     for it in range(200):
         width = tb - ta
-        if fixed:
+        if how == HOW_RESTEP:
             if width <= tol:
                 break
             tm = 0.5 * (ta + tb)
@@ -574,7 +648,7 @@ def localise(kind, ta, tb, t0, y0, h, fixed, tol, wtol, F, act, n_act, A, B, C, 
                 tm = ta - wa * width / (wb - wa)
                 if not (tm > ta and tm < tb):
                     tm = 0.5 * (ta + tb)
-        state_at(tm, t0, y0, h, fixed, F, act, n_act, A, B, C, ns, K2, ytmp, ys, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+        state_at(tm, t0, y0, h, how, F, act, n_act, A, B, C, ns, K2, ytmp, ys, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
         wm = watch_value(kind, ys, p, mc) - wtol
         if wm > 0.0:
             tb = tm
@@ -592,14 +666,17 @@ def localise(kind, ta, tb, t0, y0, h, fixed, tol, wtol, F, act, n_act, A, B, C, 
 
 
 @njit(cache=True, _nrt=False)
-def find_extremum(kind, t0, t1, y0, h, F, act, n_act, ys, fs,
+def find_extremum(kind, t0, t1, y0, h, how, F, act, n_act, ys, fs,
                   p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12):
     """Time in (t0, t1) where the slope of w changes from + to - (a local max of w)."""
     ta = t0
     tb = t1
     for it in range(60):
         tm = 0.5 * (ta + tb)
-        dense_eval((tm - t0) / h, y0, F, act, n_act, ys)
+        if how == HOW_STICK:
+            stick_state(tm, y0, F, p, ys)
+        else:
+            dense_eval((tm - t0) / h, y0, F, act, n_act, ys)
         rhs(tm, ys, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, fs)
         if watch_slope(kind, ys, fs, p, mc) > 0.0:
             ta = tm
@@ -613,7 +690,7 @@ def find_extremum(kind, t0, t1, y0, h, F, act, n_act, ys, fs,
 @njit(cache=True, _nrt=False)
 def peak_in_step(t0, t1, y0, h, F, act, n_act, ys, fs, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, fstate):
     """Contact force at the deepest penetration inside a step (d' changes sign)."""
-    tm = find_extremum(EV_IMPACT, t0, t1, y0, h, F, act, n_act, ys, fs,
+    tm = find_extremum(EV_IMPACT, t0, t1, y0, h, HOW_DENSE, F, act, n_act, ys, fs,
                        p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
     dense_eval((tm - t0) / h, y0, F, act, n_act, ys)
     fc = contact_force(ys[0] - ys[2] - p[P_R], ys[1] - ys[3], p, mc)
@@ -672,7 +749,7 @@ def write_sample(row, t, y, p, istate, nz, Gz, g12):
 
 
 @njit(cache=True, _nrt=False)
-def record_until(t_stop, y_stop, t0, y0, h, fixed, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
+def record_until(t_stop, y_stop, t0, y0, h, how, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
                  p, istate, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, opts, poin, samp_t, samp):
     """Record Poincaré samples and requested samples with times in (t0, t_stop]."""
     tol = 8.0 * 2.220446049250313e-16 * max(abs(t_stop), 1.0)
@@ -688,7 +765,7 @@ def record_until(t_stop, y_stop, t0, y0, h, fixed, F, act, n_act, A, B, C, ns, K
             for i in range(ys.shape[0]):
                 ys[i] = y_stop[i]
         else:
-            state_at(tk, t0, y0, h, fixed, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
+            state_at(tk, t0, y0, h, how, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
                      p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
         poin[k, 0] = tk
         poin[k, 1] = ys[0]
@@ -707,7 +784,7 @@ def record_until(t_stop, y_stop, t0, y0, h, fixed, F, act, n_act, A, B, C, ns, K
             for i in range(ys.shape[0]):
                 ys[i] = y_stop[i]
         else:
-            state_at(max(tj, t0), t0, y0, h, fixed, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
+            state_at(max(tj, t0), t0, y0, h, how, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
                      p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
         write_sample(samp[j], tj, ys, p, istate, nz, Gz, g12)
         j += 1
@@ -784,6 +861,10 @@ def advance(y, istate, fstate, t_end, p, opts,
     nz = Hz.shape[0]
     n_ext = A.shape[0]
     fixed = err_kind == 0
+    how_rk = HOW_RESTEP if fixed else HOW_DENSE
+    # exact stick stepping (adaptive methods, hammer-only systems): see stick_prepare
+    cf_ok = (not fixed) and nz == 0 and ne == 0 and stick_closed_form_ok(p)
+    cf_chunk = min(2.0 * math.pi / p[P_ETA], 2.0 * math.pi / math.sqrt(max(1.0 - p[P_XI] * p[P_XI], 1e-300))) / 8.0
     rtol = opts[O_RTOL]
     atol = opts[O_ATOL]
     hmax = opts[O_HMAX]
@@ -843,7 +924,58 @@ def advance(y, istate, fstate, t_end, p, opts,
         t_hit = 0.0
         wtol_hit = 0.0
         h_next = h
-        if immediate < 0:
+        if immediate < 0 and cf_ok and ms == STICK and mc == FREE:
+            # -- one chunk of the exact stick solution -------------------------
+            H = min(cf_chunk, hmax)
+            t1 = t + H
+            if H >= remaining or remaining - H < 1e4 * 2.220446049250313e-16 * max(abs(t), 1.0):
+                H = remaining
+                t1 = t_end
+            stick_prepare(t, y, p, F)
+            stick_state(t1, y, F, p, ynew)
+            rhs(t1, ynew, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, fs)
+            istate[I_RHS] += 1
+            istate[I_STEPS] += 1
+            steps_here += 1
+            for q in range(nw):
+                kd = kinds[q]
+                w1 = watch_value(kd, ynew, p, mc)
+                tb = -1.0
+                if w1 > wtols[q]:
+                    tb = t1
+                else:
+                    s0 = watch_slope(kd, y, K[0], p, mc)
+                    s1 = watch_slope(kd, ynew, fs, p, mc)
+                    if s0 > 0.0 and s1 < 0.0 and hermite_peak(w0s[q], w1, s0 * H, s1 * H) > -0.1 * (
+                            abs(w0s[q]) + abs(w1) + abs(s0 * H) + abs(s1 * H)):
+                        tm = find_extremum(kd, t, t1, y, H, HOW_STICK, F, act, n_act, ys, ytmp,
+                                           p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+                        stick_state(tm, y, F, p, ys)
+                        if watch_value(kd, ys, p, mc) > max(graze, wtols[q]):
+                            tb = tm
+                if tb > 0.0:
+                    te = localise(kd, t, tb, t, y, H, HOW_STICK, opts[O_BISECT], wtols[q], F, act, n_act,
+                                  A, B, C, ns, K2, ytmp, ys, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+                    if hit_kind < 0 or te < t_hit:
+                        hit_kind = kd
+                        t_hit = te
+            if hit_kind < 0:
+                if needs_record(t1, istate, opts, poin, samp_t):
+                    record_until(t1, ynew, t, y, H, HOW_STICK, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
+                                 p, istate, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, opts, poin, samp_t, samp)
+                for i in range(n):
+                    y[i] = ynew[i]
+                    K[0, i] = fs[i]
+                t = t1
+                continue
+            stick_state(t_hit, y, F, p, ys)
+            if needs_record(t_hit, istate, opts, poin, samp_t):
+                record_until(t_hit, ys, t, y, H, HOW_STICK, F, act, n_act, A, B, C, ns, K2, ytmp, ynew,
+                             p, istate, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, opts, poin, samp_t, samp)
+            for i in range(n):
+                y[i] = ys[i]
+            t = t_hit
+        elif immediate < 0:
             # -- one accepted step -------------------------------------------
             if fixed:
                 h = min(opts[O_HFIXED], remaining)
@@ -936,7 +1068,7 @@ def advance(y, istate, fstate, t_end, p, opts,
                                           p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
                             istate[I_RHS] += n_ext - ns - 1
                             dense_ok = True
-                        tm = find_extremum(kd, t, t1, y, h, F, act, n_act, ys, fs,
+                        tm = find_extremum(kd, t, t1, y, h, HOW_DENSE, F, act, n_act, ys, fs,
                                            p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
                         dense_eval((tm - t) / h, y, F, act, n_act, ys)
                         if watch_value(kd, ys, p, mc) > max(graze, wtols[q]):
@@ -950,7 +1082,7 @@ def advance(y, istate, fstate, t_end, p, opts,
                     if fixed:
                         for i in range(n):
                             K2[0, i] = K[0, i]
-                    te = localise(kd, t, tb, t, y, h, fixed, opts[O_BISECT], wtols[q], F, act, n_act,
+                    te = localise(kd, t, tb, t, y, h, how_rk, opts[O_BISECT], wtols[q], F, act, n_act,
                                   A, B, C, ns, K2, ytmp, ys, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
                     if hit_kind < 0 or te < t_hit:
                         hit_kind = kd
@@ -968,7 +1100,7 @@ def advance(y, istate, fstate, t_end, p, opts,
                     if fixed:
                         for i in range(n):
                             K2[0, i] = K[0, i]
-                    record_until(t1, ynew, t, y, h, fixed, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
+                    record_until(t1, ynew, t, y, h, how_rk, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
                                  p, istate, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, opts, poin, samp_t, samp)
                 if mc == CONTACT:
                     if not fixed and y[1] - y[3] > 0.0 and ynew[1] - ynew[3] <= 0.0:
@@ -1005,7 +1137,7 @@ def advance(y, istate, fstate, t_end, p, opts,
             confirmed = fixed or watch_value(hit_kind, ys, p, mc) > wtol_hit
             if not confirmed and refine >= 2:
                 # give up refining: take the dense-output state, crossed by construction
-                state_at(t_hit, t, y, h, False, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
+                state_at(t_hit, t, y, h, HOW_DENSE, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
                          p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
                 confirmed = True
             if not confirmed:
@@ -1016,7 +1148,7 @@ def advance(y, istate, fstate, t_end, p, opts,
                 peak_in_step(t, t_hit, y, h, F, act, n_act, ynew, fs, p, ms, mc, nz, ne,
                              Ap, Ai, Ax, Hz, Gz, g12, fstate)
             if needs_record(t_hit, istate, opts, poin, samp_t):
-                record_until(t_hit, ys, t, y, h, fixed, F, act, n_act, A, B, C, ns, K2, ytmp, ynew,
+                record_until(t_hit, ys, t, y, h, how_rk, F, act, n_act, A, B, C, ns, K2, ytmp, ynew,
                              p, istate, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, opts, poin, samp_t, samp)
             for i in range(n):
                 y[i] = ys[i]
@@ -1073,7 +1205,7 @@ def advance(y, istate, fstate, t_end, p, opts,
     if needs_record(t, istate, opts, poin, samp_t):
         for i in range(n):
             ynew[i] = y[i]
-        record_until(t, ynew, t, y, 1.0, False, F, act, 0, A, B, C, ns, K2, ytmp, ys,
+        record_until(t, ynew, t, y, 1.0, HOW_DENSE, F, act, 0, A, B, C, ns, K2, ytmp, ys,
                      p, istate, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, opts, poin, samp_t, samp)
     return ST_DONE
 
