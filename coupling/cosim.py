@@ -432,6 +432,44 @@ class StringSide:
         self.P = np.ascontiguousarray(Phi[np.ix_(rows, np.arange(n + 6))])
         self._H = H
         self._buf = np.zeros(n + 6)
+        self._modal(Phi, H)
+
+    def _modal(self, Phi: np.ndarray, H: float) -> None:
+        """Diagonal (modal) form of the exact step: O(n) per macro step instead of O(n^2).
+
+        With ``A1 = V diag(lam) V^-1`` the step is ``eta <- exp(lam H) * eta + G c``
+        in modal coordinates ``eta = V^-1 xi``, and the interface force row is
+        ``frow V``.  Used only when the eigenvector basis reproduces the dense
+        step to 1e-10 (otherwise the dense ``P`` is kept).
+        """
+        n = self.n
+        self.modal = False
+        try:
+            lam, V = np.linalg.eig(self.A1)
+            Vinv = np.linalg.inv(V)
+        except np.linalg.LinAlgError:
+            return
+        d = np.exp(lam * H)
+        recon = (V * d[None, :]) @ Vinv
+        scale = max(np.max(np.abs(Phi[:n, :n])), 1.0)
+        if not np.all(np.isfinite(recon)) or np.max(np.abs(recon - Phi[:n, :n])) > 1e-10 * scale:
+            return
+        # A1 is real: its complex modes come in conjugate pairs, whose two halves
+        # carry conjugate states.  Keep one of each pair with weight 2 on every
+        # real output (and the real modes with weight 1): half the work.
+        tol = 1e-12 * max(np.max(np.abs(lam)), 1.0)
+        keep = np.flatnonzero((lam.imag > tol) | (np.abs(lam.imag) <= tol))
+        if np.count_nonzero(lam.imag > tol) != np.count_nonzero(lam.imag < -tol):
+            return
+        wgt = np.where(lam[keep].imag > tol, 2.0, 1.0)
+        Vk = V[:, keep]
+        self.m_d = np.ascontiguousarray(d[keep])
+        self.m_G = np.ascontiguousarray((Vinv @ Phi[:n, n:n + 6])[keep])
+        self.m_frow = np.ascontiguousarray((self.frow @ Vk) * wgt)
+        self.m_rows = ((self.Cu @ Vk) * wgt, (self.Cv @ Vk) * wgt, (self.Ct @ Vk) * wgt)
+        self._V = Vk * wgt[None, :]          # xi = Re(_V @ eta)
+        self._Vinv = Vinv[keep]               # eta = _Vinv @ xi
+        self.modal = True
 
     def step(self, coeffs: np.ndarray) -> float:
         """Advance xi over one step with hammer-motion Taylor coefficients
@@ -444,15 +482,23 @@ class StringSide:
         self.xi = out[:self.n]
         return float(out[self.n])
 
+    eta = None
+    """Modal state while the master steps in modal coordinates (else None)."""
+
     def force(self, x_dev: float, v: float) -> float:
         """Interface force on the hammer [N] for hammer deviation x_dev and velocity v."""
-        return self.wob + float(self.frow @ self.xi) - self.ki * x_dev - self.ci * v
+        f = float((self.m_frow @ self.eta).real) if self.eta is not None else float(self.frow @ self.xi)
+        return self.wob + f - self.ki * x_dev - self.ci * v
 
     def bit(self) -> tuple:
         """(displacement deviation [m], velocity [m/s]) of the string's bottom node."""
+        if self.eta is not None:
+            return float((self.m_rows[0] @ self.eta).real), float((self.m_rows[1] @ self.eta).real)
         return float(self.Cu @ self.xi), float(self.Cv @ self.xi)
 
     def hook_load(self) -> float:
+        if self.eta is not None:
+            return self.hook_eq + float((self.m_rows[2] @ self.eta).real)
         return self.hook_eq + float(self.Ct @ self.xi)
 
 
@@ -651,17 +697,10 @@ def _matvec(P, b, out):
 
 
 @_njit(cache=True)
-def _exchange(gs, order, H, P, xi, buf, frow, ki, ci, W, wh, Fh, x_new, v_new, F_held, out):
-    """One macro step of the string side after the hammer's step.
-
-    ``wh`` (3, 2): hammer (x deviation, v) at t_n, t_{n-1}, t_{n-2}; ``Fh`` (3,):
-    interface forces at the same times.  Builds the Taylor coefficients of the
-    hammer motion (Jacobi: extrapolated from ``wh``; Gauss–Seidel: interpolated
-    through the new value), advances ``xi`` with the precomputed ``P``, shifts
-    the histories and writes ``out = [F(t_{n+1}), energy residual of the step]``.
-    """
-    n = xi.shape[0]
-    c = buf[n:]
+def _coefficients(gs, order, H, wh, x_new, v_new, c):
+    """Taylor coefficients (x, v, x', v', x'', v'') of the hammer motion over the step:
+    Jacobi extrapolates from the history ``wh``, Gauss–Seidel interpolates through
+    the new value."""
     for k in range(2):
         w0 = wh[0, k]
         w1 = wh[1, k]
@@ -687,6 +726,20 @@ def _exchange(gs, order, H, P, xi, buf, frow, ki, ci, W, wh, Fh, x_new, v_new, F
                 c[k] = w0
                 c[2 + k] = (wn - w1) / (2.0 * H)
                 c[4 + k] = (wn - 2.0 * w0 + w1) / (H * H)
+
+
+@_njit(cache=True)
+def _exchange(gs, order, H, P, xi, buf, frow, ki, ci, W, wh, Fh, x_new, v_new, F_held, out):
+    """One macro step of the string side after the hammer's step (dense exact step).
+
+    ``wh`` (3, 2): hammer (x deviation, v) at t_n, t_{n-1}, t_{n-2}; ``Fh`` (3,):
+    interface forces at the same times.  Builds the Taylor coefficients of the
+    hammer motion, advances ``xi`` with the precomputed ``P``, shifts the
+    histories and writes ``out = [F(t_{n+1}), energy residual of the step]``.
+    """
+    n = xi.shape[0]
+    c = buf[n:]
+    _coefficients(gs, order, H, wh, x_new, v_new, c)
     f_xi = 0.0
     for i in range(n):
         f_xi += frow[i] * xi[i]
@@ -697,6 +750,29 @@ def _exchange(gs, order, H, P, xi, buf, frow, ki, ci, W, wh, Fh, x_new, v_new, F
     f_xi = 0.0
     for i in range(n):
         f_xi += frow[i] * xi[i]
+    _finish(H, c, f_xi, F_start, ki, ci, W, wh, Fh, x_new, v_new, F_held, out)
+
+
+@_njit(cache=True)
+def _exchange_modal(gs, order, H, d, G, eta, c, frow_m, ki, ci, W, wh, Fh, x_new, v_new, F_held, out):
+    """As :func:`_exchange` in modal coordinates: ``eta <- d * eta + G c`` (O(n))."""
+    _coefficients(gs, order, H, wh, x_new, v_new, c)
+    f0 = 0.0
+    f1 = 0.0
+    for i in range(eta.shape[0]):
+        f0 += (frow_m[i] * eta[i]).real
+        e = d[i] * eta[i]
+        for k in range(6):
+            e += G[i, k] * c[k]
+        eta[i] = e
+        f1 += (frow_m[i] * e).real
+    F_start = W + f0 - ki * c[0] - ci * c[1]
+    _finish(H, c, f1, F_start, ki, ci, W, wh, Fh, x_new, v_new, F_held, out)
+
+
+@_njit(cache=True)
+def _finish(H, c, f_xi, F_start, ki, ci, W, wh, Fh, x_new, v_new, F_held, out):
+    """Interface force at the step end, energy residual, history shift."""
     xe = c[0] + c[2] * H + 0.5 * c[4] * H * H
     ve = c[1] + c[3] * H + 0.5 * c[5] * H * H
     F_end = W + f_xi - ki * xe - ci * ve
@@ -821,6 +897,12 @@ def cosimulate(string, config: CosimConfig = CosimConfig(), *, fmu=None, hammer=
     j = 1
     P, xi, frow = side.P, side.xi, side.frow
     buf = np.zeros(P.shape[1])
+    modal = side.modal
+    if modal:
+        eta = (side._Vinv @ xi).astype(np.complex128)
+        side.eta = eta
+        m_d, m_G, m_frow = side.m_d, side.m_G, side.m_frow
+        cbuf = np.zeros(6)
     scratch = np.zeros(4)
     ki, ci = side.ki, side.ci
     check = c.check_stability
@@ -832,8 +914,12 @@ def cosimulate(string, config: CosimConfig = CosimConfig(), *, fmu=None, hammer=
             F_held = ext_w[0] * Fh[0] + ext_w[1] * Fh[1] + ext_w[2] * Fh[2]
             _hammer_step(hammer, t, H, F_held, n, n_grow)
             out = hammer.read()
-            _exchange(gs, order, H, P, xi, buf, frow, ki, ci, W, wh, Fh, out[0] - x_eq, out[1],
-                      F_held, scratch)
+            if modal:
+                _exchange_modal(gs, order, H, m_d, m_G, eta, cbuf, m_frow, ki, ci, W, wh, Fh,
+                                out[0] - x_eq, out[1], F_held, scratch)
+            else:
+                _exchange(gs, order, H, P, xi, buf, frow, ki, ci, W, wh, Fh, out[0] - x_eq, out[1],
+                          F_held, scratch)
             F, r_step = scratch[0], scratch[1]
             res_total += r_step
             if check:
@@ -875,6 +961,9 @@ def cosimulate(string, config: CosimConfig = CosimConfig(), *, fmu=None, hammer=
         progress.close()
         if own:
             hammer.close()
+        if modal:
+            side.xi[:] = (side._V @ eta).real
+            side.eta = None
     wall = _time.perf_counter() - t_loop
     stats = {"max_window_energy_residual_j": max_win, "energy_residual_total_j": res_total,
              "reference_energy_j": E_ref, "string_states": side.n}
