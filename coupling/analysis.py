@@ -21,7 +21,7 @@ from hammerbit.model import kernels as K
 from hammerbit.model.params import GROUP_NAMES, Groups, ParameterError
 from hammerbit.model.stepping import SolverOptions, Stepper
 
-from .simulate import Record, simulate
+from .simulate import simulate
 
 __all__ = ["relative_coordinates", "detect_period", "bifurcation", "BifurcationResult",
            "penetration_sweep", "largest_lyapunov", "progress_bar"]

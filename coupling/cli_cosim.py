@@ -13,7 +13,6 @@ Without ``--fmu`` the hammer runs in process (the FMU's own kernels,
 from __future__ import annotations
 
 import json
-import math
 import sys
 import time
 

@@ -1042,14 +1042,11 @@ def monolithic(string, config: CosimConfig = CosimConfig()) -> CosimResult:
 # ---------------------------------------------------------------------------
 # linear modes of the coupled system and frequency sweep
 # ---------------------------------------------------------------------------
-def coupled_modes(string, config: CosimConfig = CosimConfig(), *, f_max: float = 100.0) -> np.ndarray:
-    """Natural frequencies [Hz] of the coupled linear system with the bit on bottom.
+def _coupled_system(string, config: CosimConfig):
+    """State matrix of string + interface + hammer with the bit stuck (linear).
 
-    The modal check of this configuration: the string (hook at the top) with the
-    hammer as its bottom boundary -- interface ``(k_i, c_i)``, hammer mass ``m1``,
-    hammer spring ``(K, C)`` -- and the bit held by the rock (stuck).  Damped
-    natural frequencies ``|Im lambda| / 2 pi`` of the state matrix, sorted, up
-    to ``f_max``.
+    Returns ``(A, n, m1, K, C)``: A of shape (n + 2, n + 2), the last two states
+    the hammer's deviation and velocity; n the string-side states.
     """
     side = StringSide(string, config)
     rig = config.rig
@@ -1062,6 +1059,19 @@ def coupled_modes(string, config: CosimConfig = CosimConfig(), *, f_max: float =
     A[n + 1, :n] = side.frow / m1
     A[n + 1, n] = -(side.ki + K) / m1
     A[n + 1, n + 1] = -(side.ci + C) / m1
+    return A, n, m1, K, C
+
+
+def coupled_modes(string, config: CosimConfig = CosimConfig(), *, f_max: float = 100.0) -> np.ndarray:
+    """Natural frequencies [Hz] of the coupled linear system with the bit on bottom.
+
+    The modal check of this configuration: the string (hook at the top) with the
+    hammer as its bottom boundary -- interface ``(k_i, c_i)``, hammer mass ``m1``,
+    hammer spring ``(K, C)`` -- and the bit held by the rock (stuck).  Damped
+    natural frequencies ``|Im lambda| / 2 pi`` of the state matrix, sorted, up
+    to ``f_max``.
+    """
+    A, n, m1, K, C = _coupled_system(string, config)
     lam = np.linalg.eigvals(A)
     f = np.abs(lam.imag[lam.imag > 0]) / (2 * math.pi)
     f = np.sort(f)
@@ -1156,17 +1166,7 @@ def wob_frf(string, frequencies, config: CosimConfig = CosimConfig()) -> np.ndar
     linear and :func:`sweep`'s ``wob_amplitude_n`` equals ``A |frf|``; its peaks
     are at :func:`coupled_modes`.
     """
-    side = StringSide(string, config)
-    rig = config.rig
-    n = side.n
-    m1, K, C = rig.hammer_mass, rig.stiffness, rig.damping
-    A = np.zeros((n + 2, n + 2))
-    A[:n, :n] = side.A1
-    A[:n, n:n + 2] = side.E
-    A[n, n + 1] = 1.0
-    A[n + 1, :n] = side.frow / m1
-    A[n + 1, n] = -(side.ki + K) / m1
-    A[n + 1, n + 1] = -(side.ci + C) / m1
+    A, n, m1, K, C = _coupled_system(string, config)
     b = np.zeros(n + 2)
     b[n + 1] = 1.0 / m1
     out = []

@@ -18,7 +18,7 @@ kernel boundary (:meth:`Groups.to_kernel`).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 

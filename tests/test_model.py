@@ -3,14 +3,13 @@ import json
 import math
 import subprocess
 import sys
-import warnings
 
 import numpy as np
 import pytest
 
 from hammerbit.analysis import detect_period, largest_lyapunov
 from hammerbit.model import kernels as K
-from hammerbit.model.params import (RIG, Groups, ParameterError, RigParameters, apply_settings,
+from hammerbit.model.params import (RIG, ParameterError, RigParameters, apply_settings,
                                     preset)
 from hammerbit.model.stepping import EventStormError, SolverOptions, Stepper
 from hammerbit.simulate import BounceWarning, Record, simulate
