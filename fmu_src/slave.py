@@ -47,7 +47,7 @@ from pythonfmu.enums import Fmi2Status
 
 from . import kernels as K
 from .params import P_B, P_FEXT, ParameterError, RigParameters
-from .stepping import SolverError, SolverOptions, StepSizeError, Stepper
+from .stepping import SolverError, SolverOptions, Stepper
 
 __all__ = ["HammerBitRock", "PARAMETERS", "INPUTS", "OUTPUTS", "UNITS", "STATE_FORMAT", "guard_pythonfmu_exit"]
 
@@ -554,11 +554,7 @@ class HammerBitRock(Fmi2Slave):
                 self._applied_force = fh
             tau_end = (current_time + step_size - self._t_start) * self._omega
             try:
-                try:
-                    st.advance(tau_end)
-                except StepSizeError:
-                    if not self._accept_sliver(st, tau_end, snap):
-                        raise
+                st.advance(tau_end)
             except Exception as e:
                 _restore(y, snap[0])
                 _restore(ist, snap[1])
@@ -588,25 +584,6 @@ class HammerBitRock(Fmi2Slave):
                                 f"it must be > 0 and finite; step refused, state unchanged")
         return self._reject(f"currentCommunicationPoint = {current_time!r} s is not the current "
                             f"time of the FMU, {self._t!r} s; step refused, state unchanged")
-
-    def _accept_sliver(self, st, tau_end, snap) -> bool:
-        """Workaround: the kernel can stop a few ulp short of ``tau_end`` with StepSizeError.
-
-        ``kernels.advance`` ends its loop when less than 4 ulp(t_end) remain but refuses steps
-        below hmin = 10 ulp(t); a step that ends in between leaves a sliver it cannot take.  The
-        state there is the state at ``tau_end`` to within 1e-13 in tau, so the step is finished
-        by moving the clock (and restoring the step proposal of the start of the step).  Remove
-        once the kernel snaps slivers below hmin to ``t_end`` itself.
-        """
-        left = tau_end - st.time
-        if not (0.0 <= left <= 32.0 * 2.220446049250313e-16 * max(abs(tau_end), 1.0)):
-            return False
-        arr = st.get_state()
-        off = st.y.shape[0] + st.istate.shape[0]
-        arr[off + K.F_T] = tau_end
-        arr[off + K.F_H] = max(np.frombuffer(snap[2], dtype=np.float64)[K.F_H], arr[off + K.F_H])
-        st.set_state(arr)
-        return True
 
     # ------------------------------------------------------------------
     # Outputs (read from the stepper's arrays when the master asks)
