@@ -83,7 +83,7 @@ def _fmu(args):
 
 
 def cmd_cosim(args) -> int:
-    from .cosim import CouplingInstabilityError, cosimulate
+    from .cosim import CouplingInstabilityError, cosimulate, cosimulate_adaptive
     cfg = _config(args, stop=args.stop, record=("wob", "interface_force", "hammer_position",
                                                 "hammer_velocity", "bit_position", "bit_velocity",
                                                 "hook_load"),
@@ -91,14 +91,23 @@ def cmd_cosim(args) -> int:
     string = _string(args)
     t0 = time.perf_counter()
     try:
-        res = cosimulate(string, cfg, fmu=_fmu(args))
+        if args.adaptive:
+            res = cosimulate_adaptive(string, cfg, fmu=_fmu(args), tol=args.tol)
+        else:
+            res = cosimulate(string, cfg, fmu=_fmu(args))
     except CouplingInstabilityError as e:
         print(f"hammerbit cosim: {e}", file=sys.stderr)
         return 3
+    except ValueError as e:
+        print(f"hammerbit cosim: error: {e}", file=sys.stderr)
+        return 2
     total = time.perf_counter() - t0
     out = res.summary()
     out["total_time_s"] = total
     out["hammer"] = "fmu" if args.fmu else "in-process"
+    if args.adaptive:
+        out["scheme"] = "gauss-seidel (hammer first), adaptive step"
+        out["adaptive"] = res.stats
     out["string"] = string.name
     out["wob_static_n"] = cfg.weight_on_bit
     if args.out:
@@ -177,6 +186,11 @@ def register(subparsers) -> None:
     p.add_argument("--stop", type=float, required=True, help="simulated time [s]")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     p.add_argument("--out", default=None, help="CSV of the recorded variables")
+    p.add_argument("--adaptive", action="store_true",
+                   help="adaptive macro step with rollback through the FMU state (Gauss-Seidel, "
+                        "hammer first); --step is the initial step")
+    p.add_argument("--tol", type=float, default=1e-3,
+                   help="--adaptive: allowed interface force defect relative to the WOB (default 1e-3)")
     p.set_defaults(func=cmd_cosim)
 
     p = subparsers.add_parser("sweep", help="frequency sweep of the hammer excitation",

@@ -444,11 +444,15 @@ class StringSide:
         """
         n = self.n
         self.modal = False
-        try:
-            lam, V = np.linalg.eig(self.A1)
-            Vinv = np.linalg.inv(V)
-        except np.linalg.LinAlgError:
+        if getattr(self, "_eig", None) is None:
+            try:
+                lam, V = np.linalg.eig(self.A1)
+                self._eig = (lam, V, np.linalg.inv(V))
+            except np.linalg.LinAlgError:
+                self._eig = False
+        if self._eig is False:
             return
+        lam, V, Vinv = self._eig
         d = np.exp(lam * H)
         recon = (V * d[None, :]) @ Vinv
         scale = max(np.max(np.abs(Phi[:n, :n])), 1.0)
@@ -530,6 +534,17 @@ class StepperHammer:
     def step(self, t: float, H: float, force: float) -> None:
         self.st.p[self._K.P_B] = force / self.F0
         self.st.advance(self.Om * (t + H))
+
+    def get_state(self):
+        """Snapshot of the whole hammer state (for rollback)."""
+        return self.st.get_state()
+
+    def set_state(self, state) -> None:
+        """Restore a snapshot of :meth:`get_state`."""
+        self.st.set_state(state)
+
+    def free_state(self, state) -> None:
+        pass
 
     def read(self) -> np.ndarray:
         """(x_h [m], v_h [m/s], x_bit [m], v_bit [m/s], drive on bit [N])."""
@@ -634,6 +649,17 @@ class FMUHammer:
     def step(self, t: float, H: float, force: float) -> None:
         self.fmu.setReal([self.vr_in], [force])
         self.fmu.doStep(currentCommunicationPoint=t, communicationStepSize=H)
+
+    def get_state(self):
+        """fmi2GetFMUstate (the FMU saves its whole hidden state)."""
+        return self.fmu.getFMUState()
+
+    def set_state(self, state) -> None:
+        """fmi2SetFMUstate: roll the FMU back."""
+        self.fmu.setFMUState(state)
+
+    def free_state(self, state) -> None:
+        self.fmu.freeFMUState(state)
 
     def read(self) -> np.ndarray:
         v = self.fmu.getReal(self.vr_out)
@@ -1042,6 +1068,147 @@ def monolithic(string, config: CosimConfig = CosimConfig()) -> CosimResult:
 # ---------------------------------------------------------------------------
 # linear modes of the coupled system and frequency sweep
 # ---------------------------------------------------------------------------
+ADAPTIVE_DTYPE = np.dtype([("time", "f8"), ("step_size", "f8"), ("wob", "f8"), ("interface_force", "f8"),
+                           ("hammer_force", "f8"), ("hammer_position", "f8"), ("bit_position", "f8"),
+                           ("force_defect", "f8")])
+
+
+def _held_force(ts, Fs, t, H, order):
+    """Mean over [t, t + H] of the polynomial of degree ``order`` through the
+    last forces (non-uniform times): the force the hammer holds over the step."""
+    k = min(order, len(ts) - 1)
+    if k == 0:
+        return Fs[-1]
+    tt = np.asarray(ts[-(k + 1):]) - t
+    c = np.polynomial.polynomial.polyfit(tt, np.asarray(Fs[-(k + 1):]), k)
+    ci = np.polynomial.polynomial.polyint(c)
+    return float((np.polynomial.polynomial.polyval(H, ci) - np.polynomial.polynomial.polyval(0.0, ci)) / H)
+
+
+def cosimulate_adaptive(string, config: CosimConfig = CosimConfig(), *, fmu=None, tol: float = 1e-3,
+                        h_min: Optional[float] = None, h_max: Optional[float] = None) -> CosimResult:
+    """Co-simulation with an adaptive macro step and rollback through the FMU state.
+
+    Scheme: Gauss–Seidel with the hammer first.  The hammer holds the mean of
+    the interface force extrapolated (order ``config.extrapolation``, from the
+    last accepted communication points, non-uniform in time) over the step;
+    the string then follows the hammer motion interpolated linearly through
+    the new value, stepped exactly.  The step's error estimate is the
+    *interface force defect* ``|F_held - mean F_i|`` over the step -- the
+    force the hammer saw against the force the string actually transmitted
+    (its product with the hammer displacement is the power-bond energy
+    residual of ECCO).  When the defect exceeds ``tol`` times the force scale
+    (the WOB), both sides roll back (FMU: ``fmi2SetFMUstate``) and the step is
+    halved; below ``tol / 4`` the next step doubles, within ``[h_min, h_max]``
+    (powers of two of ``config.step``, so the exact string discretisations are
+    reused).
+
+    Parameters
+    ----------
+    string : DrillString
+    config : CosimConfig
+        ``step`` is the initial macro step [s].
+    fmu : path, optional
+        The hammer FMU (``canGetAndSetFMUstate`` is used); default the same
+        kernels in process.
+    tol : float
+        Allowed force defect relative to the WOB [-].
+    h_min, h_max : float, optional
+        Step limits [s]; default ``step / 64`` and ``step * 8``.
+
+    Returns
+    -------
+    CosimResult
+        ``data`` has ``ADAPTIVE_DTYPE`` (time first, with the step size used and
+        the force defect); ``stats`` counts accepted and rejected steps.
+    """
+    c = config
+    H0 = c.step
+    h_min = H0 / 64 if h_min is None else h_min
+    h_max = H0 * 8 if h_max is None else h_max
+    if not (0 < h_min <= H0 <= h_max) or not (0 < tol < 1):
+        raise ValueError(f"need 0 < h_min <= step <= h_max and 0 < tol < 1; got h_min={h_min!r}, "
+                         f"step={H0!r}, h_max={h_max!r}, tol={tol!r}")
+    ts0 = _time.perf_counter()
+    side = StringSide(string, c)
+    W = side.wob
+    rig = c.rig
+    hammer = FMUHammer(fmu, rig, W, t0=c.start, rtol=c.rtol) if fmu is not None else \
+        StepperHammer(rig, W, rtol=c.rtol, t0=c.start)
+    x_eq = hammer.x_eq
+    disc = {}
+
+    def discretisation(H):
+        key = round(H / H0 * 2 ** 20)
+        if key not in disc:
+            side.discretise(H)
+            disc[key] = side.P
+        side.P = disc[key]
+        side._buf = np.zeros(side.n + 6)
+
+    setup = _time.perf_counter() - ts0
+    out = hammer.read()
+    F = side.force(out[0] - x_eq, out[1])
+    hist_t, hist_F = [c.start], [F]
+    rows = [(c.start, 0.0, out[4], F, F, out[0], out[2], 0.0)]
+    t = c.start
+    H = H0
+    accepted = rejected = 0
+    at_min = 0
+    t_loop = _time.perf_counter()
+    try:
+        while t < c.stop - 1e-12 * max(1.0, abs(c.stop)):
+            H = min(H, c.stop - t)
+            F_held = _held_force(hist_t, hist_F, t, H, c.extrapolation)
+            snap = hammer.get_state()
+            xi0 = side.xi.copy()
+            x_old, v_old = out[0] - x_eq, out[1]
+            hammer.step(t, H, F_held)
+            new = hammer.read()
+            x_new, v_new = new[0] - x_eq, new[1]
+            discretisation(H)
+            coeffs = np.array([x_old, v_old, (x_new - x_old) / H, (v_new - v_old) / H, 0.0, 0.0])
+            impulse = side.step(coeffs)            # integral of (F_i - W) over the step
+            F_mean = W + impulse / H
+            defect = abs(F_held - F_mean) / max(W, 1.0)
+            if not math.isfinite(defect):
+                hammer.free_state(snap)
+                raise CouplingInstabilityError(
+                    f"coupling unstable: non-finite interface values at t = {t + H:.6g} s (H = {H:g} s)",
+                    time=t + H, step=accepted + 1, residual=math.inf, reference=W)
+            if defect > tol and H > h_min * (1 + 1e-12):
+                hammer.set_state(snap)            # roll back both sides and halve the step
+                hammer.free_state(snap)
+                side.xi[:] = xi0
+                rejected += 1
+                H = max(H / 2, h_min)
+                continue
+            hammer.free_state(snap)
+            if defect > tol:
+                at_min += 1
+            t = t + H
+            accepted += 1
+            out = new
+            F = side.force(x_new, v_new)
+            hist_t.append(t)
+            hist_F.append(F)
+            del hist_t[:-3], hist_F[:-3]
+            rows.append((t, H, out[4], F, F_held, out[0], out[2], defect))
+            if defect < 0.25 * tol:
+                H = min(2 * H, h_max)
+    finally:
+        hammer.close()
+    wall = _time.perf_counter() - t_loop
+    data = np.array(rows, dtype=ADAPTIVE_DTYPE)
+    steps = data["step_size"][1:]
+    return CosimResult(data=data, config=c, macro_steps=accepted, wall_time_s=wall, setup_time_s=setup,
+                       penetration_m=float(out[2]),
+                       stats={"accepted": accepted, "rejected": rejected, "at_min_step": at_min,
+                              "h_min_used": float(steps.min()) if steps.size else H0,
+                              "h_max_used": float(steps.max()) if steps.size else H0, "tol": tol},
+                       method="cosim-adaptive")
+
+
 def _coupled_system(string, config: CosimConfig):
     """State matrix of string + interface + hammer with the bit stuck (linear).
 
