@@ -31,6 +31,9 @@ def _common(p):
     p.add_argument("--interface-stiffness", type=float, default=None, help="k_i [N/m] (default 2e6)")
     p.add_argument("--interface-damping", type=float, default=None, help="c_i [N s/m] (default 2e3)")
     p.add_argument("--f-max", type=float, default=None, help="modal truncation of the string [Hz]")
+    p.add_argument("--harmonic-source", default="fmu", choices=["fmu", "master"],
+                   help="harmonic force from the FMU's internal source (default) or computed by the "
+                        "master and fed to the FMU's harmonic_force input (step mean, zero-order hold)")
     p.add_argument("--set", action="append", metavar="FIELD=VALUE",
                    help="change a field of the hammer's RigParameters (SI), e.g. amplitude=5000")
 
@@ -53,7 +56,7 @@ def _config(args, **extra):
         except TypeError as e:
             raise SystemExit(f"hammerbit: --set: {e}") from None
     kw = dict(step=args.step, scheme=args.scheme, extrapolation=args.extrapolation, rig=rig,
-              wob=args.wob, f_max=args.f_max)
+              wob=args.wob, f_max=args.f_max, harmonic_source=getattr(args, "harmonic_source", "fmu"))
     if args.interface_stiffness is not None:
         kw["interface_stiffness"] = args.interface_stiffness
     if args.interface_damping is not None:

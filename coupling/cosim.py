@@ -225,12 +225,19 @@ class CosimConfig:
     blowup: float = 50.0
     progress: Optional[bool] = None
     rtol: float = 1e-10
+    harmonic_source: str = "fmu"
+    """``fmu``: the FMU's internal harmonic source (continuous in time);
+    ``master``: the master computes the harmonic force and feeds its mean over
+    each macro step to the FMU's ``harmonic_force`` input (zero-order hold),
+    with the FMU's internal source switched off."""
 
     def __post_init__(self):
         if self.scheme not in SCHEMES:
             raise ValueError(f"scheme = {self.scheme!r}: allowed {', '.join(SCHEMES)}")
         if self.extrapolation not in (0, 1, 2):
             raise ValueError(f"extrapolation = {self.extrapolation!r}: allowed 0, 1, 2")
+        if self.harmonic_source not in ("fmu", "master"):
+            raise ValueError(f"harmonic_source = {self.harmonic_source!r}: allowed 'fmu', 'master'")
         if not (self.step > 0 and math.isfinite(self.step)):
             raise ValueError(f"step = {self.step!r}: must be > 0 s")
         if not self.stop > self.start:
@@ -509,6 +516,31 @@ class StringSide:
 # ---------------------------------------------------------------------------
 # hammer sides
 # ---------------------------------------------------------------------------
+class _MasterHarmonic:
+    """The harmonic force A sin(2 pi f t + phi) computed by the master and held
+    over each macro step at its mean (the exact impulse of the step)."""
+
+    def __init__(self, rig: RigParameters):
+        self.A = rig.amplitude
+        self.w = 2.0 * math.pi * rig.frequency
+        self.phi = rig.phase
+
+    def mean(self, t: float, H: float) -> float:
+        w, phi = self.w, self.phi
+        return self.A * (math.cos(w * t + phi) - math.cos(w * (t + H) + phi)) / (w * H)
+
+
+def _hammer_side(fmu, rig: RigParameters, W: float, c) -> object:
+    """The hammer side of a run: the FMU (fmpy) or the same kernels in process."""
+    master = _MasterHarmonic(rig) if c.harmonic_source == "master" else None
+    if master is not None:
+        rig = rig.replace(amplitude=0.0)       # the FMU's internal source off
+    h = FMUHammer(fmu, rig, W, t0=c.start, rtol=c.rtol) if fmu is not None else \
+        StepperHammer(rig, W, rtol=c.rtol, t0=c.start)
+    h.master_harmonic = master
+    return h
+
+
 class StepperHammer:
     """The hammer–bit–rock model in process (the FMU's kernels, same stepper).
 
@@ -531,8 +563,12 @@ class StepperHammer:
         self.st.fstate[K.F_T] = self.Om * t0
         self.x_eq = wob / rig.stiffness
 
+    master_harmonic = None
+
     def step(self, t: float, H: float, force: float) -> None:
         self.st.p[self._K.P_B] = force / self.F0
+        if self.master_harmonic is not None:
+            self.st.p[self._K.P_FEXT] = self.master_harmonic.mean(t, H) / self.F0
         self.st.advance(self.Om * (t + H))
 
     def get_state(self):
@@ -646,8 +682,14 @@ class FMUHammer:
                            f"it has {sorted(self.vr)}")
         return None
 
+    master_harmonic = None
+
     def step(self, t: float, H: float, force: float) -> None:
-        self.fmu.setReal([self.vr_in], [force])
+        if self.master_harmonic is not None:
+            self.fmu.setReal([self.vr_in, self.vr["harmonic_force"]],
+                             [force, self.master_harmonic.mean(t, H)])
+        else:
+            self.fmu.setReal([self.vr_in], [force])
         self.fmu.doStep(currentCommunicationPoint=t, communicationStepSize=H)
 
     def get_state(self):
@@ -850,8 +892,7 @@ def cosimulate(string, config: CosimConfig = CosimConfig(), *, fmu=None, hammer=
     rig = c.rig
     own = hammer is None
     if hammer is None:
-        hammer = FMUHammer(fmu, rig, W, t0=c.start, rtol=c.rtol) if fmu is not None else \
-            StepperHammer(rig, W, rtol=c.rtol, t0=c.start)
+        hammer = _hammer_side(fmu, rig, W, c)
     setup = _time.perf_counter() - ts
     n_steps = c.macro_steps
     rec = tuple(c.record)
@@ -1133,8 +1174,7 @@ def cosimulate_adaptive(string, config: CosimConfig = CosimConfig(), *, fmu=None
     side = StringSide(string, c)
     W = side.wob
     rig = c.rig
-    hammer = FMUHammer(fmu, rig, W, t0=c.start, rtol=c.rtol) if fmu is not None else \
-        StepperHammer(rig, W, rtol=c.rtol, t0=c.start)
+    hammer = _hammer_side(fmu, rig, W, c)
     x_eq = hammer.x_eq
     disc = {}
 
