@@ -233,3 +233,14 @@ def save_result(name: str, result: dict, fig=None) -> str:
         fh.write("\n")
     os.replace(tmp, path)
     return path
+
+
+def standalone(run, doc: str) -> None:
+    """``python benchmarks/bench_X.py [--quick]``: run one benchmark and print its summary rows."""
+    import argparse
+    ap = argparse.ArgumentParser(description=(doc or "").strip().splitlines()[0] if doc else None)
+    ap.add_argument("--quick", action="store_true")
+    res = run(quick=ap.parse_args().quick)
+    for row in res["summary"]:
+        print(f"{row['metric']}: {row['ours']} (peer {row.get('peer')}, ratio {row.get('ratio')}, "
+              f"goal {row.get('goal')})")

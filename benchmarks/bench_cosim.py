@@ -266,9 +266,5 @@ def run(quick: bool = False, *, verbose: bool = True) -> dict:
 
 
 if __name__ == "__main__":
-    import argparse
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true")
-    res = run(quick=ap.parse_args().quick)
-    for row in res["summary"]:
-        print(f"{row['metric']}: {row['ours']} (peer {row['peer']}, ratio {row['ratio']}, goal {row['goal']})")
+    from benchmarks import standalone
+    standalone(run, __doc__)

@@ -67,4 +67,5 @@ def run(quick: bool = False) -> dict:
 
 
 if __name__ == "__main__":
-    run()
+    from benchmarks import standalone
+    standalone(run, __doc__)

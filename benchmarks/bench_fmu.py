@@ -390,6 +390,5 @@ def run(quick: bool = False) -> dict:
 
 
 if __name__ == "__main__":
-    quick = "--quick" in sys.argv[1:]
-    out = run(quick=quick)
-    print(json.dumps(out["summary"], indent=1))
+    from benchmarks import standalone
+    standalone(run, __doc__)

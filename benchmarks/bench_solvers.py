@@ -405,10 +405,5 @@ def run(quick: bool = False, *, verbose: bool = True) -> dict:
 
 
 if __name__ == "__main__":
-    import argparse
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true")
-    a = ap.parse_args()
-    res = run(quick=a.quick)
-    for row in res["summary"]:
-        print(f"{row['metric']}: ours {row['ours']}, peer {row['peer']}, ratio {row['ratio']}, goal {row['goal']}")
+    from benchmarks import standalone
+    standalone(run, __doc__)
