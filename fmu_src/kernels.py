@@ -74,7 +74,9 @@ I_STEPS = 8       # accepted steps
 I_REJECTS = 9     # rejected steps
 I_RHS = 10        # right-hand-side evaluations
 I_COUNT0 = 11     # first of N_EVENT_KINDS event counters
-N_ISTATE = I_COUNT0 + N_EVENT_KINDS
+I_SWIN = I_COUNT0 + N_EVENT_KINDS        # forcing period of the step-count window
+I_SWIN_STEPS = I_SWIN + 1                # accepted steps counted in that window
+N_ISTATE = I_SWIN_STEPS + 1
 
 # float state
 F_T = 0           # current time
@@ -97,7 +99,8 @@ O_MAXSTEPS = 6    # max accepted steps in one call (0: unlimited)
 O_POIN_T0 = 7     # time of Poincaré sample 0
 O_POIN_DT = 8     # Poincaré sampling interval (the forcing period)
 O_GRAZE = 9       # extremum value above which a grazing event counts
-N_OPTS = 10
+O_STEPCAP = 10    # max accepted steps per forcing period before ST_STEP_STORM (0: none)
+N_OPTS = 11
 
 # status codes of advance()
 ST_DONE = 0
@@ -106,6 +109,7 @@ ST_EVENT_STORM = 2
 ST_STEP_TOO_SMALL = 3
 ST_NONFINITE = 4
 ST_MAX_STEPS = 5
+ST_STEP_STORM = 6
 
 # event log columns
 L_T, L_KIND, L_X1, L_X2, L_X3, L_X4, L_VREL, L_PEAK = range(8)
@@ -596,6 +600,17 @@ def apply_event(kind, y, istate, fstate, p):
 
 
 @njit(cache=True, inline="always", _nrt=False)
+def count_step(t1, period, istate, cap):
+    """Count an accepted step in its forcing period; True when the cap is exceeded."""
+    w = int(math.floor(t1 / period))
+    if w != istate[I_SWIN]:
+        istate[I_SWIN] = w
+        istate[I_SWIN_STEPS] = 0
+    istate[I_SWIN_STEPS] += 1
+    return cap > 0.0 and istate[I_SWIN_STEPS] > cap
+
+
+@njit(cache=True, inline="always", _nrt=False)
 def step_slot(ms, mc):
     """Regime whose last step size is remembered: 0 stick, 1 slip, 2 contact."""
     if mc != FREE:
@@ -871,6 +886,7 @@ def advance(y, istate, fstate, t_end, p, opts,
     evcap = opts[O_EVCAP]
     maxsteps = int(opts[O_MAXSTEPS])
     graze = opts[O_GRAZE]
+    stepcap = opts[O_STEPCAP]
     period = 2.0 * math.pi / p[P_ETA]
     log_cap = log.shape[0]
 
@@ -937,6 +953,10 @@ def advance(y, istate, fstate, t_end, p, opts,
             istate[I_RHS] += 1
             istate[I_STEPS] += 1
             steps_here += 1
+            if count_step(t1, period, istate, stepcap):
+                fstate[F_T] = t
+                fstate[F_H] = h
+                return ST_STEP_STORM
             for q in range(nw):
                 kd = kinds[q]
                 w1 = watch_value(kd, ynew, p, mc)
@@ -1048,6 +1068,10 @@ def advance(y, istate, fstate, t_end, p, opts,
             t1 = t + h
             if h >= remaining:
                 t1 = t_end
+            if count_step(t1, period, istate, stepcap):
+                fstate[F_T] = t
+                fstate[F_H] = h
+                return ST_STEP_STORM
 
             # -- detection over [t, t1] ------------------------------------
             dense_ok = False

@@ -20,7 +20,8 @@ from .params import Groups, ParameterError, _check
 
 __all__ = [
     "SolverOptions", "LinearSubsystem", "Stepper", "SolverError", "EventStormError",
-    "StepSizeError", "NonFiniteStateError", "MaxStepsError", "EVENT_NAMES", "method_tableau",
+    "StepSizeError", "NonFiniteStateError", "MaxStepsError", "StepStormError", "EVENT_NAMES",
+    "method_tableau",
 ]
 
 EVENT_NAMES = K.EVENT_NAMES
@@ -57,6 +58,11 @@ class NonFiniteStateError(SolverError):
 
 class MaxStepsError(SolverError):
     """More steps than ``max_steps`` in one call."""
+
+
+class StepStormError(SolverError):
+    """More accepted steps in one forcing period than ``max_steps_per_period``: the
+    solver crawls (a stiff or nearly singular regime) instead of hanging."""
 
 
 METHODS = ("adaptive", "dp54", "rk4")
@@ -100,6 +106,9 @@ class SolverOptions:
         A grazing extremum of an indicator counts as an event above this value.
     max_steps : int
         Accepted steps allowed in one call (0: no limit).
+    max_steps_per_period : int
+        Accepted steps allowed in one forcing period before :class:`StepStormError`
+        (0: no limit): a crawling solver fails loudly instead of hanging.
     """
 
     method: str = "adaptive"
@@ -111,6 +120,7 @@ class SolverOptions:
     max_step: float = math.inf
     graze_tol: float = 1e-13
     max_steps: int = 0
+    max_steps_per_period: int = 100_000
 
     def __post_init__(self):
         if self.method not in METHODS:
@@ -123,6 +133,7 @@ class SolverOptions:
         _check("max_step", self.max_step, 0.0, math.inf, lo_open=True, allow_inf=True)
         _check("graze_tol", self.graze_tol, 0.0, 1.0)
         _check("max_steps", self.max_steps, 0, 1e15)
+        _check("max_steps_per_period", self.max_steps_per_period, 0, 1e15)
 
 
 @dataclass(frozen=True)
@@ -235,6 +246,7 @@ class Stepper:
         self.opts[K.O_POIN_T0] = 0.0
         self.opts[K.O_POIN_DT] = period
         self.opts[K.O_GRAZE] = solver.graze_tol
+        self.opts[K.O_STEPCAP] = solver.max_steps_per_period
         self._init_modes()
 
     def _init_modes(self):
@@ -315,6 +327,11 @@ class Stepper:
             raise StepSizeError(f"step size fell below the resolution of t at tau = {t:.9g} "
                                 f"(rtol={self.solver.rtol:g}); the problem is too stiff for these "
                                 f"tolerances", time=t, status=status)
+        if status == K.ST_STEP_STORM:
+            raise StepStormError(
+                f"step storm: more than {self.solver.max_steps_per_period} accepted steps in the "
+                f"forcing period around tau = {t:.9g} (rtol={self.solver.rtol:g}); the regime is too "
+                f"stiff for these tolerances, or raise max_steps_per_period", time=t, status=status)
         if status == K.ST_NONFINITE:
             raise NonFiniteStateError(f"state became non-finite at tau = {t:.9g}", time=t, status=status)
         raise SolverError(f"solver stopped with status {status} at tau = {t:.9g}", time=t, status=status)

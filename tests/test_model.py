@@ -300,3 +300,12 @@ def test_variable_communication_steps_leave_no_sliver():
         t += h
     assert st.time == pytest.approx(t * om, rel=1e-14)
     assert st.y[2] > 0.0
+
+
+def test_step_storm_raises_clear_error():
+    from hammerbit.model.stepping import StepStormError
+    g = preset("paper-fig9")
+    with pytest.raises(StepStormError, match="step storm"):
+        simulate(g, 5, solver=SolverOptions(rtol=1e-12, atol=1e-14, max_steps_per_period=10))
+    # the default cap is far above what a real run needs
+    simulate(g, 5, solver=SolverOptions(rtol=1e-13, atol=1e-15))
