@@ -708,6 +708,50 @@ def find_extremum(kind, t0, t1, y0, h, how, F, act, n_act, ys, fs,
 
 
 @njit(cache=True, _nrt=False)
+def sign_change(kind, y, ynew, f0, f1, p, mc, w0, wtol, h, graze_ok):
+    """Sign-change detection of one indicator over a step.
+
+    Returns 1 when the indicator ends above its round-off level (a crossing
+    inside the step), 2 when its slope turns from + to - with a cheap
+    Hermite estimate of the maximum near zero (a possible grazing extremum,
+    only if ``graze_ok``), else 0.
+    """
+    w1 = watch_value(kind, ynew, p, mc)
+    if w1 > wtol:
+        return 1
+    if not graze_ok:
+        return 0
+    s0 = watch_slope(kind, y, f0, p, mc)
+    s1 = watch_slope(kind, ynew, f1, p, mc)
+    if s0 > 0.0 and s1 < 0.0 and hermite_peak(w0, w1, s0 * h, s1 * h) > -0.1 * (
+            abs(w0) + abs(w1) + abs(s0 * h) + abs(s1 * h)):
+        return 2
+    return 0
+
+
+@njit(cache=True, _nrt=False)
+def locate_event(kind, code, t0, t1, y0, h, how, bisect_tol, graze, wtol, F, act, n_act, A, B, C, ns,
+                 K2, ytmp, ys, fscr, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12):
+    """Event time of one indicator in (t0, t1] for a ``sign_change`` code, or -1.
+
+    A grazing candidate (code 2) counts only if the indicator's maximum inside
+    the step exceeds max(graze, wtol); the event is then localised between the
+    step start and that maximum.
+    """
+    tb = t1
+    if code == 2:
+        tm = find_extremum(kind, t0, t1, y0, h, how, F, act, n_act, ys, fscr,
+                           p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+        state_at(tm, t0, y0, h, how, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
+                 p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+        if watch_value(kind, ys, p, mc) <= max(graze, wtol):
+            return -1.0
+        tb = tm
+    return localise(kind, t0, tb, t0, y0, h, how, bisect_tol, wtol, F, act, n_act, A, B, C, ns, K2, ytmp,
+                    ys, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+
+
+@njit(cache=True, _nrt=False)
 def peak_in_step(t0, t1, y0, h, F, act, n_act, ys, fs, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, fstate):
     """Contact force at the deepest penetration inside a step (d' changes sign)."""
     tm = find_extremum(EV_IMPACT, t0, t1, y0, h, HOW_DENSE, F, act, n_act, ys, fs,
@@ -964,26 +1008,15 @@ def advance(y, istate, fstate, t_end, p, opts,
                 return ST_STEP_STORM
             for q in range(nw):
                 kd = kinds[q]
-                w1 = watch_value(kd, ynew, p, mc)
-                tb = -1.0
-                if w1 > wtols[q]:
-                    tb = t1
-                else:
-                    s0 = watch_slope(kd, y, K[0], p, mc)
-                    s1 = watch_slope(kd, ynew, fs, p, mc)
-                    if s0 > 0.0 and s1 < 0.0 and hermite_peak(w0s[q], w1, s0 * H, s1 * H) > -0.1 * (
-                            abs(w0s[q]) + abs(w1) + abs(s0 * H) + abs(s1 * H)):
-                        tm = find_extremum(kd, t, t1, y, H, HOW_STICK, F, act, n_act, ys, ytmp,
-                                           p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
-                        stick_state(tm, y, F, p, ys)
-                        if watch_value(kd, ys, p, mc) > max(graze, wtols[q]):
-                            tb = tm
-                if tb > 0.0:
-                    te = localise(kd, t, tb, t, y, H, HOW_STICK, opts[O_BISECT], wtols[q], F, act, n_act,
-                                  A, B, C, ns, K2, ytmp, ys, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
-                    if hit_kind < 0 or te < t_hit:
-                        hit_kind = kd
-                        t_hit = te
+                code = sign_change(kd, y, ynew, K[0], fs, p, mc, w0s[q], wtols[q], H, True)
+                if code == 0:
+                    continue
+                te = locate_event(kd, code, t, t1, y, H, HOW_STICK, opts[O_BISECT], graze, wtols[q],
+                                  F, act, n_act, A, B, C, ns, K2, ytmp, ys, ytmp,
+                                  p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+                if te > 0.0 and (hit_kind < 0 or te < t_hit):
+                    hit_kind = kd
+                    t_hit = te
             if hit_kind < 0:
                 if needs_record(t1, istate, opts, poin, samp_t):
                     record_until(t1, ynew, t, y, H, HOW_STICK, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
@@ -1082,41 +1115,24 @@ def advance(y, istate, fstate, t_end, p, opts,
             dense_ok = False
             for q in range(nw):
                 kd = kinds[q]
-                w1 = watch_value(kd, ynew, p, mc)
-                tb = -1.0
-                if w1 > wtols[q]:
-                    tb = t1
-                elif not fixed:
-                    # grazing: a local maximum of w inside the step
-                    s0 = watch_slope(kd, y, K[0], p, mc)
-                    s1 = watch_slope(kd, ynew, K[ns], p, mc)
-                    if s0 > 0.0 and s1 < 0.0 and hermite_peak(w0s[q], w1, s0 * h, s1 * h) > -0.1 * (
-                            abs(w0s[q]) + abs(w1) + abs(s0 * h) + abs(s1 * h)):
-                        if not dense_ok:
-                            dense_prepare(t, y, ynew, h, A, C, W, ns, n_ext, K, F, ytmp, act, n_act,
-                                          p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
-                            istate[I_RHS] += n_ext - ns - 1
-                            dense_ok = True
-                        tm = find_extremum(kd, t, t1, y, h, HOW_DENSE, F, act, n_act, ys, fs,
-                                           p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
-                        dense_eval((tm - t) / h, y, F, act, n_act, ys)
-                        if watch_value(kd, ys, p, mc) > max(graze, wtols[q]):
-                            tb = tm
-                if tb > 0.0:
-                    if not fixed and not dense_ok:
-                        dense_prepare(t, y, ynew, h, A, C, W, ns, n_ext, K, F, ytmp, act, n_act,
-                                      p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
-                        istate[I_RHS] += n_ext - ns - 1
-                        dense_ok = True
-                    if fixed:
-                        for i in range(n):
-                            K2[0, i] = K[0, i]
-                    te = localise(kd, t, tb, t, y, h, how_rk, opts[O_BISECT], wtols[q], F, act, n_act,
-                                  A, B, C, ns, K2, ytmp, ys, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
-                    if hit_kind < 0 or te < t_hit:
-                        hit_kind = kd
-                        t_hit = te
-                        wtol_hit = wtols[q]
+                code = sign_change(kd, y, ynew, K[0], K[ns], p, mc, w0s[q], wtols[q], h, not fixed)
+                if code == 0:
+                    continue
+                if not fixed and not dense_ok:
+                    dense_prepare(t, y, ynew, h, A, C, W, ns, n_ext, K, F, ytmp, act, n_act,
+                                  p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+                    istate[I_RHS] += n_ext - ns - 1
+                    dense_ok = True
+                if fixed:
+                    for i in range(n):
+                        K2[0, i] = K[0, i]
+                te = locate_event(kd, code, t, t1, y, h, how_rk, opts[O_BISECT], graze, wtols[q],
+                                  F, act, n_act, A, B, C, ns, K2, ytmp, ys, fs,
+                                  p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+                if te > 0.0 and (hit_kind < 0 or te < t_hit):
+                    hit_kind = kd
+                    t_hit = te
+                    wtol_hit = wtols[q]
 
             if hit_kind < 0:
                 # -- no event: record and accept ----------------------------
