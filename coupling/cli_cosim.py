@@ -40,16 +40,9 @@ def _common(p):
 
 def _config(args, **extra):
     from .cosim import CosimConfig, field_hammer
+    from .cli import _parse_settings
     rig = field_hammer()
-    changes = {}
-    for item in args.set or []:
-        if "=" not in item:
-            raise SystemExit(f"hammerbit: --set expects FIELD=VALUE, got {item!r}")
-        k, v = item.split("=", 1)
-        try:
-            changes[k.strip()] = float(v)
-        except ValueError:
-            raise SystemExit(f"hammerbit: --set {k.strip()}: {v!r} is not a number") from None
+    changes = _parse_settings(args.set)
     if changes:
         try:
             rig = rig.replace(**changes)
