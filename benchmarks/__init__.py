@@ -244,3 +244,52 @@ def standalone(run, doc: str) -> None:
     for row in res["summary"]:
         print(f"{row['metric']}: {row['ours']} (peer {row.get('peer')}, ratio {row.get('ratio')}, "
               f"goal {row.get('goal')})")
+
+
+def stage_logger(name: str, verbose: bool):
+    """``log(msg)`` printing ``  name: msg`` to stderr when ``verbose``."""
+    def log(msg):
+        if verbose:
+            print(f"  {name}: {msg}", file=sys.stderr, flush=True)
+    return log
+
+
+_TRIVIAL_SLAVE = '''
+from pythonfmu import Fmi2Slave, Fmi2Causality, Fmi2Variability, Real
+
+
+class TrivialFloor(Fmi2Slave):
+    author = "hammerbit benchmarks"
+    description = "FMI call floor: input u, outputs y0..y{last}; do_step does nothing"
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.u = 0.0
+        self.register_variable(Real("u", causality=Fmi2Causality.input,
+                                    variability=Fmi2Variability.continuous))
+        for i in range({n}):
+            setattr(self, f"y{{i}}", 0.0)
+            self.register_variable(Real(f"y{{i}}", causality=Fmi2Causality.output,
+                                        variability=Fmi2Variability.continuous))
+
+    def do_step(self, current_time, step_size):
+        return True
+'''
+
+
+def build_trivial_fmu(dest, n_outputs: int = 1):
+    """Build the trivial pythonfmu FMU (the FMI call floor) into ``dest``.
+
+    One input ``u`` and ``n_outputs`` outputs ``y0 .. y{n-1}``; its ``do_step``
+    does nothing, so stepping it measures only the FMI/pythonfmu/fmpy calls.
+    """
+    from pathlib import Path
+    from pythonfmu import FmuBuilder
+    dest = Path(dest)
+    dest.mkdir(parents=True, exist_ok=True)
+    script = dest / "trivialfloor.py"
+    script.write_text(_TRIVIAL_SLAVE.format(n=int(n_outputs), last=int(n_outputs) - 1))
+    try:
+        return Path(FmuBuilder.build_FMU(script, dest=dest))
+    finally:
+        sys.modules.pop("trivialfloor", None)

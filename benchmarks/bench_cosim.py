@@ -24,52 +24,16 @@ from __future__ import annotations
 import math
 import sys
 import tempfile
-import textwrap
 import time
 from pathlib import Path
 
 import numpy as np
 
-from benchmarks import harness_command, machine_info, save_result, summary_row, fmt_time
+from benchmarks import (build_trivial_fmu, fmt_time, harness_command, machine_info, save_result,
+                        stage_logger, summary_row)
 
 NAME = "cosim"
 REPO = Path(__file__).resolve().parents[1]
-
-_TRIVIAL_SLAVE = textwrap.dedent('''
-    from pythonfmu import Fmi2Slave, Fmi2Causality, Fmi2Variability, Real
-
-    class TrivialSlave(Fmi2Slave):
-        author = "hammerbit benchmarks"
-        description = "FMI call floor: one input, five outputs, do_step does nothing"
-
-        def __init__(self, **kwargs):
-            super().__init__(**kwargs)
-            self.preload = 0.0
-            self.y0 = 0.0
-            self.y1 = 0.0
-            self.y2 = 0.0
-            self.y3 = 0.0
-            self.y4 = 0.0
-            self.register_variable(Real("preload", causality=Fmi2Causality.input,
-                                        variability=Fmi2Variability.continuous))
-            for n in ("y0", "y1", "y2", "y3", "y4"):
-                self.register_variable(Real(n, causality=Fmi2Causality.output,
-                                            variability=Fmi2Variability.continuous))
-
-        def do_step(self, current_time, step_size):
-            return True
-''')
-
-
-def build_trivial_fmu(dest) -> Path:
-    """Build the trivial FMU (FMI call floor) into ``dest``."""
-    from pythonfmu import FmuBuilder
-    dest = Path(dest)
-    dest.mkdir(parents=True, exist_ok=True)
-    script = dest / "trivialslave.py"
-    script.write_text(_TRIVIAL_SLAVE)
-    return Path(FmuBuilder.build_FMU(script, dest=dest))
-
 
 def fmi_floor(fmu_path, n_steps: int, H: float) -> float:
     """Seconds for ``n_steps`` of (setReal 1, doStep, getReal 5) on the trivial FMU."""
@@ -85,7 +49,7 @@ def fmi_floor(fmu_path, n_steps: int, H: float) -> float:
     fmu.setupExperiment(startTime=0.0)
     fmu.enterInitializationMode()
     fmu.exitInitializationMode()
-    vin = [vr["preload"]]
+    vin = [vr["u"]]
     vout = [vr[n] for n in ("y0", "y1", "y2", "y3", "y4")]
     t0 = time.perf_counter()
     for n in range(n_steps):
@@ -161,7 +125,7 @@ def measure_long_run(cfg: dict, log) -> dict:
     H = 1e-3
     with tempfile.TemporaryDirectory(prefix="hammerbit_bench_cosim_") as tmp:
         fmu = build_fmu(Path(tmp) / "real")
-        triv = build_trivial_fmu(Path(tmp) / "trivial")
+        triv = build_trivial_fmu(Path(tmp) / "trivial", n_outputs=5)
         out = {}
         for label, f_max in (("nodal", None), ("modal_f_max_100hz", 100.0)):
             c = CosimConfig(stop=cfg["long_stop"], step=H, record=("wob",), progress=False, f_max=f_max,
@@ -221,9 +185,7 @@ def _plot(result):
 
 def run(quick: bool = False, *, verbose: bool = True) -> dict:
     """Run the co-simulation benchmark; write ``results/cosim.{json,png}``."""
-    def log(msg):
-        if verbose:
-            print(f"  cosim: {msg}", file=sys.stderr, flush=True)
+    log = stage_logger("cosim", verbose)
 
     cfg = _config(quick)
     t0 = time.perf_counter()

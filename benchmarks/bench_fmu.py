@@ -43,33 +43,13 @@ REPO = Path(__file__).resolve().parents[1]
 if __name__ == "__main__" and str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
-from benchmarks import (fmt_ratio, fmt_time, harness_command, machine_info, save_result,  # noqa: E402
+from benchmarks import (build_trivial_fmu, fmt_ratio, fmt_time, harness_command, machine_info, save_result,  # noqa: E402
                         summary_row)
 
 NAME = "fmu"
 STEP = 1e-3                  # communication step [s] (the FMU's DefaultExperiment stepSize)
 GOAL_RATIO = 1.5
 GOAL_WARM_S = 0.5
-
-_TRIVIAL_SLAVE = textwrap.dedent('''
-    from pythonfmu import Fmi2Slave, Fmi2Causality, Fmi2Variability, Real
-
-    class TrivialFloor(Fmi2Slave):
-        author = "hammerbit benchmarks"
-        description = "FMI call floor: one input, one output, do_step does nothing"
-
-        def __init__(self, **kwargs):
-            super().__init__(**kwargs)
-            self.u = 0.0
-            self.y = 0.0
-            self.register_variable(Real("u", causality=Fmi2Causality.input,
-                                        variability=Fmi2Variability.continuous))
-            self.register_variable(Real("y", causality=Fmi2Causality.output,
-                                        variability=Fmi2Variability.continuous))
-
-        def do_step(self, current_time, step_size):
-            return True
-''')
 
 # a fresh process: extract + load + instantiate + initialise, then the first doStep
 _LOAD_PROBE = textwrap.dedent('''
@@ -107,19 +87,6 @@ _LOAD_PROBE = textwrap.dedent('''
 # ---------------------------------------------------------------------------
 # helpers
 # ---------------------------------------------------------------------------
-def build_trivial_fmu(dest) -> Path:
-    """Build the trivial pythonfmu FMU (the FMI call floor) into ``dest``."""
-    from pythonfmu import FmuBuilder
-    dest = Path(dest)
-    dest.mkdir(parents=True, exist_ok=True)
-    script = dest / "trivialfloor.py"
-    script.write_text(_TRIVIAL_SLAVE)
-    try:
-        return Path(FmuBuilder.build_FMU(script, dest=dest))
-    finally:
-        sys.modules.pop("trivialfloor", None)
-
-
 class _Loaded:
     """An FMU loaded with fmpy's FMU2Slave, initialised."""
 
@@ -183,10 +150,10 @@ def measure_step_overhead(fmu_path, trivial_path, quick: bool, log) -> dict:
     v_bit = [ours.vr["bit_position"]]
     try:
         ours.loop(500, ours.vr["preload"], preload, v_bit)          # warm up both
-        floor.loop(500, floor.vr["u"], 1.0, [floor.vr["y"]])
+        floor.loop(500, floor.vr["u"], 1.0, [floor.vr["y0"]])
         t_ours, t_floor = [], []
         for _ in range(reps):
-            t_floor.append(floor.loop(n, floor.vr["u"], 1.0, [floor.vr["y"]]))
+            t_floor.append(floor.loop(n, floor.vr["u"], 1.0, [floor.vr["y0"]]))
             t_ours.append(ours.loop(n, ours.vr["preload"], preload, v_bit))
         ints = ours.fmu.getInteger([ours.vr[k] for k in ("slip_count", "impact_count", "bounce_count")])
         events = int(sum(ints))

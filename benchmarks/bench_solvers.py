@@ -40,7 +40,7 @@ import time
 
 import numpy as np
 
-from benchmarks import (fmt_num, fmt_ratio, fmt_time, harness_command, kernel_source, machine_info,
+from benchmarks import (stage_logger, fmt_num, fmt_ratio, fmt_time, harness_command, kernel_source, machine_info,
                         save_result, summary_row)
 from benchmarks.scipy_reference import ReferenceError, simulate_reference
 from hammerbit.model.params import preset
@@ -341,9 +341,7 @@ def run(quick: bool = False, *, verbose: bool = True) -> dict:
     dict
         The result (see the module docstring and ``benchmarks`` conventions).
     """
-    def log(msg):
-        if verbose:
-            print(f"  solvers: {msg}", file=sys.stderr, flush=True)
+    log = stage_logger("solvers", verbose)
 
     cfg = _config(quick)
     machine = machine_info()

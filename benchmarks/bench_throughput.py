@@ -31,7 +31,7 @@ import time
 
 import numpy as np
 
-from benchmarks import (REPO_ROOT, fmt_ratio, fmt_time, harness_command, kernel_source,
+from benchmarks import (stage_logger, REPO_ROOT, fmt_ratio, fmt_time, harness_command, kernel_source,
                         machine_info, save_result, summary_row)
 
 NAME = "throughput"
@@ -251,9 +251,7 @@ def _plot(result):
 
 def run(quick: bool = False, *, verbose: bool = True) -> dict:
     """Measure sweep throughput and CLI start-up; write ``results/throughput.{json,png}``."""
-    def log(msg):
-        if verbose:
-            print(f"  throughput: {msg}", file=sys.stderr, flush=True)
+    log = stage_logger("throughput", verbose)
 
     cfg = _config(quick)
     machine = machine_info()
