@@ -450,6 +450,26 @@ def dense_prepare(t, y, ynew, h, A, C, W, ns, n_ext, K, F, ytmp, act, n_act,
 
 
 @njit(cache=True, _nrt=False)
+def interpolant(ready, fixed, t, y, ynew, h, A, C, W, ns, n_ext, K, K2, F, ytmp, act, n_act, istate,
+                p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12):
+    """Make the step's interpolant usable, once per step; returns True.
+
+    Adaptive methods: the dense-output coefficients (and their extra stages).
+    The fixed-step method re-steps instead, which needs f(t0, y0) in K2[0].
+    """
+    if ready:
+        return True
+    if fixed:
+        for i in range(y.shape[0]):
+            K2[0, i] = K[0, i]
+    else:
+        dense_prepare(t, y, ynew, h, A, C, W, ns, n_ext, K, F, ytmp, act, n_act,
+                      p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+        istate[I_RHS] += n_ext - ns - 1
+    return True
+
+
+@njit(cache=True, _nrt=False)
 def dense_eval(x, y, F, act, n_act, out):
     """State at fraction ``x`` of the step from the nested dense coefficients F."""
     nF = F.shape[0]
@@ -1118,14 +1138,8 @@ def advance(y, istate, fstate, t_end, p, opts,
                 code = sign_change(kd, y, ynew, K[0], K[ns], p, mc, w0s[q], wtols[q], h, not fixed)
                 if code == 0:
                     continue
-                if not fixed and not dense_ok:
-                    dense_prepare(t, y, ynew, h, A, C, W, ns, n_ext, K, F, ytmp, act, n_act,
-                                  p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
-                    istate[I_RHS] += n_ext - ns - 1
-                    dense_ok = True
-                if fixed:
-                    for i in range(n):
-                        K2[0, i] = K[0, i]
+                dense_ok = interpolant(dense_ok, fixed, t, y, ynew, h, A, C, W, ns, n_ext, K, K2, F, ytmp, act, n_act,
+                                       istate, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
                 te = locate_event(kd, code, t, t1, y, h, how_rk, opts[O_BISECT], graze, wtols[q],
                                   F, act, n_act, A, B, C, ns, K2, ytmp, ys, fs,
                                   p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
@@ -1137,23 +1151,14 @@ def advance(y, istate, fstate, t_end, p, opts,
             if hit_kind < 0:
                 # -- no event: record and accept ----------------------------
                 if needs_record(t1, istate, opts, poin, samp_t):
-                    if not fixed and not dense_ok:
-                        dense_prepare(t, y, ynew, h, A, C, W, ns, n_ext, K, F, ytmp, act, n_act,
-                                      p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
-                        istate[I_RHS] += n_ext - ns - 1
-                        dense_ok = True
-                    if fixed:
-                        for i in range(n):
-                            K2[0, i] = K[0, i]
+                    dense_ok = interpolant(dense_ok, fixed, t, y, ynew, h, A, C, W, ns, n_ext, K, K2, F, ytmp, act, n_act,
+                                       istate, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
                     record_until(t1, ynew, t, y, h, how_rk, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
                                  p, istate, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, opts, poin, samp_t, samp)
                 if mc == CONTACT:
                     if not fixed and y[1] - y[3] > 0.0 and ynew[1] - ynew[3] <= 0.0:
-                        if not dense_ok:
-                            dense_prepare(t, y, ynew, h, A, C, W, ns, n_ext, K, F, ytmp, act, n_act,
-                                          p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
-                            istate[I_RHS] += n_ext - ns - 1
-                            dense_ok = True
+                        dense_ok = interpolant(dense_ok, fixed, t, y, ynew, h, A, C, W, ns, n_ext, K, K2, F, ytmp, act, n_act,
+                                       istate, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
                         peak_in_step(t, t1, y, h, F, act, n_act, ys, fs, p, ms, mc, nz, ne,
                                      Ap, Ai, Ax, Hz, Gz, g12, fstate)
                     fc1 = contact_force(ynew[0] - ynew[2] - p[P_R], ynew[1] - ynew[3], p, mc)
