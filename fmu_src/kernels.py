@@ -1194,6 +1194,12 @@ def advance(y, istate, fstate, t_end, p, opts,
                 refine += 1
             else:
                 refine = 0
+            if hit_kind == EV_STICK and not fixed:
+                # samples of this step came from the dense output: the drift must not step
+                # back from them to the re-stepped state (they differ within tolerance)
+                dense_eval((t_hit - t) / h, y, F, act, n_act, ynew)
+                if ynew[2] > ys[2]:
+                    ys[2] = ynew[2]
             if mc == CONTACT and not fixed and y[1] - y[3] > 0.0 and ys[1] - ys[3] <= 0.0 and dense_ok:
                 peak_in_step(t, t_hit, y, h, F, act, n_act, ynew, fs, p, ms, mc, nz, ne,
                              Ap, Ai, Ax, Hz, Gz, g12, fstate)
