@@ -83,10 +83,12 @@ F_T = 0           # current time
 F_H = 1           # proposed next step
 F_PEAK = 2        # peak contact force of the current contact
 F_IMPACT_V = 3    # relative velocity of the last impact
-F_H_MODE = 4      # last step used in each regime: stick, slip, contact (3 slots)
+F_H_MODE = 4      # first step of each regime: stick, slip, contact (3 slots)
 F_V4_PEAK = 7     # peak bit velocity of the current slip (error scale of x4)
 F_X3_SLIP = 8     # bit position at the start of the current slip
-N_FSTATE = 9
+F_HACC = 9        # last accepted step of the current regime (predictive controller)
+F_ERRACC = 10     # its error, floored at 1e-2 (0: no history since the last event)
+N_FSTATE = 11
 
 # options
 O_RTOL = 0
@@ -121,6 +123,8 @@ N_SAMPLE_COLS = 8
 SAFETY = 0.9
 MIN_FACTOR = 0.2
 MAX_FACTOR = 10.0
+ERRACC_FLOOR = 1e-4  # floor of the remembered error in the predictive controller
+LAYER_TARGET = 0.3   # friction-layer error norm a proposed step may reach (friction_layer_err)
 
 
 # ---------------------------------------------------------------------------
@@ -171,13 +175,54 @@ def link_force(y, nz, Gz, g12):
 
 
 @njit(cache=True, inline="always", _nrt=False)
+def sincos_small(d):
+    """(sin d, cos d) for |d| <= 0.5 by their Taylor polynomials (error < 1e-19)."""
+    d2 = d * d
+    sn = d * (1.0 + d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 * (
+        1.0 / 362880.0 + d2 * (-1.0 / 39916800.0 + d2 * (1.0 / 6227020800.0 + d2 * (
+            -1.0 / 1307674368000.0))))))))
+    cs = 1.0 + d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 * (1.0 / 40320.0 + d2 * (
+        -1.0 / 3628800.0 + d2 * (1.0 / 479001600.0 + d2 * (-1.0 / 87178291200.0 + d2 * (
+            1.0 / 20922789888000.0))))))))
+    return sn, cs
+
+
+@njit(cache=True, inline="always", _nrt=False)
+def harmonic(t, p):
+    """Harmonic force / F0 at time t: a sin(eta t + phi)."""
+    return p[P_A] * math.sin(p[P_ETA] * t + p[P_PHI])
+
+
+@njit(cache=True, inline="always", _nrt=False)
+def harmonic_shifted(t, dt, s0, c0, p):
+    """a sin(eta (t + dt) + phi) from s0, c0 = sin, cos(eta t + phi).
+
+    The RK stages of a step share the step's start phase, so a stage needs
+    only the rotation by eta dt (a short polynomial when eta |dt| <= 0.5)
+    instead of a full sine with argument reduction.
+    """
+    d = p[P_ETA] * dt
+    if abs(d) <= 0.5:
+        sd, cd = sincos_small(d)
+        return p[P_A] * (s0 * cd + c0 * sd)
+    return p[P_A] * math.sin(p[P_ETA] * (t + dt) + p[P_PHI])
+
+
+@njit(cache=True, inline="always", _nrt=False)
 def rhs(t, y, p, mode_s, mode_c, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, out):
+    """Vector field of one hybrid mode at time t (see ``rhs_forced``)."""
+    rhs_forced(harmonic(t, p), y, p, mode_s, mode_c, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, out)
+
+
+@njit(cache=True, inline="always", _nrt=False)
+def rhs_forced(fh, y, p, mode_s, mode_c, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, out):
     """Vector field of one hybrid mode; writes dy/dtau into ``out``.
 
     Parameters
     ----------
-    t : float
-        Nondimensional time tau.
+    fh : float
+        Harmonic force / F0 at the evaluation time, a sin(eta tau + phi)
+        (``harmonic``); the field depends on time only through it.
     y : ndarray, shape (4 + nz + ne,)
         State.
     p : ndarray, shape (N_P,)
@@ -203,7 +248,7 @@ def rhs(t, y, p, mode_s, mode_c, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, out):
     dd = x2 - x4
     fk = (x1 - x3) + 2.0 * p[P_XI] * dd
     fc = contact_force(d, dd, p, mode_c)
-    drive = p[P_B] + p[P_FEXT] + p[P_A] * math.sin(p[P_ETA] * t + p[P_PHI])
+    drive = p[P_B] + p[P_FEXT] + fh
     if nz > 0:
         drive += link_force(y, nz, Gz, g12)
     out[0] = x2
@@ -348,9 +393,15 @@ def watch_slope(kind, y, f, p, mode_c):
 @njit(cache=True, _nrt=False)
 def rk_stages(t, y, h, A, C, s_from, s_to, K, ytmp, act, n_act,
               p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12):
-    """Stages ``s_from <= s < s_to`` of an explicit RK method into ``K[s]``."""
+    """Stages ``s_from <= s < s_to`` of an explicit RK method into ``K[s]``.
+
+    Returns sin and cos of the forcing phase at ``t`` (for the caller's FSAL stage).
+    """
     for i in range(y.shape[0]):
         ytmp[i] = y[i]  # inactive components (a stuck bit) keep their values
+    th0 = p[P_ETA] * t + p[P_PHI]
+    s0 = math.sin(th0)
+    c0 = math.cos(th0)
     for s in range(s_from, s_to):
         for q in range(n_act):
             i = act[q]
@@ -360,7 +411,9 @@ def rk_stages(t, y, h, A, C, s_from, s_to, K, ytmp, act, n_act,
                 if a != 0.0:
                     acc += a * K[j, i]
             ytmp[i] = y[i] + h * acc
-        rhs(t + C[s] * h, ytmp, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, K[s])
+        rhs_forced(harmonic_shifted(t, C[s] * h, s0, c0, p), ytmp, p, ms, mc, nz, ne,
+                   Ap, Ai, Ax, Hz, Gz, g12, K[s])
+    return s0, c0
 
 
 @njit(cache=True, _nrt=False)
@@ -370,7 +423,7 @@ def rk_step(t, y, h, A, B, C, ns, K, ynew, ytmp, act, n_act,
 
     Writes the solution ``ynew`` and the FSAL stage ``K[ns] = f(t + h, ynew)``.
     """
-    rk_stages(t, y, h, A, C, 1, ns, K, ytmp, act, n_act, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+    s0, c0 = rk_stages(t, y, h, A, C, 1, ns, K, ytmp, act, n_act, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
     for i in range(y.shape[0]):
         ynew[i] = y[i]
     for q in range(n_act):
@@ -379,7 +432,7 @@ def rk_step(t, y, h, A, B, C, ns, K, ynew, ytmp, act, n_act,
         for j in range(ns):
             acc += B[j] * K[j, i]
         ynew[i] = y[i] + h * acc
-    rhs(t + h, ynew, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, K[ns])
+    rhs_forced(harmonic_shifted(t, h, s0, c0, p), ynew, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, K[ns])
 
 
 @njit(cache=True, _nrt=False)
@@ -427,6 +480,54 @@ def error_norm(y, ynew, h, K, E, E3, err_kind, ns, act, n_act, rtol, atol, v4_pe
     if not math.isfinite(r):
         return math.inf
     return r
+
+
+@njit(cache=True, _nrt=False)
+def friction_layer_err(h, x4, f4, p, C, E, E3, ns, err_kind, n_act, sc):
+    """Error norm a step of size h would get from the kinetic friction alone.
+
+    As the bit decelerates to a stop, the friction term (1 - mu) exp(-gamma_hat x4)
+    grows like exp(sigma t), sigma = -gamma_hat x4' > 0, and soon dominates the
+    local error.  Feeding that exponential through the method's error weights
+    gives the estimate the step will see, in closed form and beyond the
+    asymptotic h -> 0 regime: a step that would run into the layer is shortened
+    before it is tried and rejected.
+
+    Parameters
+    ----------
+    h : float
+        Candidate step.
+    x4, f4 : float
+        Bit velocity and acceleration at the step start (f4 < 0).
+    C, E, E3 : ndarray
+        Nodes and error weights of the tableau (``advance``).
+    sc : float
+        Error scale of x4 (atol + rtol * scale).
+
+    Returns
+    -------
+    float
+        The friction part of the error norm (same normalisation as ``error_norm``).
+    """
+    sig = -p[P_GAMMA] * f4 * h
+    if sig > 600.0:
+        return math.inf
+    amp = (1.0 - p[P_MU]) / p[P_RHO] * math.exp(-p[P_GAMMA] * x4) / sc
+    a5 = 0.0
+    a3 = 0.0
+    for j in range(ns + 1):
+        c = C[j] if j < ns else 1.0
+        e = math.exp(sig * c)
+        a5 += E[j] * e
+        a3 += E3[j] * e
+    a5 *= amp
+    a3 *= amp
+    if err_kind == 2:
+        den = a5 * a5 + 0.01 * a3 * a3
+        if den == 0.0:
+            return 0.0
+        return abs(h) * a5 * a5 / math.sqrt(den * n_act)
+    return abs(h) * abs(a5) / math.sqrt(n_act)
 
 
 @njit(cache=True, _nrt=False)
@@ -536,7 +637,10 @@ def stick_prepare(t0, y0, p, F):
 
 @njit(cache=True, _nrt=False)
 def stick_state(tq, y0, F, p, out):
-    """Exact stick state at time tq from the constants of ``stick_prepare``."""
+    """Exact stick state at time tq from the constants of ``stick_prepare``.
+
+    Returns sin(eta tq + phi), from which ``stick_rate`` gives the derivative.
+    """
     xi = p[P_XI]
     eta = p[P_ETA]
     s = tq - F[0, 0]
@@ -557,6 +661,16 @@ def stick_state(tq, y0, F, p, out):
     out[0] = F[0, 1] + P * sn + Q * cs + e * (u0 * cw + Bc * sw)
     out[1] = eta * (P * cs - Q * sn) + e * (v0 * cw - (xi * Bc + wd * u0) * sw)
     out[3] = 0.0
+    return sn
+
+
+@njit(cache=True, _nrt=False)
+def stick_rate(y, sn, p, out):
+    """Derivative of a stick state ``y`` (free gap) whose forcing phase has sine ``sn``."""
+    for i in range(y.shape[0]):
+        out[i] = 0.0
+    out[0] = y[1]
+    out[1] = p[P_B] + p[P_FEXT] + p[P_A] * sn - (y[0] - y[2]) - 2.0 * p[P_XI] * y[1]
 
 
 @njit(cache=True, _nrt=False)
@@ -706,6 +820,54 @@ def localise(kind, ta, tb, t0, y0, h, how, tol, wtol, F, act, n_act, A, B, C, ns
 
 
 @njit(cache=True, _nrt=False)
+def localise_stick(kind, ta, tb, y0, wtol, F, ys, fs, p, mc):
+    """``localise`` on the exact stick solution: safeguarded Newton.
+
+    The closed form gives the indicator's slope at no extra cost, so Newton
+    (kept inside the bracket, bisecting when it leaves it) needs a handful of
+    evaluations where false position needs about twenty.  Returns the end of
+    the final bracket, where w > 0, once the bracket is a few ulp wide.
+    """
+    sn = stick_state(tb, y0, F, p, ys)
+    wb = watch_value(kind, ys, p, mc) - wtol
+    stick_rate(ys, sn, p, fs)
+    sb = watch_slope(kind, ys, fs, p, mc)
+    sn = stick_state(ta, y0, F, p, ys)
+    wa = watch_value(kind, ys, p, mc) - wtol
+    # start from the end whose Newton step stays inside the bracket, else the secant
+    t = ta - wa * (tb - ta) / (wb - wa) if wb > wa else 0.5 * (ta + tb)
+    if sb > 0.0:
+        tn = tb - wb / sb
+        if ta < tn < tb:
+            t = tn
+    if not (ta < t < tb):
+        t = 0.5 * (ta + tb)
+    for it in range(100):
+        if tb - ta <= 4.0 * 2.220446049250313e-16 * max(abs(tb), 1.0):
+            break
+        sn = stick_state(t, y0, F, p, ys)
+        w = watch_value(kind, ys, p, mc) - wtol
+        if w > 0.0:
+            tb = t
+        else:
+            ta = t
+        if tb - ta <= 4.0 * 2.220446049250313e-16 * max(abs(tb), 1.0):
+            break
+        stick_rate(ys, sn, p, fs)
+        sl = watch_slope(kind, ys, fs, p, mc)
+        ulp2 = 2.0 * 2.220446049250313e-16 * max(abs(t), 1.0)
+        tn = t - w / sl if sl > 0.0 else 0.5 * (ta + tb)
+        if w > 0.0 and tn > t - ulp2:
+            tn = t - ulp2     # converged from above: probe just below
+        elif w <= 0.0 and tn < t + ulp2:
+            tn = t + ulp2     # converged from below: probe just above
+        if not (ta < tn < tb) or it % 8 == 7:
+            tn = 0.5 * (ta + tb)
+        t = tn
+    return tb
+
+
+@njit(cache=True, _nrt=False)
 def find_extremum(kind, t0, t1, y0, h, how, F, act, n_act, ys, fs,
                   p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12):
     """Time in (t0, t1) where the slope of w changes from + to - (a local max of w)."""
@@ -767,6 +929,8 @@ def locate_event(kind, code, t0, t1, y0, h, how, bisect_tol, graze, wtol, F, act
         if watch_value(kind, ys, p, mc) <= max(graze, wtol):
             return -1.0
         tb = tm
+    if how == HOW_STICK:
+        return localise_stick(kind, t0, tb, y0, wtol, F, ys, fscr, p, mc)
     return localise(kind, t0, tb, t0, y0, h, how, bisect_tol, wtol, F, act, n_act, A, B, C, ns, K2, ytmp,
                     ys, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
 
@@ -1017,8 +1181,8 @@ def advance(y, istate, fstate, t_end, p, opts,
                 H = remaining
                 t1 = t_end
             stick_prepare(t, y, p, F)
-            stick_state(t1, y, F, p, ynew)
-            rhs(t1, ynew, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, fs)
+            sn1 = stick_state(t1, y, F, p, ynew)
+            stick_rate(ynew, sn1, p, fs)  # = rhs(t1, ynew) in stick with the gap open
             istate[I_RHS] += 1
             istate[I_STEPS] += 1
             steps_here += 1
@@ -1118,9 +1282,45 @@ def advance(y, istate, fstate, t_end, p, opts,
                     fac = MAX_FACTOR
                 else:
                     fac = min(MAX_FACTOR, SAFETY * err ** (-err_exp))
+                    if fstate[F_ERRACC] > 0.0:
+                        # Gustafsson's predictive controller (as in Radau5), used
+                        # only to shrink: an error that grows from step to step
+                        # (the bit nearing its stop) is met before it rejects
+                        fg = fac * (h / fstate[F_HACC]) * (fstate[F_ERRACC] / err) ** err_exp
+                        fac = min(fac, max(fg, MIN_FACTOR))
                 if rejected:
                     fac = min(1.0, fac)
+                if ms == SLIP and mc == FREE and fstate[F_ERRACC] == 0.0:
+                    # first step of a slip: the next slip starts with this step's successor
+                    # (the step that ended the slip came from the stop layer: far too small)
+                    fstate[F_H_MODE + SLIP] = h * fac
+                fstate[F_HACC] = h
+                fstate[F_ERRACC] = max(err, ERRACC_FLOOR)
                 h_next = h * fac
+                if ms == SLIP and K[ns, 3] < 0.0 and ynew[3] > 0.0 and p[P_MU] < 1.0:
+                    # the bit decelerates: keep the next step out of the friction layer
+                    sc4 = atol + rtol * max(ynew[3], fstate[F_V4_PEAK])
+                    ef = friction_layer_err(h_next, ynew[3], K[ns, 3], p, C, E, E3, ns, err_kind,
+                                            n_act, sc4)
+                    if ef > LAYER_TARGET:
+                        # largest step whose friction error stays below the target:
+                        # bracket it, then bisect in log h (ef grows monotonically with h)
+                        hi = h_next
+                        lo = h_next
+                        for _ in range(30):
+                            lo *= MIN_FACTOR
+                            if friction_layer_err(lo, ynew[3], K[ns, 3], p, C, E, E3, ns, err_kind,
+                                                  n_act, sc4) <= LAYER_TARGET:
+                                break
+                            hi = lo
+                        for _ in range(5):
+                            mid = math.sqrt(lo * hi)
+                            if friction_layer_err(mid, ynew[3], K[ns, 3], p, C, E, E3, ns, err_kind,
+                                                  n_act, sc4) <= LAYER_TARGET:
+                                lo = mid
+                            else:
+                                hi = mid
+                        h_next = lo
             istate[I_STEPS] += 1
             steps_here += 1
             t1 = t + h
@@ -1224,8 +1424,10 @@ def advance(y, istate, fstate, t_end, p, opts,
             if fc1 > fstate[F_PEAK]:
                 fstate[F_PEAK] = fc1
         vrel = y[1] - y[3]
-        fstate[F_H_MODE + step_slot(ms, mc)] = h
+        if step_slot(ms, mc) != SLIP:
+            fstate[F_H_MODE + step_slot(ms, mc)] = h
         taken = apply_event(hit_kind, y, istate, fstate, p)
+        fstate[F_ERRACC] = 0.0  # the new regime starts its own step-size history
         if log_cap > 0:
             r = istate[I_NLOG]
             log[r, L_T] = t
