@@ -402,15 +402,22 @@ def rk_stages(t, y, h, A, C, s_from, s_to, K, ytmp, act, n_act,
     th0 = p[P_ETA] * t + p[P_PHI]
     s0 = math.sin(th0)
     c0 = math.cos(th0)
+    n = y.shape[0]
     for s in range(s_from, s_to):
-        for q in range(n_act):
-            i = act[q]
-            acc = 0.0
-            for j in range(s):
-                a = A[s, j]
-                if a != 0.0:
-                    acc += a * K[j, i]
-            ytmp[i] = y[i] + h * acc
+        if n_act == n:
+            # every component active (a slipping bit): no index indirection
+            for i in range(n):
+                acc = 0.0
+                for j in range(s):
+                    acc += A[s, j] * K[j, i]
+                ytmp[i] = y[i] + h * acc
+        else:
+            for q in range(n_act):
+                i = act[q]
+                acc = 0.0
+                for j in range(s):
+                    acc += A[s, j] * K[j, i]
+                ytmp[i] = y[i] + h * acc
         rhs_forced(harmonic_shifted(t, C[s] * h, s0, c0, p), ytmp, p, ms, mc, nz, ne,
                    Ap, Ai, Ax, Hz, Gz, g12, K[s])
     return s0, c0
@@ -605,7 +612,7 @@ def stick_closed_form_ok(p):
 
 @njit(cache=True, _nrt=False)
 def stick_prepare(t0, y0, p, F):
-    """Constants of the exact stick solution from (t0, y0) into F[0:2, 0:4].
+    """Constants of the exact stick solution from (t0, y0) into F[0:3, 0:4].
 
     While the bit sticks and the gap is open, the hammer obeys
     x1'' + 2 xi x1' + x1 = x3 + b + f_ext + a sin(eta t + phi): a forced damped
@@ -625,6 +632,8 @@ def stick_prepare(t0, y0, p, F):
     u0 = y0[0] - c - (P * sn + Q * cs)
     v0 = y0[1] - eta * (P * cs - Q * sn)
     wd = math.sqrt(1.0 - xi * xi)
+    F[2, 0] = sn
+    F[2, 1] = cs
     F[0, 0] = t0
     F[0, 1] = c
     F[0, 2] = P
@@ -656,6 +665,54 @@ def stick_state(tq, y0, F, p, out):
     e = math.exp(-xi * s)
     cw = math.cos(wd * s)
     sw = math.sin(wd * s)
+    for i in range(y0.shape[0]):
+        out[i] = y0[i]
+    out[0] = F[0, 1] + P * sn + Q * cs + e * (u0 * cw + Bc * sw)
+    out[1] = eta * (P * cs - Q * sn) + e * (v0 * cw - (xi * Bc + wd * u0) * sw)
+    out[3] = 0.0
+    return sn
+
+
+@njit(cache=True, _nrt=False)
+def stick_chunk_consts(H, p, out):
+    """Constants of a stick chunk of length H: exp(-xi H), cos and sin(w_d H), sin and cos(eta H)."""
+    xi = p[P_XI]
+    wd = math.sqrt(1.0 - xi * xi)
+    out[0] = math.exp(-xi * H)
+    out[1] = math.cos(wd * H)
+    out[2] = math.sin(wd * H)
+    out[3] = math.sin(p[P_ETA] * H)
+    out[4] = math.cos(p[P_ETA] * H)
+    out[5] = H
+
+
+@njit(cache=True, _nrt=False)
+def stick_state_chunk(t1, y0, F, p, cH, out):
+    """``stick_state`` at t1 = t0 + H for the chunk length H of ``stick_chunk_consts``.
+
+    The transcendentals of a full chunk are the same every time; only the
+    rounding of t1 - t0 against H (a few ulp of t) is corrected, to first
+    order, so the state belongs to the clock's t1 exactly.  Returns
+    sin(eta t1 + phi) like ``stick_state``.
+    """
+    xi = p[P_XI]
+    eta = p[P_ETA]
+    dlt = (t1 - F[0, 0]) - cH[5]
+    wd = F[1, 3]
+    e = cH[0] * (1.0 - xi * dlt)
+    cw = cH[1] - cH[2] * (wd * dlt)
+    sw = cH[2] + cH[1] * (wd * dlt)
+    snH = cH[3] + cH[4] * (eta * dlt)
+    csH = cH[4] - cH[3] * (eta * dlt)
+    s0 = F[2, 0]
+    c0 = F[2, 1]
+    sn = s0 * csH + c0 * snH
+    cs = c0 * csH - s0 * snH
+    P = F[0, 2]
+    Q = F[0, 3]
+    u0 = F[1, 0]
+    Bc = F[1, 1]
+    v0 = F[1, 2]
     for i in range(y0.shape[0]):
         out[i] = y0[i]
     out[0] = F[0, 1] + P * sn + Q * cs + e * (u0 * cw + Bc * sw)
@@ -1111,8 +1168,12 @@ def advance(y, istate, fstate, t_end, p, opts,
     fixed = err_kind == 0
     how_rk = HOW_RESTEP if fixed else HOW_DENSE
     # exact stick stepping (adaptive methods, hammer-only systems): see stick_prepare
-    cf_ok = (not fixed) and nz == 0 and ne == 0 and stick_closed_form_ok(p)
+    cf_ok = (not fixed) and nz == 0 and ne == 0 and W.shape[0] >= 3 and stick_closed_form_ok(p)
     cf_chunk = min(2.0 * math.pi / p[P_ETA], 2.0 * math.pi / math.sqrt(max(1.0 - p[P_XI] * p[P_XI], 1e-300))) / 8.0
+    cf_chunk = min(cf_chunk, opts[O_HMAX])
+    cH = np.empty(6)
+    if cf_ok:
+        stick_chunk_consts(cf_chunk, p, cH)
     rtol = opts[O_RTOL]
     atol = opts[O_ATOL]
     hmax = opts[O_HMAX]
@@ -1175,13 +1236,18 @@ def advance(y, istate, fstate, t_end, p, opts,
         h_next = h
         if immediate < 0 and cf_ok and ms == STICK and mc == FREE:
             # -- one chunk of the exact stick solution -------------------------
-            H = min(cf_chunk, hmax)
+            H = cf_chunk
             t1 = t + H
+            full = True
             if H >= remaining or remaining - H < 1e4 * 2.220446049250313e-16 * max(abs(t), 1.0):
                 H = remaining
                 t1 = t_end
+                full = False
             stick_prepare(t, y, p, F)
-            sn1 = stick_state(t1, y, F, p, ynew)
+            if full:
+                sn1 = stick_state_chunk(t1, y, F, p, cH, ynew)
+            else:
+                sn1 = stick_state(t1, y, F, p, ynew)
             stick_rate(ynew, sn1, p, fs)  # = rhs(t1, ynew) in stick with the gap open
             istate[I_RHS] += 1
             istate[I_STEPS] += 1
