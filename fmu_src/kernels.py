@@ -1112,7 +1112,7 @@ def needs_record(t_stop, istate, opts, poin, samp_t):
 # ---------------------------------------------------------------------------
 # Driver
 # ---------------------------------------------------------------------------
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def advance(y, istate, fstate, t_end, p, opts,
             A, B, C, E, E3, W, ns, err_kind, err_exp,
             Ap, Ai, Ax, Hz, Gz, g12, ne,
