@@ -520,9 +520,18 @@ def friction_layer_err(h, x4, f4, p, C, E, E3, ns, err_kind, n_act, sc):
     if sig > 600.0:
         return math.inf
     amp = (1.0 - p[P_MU]) / p[P_RHO] * math.exp(-p[P_GAMMA] * x4) / sc
+    # cheap bound first: the estimate is at most h amp exp(sig) sum|E| / sqrt(n)
+    emax = math.exp(max(sig, 0.0))
+    bound = 0.0
+    for j in range(ns + 1):
+        bound += abs(E[j])
+    if abs(h) * amp * emax * bound <= 1e-3 * math.sqrt(n_act):
+        return abs(h) * amp * emax * bound / math.sqrt(n_act)
     a5 = 0.0
     a3 = 0.0
     for j in range(ns + 1):
+        if E[j] == 0.0 and E3[j] == 0.0:
+            continue
         c = C[j] if j < ns else 1.0
         e = math.exp(sig * c)
         a5 += E[j] * e
@@ -595,6 +604,29 @@ def dense_eval(x, y, F, act, n_act, out):
         out[i] = y[i] + acc
 
 
+@njit(cache=True, _nrt=False)
+def dense_eval_rate(x, y, F, act, n_act, h, out, dout):
+    """``dense_eval`` and the time derivative of the interpolant (into ``dout``)."""
+    nF = F.shape[0]
+    for i in range(y.shape[0]):
+        out[i] = y[i]
+        dout[i] = 0.0
+    for q in range(n_act):
+        i = act[q]
+        acc = 0.0
+        dacc = 0.0
+        for k in range(nF - 1, -1, -1):
+            acc += F[k, i]
+            if k % 2 == 0:
+                dacc = dacc * x + acc
+                acc *= x
+            else:
+                dacc = dacc * (1.0 - x) - acc
+                acc *= 1.0 - x
+        out[i] = y[i] + acc
+        dout[i] = dacc / h
+
+
 # how a state inside the current step is evaluated
 HOW_DENSE = 0     # the adaptive method's dense output
 HOW_RESTEP = 1    # a fresh step of the fixed-step method (the paper's RK4 with bisection)
@@ -619,6 +651,13 @@ def stick_prepare(t0, y0, p, F):
     oscillator whose solution is a particular harmonic plus a decaying
     homogeneous part.
     """
+    th = p[P_ETA] * t0 + p[P_PHI]
+    stick_prepare_phase(t0, y0, p, F, math.sin(th), math.cos(th))
+
+
+@njit(cache=True, _nrt=False)
+def stick_prepare_phase(t0, y0, p, F, sn, cs):
+    """``stick_prepare`` given sn, cs = sin, cos(eta t0 + phi)."""
     xi = p[P_XI]
     eta = p[P_ETA]
     a = p[P_A]
@@ -626,9 +665,6 @@ def stick_prepare(t0, y0, p, F):
     P = a * (1.0 - eta * eta) / den
     Q = -a * 2.0 * xi * eta / den
     c = y0[2] + p[P_B] + p[P_FEXT]
-    th = eta * t0 + p[P_PHI]
-    sn = math.sin(th)
-    cs = math.cos(th)
     u0 = y0[0] - c - (P * sn + Q * cs)
     v0 = y0[1] - eta * (P * cs - Q * sn)
     wd = math.sqrt(1.0 - xi * xi)
@@ -693,7 +729,7 @@ def stick_state_chunk(t1, y0, F, p, cH, out):
     The transcendentals of a full chunk are the same every time; only the
     rounding of t1 - t0 against H (a few ulp of t) is corrected, to first
     order, so the state belongs to the clock's t1 exactly.  Returns
-    sin(eta t1 + phi) like ``stick_state``.
+    sin and cos of eta t1 + phi (the next chunk starts from them).
     """
     xi = p[P_XI]
     eta = p[P_ETA]
@@ -718,7 +754,7 @@ def stick_state_chunk(t1, y0, F, p, cH, out):
     out[0] = F[0, 1] + P * sn + Q * cs + e * (u0 * cw + Bc * sw)
     out[1] = eta * (P * cs - Q * sn) + e * (v0 * cw - (xi * Bc + wd * u0) * sw)
     out[3] = 0.0
-    return sn
+    return sn, cs
 
 
 @njit(cache=True, _nrt=False)
@@ -877,19 +913,29 @@ def localise(kind, ta, tb, t0, y0, h, how, tol, wtol, F, act, n_act, A, B, C, ns
 
 
 @njit(cache=True, _nrt=False)
-def localise_stick(kind, ta, tb, y0, wtol, F, ys, fs, p, mc):
-    """``localise`` on the exact stick solution: safeguarded Newton.
+def state_rate_at(tq, t0, y0, h, how, F, act, n_act, ys, fs, p):
+    """State and its rate at ``tq``: exact stick solution or the dense output."""
+    if how == HOW_STICK:
+        sn = stick_state(tq, y0, F, p, ys)
+        stick_rate(ys, sn, p, fs)
+    else:
+        dense_eval_rate((tq - t0) / h, y0, F, act, n_act, h, ys, fs)
 
-    The closed form gives the indicator's slope at no extra cost, so Newton
-    (kept inside the bracket, bisecting when it leaves it) needs a handful of
-    evaluations where false position needs about twenty.  Returns the end of
-    the final bracket, where w > 0, once the bracket is a few ulp wide.
+
+@njit(cache=True, _nrt=False)
+def localise_newton(kind, ta, tb, t0, y0, h, how, wtol, F, act, n_act, ys, fs, p, mc):
+    """``localise`` by safeguarded Newton on the exact stick solution or the dense output.
+
+    Both give the indicator's slope along the curve at no extra cost, so
+    Newton (kept inside the bracket, bisecting when it leaves it or every
+    eighth step) needs a handful of evaluations where false position needs
+    about twenty.  Returns the end of the final bracket, where w > 0, once
+    the bracket is a few ulp wide.
     """
-    sn = stick_state(tb, y0, F, p, ys)
+    state_rate_at(tb, t0, y0, h, how, F, act, n_act, ys, fs, p)
     wb = watch_value(kind, ys, p, mc) - wtol
-    stick_rate(ys, sn, p, fs)
     sb = watch_slope(kind, ys, fs, p, mc)
-    sn = stick_state(ta, y0, F, p, ys)
+    state_rate_at(ta, t0, y0, h, how, F, act, n_act, ys, fs, p)
     wa = watch_value(kind, ys, p, mc) - wtol
     # start from the end whose Newton step stays inside the bracket, else the secant
     t = ta - wa * (tb - ta) / (wb - wa) if wb > wa else 0.5 * (ta + tb)
@@ -902,7 +948,7 @@ def localise_stick(kind, ta, tb, y0, wtol, F, ys, fs, p, mc):
     for it in range(100):
         if tb - ta <= 4.0 * 2.220446049250313e-16 * max(abs(tb), 1.0):
             break
-        sn = stick_state(t, y0, F, p, ys)
+        state_rate_at(t, t0, y0, h, how, F, act, n_act, ys, fs, p)
         w = watch_value(kind, ys, p, mc) - wtol
         if w > 0.0:
             tb = t
@@ -910,7 +956,6 @@ def localise_stick(kind, ta, tb, y0, wtol, F, ys, fs, p, mc):
             ta = t
         if tb - ta <= 4.0 * 2.220446049250313e-16 * max(abs(tb), 1.0):
             break
-        stick_rate(ys, sn, p, fs)
         sl = watch_slope(kind, ys, fs, p, mc)
         ulp2 = 2.0 * 2.220446049250313e-16 * max(abs(t), 1.0)
         tn = t - w / sl if sl > 0.0 else 0.5 * (ta + tb)
@@ -986,8 +1031,8 @@ def locate_event(kind, code, t0, t1, y0, h, how, bisect_tol, graze, wtol, F, act
         if watch_value(kind, ys, p, mc) <= max(graze, wtol):
             return -1.0
         tb = tm
-    if how == HOW_STICK:
-        return localise_stick(kind, t0, tb, y0, wtol, F, ys, fscr, p, mc)
+    if how == HOW_STICK or how == HOW_DENSE:
+        return localise_newton(kind, t0, tb, t0, y0, h, how, wtol, F, act, n_act, ys, fscr, p, mc)
     return localise(kind, t0, tb, t0, y0, h, how, bisect_tol, wtol, F, act, n_act, A, B, C, ns, K2, ytmp,
                     ys, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
 
@@ -1205,6 +1250,9 @@ def advance(y, istate, fstate, t_end, p, opts,
     istate[I_RHS] += 1
     steps_here = 0
     refine = 0
+    sc_t = math.nan  # time whose forcing phase (sc_s, sc_c) a full stick chunk left behind
+    sc_s = 0.0
+    sc_c = 0.0
 
     while True:
         remaining = t_end - t
@@ -1243,11 +1291,16 @@ def advance(y, istate, fstate, t_end, p, opts,
                 H = remaining
                 t1 = t_end
                 full = False
-            stick_prepare(t, y, p, F)
+            if t == sc_t:
+                stick_prepare_phase(t, y, p, F, sc_s, sc_c)  # phase carried from the last chunk
+            else:
+                stick_prepare(t, y, p, F)
+            sc_t = math.nan
             if full:
-                sn1 = stick_state_chunk(t1, y, F, p, cH, ynew)
+                sn1, cs1 = stick_state_chunk(t1, y, F, p, cH, ynew)
             else:
                 sn1 = stick_state(t1, y, F, p, ynew)
+                cs1 = 0.0
             stick_rate(ynew, sn1, p, fs)  # = rhs(t1, ynew) in stick with the gap open
             istate[I_RHS] += 1
             istate[I_STEPS] += 1
@@ -1275,6 +1328,10 @@ def advance(y, istate, fstate, t_end, p, opts,
                     y[i] = ynew[i]
                     K[0, i] = fs[i]
                 t = t1
+                if full:
+                    sc_t = t1
+                    sc_s = sn1
+                    sc_c = cs1
                 continue
             stick_state(t_hit, y, F, p, ys)
             if needs_record(t_hit, istate, opts, poin, samp_t):
