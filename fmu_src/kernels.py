@@ -513,12 +513,14 @@ def friction_layer_err(h, x4, f4, p, C, E, E3, ns, err_kind, n_act, sc):
 
     Returns
     -------
-    float
+    ef : float
         The friction part of the error norm (same normalisation as ``error_norm``).
+    dlog : float
+        d ln(ef) / d ln(h), for a Newton step on the step size.
     """
     sig = -p[P_GAMMA] * f4 * h
     if sig > 600.0:
-        return math.inf
+        return math.inf, 9.0
     amp = (1.0 - p[P_MU]) / p[P_RHO] * math.exp(-p[P_GAMMA] * x4) / sc
     # cheap bound first: the estimate is at most h amp exp(sig) sum|E| / sqrt(n)
     emax = math.exp(max(sig, 0.0))
@@ -526,9 +528,12 @@ def friction_layer_err(h, x4, f4, p, C, E, E3, ns, err_kind, n_act, sc):
     for j in range(ns + 1):
         bound += abs(E[j])
     if abs(h) * amp * emax * bound <= 1e-3 * math.sqrt(n_act):
-        return abs(h) * amp * emax * bound / math.sqrt(n_act)
+        return abs(h) * amp * emax * bound / math.sqrt(n_act), 9.0
+    # the weighted sums and their logarithmic derivatives h d/dh (sig is proportional to h)
     a5 = 0.0
     a3 = 0.0
+    d5 = 0.0
+    d3 = 0.0
     for j in range(ns + 1):
         if E[j] == 0.0 and E3[j] == 0.0:
             continue
@@ -536,14 +541,17 @@ def friction_layer_err(h, x4, f4, p, C, E, E3, ns, err_kind, n_act, sc):
         e = math.exp(sig * c)
         a5 += E[j] * e
         a3 += E3[j] * e
-    a5 *= amp
-    a3 *= amp
+        d5 += E[j] * sig * c * e
+        d3 += E3[j] * sig * c * e
     if err_kind == 2:
         den = a5 * a5 + 0.01 * a3 * a3
-        if den == 0.0:
-            return 0.0
-        return abs(h) * a5 * a5 / math.sqrt(den * n_act)
-    return abs(h) * abs(a5) / math.sqrt(n_act)
+        if den == 0.0 or a5 == 0.0:
+            return 0.0, 9.0
+        dlog = 1.0 + 2.0 * d5 / a5 - (a5 * d5 + 0.01 * a3 * d3) / den
+        return abs(h) * amp * a5 * a5 / math.sqrt(den * n_act), dlog
+    if a5 == 0.0:
+        return 0.0, 9.0
+    return abs(h) * amp * abs(a5) / math.sqrt(n_act), 1.0 + d5 / a5
 
 
 @njit(cache=True, _nrt=False)
@@ -1423,27 +1431,15 @@ def advance(y, istate, fstate, t_end, p, opts,
                 if ms == SLIP and K[ns, 3] < 0.0 and ynew[3] > 0.0 and p[P_MU] < 1.0:
                     # the bit decelerates: keep the next step out of the friction layer
                     sc4 = atol + rtol * max(ynew[3], fstate[F_V4_PEAK])
-                    ef = friction_layer_err(h_next, ynew[3], K[ns, 3], p, C, E, E3, ns, err_kind,
-                                            n_act, sc4)
-                    if ef > LAYER_TARGET:
-                        # largest step whose friction error stays below the target:
-                        # bracket it, then bisect in log h (ef grows monotonically with h)
-                        hi = h_next
-                        lo = h_next
-                        for _ in range(30):
-                            lo *= MIN_FACTOR
-                            if friction_layer_err(lo, ynew[3], K[ns, 3], p, C, E, E3, ns, err_kind,
-                                                  n_act, sc4) <= LAYER_TARGET:
-                                break
-                            hi = lo
-                        for _ in range(5):
-                            mid = math.sqrt(lo * hi)
-                            if friction_layer_err(mid, ynew[3], K[ns, 3], p, C, E, E3, ns, err_kind,
-                                                  n_act, sc4) <= LAYER_TARGET:
-                                lo = mid
-                            else:
-                                hi = mid
-                        h_next = lo
+                    # a step whose friction error stays below the target: Newton steps on
+                    # ln h aimed a little below it (ln ef is convex in ln h, so they approach
+                    # from above and stop as soon as the target is met)
+                    for _ in range(8):
+                        ef, dlog = friction_layer_err(h_next, ynew[3], K[ns, 3], p, C, E, E3, ns,
+                                                      err_kind, n_act, sc4)
+                        if ef <= LAYER_TARGET:
+                            break
+                        h_next *= max(MIN_FACTOR, math.exp(math.log(0.5 * LAYER_TARGET / ef) / max(dlog, 1.0)))
             istate[I_STEPS] += 1
             steps_here += 1
             t1 = t + h
