@@ -1136,7 +1136,9 @@ def record_until(t_stop, y_stop, t0, y0, h, how, F, act, n_act, A, B, C, ns, K2,
         poin[k, 0] = tk
         poin[k, 1] = ys[0]
         poin[k, 2] = ys[1]
-        poin[k, 3] = ys[2]
+        # the drift only moves forward: a sample from the dense output (exact within the
+        # tolerance) never reads below the previous one where the bit barely moves
+        poin[k, 3] = max(ys[2], poin[k - 1, 3]) if k > 0 else ys[2]
         poin[k, 4] = ys[3]
         k += 1
     istate[I_POIN_NEXT] = k
@@ -1152,6 +1154,8 @@ def record_until(t_stop, y_stop, t0, y0, h, how, F, act, n_act, A, B, C, ns, K2,
         else:
             state_at(max(tj, t0), t0, y0, h, how, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
                      p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+        if j > 0 and ys[2] < samp[j - 1, 2]:
+            ys[2] = samp[j - 1, 2]  # monotone drift, as for the Poincaré samples
         write_sample(samp[j], tj, ys, p, istate, nz, Gz, g12)
         j += 1
     istate[I_SAMP_NEXT] = j

@@ -37,6 +37,7 @@ from hammerbit.simulate import BounceWarning, Record, simulate
 RTOL = 1e-8
 DEFAULT = SolverOptions(rtol=RTOL, atol=RTOL * 1e-2)
 TIGHT = SolverOptions(rtol=1e-12, atol=1e-14)
+MID = SolverOptions(rtol=1e-10, atol=1e-12)
 TIME_LIMIT = 120.0           # seconds per bounded call (a hang, not a slow run)
 SAMPLES_PER_PERIOD = 200
 #: |balance| <= ENERGY_FACTOR * rtol * max(|work|, 1); observed worst ratio ~ 20 (see the report)
@@ -557,8 +558,6 @@ def _agreement_case(g, periods=150):
         # period doubling, or a transient not settled): the reference itself reads as
         # another period at ``tol``, so no solver at rtol 1e-8 can be held to it
         return None
-    ours, _ = bounded(simulate, g, periods, record=rec, solver=lo)
-    assert detect_period(ours.poincare, max_period=8, tol=tol) == n
     T = g.period
     lo_t, hi_t = (periods - 2 * n) * T + 1e-3 * T, periods * T - 1e-3 * T
 
@@ -567,6 +566,13 @@ def _agreement_case(g, periods=150):
         return list(ev["kind"][m]), ev["time"][m]
 
     k_ref, t_ref = window(ref.events)
+    # conditioning: a reference 100x looser must reach the same verdict, else the scene
+    # is too sensitive (multistable, chattering contact) for any rtol-1e-8 comparison
+    mid, _ = bounded(simulate, g, periods, record=rec, solver=MID)
+    if detect_period(mid.poincare, max_period=8, tol=1e-7) != n or window(mid.events)[0] != k_ref:
+        return None
+    ours, _ = bounded(simulate, g, periods, record=rec, solver=lo)
+    assert detect_period(ours.poincare, max_period=8, tol=tol) == n
     k_our, t_our = window(ours.events)
     assert k_our == k_ref
     if len(t_ref):
@@ -641,3 +647,15 @@ def test_event_state_accuracy():
     assert logs[1e-8].shape == logs[1e-13].shape
     err = np.abs(logs[1e-8][:, 2:6] - logs[1e-13][:, 2:6]).max()
     assert err <= 100 * 1e-8, f"event-state error {err:.2e} at rtol 1e-8"
+
+
+def test_drift_samples_never_step_back():
+    """Regression (found by the full random-scene run): right after a slip start the bit
+    barely moves, and a dense-output sample of x_s could read 5.7e-12 below the previous
+    one (the interpolant is exact only within the tolerance).  Recorded samples are kept
+    monotone, like the model's drift."""
+    g = preset("paper-fig12").replace(rho=1.0, xi=0.0, eta=1.0, a=0.0, b=0.5, r=0.125, mu=1.0,
+                                      gamma_hat=0.0, kc=1000.0, n=1.0, lam_hat=0.0, phi=0.0)
+    res, _ = sim(g, 20, energy=True, poincare=True)
+    check_invariants(res)
+    assert np.all(np.diff(res.poincare["bit_position"]) >= 0.0)
