@@ -6,8 +6,10 @@ inner loops.  They are split into small named pieces:
 * the vector field in one hybrid mode (``rhs``);
 * the signed event indicators of a mode and their time derivatives
   (``watch_value``, ``watch_slope``);
-* sign-change and grazing detection over a step (``detect``);
-* localisation of the event time on the dense output (``localise``);
+* sign-change and grazing detection over a step (``sign_change``);
+* localisation of the event time by safeguarded Newton on the dense output or
+  the exact stick solution (``localise_newton``), bisection for the paper's
+  fixed-step method (``localise_bisect``);
 * the reset map at an event (``apply_event``);
 * one generic Runge–Kutta step for any tableau (``rk_step``) and its dense
   output (``dense_prepare``, ``dense_eval``);
@@ -882,49 +884,25 @@ def set_active(istate, n, nz, ne, act):
 # Event detection and localisation
 # ---------------------------------------------------------------------------
 @njit(cache=True, _nrt=False)
-def localise(kind, ta, tb, t0, y0, h, how, tol, wtol, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
-             p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12):
-    """Event time in (ta, tb] where w(ta) <= wtol < w(tb) (``wtol``: round-off level).
+def localise_bisect(kind, ta, tb, t0, y0, tol, wtol, A, B, C, ns, K2, ytmp, ys, act, n_act,
+                    p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12):
+    """The paper's localisation for the fixed-step method: bisection down to ``tol``.
 
-    Adaptive methods: Illinois false position on the dense output down to a few
-    ulp of t.  Fixed step: bisection down to ``tol`` (the paper's 1e-6).
-    Returns the end of the final bracket, where w > 0: after the reset the
-    event cannot re-trigger.
+    Each trial state is a fresh step of the method from (t0, y0) (K2[0] must
+    hold f(t0, y0)).  Returns the end of the final bracket, where w > 0: after
+    the reset the event cannot re-trigger.  (Adaptive methods use
+    ``localise_newton``.)
     """
-    state_at(ta, t0, y0, h, how, F, act, n_act, A, B, C, ns, K2, ytmp, ys, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
-    wa = watch_value(kind, ys, p, mc) - wtol
-    state_at(tb, t0, y0, h, how, F, act, n_act, A, B, C, ns, K2, ytmp, ys, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
-    wb = watch_value(kind, ys, p, mc) - wtol
-    side = 0
     for it in range(200):
-        width = tb - ta
-        if how == HOW_RESTEP:
-            if width <= tol:
-                break
-            tm = 0.5 * (ta + tb)
-        else:
-            if width <= 4.0 * 2.220446049250313e-16 * max(abs(tb), 1.0):
-                break
-            if it % 8 == 7 or not (wb > wa):
-                tm = 0.5 * (ta + tb)
-            else:
-                tm = ta - wa * width / (wb - wa)
-                if not (tm > ta and tm < tb):
-                    tm = 0.5 * (ta + tb)
-        state_at(tm, t0, y0, h, how, F, act, n_act, A, B, C, ns, K2, ytmp, ys, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
-        wm = watch_value(kind, ys, p, mc) - wtol
-        if wm > 0.0:
+        if tb - ta <= tol:
+            break
+        tm = 0.5 * (ta + tb)
+        rk_step(t0, y0, tm - t0, A, B, C, ns, K2, ys, ytmp, act, n_act,
+                p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+        if watch_value(kind, ys, p, mc) - wtol > 0.0:
             tb = tm
-            wb = wm
-            if side == 1:
-                wa *= 0.5
-            side = 1
         else:
             ta = tm
-            wa = wm
-            if side == -1:
-                wb *= 0.5
-            side = -1
     return tb
 
 
@@ -940,9 +918,10 @@ def state_rate_at(tq, t0, y0, h, how, F, act, n_act, ys, fs, p):
 
 @njit(cache=True, _nrt=False)
 def localise_newton(kind, ta, tb, t0, y0, h, how, wtol, F, act, n_act, ys, fs, p, mc):
-    """``localise`` by safeguarded Newton on the exact stick solution or the dense output.
+    """Event time in (ta, tb] where w(ta) <= wtol < w(tb), by safeguarded Newton.
 
-    Both give the indicator's slope along the curve at no extra cost, so
+    Works on the exact stick solution or on the dense output; both give the
+    indicator's slope along the curve at no extra cost, so
     Newton (kept inside the bracket, bisecting when it leaves it or every
     eighth step) needs a handful of evaluations where false position needs
     about twenty.  Returns the end of the final bracket, where w > 0, once
@@ -1049,8 +1028,8 @@ def locate_event(kind, code, t0, t1, y0, h, how, bisect_tol, graze, wtol, F, act
         tb = tm
     if how == HOW_STICK or how == HOW_DENSE:
         return localise_newton(kind, t0, tb, t0, y0, h, how, wtol, F, act, n_act, ys, fscr, p, mc)
-    return localise(kind, t0, tb, t0, y0, h, how, bisect_tol, wtol, F, act, n_act, A, B, C, ns, K2, ytmp,
-                    ys, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+    return localise_bisect(kind, t0, tb, t0, y0, bisect_tol, wtol, A, B, C, ns, K2, ytmp, ys, act, n_act,
+                           p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
 
 
 @njit(cache=True, _nrt=False)
