@@ -89,7 +89,7 @@ F_H_MODE = 4      # first step of each regime: stick, slip, contact (3 slots)
 F_V4_PEAK = 7     # peak bit velocity of the current slip (error scale of x4)
 F_X3_SLIP = 8     # bit position at the start of the current slip
 F_HACC = 9        # last accepted step of the current regime (predictive controller)
-F_ERRACC = 10     # its error, floored at 1e-2 (0: no history since the last event)
+F_ERRACC = 10     # its error, floored at ERRACC_FLOOR (0: no history since the last event)
 N_FSTATE = 11
 
 # options
