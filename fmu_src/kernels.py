@@ -122,6 +122,7 @@ N_LOG_COLS = 8
 # sample columns: x1, x2, x3, x4, contact force, link force, stick/slip, contact mode
 N_SAMPLE_COLS = 8
 
+EPS = 2.220446049250313e-16  # double precision unit round-off (ulp of 1)
 SAFETY = 0.9
 MIN_FACTOR = 0.2
 MAX_FACTOR = 10.0
@@ -355,9 +356,9 @@ def watch_tol(kind, y, p):
     if kind == EV_STICK:
         return 0.0
     if kind == EV_CLAMP or kind == EV_UNCLAMP:
-        return 8.0 * 2.220446049250313e-16 * (1.0 + p[P_LAM] * (abs(y[1]) + abs(y[3])))
+        return 8.0 * EPS * (1.0 + p[P_LAM] * (abs(y[1]) + abs(y[3])))
     r = p[P_R] if (kind == EV_IMPACT or kind == EV_SEPARATION) else 1.0
-    return 8.0 * 2.220446049250313e-16 * (abs(y[0]) + abs(y[2]) + abs(r))
+    return 8.0 * EPS * (abs(y[0]) + abs(y[2]) + abs(r))
 
 
 @njit(cache=True, _nrt=False)
@@ -492,7 +493,7 @@ def error_norm(y, ynew, h, K, E, E3, err_kind, ns, act, n_act, rtol, atol, v4_pe
 
 
 @njit(cache=True, _nrt=False)
-def friction_layer_err(h, x4, f4, p, C, E, E3, ns, err_kind, n_act, sc):
+def friction_layer_err(h, x4, f4, p, C, E, E3, e_abs, ns, err_kind, n_act, sc):
     """Error norm a step of size h would get from the kinetic friction alone.
 
     As the bit decelerates to a stop, the friction term (1 - mu) exp(-gamma_hat x4)
@@ -510,6 +511,8 @@ def friction_layer_err(h, x4, f4, p, C, E, E3, ns, err_kind, n_act, sc):
         Bit velocity and acceleration at the step start (f4 < 0).
     C, E, E3 : ndarray
         Nodes and error weights of the tableau (``advance``).
+    e_abs : float
+        sum(|E|), for a cheap upper bound.
     sc : float
         Error scale of x4 (atol + rtol * scale).
 
@@ -525,12 +528,9 @@ def friction_layer_err(h, x4, f4, p, C, E, E3, ns, err_kind, n_act, sc):
         return math.inf, 9.0
     amp = (1.0 - p[P_MU]) / p[P_RHO] * math.exp(-p[P_GAMMA] * x4) / sc
     # cheap bound first: the estimate is at most h amp exp(sig) sum|E| / sqrt(n)
-    emax = math.exp(max(sig, 0.0))
-    bound = 0.0
-    for j in range(ns + 1):
-        bound += abs(E[j])
-    if abs(h) * amp * emax * bound <= 1e-3 * math.sqrt(n_act):
-        return abs(h) * amp * emax * bound / math.sqrt(n_act), 9.0
+    bound = abs(h) * amp * math.exp(max(sig, 0.0)) * e_abs
+    if bound <= 1e-3 * math.sqrt(n_act):
+        return bound / math.sqrt(n_act), 9.0
     # the weighted sums and their logarithmic derivatives h d/dh (sig is proportional to h)
     a5 = 0.0
     a3 = 0.0
@@ -696,27 +696,29 @@ def stick_state(tq, y0, F, p, out):
 
     Returns sin(eta tq + phi), from which ``stick_rate`` gives the derivative.
     """
-    xi = p[P_XI]
-    eta = p[P_ETA]
     s = tq - F[0, 0]
-    th = eta * tq + p[P_PHI]
+    th = p[P_ETA] * tq + p[P_PHI]
     sn = math.sin(th)
-    cs = math.cos(th)
+    wd = F[1, 3]
+    stick_combine(y0, F, p, sn, math.cos(th), math.exp(-p[P_XI] * s), math.cos(wd * s), math.sin(wd * s), out)
+    return sn
+
+
+@njit(cache=True, inline="always", _nrt=False)
+def stick_combine(y0, F, p, sn, cs, e, cw, sw, out):
+    """Stick state from the constants in F, the forcing phase (sn, cs) at the target
+    time and the homogeneous factors e = exp(-xi s), cw, sw = cos, sin(w_d s)."""
+    xi = p[P_XI]
     P = F[0, 2]
     Q = F[0, 3]
     u0 = F[1, 0]
     Bc = F[1, 1]
-    v0 = F[1, 2]
     wd = F[1, 3]
-    e = math.exp(-xi * s)
-    cw = math.cos(wd * s)
-    sw = math.sin(wd * s)
     for i in range(y0.shape[0]):
         out[i] = y0[i]
     out[0] = F[0, 1] + P * sn + Q * cs + e * (u0 * cw + Bc * sw)
-    out[1] = eta * (P * cs - Q * sn) + e * (v0 * cw - (xi * Bc + wd * u0) * sw)
+    out[1] = p[P_ETA] * (P * cs - Q * sn) + e * (F[1, 2] * cw - (xi * Bc + wd * u0) * sw)
     out[3] = 0.0
-    return sn
 
 
 @njit(cache=True, _nrt=False)
@@ -754,16 +756,7 @@ def stick_state_chunk(t1, y0, F, p, cH, out):
     c0 = F[2, 1]
     sn = s0 * csH + c0 * snH
     cs = c0 * csH - s0 * snH
-    P = F[0, 2]
-    Q = F[0, 3]
-    u0 = F[1, 0]
-    Bc = F[1, 1]
-    v0 = F[1, 2]
-    for i in range(y0.shape[0]):
-        out[i] = y0[i]
-    out[0] = F[0, 1] + P * sn + Q * cs + e * (u0 * cw + Bc * sw)
-    out[1] = eta * (P * cs - Q * sn) + e * (v0 * cw - (xi * Bc + wd * u0) * sw)
-    out[3] = 0.0
+    stick_combine(y0, F, p, sn, cs, e, cw, sw, out)
     return sn, cs
 
 
@@ -941,7 +934,7 @@ def localise_newton(kind, ta, tb, t0, y0, h, how, wtol, F, act, n_act, ys, fs, p
     if not (ta < t < tb):
         t = 0.5 * (ta + tb)
     for it in range(100):
-        if tb - ta <= 4.0 * 2.220446049250313e-16 * max(abs(tb), 1.0):
+        if tb - ta <= 4.0 * EPS * max(abs(tb), 1.0):
             break
         state_rate_at(t, t0, y0, h, how, F, act, n_act, ys, fs, p)
         w = watch_value(kind, ys, p, mc) - wtol
@@ -949,10 +942,10 @@ def localise_newton(kind, ta, tb, t0, y0, h, how, wtol, F, act, n_act, ys, fs, p
             tb = t
         else:
             ta = t
-        if tb - ta <= 4.0 * 2.220446049250313e-16 * max(abs(tb), 1.0):
+        if tb - ta <= 4.0 * EPS * max(abs(tb), 1.0):
             break
         sl = watch_slope(kind, ys, fs, p, mc)
-        ulp2 = 2.0 * 2.220446049250313e-16 * max(abs(t), 1.0)
+        ulp2 = 2.0 * EPS * max(abs(t), 1.0)
         tn = t - w / sl if sl > 0.0 else 0.5 * (ta + tb)
         if w > 0.0 and tn > t - ulp2:
             tn = t - ulp2     # converged from above: probe just below
@@ -1097,7 +1090,7 @@ def write_sample(row, t, y, p, istate, nz, Gz, g12):
 def record_until(t_stop, y_stop, t0, y0, h, how, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
                  p, istate, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, opts, poin, samp_t, samp):
     """Record Poincaré samples and requested samples with times in (t0, t_stop]."""
-    tol = 8.0 * 2.220446049250313e-16 * max(abs(t_stop), 1.0)
+    tol = 8.0 * EPS * max(abs(t_stop), 1.0)
     ms = istate[I_STICK]
     mc = istate[I_CONTACT]
     npoin = poin.shape[0]
@@ -1143,7 +1136,7 @@ def record_until(t_stop, y_stop, t0, y0, h, how, F, act, n_act, A, B, C, ns, K2,
 @njit(cache=True, _nrt=False)
 def needs_record(t_stop, istate, opts, poin, samp_t):
     """True if a Poincaré or requested sample falls in the step ending at t_stop."""
-    tol = 8.0 * 2.220446049250313e-16 * max(abs(t_stop), 1.0)
+    tol = 8.0 * EPS * max(abs(t_stop), 1.0)
     k = istate[I_POIN_NEXT]
     if k < poin.shape[0] and opts[O_POIN_T0] + k * opts[O_POIN_DT] <= t_stop + tol:
         return True
@@ -1216,6 +1209,9 @@ def advance(y, istate, fstate, t_end, p, opts,
     cf_chunk = min(2.0 * math.pi / p[P_ETA], 2.0 * math.pi / math.sqrt(max(1.0 - p[P_XI] * p[P_XI], 1e-300))) / 8.0
     cf_chunk = min(cf_chunk, opts[O_HMAX])
     cH = np.empty(6)
+    e_abs = 0.0
+    for j in range(ns + 1):
+        e_abs += abs(E[j])
     if cf_ok:
         stick_chunk_consts(cf_chunk, p, cH)
     rtol = opts[O_RTOL]
@@ -1256,7 +1252,7 @@ def advance(y, istate, fstate, t_end, p, opts,
     while True:
         remaining = t_end - t
         # a sliver below the time resolution is no dynamics: done
-        if remaining <= 10.0 * 2.220446049250313e-16 * max(abs(t_end), 1.0):
+        if remaining <= 10.0 * EPS * max(abs(t_end), 1.0):
             break
         if log_cap > 0 and istate[I_NLOG] >= log_cap:
             fstate[F_T] = t
@@ -1281,12 +1277,13 @@ def advance(y, istate, fstate, t_end, p, opts,
         t_hit = 0.0
         wtol_hit = 0.0
         h_next = h
-        if immediate < 0 and cf_ok and ms == STICK and mc == FREE:
+        stick_cf = immediate < 0 and cf_ok and ms == STICK and mc == FREE
+        if stick_cf:
             # -- one chunk of the exact stick solution -------------------------
             H = cf_chunk
             t1 = t + H
             full = True
-            if H >= remaining or remaining - H < 1e4 * 2.220446049250313e-16 * max(abs(t), 1.0):
+            if H >= remaining or remaining - H < 1e4 * EPS * max(abs(t), 1.0):
                 H = remaining
                 t1 = t_end
                 full = False
@@ -1308,37 +1305,11 @@ def advance(y, istate, fstate, t_end, p, opts,
                 fstate[F_T] = t
                 fstate[F_H] = h
                 return ST_STEP_STORM
-            for q in range(nw):
-                kd = kinds[q]
-                code = sign_change(kd, y, ynew, K[0], fs, p, mc, w0s[q], wtols[q], H, True)
-                if code == 0:
-                    continue
-                te = locate_event(kd, code, t, t1, y, H, HOW_STICK, opts[O_BISECT], graze, wtols[q],
-                                  F, act, n_act, A, B, C, ns, K2, ytmp, ys, ytmp,
-                                  p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
-                if te > 0.0 and (hit_kind < 0 or te < t_hit):
-                    hit_kind = kd
-                    t_hit = te
-            if hit_kind < 0:
-                if needs_record(t1, istate, opts, poin, samp_t):
-                    record_until(t1, ynew, t, y, H, HOW_STICK, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
-                                 p, istate, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, opts, poin, samp_t, samp)
-                for i in range(n):
-                    y[i] = ynew[i]
-                    K[0, i] = fs[i]
-                t = t1
-                if full:
-                    sc_t = t1
-                    sc_s = sn1
-                    sc_c = cs1
-                continue
-            stick_state(t_hit, y, F, p, ys)
-            if needs_record(t_hit, istate, opts, poin, samp_t):
-                record_until(t_hit, ys, t, y, H, HOW_STICK, F, act, n_act, A, B, C, ns, K2, ytmp, ynew,
-                             p, istate, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, opts, poin, samp_t, samp)
-            for i in range(n):
-                y[i] = ys[i]
-            t = t_hit
+            how = HOW_STICK
+            hs = H
+            f1 = fs            # f(t1, ynew)
+            fscr = ytmp
+            graze_ok = True
         elif immediate < 0:
             # -- one accepted step -------------------------------------------
             if fixed:
@@ -1351,7 +1322,7 @@ def advance(y, istate, fstate, t_end, p, opts,
                         fstate[F_T] = t
                         return ST_NONFINITE
             else:
-                hmin = 10.0 * 2.220446049250313e-16 * max(abs(t), 1.0)
+                hmin = 10.0 * EPS * max(abs(t), 1.0)
                 rejected = False
                 if mc != FREE:
                     # stiff contact: keep h within the explicit method's
@@ -1426,7 +1397,7 @@ def advance(y, istate, fstate, t_end, p, opts,
                     # ln h aimed a little below it (ln ef is convex in ln h, so they approach
                     # from above and stop as soon as the target is met)
                     for _ in range(8):
-                        ef, dlog = friction_layer_err(h_next, ynew[3], K[ns, 3], p, C, E, E3, ns,
+                        ef, dlog = friction_layer_err(h_next, ynew[3], K[ns, 3], p, C, E, E3, e_abs, ns,
                                                       err_kind, n_act, sc4)
                         if ef <= LAYER_TARGET:
                             break
@@ -1440,24 +1411,51 @@ def advance(y, istate, fstate, t_end, p, opts,
                 fstate[F_T] = t
                 fstate[F_H] = h
                 return ST_STEP_STORM
-
-            # -- detection over [t, t1] ------------------------------------
+            how = how_rk
+            hs = h
+            f1 = K[ns]
+            fscr = fs
+            graze_ok = not fixed
+        if immediate < 0:
+            # -- detection over [t, t1], the same for a stick chunk and an RK step --
             dense_ok = False
             for q in range(nw):
                 kd = kinds[q]
-                code = sign_change(kd, y, ynew, K[0], K[ns], p, mc, w0s[q], wtols[q], h, not fixed)
+                code = sign_change(kd, y, ynew, K[0], f1, p, mc, w0s[q], wtols[q], hs, graze_ok)
                 if code == 0:
                     continue
-                dense_ok = interpolant(dense_ok, fixed, t, y, ynew, h, A, C, W, ns, n_ext, K, K2, F, ytmp, act, n_act,
-                                       istate, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
-                te = locate_event(kd, code, t, t1, y, h, how_rk, opts[O_BISECT], graze, wtols[q],
-                                  F, act, n_act, A, B, C, ns, K2, ytmp, ys, fs,
+                if how != HOW_STICK:
+                    dense_ok = interpolant(dense_ok, fixed, t, y, ynew, h, A, C, W, ns, n_ext, K, K2, F, ytmp,
+                                           act, n_act, istate, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+                te = locate_event(kd, code, t, t1, y, hs, how, opts[O_BISECT], graze, wtols[q],
+                                  F, act, n_act, A, B, C, ns, K2, ytmp, ys, fscr,
                                   p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
                 if te > 0.0 and (hit_kind < 0 or te < t_hit):
                     hit_kind = kd
                     t_hit = te
                     wtol_hit = wtols[q]
-
+        if stick_cf:
+            if hit_kind < 0:
+                if needs_record(t1, istate, opts, poin, samp_t):
+                    record_until(t1, ynew, t, y, H, HOW_STICK, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
+                                 p, istate, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, opts, poin, samp_t, samp)
+                for i in range(n):
+                    y[i] = ynew[i]
+                    K[0, i] = fs[i]
+                t = t1
+                if full:
+                    sc_t = t1
+                    sc_s = sn1
+                    sc_c = cs1
+                continue
+            stick_state(t_hit, y, F, p, ys)
+            if needs_record(t_hit, istate, opts, poin, samp_t):
+                record_until(t_hit, ys, t, y, H, HOW_STICK, F, act, n_act, A, B, C, ns, K2, ytmp, ynew,
+                             p, istate, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, opts, poin, samp_t, samp)
+            for i in range(n):
+                y[i] = ys[i]
+            t = t_hit
+        elif immediate < 0:
             if hit_kind < 0:
                 # -- no event: record and accept ----------------------------
                 if needs_record(t1, istate, opts, poin, samp_t):
