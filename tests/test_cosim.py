@@ -2,8 +2,6 @@
 from __future__ import annotations
 
 import math
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -13,7 +11,6 @@ from hammerbit.cosim import (CosimConfig, CouplingInstabilityError, StringSide, 
 from hammerbit.drillstring import load_string
 from hammerbit.model.params import RigParameters
 
-REPO = Path(__file__).resolve().parents[1]
 
 # The done criterion: full example string (220 elements, 440 states), H = 1 ms,
 # 3 s of simulated time; amplitude over the second half (1.5 .. 3 s).
@@ -162,14 +159,9 @@ def test_exact_string_step_against_ode(string):
     assert integ == pytest.approx(sol.y[-1, -1], rel=1e-7)
 
 
-def test_with_the_fmu(string, tmp_path):
+def test_with_the_fmu(string, built_fmu):
     """The same run through HammerBitRock.fmu (fmpy FMU2Slave) equals the in-process hammer."""
-    sys.path.insert(0, str(REPO))
-    try:
-        from build_fmu import build_fmu
-    except ImportError:
-        pytest.skip("build_fmu.py not available")
-    fmu = build_fmu(tmp_path)
+    fmu = built_fmu
     cfg = CosimConfig(stop=0.5, step=1e-3)
     a = cosimulate(string, cfg, fmu=fmu)
     b = cosimulate(string, cfg)

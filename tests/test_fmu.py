@@ -92,6 +92,12 @@ class Instance:
     def errors(self):
         return [m for s, m in self.messages if s >= FMI_ERROR]
 
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
     def close(self):
         self.fmu.terminate()
         self.fmu.freeInstance()
@@ -259,8 +265,7 @@ def test_impact_scene_matches_the_library(built_fmu):
 
 
 def test_output_forces_are_consistent(built_fmu):
-    inst = Instance(built_fmu)
-    try:
+    with Instance(built_fmu) as inst:
         for _ in range(300):
             inst.step(1e-3)
             (xb, vb, xs, vs, fk, fc, ff, frock, rop) = inst.get(*OUTPUT_NAMES)
@@ -275,8 +280,6 @@ def test_output_forces_are_consistent(built_fmu):
             else:
                 assert ff == pytest.approx(frock, rel=1e-12, abs=1e-12)
                 assert vs == 0.0
-    finally:
-        inst.close()
 
 
 def test_libcosim_runs_the_fmu_like_fmpy_and_the_library(built_fmu):
@@ -301,13 +304,10 @@ def test_libcosim_runs_the_fmu_like_fmpy_and_the_library(built_fmu):
     st = library_stepper()
     st.advance(tau(stop))
     x_lib = st.y[2] * SCALES.length
-    inst = Instance(built_fmu)
-    try:
+    with Instance(built_fmu) as inst:
         for _ in range(3000):
             inst.step(1e-3)
         x_fmpy = inst.get("bit_position")[0]
-    finally:
-        inst.close()
     assert slips == st.counts["slip_start"] > 0
     assert x_cosim == pytest.approx(x_lib, rel=1e-6)
     assert x_cosim == pytest.approx(x_fmpy, rel=1e-9)
@@ -322,8 +322,7 @@ def test_rollback_is_bit_identical(built_fmu, impact):
     if impact:
         kw = dict(reals={"gap": 0.84 * SCALES.length, "amplitude": 0.06 * SCALES.friction_force},
                   booleans={"impact_enabled": True})
-    inst = Instance(built_fmu, **kw)
-    try:
+    with Instance(built_fmu, **kw) as inst:
         for _ in range(517):                       # somewhere in the cycle, modes set
             inst.step(2e-3)
         t0 = inst.t
@@ -347,8 +346,6 @@ def test_rollback_is_bit_identical(built_fmu, impact):
             assert first[-1][10] > first[0][10]             # impact_count
         inst.fmu.freeFMUstate(state)
         assert not inst.errors()
-    finally:
-        inst.close()
 
 
 def test_serialized_state_restores_in_another_instance(built_fmu):
@@ -380,8 +377,7 @@ def test_serialized_state_restores_in_another_instance(built_fmu):
 
 
 def test_corrupt_serialized_state_is_refused(built_fmu):
-    inst = Instance(built_fmu)
-    try:
+    with Instance(built_fmu) as inst:
         inst.step(0.1)
         before = inst.outputs()
         state = inst.fmu.deSerializeFMUstate(b"\x00not a state")
@@ -389,21 +385,16 @@ def test_corrupt_serialized_state_is_refused(built_fmu):
         assert any("state unchanged" in m for m in inst.errors())
         assert inst.outputs() == before
         inst.step(0.1)
-    finally:
-        inst.close()
 
 
 # ---------------------------------------------------------------------------
 # bad input
 # ---------------------------------------------------------------------------
 def _reference_outputs(path, n_before, n_after, h=2e-3):
-    ref = Instance(path, "ref")
-    try:
+    with Instance(path, "ref") as ref:
         for _ in range(n_before + n_after):
             ref.step(h)
         return ref.outputs()
-    finally:
-        ref.close()
 
 
 BAD_STEPS = {
@@ -418,13 +409,18 @@ BAD_STEPS = {
 }
 
 
+@pytest.fixture(scope="module")
+def bad_step_expected(built_fmu):
+    """Outputs of the clean run that every bad-step case must reproduce (computed once)."""
+    return _reference_outputs(built_fmu, 200, 150, 2e-3)
+
+
 @pytest.mark.parametrize("case", sorted(BAD_STEPS))
-def test_bad_step_is_refused_and_changes_nothing(built_fmu, case):
+def test_bad_step_is_refused_and_changes_nothing(built_fmu, bad_step_expected, case):
     prepare, name, value = BAD_STEPS[case]
     h = 2e-3
-    expected = _reference_outputs(built_fmu, 200, 150, h)
-    inst = Instance(built_fmu)
-    try:
+    expected = bad_step_expected
+    with Instance(built_fmu) as inst:
         for _ in range(200):
             inst.step(h)
         before = inst.outputs()
@@ -455,8 +451,6 @@ def test_bad_step_is_refused_and_changes_nothing(built_fmu, case):
         for _ in range(150):
             inst.step(h)
         assert inst.outputs() == expected
-    finally:
-        inst.close()
 
 
 BAD_PARAMETERS = {
@@ -480,8 +474,7 @@ def test_bad_parameter_is_refused(built_fmu, case):
     fmi2DoStep refuses (fmi2Discard).  The host never crashes and can free the instance.
     """
     reals, name, value = BAD_PARAMETERS[case]
-    inst = Instance(built_fmu, reals=reals)
-    try:
+    with Instance(built_fmu, reals=reals) as inst:
         errs = inst.errors()
         assert errs and name in errs[0] and value in errs[0], errs
         with pytest.raises(FMICallException) as exc:
@@ -489,26 +482,20 @@ def test_bad_parameter_is_refused(built_fmu, case):
         assert exc.value.status in (FMI_DISCARD, FMI_ERROR)
         assert name in inst.errors()[-1]
         assert inst.get("bit_position", "hammer_position") == [0.0, 0.0]
-    finally:
-        inst.close()
 
 
 def test_invalid_value_references_are_logged_not_fatal(built_fmu):
-    inst = Instance(built_fmu)
-    try:
+    with Instance(built_fmu) as inst:
         inst.fmu.setReal([9999], [1.0])
         inst.fmu.setReal([inst.vr["bit_position"]], [1.0])          # an output: not settable
         assert math.isnan(inst.fmu.getReal([9999])[0])
         inst.fmu.getInteger([inst.vr["bit_position"]])               # wrong type
         assert len(inst.errors()) == 4
         inst.step(1e-3)                                               # still alive
-    finally:
-        inst.close()
 
 
 def test_tolerance_is_tunable(built_fmu):
-    inst = Instance(built_fmu)
-    try:
+    with Instance(built_fmu) as inst:
         for _ in range(100):
             inst.step(5e-3)
         inst.set(tolerance=1e-6)
@@ -516,8 +503,6 @@ def test_tolerance_is_tunable(built_fmu):
             inst.step(5e-3)
         assert not inst.errors()
         assert inst.get("tolerance")[0] == 1e-6
-    finally:
-        inst.close()
 
 
 def test_start_time_other_than_zero(built_fmu):

@@ -48,21 +48,16 @@ def groups(key):
 
 
 @pytest.mark.parametrize("key", list(SCENES))
-def test_done_criterion_rtol_1e10_matches_independent_reference(key):
+@pytest.mark.parametrize("rtol, bound", [(1e-10, 1e-8), (1e-13, 1e-10)], ids=["done-criterion", "tight"])
+def test_penetration_matches_independent_reference(key, rtol, bound):
+    """rtol 1e-10: the done criterion; rtol 1e-13 against solve_ivp at 1e-12: the error
+    floor of the work–precision diagram."""
     ref = reference(key)
-    ours = simulate(groups(key), PERIODS, solver=SolverOptions(rtol=1e-10, atol=1e-12))
+    ours = simulate(groups(key), PERIODS, solver=SolverOptions(rtol=rtol, atol=rtol * 1e-2))
     rel = abs(ours.penetration - ref.penetration) / abs(ref.penetration)
-    assert rel <= 1e-8, f"{key}: rel. error {rel:.3e} of the penetration after {PERIODS} periods"
-    assert ours.counts == ref.counts
-
-
-@pytest.mark.parametrize("key", list(SCENES))
-def test_tight_references_agree(key):
-    """Ours at rtol 1e-13 and solve_ivp at 1e-12: the error floor of the work–precision diagram."""
-    ref = reference(key)
-    ours = simulate(groups(key), PERIODS, solver=SolverOptions(rtol=1e-13, atol=1e-15))
-    rel = abs(ours.penetration - ref.penetration) / abs(ref.penetration)
-    assert rel <= 1e-10, f"{key}: tight references differ by {rel:.3e}"
+    assert rel <= bound, f"{key}, rtol {rtol:g}: rel. error {rel:.3e} of the penetration after {PERIODS} periods"
+    if rtol == 1e-10:
+        assert ours.counts == ref.counts
 
 
 @pytest.mark.parametrize("key", list(SCENES))
