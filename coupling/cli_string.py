@@ -188,13 +188,13 @@ def cmd_check(args: argparse.Namespace) -> int:
 
 def _cmd_hammer_modes(args: argparse.Namespace) -> int:
     """``hammerbit modes --hammer-on-bottom``: the hammer as the bottom boundary."""
-    from .cosim import CosimConfig, field_hammer
+    from .cosim import CosimConfig
     from .modal_check import hammer_on_bottom_frequencies
     try:
         string = load_string(args.string)
         top = parse_boundary(args.top, where="--top") if args.top else None
         cfg = CosimConfig()
-        rig = field_hammer()
+        rig = cfg.rig          # CosimConfig() builds it with field_hammer()
         f = hammer_on_bottom_frequencies(string, interface_stiffness=cfg.interface_stiffness,
                                          hammer_mass=rig.hammer_mass, hammer_stiffness=rig.stiffness,
                                          top=top, f_max=args.fmax or 100.0, mass=args.mass)

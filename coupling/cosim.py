@@ -348,39 +348,6 @@ def extrapolation_weights(order: int) -> np.ndarray:
             2: np.array([23.0, -16.0, 5.0]) / 12.0}[order]
 
 
-def _taylor_extrap(order: int, w0, w1, w2, H: float) -> np.ndarray:
-    """Taylor coefficients (value, slope, 2nd derivative) at s = 0 of the polynomial
-    through samples w0 (s=0), w1 (s=-H), w2 (s=-2H); each of shape (2,)."""
-    out = np.zeros(6)
-    out[0:2] = w0
-    if order >= 1:
-        if order == 1:
-            out[2:4] = (w0 - w1) / H
-        else:
-            out[2:4] = (3.0 * w0 - 4.0 * w1 + w2) / (2.0 * H)
-            out[4:6] = (w0 - 2.0 * w1 + w2) / (H * H)
-    return out
-
-
-def _taylor_interp(order: int, wnew, w0, w1, H: float) -> np.ndarray:
-    """Taylor coefficients at s = 0 through wnew (s=H), w0 (s=0), w1 (s=-H)."""
-    out = np.zeros(6)
-    if order == 0:
-        out[0:2] = wnew
-    elif order == 1:
-        out[0:2] = w0
-        out[2:4] = (wnew - w0) / H
-    else:
-        out[0:2] = w0
-        out[2:4] = (wnew - w1) / (2.0 * H)
-        out[4:6] = (wnew - 2.0 * w0 + w1) / (H * H)
-    return out
-
-
-def _poly_at(c: np.ndarray, s: float) -> np.ndarray:
-    return c[0:2] + c[2:4] * s + 0.5 * c[4:6] * s * s
-
-
 # ---------------------------------------------------------------------------
 # string side
 # ---------------------------------------------------------------------------
@@ -423,8 +390,12 @@ class StringSide:
         self.xi = np.zeros(self.n)
         self._H = None
 
-    def discretise(self, H: float) -> None:
-        """Precompute ``expm`` of the augmented system for the macro step H."""
+    def discretise(self, H: float, modal: bool = True) -> None:
+        """Precompute ``expm`` of the augmented system for the macro step H.
+
+        ``modal=False`` skips the modal form (:meth:`_modal`); ``self.modal``
+        is then False and only the dense ``P`` is set.
+        """
         n = self.n
         N = n + 6 + 1
         Z = np.zeros((N, N))
@@ -439,7 +410,10 @@ class StringSide:
         self.P = np.ascontiguousarray(Phi[np.ix_(rows, np.arange(n + 6))])
         self._H = H
         self._buf = np.zeros(n + 6)
-        self._modal(Phi, H)
+        if modal:
+            self._modal(Phi, H)
+        else:
+            self.modal = False
 
     def _modal(self, Phi: np.ndarray, H: float) -> None:
         """Diagonal (modal) form of the exact step: O(n) per macro step instead of O(n^2).
@@ -803,16 +777,16 @@ def _exchange(gs, order, H, P, xi, buf, frow, ki, ci, W, wh, Fh, x_new, v_new, F
     ``wh`` (3, 2): hammer (x deviation, v) at t_n, t_{n-1}, t_{n-2}; ``Fh`` (3,):
     interface forces at the same times.  Builds the Taylor coefficients of the
     hammer motion, advances ``xi`` with the precomputed ``P``, shifts the
-    histories and writes ``out = [F(t_{n+1}), energy residual of the step]``.
+    histories and writes ``out = [F(t_{n+1}), energy residual of the step,
+    frow.xi at t_{n+1}]``; ``out[2]`` on entry is ``frow.xi`` at ``t_n`` (the
+    previous call's, or the master's initial value).
     """
     n = xi.shape[0]
     c = buf[n:]
     _coefficients(gs, order, H, wh, x_new, v_new, c)
-    f_xi = 0.0
     for i in range(n):
-        f_xi += frow[i] * xi[i]
         buf[i] = xi[i]
-    F_start = W + f_xi - ki * c[0] - ci * c[1]
+    F_start = W + out[2] - ki * c[0] - ci * c[1]
     # P @ buf by hand: no BLAS call (its thread pool costs more than this small mat-vec)
     _matvec(P, buf, xi)
     f_xi = 0.0
@@ -825,16 +799,14 @@ def _exchange(gs, order, H, P, xi, buf, frow, ki, ci, W, wh, Fh, x_new, v_new, F
 def _exchange_modal(gs, order, H, d, G, eta, c, frow_m, ki, ci, W, wh, Fh, x_new, v_new, F_held, out):
     """As :func:`_exchange` in modal coordinates: ``eta <- d * eta + G c`` (O(n))."""
     _coefficients(gs, order, H, wh, x_new, v_new, c)
-    f0 = 0.0
     f1 = 0.0
     for i in range(eta.shape[0]):
-        f0 += (frow_m[i] * eta[i]).real
         e = d[i] * eta[i]
         for k in range(6):
             e += G[i, k] * c[k]
         eta[i] = e
         f1 += (frow_m[i] * e).real
-    F_start = W + f0 - ki * c[0] - ci * c[1]
+    F_start = W + out[2] - ki * c[0] - ci * c[1]
     _finish(H, c, f1, F_start, ki, ci, W, wh, Fh, x_new, v_new, F_held, out)
 
 
@@ -858,6 +830,7 @@ def _finish(H, c, f_xi, F_start, ki, ci, W, wh, Fh, x_new, v_new, F_held, out):
     Fh[0] = F
     out[0] = F
     out[1] = e_string - e_hammer
+    out[2] = f_xi          # the next step's start value of the interface sum
 
 
 # ---------------------------------------------------------------------------
@@ -971,6 +944,8 @@ def cosimulate(string, config: CosimConfig = CosimConfig(), *, fmu=None, hammer=
         m_d, m_G, m_frow = side.m_d, side.m_G, side.m_frow
         cbuf = np.zeros(6)
     scratch = np.zeros(4)
+    # interface sum at the first step's start; later steps take it from _finish
+    scratch[2] = float((m_frow @ eta).real) if modal else float(frow @ xi)
     ki, ci = side.ki, side.ci
     check = c.check_stability
     t_loop = _time.perf_counter()
@@ -1181,10 +1156,9 @@ def cosimulate_adaptive(string, config: CosimConfig = CosimConfig(), *, fmu=None
     def discretisation(H):
         key = round(H / H0 * 2 ** 20)
         if key not in disc:
-            side.discretise(H)
+            side.discretise(H, modal=False)
             disc[key] = side.P
-        side.P = disc[key]
-        side._buf = np.zeros(side.n + 6)
+        side.P = disc[key]   # side._buf (n + 6, any H) is fully overwritten by side.step
 
     setup = _time.perf_counter() - ts0
     out = hammer.read()
@@ -1315,8 +1289,9 @@ def sweep(string, frequencies, config: CosimConfig = CosimConfig(), *, fmu=None,
     for i, f in enumerate(freqs):
         cfg = cfg0.replace(rig=config.rig.replace(frequency=float(f)))
         r = cosimulate(string, cfg, fmu=fmu)
-        w = r.window(config.stop - win)
-        out[i] = (f, w["wob"].mean(), 0.5 * np.ptp(w["wob"]), w["wob"].min(),
+        t0 = config.stop - win
+        w = r.window(t0)
+        out[i] = (f, r.wob_mean(t0), r.wob_amplitude(t0), w["wob"].min(),
                   1.0 + w["wob"].min() / F_s,
                   (w["bit_position"][-1] - w["bit_position"][0]) / (w["time"][-1] - w["time"][0]) * 3600.0,
                   r.penetration_m)

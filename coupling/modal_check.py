@@ -78,6 +78,7 @@ import scipy.linalg as sla
 from .drillstring import (
     DEFAULT_MASS,
     DrillStringError,
+    _check_number,
     Assembly,
     Boundary,
     DrillString,
@@ -922,8 +923,7 @@ def hammer_on_bottom_frequencies(string: DrillString, *, interface_stiffness: fl
     from .drillstring import assemble
     for name, v in (("interface_stiffness", interface_stiffness), ("hammer_mass", hammer_mass),
                     ("hammer_stiffness", hammer_stiffness)):
-        if not (np.isfinite(v) and v > 0):
-            raise DrillStringError("hammer boundary", name, v, "a finite value > 0")
+        _check_number("hammer boundary", name, v, 0.0, None, lo_open=True)
     asm = assemble(string, top, "free", mass=mass)
     n = asm.n_dof
     K = np.zeros((n + 1, n + 1))
