@@ -38,14 +38,23 @@ import json
 import math
 import os
 import platform
+import shutil
 import sys
+import time
 
 __all__ = ["RESULTS_DIR", "REPO_ROOT", "machine_info", "summary_row", "save_result",
-           "fmt_time", "fmt_ratio", "fmt_num", "harness_command", "result_name", "kernel_source"]
+           "fmt_time", "fmt_ratio", "fmt_num", "harness_command", "result_name", "kernel_source",
+           "repo_on_path", "LoadedFMU"]
 
 BENCH_DIR = os.path.dirname(os.path.abspath(__file__))
 REPO_ROOT = os.path.dirname(BENCH_DIR)
 RESULTS_DIR = os.path.join(BENCH_DIR, "results")
+
+
+def repo_on_path() -> None:
+    """Put the repository root on ``sys.path`` (once) for its top-level modules (``build_fmu``)."""
+    if REPO_ROOT not in sys.path:
+        sys.path.insert(0, REPO_ROOT)
 
 
 def result_name(module_name: str) -> str:
@@ -211,6 +220,8 @@ def save_result(name: str, result: dict, fig=None) -> str:
         Result name (module name without ``bench_``).
     result : dict
         The benchmark's result; numpy values and non-finite floats are converted.
+        ``benchmark`` (``name``) and ``machine`` (:func:`machine_info`) are
+        added when missing.
     fig : matplotlib.figure.Figure, optional
         Saved as ``results/<name>.png`` (150 dpi) and closed.
 
@@ -219,6 +230,8 @@ def save_result(name: str, result: dict, fig=None) -> str:
     str
         Path of the JSON file.
     """
+    result.setdefault("benchmark", name)
+    result.setdefault("machine", machine_info())
     os.makedirs(RESULTS_DIR, exist_ok=True)
     if fig is not None:
         png = os.path.join(RESULTS_DIR, f"{name}.png")
@@ -252,6 +265,59 @@ def stage_logger(name: str, verbose: bool):
         if verbose:
             print(f"  {name}: {msg}", file=sys.stderr, flush=True)
     return log
+
+
+class LoadedFMU:
+    """An FMU loaded with fmpy's ``FMU2Slave`` and initialised.
+
+    Parameters
+    ----------
+    path : str or Path
+        The ``.fmu`` file; extracted into a temporary directory that
+        :meth:`close` removes.
+    name : str
+        Instance name.
+    reals : dict, optional
+        ``{variable: value}`` set between entering and leaving initialisation mode.
+    """
+
+    def __init__(self, path, name, reals=None):
+        from fmpy import extract, read_model_description
+        from fmpy.fmi2 import FMU2Slave
+        from hammerbit.model.slave import guard_pythonfmu_exit
+        md = read_model_description(str(path))
+        self.vr = {v.name: v.valueReference for v in md.modelVariables}
+        self.dir = extract(str(path))
+        self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=self.dir,
+                             modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
+        self.fmu.instantiate()
+        # pythonfmu 0.7.0's exit-time double free also concerns the trivial FMU's wrapper
+        guard_pythonfmu_exit(os.path.join(self.dir, "resources"))
+        self.fmu.setupExperiment(startTime=0.0)
+        self.fmu.enterInitializationMode()
+        if reals:
+            self.fmu.setReal([self.vr[k] for k in reals], [float(v) for v in reals.values()])
+        self.fmu.exitInitializationMode()
+        self.n = 0
+
+    def loop(self, n, vin, value, vout, h):
+        """n steps of setReal(1) + doStep(h) + getReal(len(vout)), continuing the time grid; seconds per step."""
+        setReal, doStep, getReal = self.fmu.setReal, self.fmu.doStep, self.fmu.getReal
+        vin, vals = [vin], [value]
+        k0 = self.n
+        t0 = time.perf_counter()
+        for k in range(k0, k0 + n):
+            setReal(vin, vals)
+            doStep(k * h, h)
+            getReal(vout)
+        dt = time.perf_counter() - t0
+        self.n = k0 + n
+        return dt / n
+
+    def close(self):
+        self.fmu.terminate()
+        self.fmu.freeInstance()
+        shutil.rmtree(self.dir, ignore_errors=True)
 
 
 _TRIVIAL_SLAVE = '''

@@ -29,38 +29,20 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks import (build_trivial_fmu, fmt_time, harness_command, machine_info, save_result,
-                        stage_logger, summary_row)
+from benchmarks import (LoadedFMU, build_trivial_fmu, fmt_time, harness_command, machine_info, repo_on_path,
+                        save_result, stage_logger, summary_row)
 
 NAME = "cosim"
-REPO = Path(__file__).resolve().parents[1]
+
 
 def fmi_floor(fmu_path, n_steps: int, H: float) -> float:
     """Seconds for ``n_steps`` of (setReal 1, doStep, getReal 5) on the trivial FMU."""
-    from fmpy import extract, read_model_description
-    from fmpy.fmi2 import FMU2Slave
-    import shutil
-    md = read_model_description(str(fmu_path))
-    vr = {v.name: v.valueReference for v in md.modelVariables}
-    unzip = extract(str(fmu_path))
-    fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzip, modelIdentifier=md.coSimulation.modelIdentifier,
-                    instanceName="floor")
-    fmu.instantiate()
-    fmu.setupExperiment(startTime=0.0)
-    fmu.enterInitializationMode()
-    fmu.exitInitializationMode()
-    vin = [vr["u"]]
-    vout = [vr[n] for n in ("y0", "y1", "y2", "y3", "y4")]
-    t0 = time.perf_counter()
-    for n in range(n_steps):
-        fmu.setReal(vin, [1.0])
-        fmu.doStep(currentCommunicationPoint=n * H, communicationStepSize=H)
-        fmu.getReal(vout)
-    dt = time.perf_counter() - t0
-    fmu.terminate()
-    fmu.freeInstance()
-    shutil.rmtree(unzip, ignore_errors=True)
-    return dt
+    fmu = LoadedFMU(fmu_path, "floor")
+    try:
+        vout = [fmu.vr[n] for n in ("y0", "y1", "y2", "y3", "y4")]
+        return fmu.loop(n_steps, fmu.vr["u"], 1.0, vout, H) * n_steps
+    finally:
+        fmu.close()
 
 
 def _config(quick: bool) -> dict:
@@ -86,16 +68,19 @@ def measure_errors(cfg: dict, log) -> dict:
     base = CosimConfig(stop=cfg["stop"], step=Hmin, record=("wob",))
     log("monolithic reference ...")
     ref = monolithic(string, base)
+    # the reference on each grid H and its dynamic WOB amplitude
+    ref_on = {}
+    for H in cfg["steps"]:
+        rw = ref.data[::int(round(H / Hmin))]
+        ref_on[H] = (rw, 0.5 * np.ptp(rw["wob"][rw["time"] >= cfg["stop"] / 2]))
     rows = []
     for scheme in SCHEMES:
         for order in (0, 1, 2):
             for H in cfg["steps"]:
                 c = base.replace(step=H, scheme=scheme, extrapolation=order)
                 r = cosimulate(string, c)
-                k = int(round(H / Hmin))
-                rw = ref.data[::k]
+                rw, ref_amp = ref_on[H]
                 assert np.allclose(rw["time"], r.data["time"], rtol=0, atol=1e-12)
-                ref_amp = 0.5 * np.ptp(rw["wob"][rw["time"] >= cfg["stop"] / 2])
                 amp = r.wob_amplitude()
                 rows.append({"scheme": scheme, "extrapolation": order, "step_s": H,
                              "max_wob_error_rel": float(np.max(np.abs(r.data["wob"] - rw["wob"])) / ref_amp),
@@ -117,7 +102,7 @@ def measure_errors(cfg: dict, log) -> dict:
 
 
 def measure_long_run(cfg: dict, log) -> dict:
-    sys.path.insert(0, str(REPO))
+    repo_on_path()
     from build_fmu import build_fmu
     from hammerbit.cosim import CosimConfig, cosimulate
     from hammerbit.drillstring import load_string

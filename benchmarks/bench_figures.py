@@ -16,9 +16,9 @@ import importlib.util
 import pathlib
 import time
 
-from benchmarks import harness_command, save_result, summary_row
+from benchmarks import REPO_ROOT, harness_command, save_result, summary_row
 
-ROOT = pathlib.Path(__file__).resolve().parent.parent
+ROOT = pathlib.Path(REPO_ROOT)
 FIG = ROOT / "docs" / "figures"
 
 

@@ -39,12 +39,13 @@ import textwrap
 import time
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-if __name__ == "__main__" and str(REPO) not in sys.path:
-    sys.path.insert(0, str(REPO))
+if __name__ == "__main__":  # run as a script: the package lives in the repository root
+    _root = str(Path(__file__).resolve().parents[1])
+    if _root not in sys.path:
+        sys.path.insert(0, _root)
 
-from benchmarks import (build_trivial_fmu, fmt_ratio, fmt_time, harness_command, machine_info, save_result,  # noqa: E402
-                        summary_row)
+from benchmarks import (LoadedFMU, build_trivial_fmu, fmt_ratio, fmt_time, harness_command,  # noqa: E402
+                        machine_info, repo_on_path, save_result, stage_logger, summary_row)
 
 NAME = "fmu"
 STEP = 1e-3                  # communication step [s] (the FMU's DefaultExperiment stepSize)
@@ -87,50 +88,6 @@ _LOAD_PROBE = textwrap.dedent('''
 # ---------------------------------------------------------------------------
 # helpers
 # ---------------------------------------------------------------------------
-class _Loaded:
-    """An FMU loaded with fmpy's FMU2Slave, initialised."""
-
-    def __init__(self, path, name, reals=None):
-        from fmpy import extract, read_model_description
-        from fmpy.fmi2 import FMU2Slave
-        from hammerbit.model.slave import guard_pythonfmu_exit
-        md = read_model_description(str(path))
-        self.vr = {v.name: v.valueReference for v in md.modelVariables}
-        self.dir = extract(str(path))
-        self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=self.dir,
-                             modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
-        self.fmu.instantiate()
-        # pythonfmu 0.7.0's exit-time double free also concerns the trivial FMU's wrapper
-        guard_pythonfmu_exit(os.path.join(self.dir, "resources"))
-        self.fmu.setupExperiment(startTime=0.0)
-        self.fmu.enterInitializationMode()
-        if reals:
-            self.fmu.setReal([self.vr[k] for k in reals], [float(v) for v in reals.values()])
-        self.fmu.exitInitializationMode()
-        self.t = 0.0
-        self.n = 0
-
-    def loop(self, n, vin, value, vout, h=STEP):
-        """n steps of setReal(1) + doStep + getReal(len(vout)); seconds per step."""
-        setReal, doStep, getReal = self.fmu.setReal, self.fmu.doStep, self.fmu.getReal
-        vin, vals = [vin], [value]
-        k0 = self.n
-        t0 = time.perf_counter()
-        for k in range(k0, k0 + n):
-            setReal(vin, vals)
-            doStep(k * h, h)
-            getReal(vout)
-        dt = time.perf_counter() - t0
-        self.n = k0 + n
-        self.t = self.n * h
-        return dt / n
-
-    def close(self):
-        self.fmu.terminate()
-        self.fmu.freeInstance()
-        shutil.rmtree(self.dir, ignore_errors=True)
-
-
 def _no_event_scene():
     """Parameters of the no-event scene: no harmonic force, hammer in equilibrium under the preload."""
     from hammerbit.model.params import RigParameters
@@ -145,16 +102,16 @@ def measure_step_overhead(fmu_path, trivial_path, quick: bool, log) -> dict:
     n = 3000 if quick else 20000
     reps = 5 if quick else 9
     reals, preload = _no_event_scene()
-    ours = _Loaded(fmu_path, "ours", reals)
-    floor = _Loaded(trivial_path, "floor")
+    ours = LoadedFMU(fmu_path, "ours", reals)
+    floor = LoadedFMU(trivial_path, "floor")
     v_bit = [ours.vr["bit_position"]]
     try:
-        ours.loop(500, ours.vr["preload"], preload, v_bit)          # warm up both
-        floor.loop(500, floor.vr["u"], 1.0, [floor.vr["y0"]])
+        ours.loop(500, ours.vr["preload"], preload, v_bit, STEP)          # warm up both
+        floor.loop(500, floor.vr["u"], 1.0, [floor.vr["y0"]], STEP)
         t_ours, t_floor = [], []
         for _ in range(reps):
-            t_floor.append(floor.loop(n, floor.vr["u"], 1.0, [floor.vr["y0"]]))
-            t_ours.append(ours.loop(n, ours.vr["preload"], preload, v_bit))
+            t_floor.append(floor.loop(n, floor.vr["u"], 1.0, [floor.vr["y0"]], STEP))
+            t_ours.append(ours.loop(n, ours.vr["preload"], preload, v_bit, STEP))
         ints = ours.fmu.getInteger([ours.vr[k] for k in ("slip_count", "impact_count", "bounce_count")])
         events = int(sum(ints))
         bit = ours.fmu.getReal(v_bit)[0]
@@ -243,9 +200,9 @@ def measure_per_period(fmu_path, quick: bool, log) -> dict:
 
     fmu_t, x_fmu = math.inf, None
     for _ in range(reps):
-        inst = _Loaded(fmu_path, "period")
+        inst = LoadedFMU(fmu_path, "period")
         try:
-            dt = inst.loop(n_steps, inst.vr["preload"], rig.preload, [inst.vr["bit_position"]]) * n_steps
+            dt = inst.loop(n_steps, inst.vr["preload"], rig.preload, [inst.vr["bit_position"]], STEP) * n_steps
             x_fmu = inst.fmu.getReal([inst.vr["bit_position"]])[0]
         finally:
             inst.close()
@@ -315,11 +272,11 @@ def _figure(res):
     return fig
 
 
-def run(quick: bool = False) -> dict:
+def run(quick: bool = False, *, verbose: bool = True) -> dict:
     """Run the FMU benchmark; write ``benchmarks/results/fmu.json`` and ``fmu.png``."""
-    def log(msg):
-        print(f"[fmu] {msg}", flush=True)
+    log = stage_logger(NAME, verbose)
 
+    repo_on_path()
     from build_fmu import build_fmu
     work = Path(tempfile.mkdtemp(prefix="hammerbit_bench_fmu_"))
     try:

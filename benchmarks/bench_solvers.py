@@ -87,8 +87,11 @@ def _config(quick: bool) -> dict:
 # ---------------------------------------------------------------------------
 # measuring one point
 # ---------------------------------------------------------------------------
-def _time_ours(g, solver: SolverOptions, repeats: int) -> dict:
-    """Penetration and min wall time of ``simulate`` (whole call) over ``repeats``."""
+def _time_ours(g, solver: SolverOptions, repeats: int, *, with_counts: bool = False) -> dict:
+    """Penetration and min wall time of ``simulate`` (whole call) over ``repeats``.
+
+    ``with_counts``: also return the event counts (``counts``) of the last run.
+    """
     try:
         simulate(g, 1, solver=solver)  # warm-up: loads the compiled kernels
         best = math.inf
@@ -99,9 +102,12 @@ def _time_ours(g, solver: SolverOptions, repeats: int) -> dict:
             best = min(best, time.perf_counter() - t0)
     except SolverError as e:
         return {"status": type(e).__name__, "message": str(e), "penetration": None, "time_s": None}
-    return {"status": "ok", "penetration": res.penetration, "time_s": best,
-            "steps": res.stats["steps"], "rejected": res.stats["rejected"], "rhs": res.stats["rhs"],
-            "events": int(sum(res.counts.values()))}
+    out = {"status": "ok", "penetration": res.penetration, "time_s": best,
+           "steps": res.stats["steps"], "rejected": res.stats["rejected"], "rhs": res.stats["rhs"],
+           "events": int(sum(res.counts.values()))}
+    if with_counts:
+        out["counts"] = res.counts
+    return out
 
 
 def _time_scipy(g, method: str, rtol: float, atol: float, repeats: int) -> dict:
@@ -206,13 +212,13 @@ def _scene(key: str, spec: dict, cfg: dict, log) -> dict:
     g = preset(spec["preset"]).replace(a=spec["a"])
     ro, rs = cfg["repeats_ours"], cfg["repeats_scipy"]
     log(f"[{key}] references ...")
-    ref_ours = _time_ours(g, SolverOptions(rtol=REF_OURS["rtol"], atol=REF_OURS["atol"]), 1)
+    ref_ours = _time_ours(g, SolverOptions(rtol=REF_OURS["rtol"], atol=REF_OURS["atol"]), 1, with_counts=True)
     ref_sc = simulate_reference(g, PERIODS, **REF_SCIPY)
     ref_sc13 = simulate_reference(g, PERIODS, method="DOP853", rtol=1e-13, atol=1e-15)
     x_ref = ref_ours["penetration"]
     agreement = abs(x_ref - ref_sc.penetration) / abs(x_ref)
     agreement13 = abs(x_ref - ref_sc13.penetration) / abs(x_ref)
-    ours_counts = simulate(g, PERIODS, solver=SolverOptions(rtol=REF_OURS["rtol"], atol=REF_OURS["atol"])).counts
+    ours_counts = ref_ours["counts"]
     floor = max(agreement, 1e-15)
 
     curves = {}
@@ -234,8 +240,11 @@ def _scene(key: str, spec: dict, cfg: dict, log) -> dict:
     for pts in curves.values():
         _errors(pts, x_ref)
 
-    # done criterion: ours at rtol 1e-10 against the independent reference
-    done_pt = _time_ours(g, SolverOptions(rtol=DONE_RTOL, atol=DONE_RTOL * 1e-2), 1)
+    # done criterion: ours at rtol 1e-10 against the independent reference (the adaptive
+    # curve's point when it has one: same options, deterministic penetration)
+    done_pt = next((p for p in curves["adaptive"] if p["rtol"] == DONE_RTOL and p["status"] == "ok"), None)
+    if done_pt is None:
+        done_pt = _time_ours(g, SolverOptions(rtol=DONE_RTOL, atol=DONE_RTOL * 1e-2), 1)
     done_err = abs(done_pt["penetration"] - ref_sc.penetration) / abs(ref_sc.penetration)
 
     fronts = {k: _front_of(v) for k, v in curves.items()}
