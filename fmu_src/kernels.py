@@ -1299,12 +1299,6 @@ def advance(y, istate, fstate, t_end, p, opts,
                 cs1 = 0.0
             stick_rate(ynew, sn1, p, fs)  # = rhs(t1, ynew) in stick with the gap open
             istate[I_RHS] += 1
-            istate[I_STEPS] += 1
-            steps_here += 1
-            if count_step(t1, period, istate, stepcap):
-                fstate[F_T] = t
-                fstate[F_H] = h
-                return ST_STEP_STORM
             how = HOW_STICK
             hs = H
             f1 = fs            # f(t1, ynew)
@@ -1402,21 +1396,21 @@ def advance(y, istate, fstate, t_end, p, opts,
                         if ef <= LAYER_TARGET:
                             break
                         h_next *= max(MIN_FACTOR, math.exp(math.log(0.5 * LAYER_TARGET / ef) / max(dlog, 1.0)))
-            istate[I_STEPS] += 1
-            steps_here += 1
             t1 = t + h
             if h >= remaining:
                 t1 = t_end
-            if count_step(t1, period, istate, stepcap):
-                fstate[F_T] = t
-                fstate[F_H] = h
-                return ST_STEP_STORM
             how = how_rk
             hs = h
             f1 = K[ns]
             fscr = fs
             graze_ok = not fixed
         if immediate < 0:
+            istate[I_STEPS] += 1
+            steps_here += 1
+            if count_step(t1, period, istate, stepcap):
+                fstate[F_T] = t
+                fstate[F_H] = h
+                return ST_STEP_STORM
             # -- detection over [t, t1], the same for a stick chunk and an RK step --
             dense_ok = False
             for q in range(nw):
@@ -1449,12 +1443,6 @@ def advance(y, istate, fstate, t_end, p, opts,
                     sc_c = cs1
                 continue
             stick_state(t_hit, y, F, p, ys)
-            if needs_record(t_hit, istate, opts, poin, samp_t):
-                record_until(t_hit, ys, t, y, H, HOW_STICK, F, act, n_act, A, B, C, ns, K2, ytmp, ynew,
-                             p, istate, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, opts, poin, samp_t, samp)
-            for i in range(n):
-                y[i] = ys[i]
-            t = t_hit
         elif immediate < 0:
             if hit_kind < 0:
                 # -- no event: record and accept ----------------------------
@@ -1511,18 +1499,21 @@ def advance(y, istate, fstate, t_end, p, opts,
             if mc == CONTACT and not fixed and y[1] - y[3] > 0.0 and ys[1] - ys[3] <= 0.0 and dense_ok:
                 peak_in_step(t, t_hit, y, h, F, act, n_act, ynew, fs, p, ms, mc, nz, ne,
                              Ap, Ai, Ax, Hz, Gz, g12, fstate)
+        if immediate < 0:
+            # -- move to the event state ys at t_hit (a stick chunk or an RK step) --
             if needs_record(t_hit, istate, opts, poin, samp_t):
-                record_until(t_hit, ys, t, y, h, how_rk, F, act, n_act, A, B, C, ns, K2, ytmp, ynew,
+                record_until(t_hit, ys, t, y, hs, how, F, act, n_act, A, B, C, ns, K2, ytmp, ynew,
                              p, istate, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, opts, poin, samp_t, samp)
             for i in range(n):
                 y[i] = ys[i]
             t = t_hit
-            if not fixed:
-                h = h_next
-            if not confirmed:
-                for i in range(n):
-                    K[0, i] = K2[ns, i]
-                continue
+            if not stick_cf:
+                if not fixed:
+                    h = h_next
+                if not confirmed:
+                    for i in range(n):
+                        K[0, i] = K2[ns, i]
+                    continue
         else:
             hit_kind = immediate
 
