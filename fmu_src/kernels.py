@@ -1277,8 +1277,7 @@ def advance(y, istate, fstate, t_end, p, opts,
         t_hit = 0.0
         wtol_hit = 0.0
         h_next = h
-        stick_cf = immediate < 0 and cf_ok and ms == STICK and mc == FREE
-        if stick_cf:
+        if immediate < 0 and cf_ok and ms == STICK and mc == FREE:
             # -- one chunk of the exact stick solution -------------------------
             H = cf_chunk
             t1 = t + H
@@ -1299,11 +1298,45 @@ def advance(y, istate, fstate, t_end, p, opts,
                 cs1 = 0.0
             stick_rate(ynew, sn1, p, fs)  # = rhs(t1, ynew) in stick with the gap open
             istate[I_RHS] += 1
-            how = HOW_STICK
-            hs = H
-            f1 = fs            # f(t1, ynew)
-            fscr = ytmp
-            graze_ok = True
+            istate[I_STEPS] += 1
+            steps_here += 1
+            if count_step(t1, period, istate, stepcap):
+                fstate[F_T] = t
+                fstate[F_H] = h
+                return ST_STEP_STORM
+            # (this loop mirrors the RK step's detection below on purpose: one loop shared
+            # by both paths measured 5-7 % slower, the per-path constants no longer fold)
+            for q in range(nw):
+                kd = kinds[q]
+                code = sign_change(kd, y, ynew, K[0], fs, p, mc, w0s[q], wtols[q], H, True)
+                if code == 0:
+                    continue
+                te = locate_event(kd, code, t, t1, y, H, HOW_STICK, opts[O_BISECT], graze, wtols[q],
+                                  F, act, n_act, A, B, C, ns, K2, ytmp, ys, ytmp,
+                                  p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+                if te > 0.0 and (hit_kind < 0 or te < t_hit):
+                    hit_kind = kd
+                    t_hit = te
+            if hit_kind < 0:
+                if needs_record(t1, istate, opts, poin, samp_t):
+                    record_until(t1, ynew, t, y, H, HOW_STICK, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
+                                 p, istate, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, opts, poin, samp_t, samp)
+                for i in range(n):
+                    y[i] = ynew[i]
+                    K[0, i] = fs[i]
+                t = t1
+                if full:
+                    sc_t = t1
+                    sc_s = sn1
+                    sc_c = cs1
+                continue
+            stick_state(t_hit, y, F, p, ys)
+            if needs_record(t_hit, istate, opts, poin, samp_t):
+                record_until(t_hit, ys, t, y, H, HOW_STICK, F, act, n_act, A, B, C, ns, K2, ytmp, ynew,
+                             p, istate, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, opts, poin, samp_t, samp)
+            for i in range(n):
+                y[i] = ys[i]
+            t = t_hit
         elif immediate < 0:
             # -- one accepted step -------------------------------------------
             if fixed:
@@ -1396,54 +1429,33 @@ def advance(y, istate, fstate, t_end, p, opts,
                         if ef <= LAYER_TARGET:
                             break
                         h_next *= max(MIN_FACTOR, math.exp(math.log(0.5 * LAYER_TARGET / ef) / max(dlog, 1.0)))
+            istate[I_STEPS] += 1
+            steps_here += 1
             t1 = t + h
             if h >= remaining:
                 t1 = t_end
-            how = how_rk
-            hs = h
-            f1 = K[ns]
-            fscr = fs
-            graze_ok = not fixed
-        if immediate < 0:
-            istate[I_STEPS] += 1
-            steps_here += 1
             if count_step(t1, period, istate, stepcap):
                 fstate[F_T] = t
                 fstate[F_H] = h
                 return ST_STEP_STORM
-            # -- detection over [t, t1], the same for a stick chunk and an RK step --
+
+            # -- detection over [t, t1] ------------------------------------
             dense_ok = False
             for q in range(nw):
                 kd = kinds[q]
-                code = sign_change(kd, y, ynew, K[0], f1, p, mc, w0s[q], wtols[q], hs, graze_ok)
+                code = sign_change(kd, y, ynew, K[0], K[ns], p, mc, w0s[q], wtols[q], h, not fixed)
                 if code == 0:
                     continue
-                if how != HOW_STICK:
-                    dense_ok = interpolant(dense_ok, fixed, t, y, ynew, h, A, C, W, ns, n_ext, K, K2, F, ytmp,
-                                           act, n_act, istate, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
-                te = locate_event(kd, code, t, t1, y, hs, how, opts[O_BISECT], graze, wtols[q],
-                                  F, act, n_act, A, B, C, ns, K2, ytmp, ys, fscr,
+                dense_ok = interpolant(dense_ok, fixed, t, y, ynew, h, A, C, W, ns, n_ext, K, K2, F, ytmp, act, n_act,
+                                       istate, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+                te = locate_event(kd, code, t, t1, y, h, how_rk, opts[O_BISECT], graze, wtols[q],
+                                  F, act, n_act, A, B, C, ns, K2, ytmp, ys, fs,
                                   p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
                 if te > 0.0 and (hit_kind < 0 or te < t_hit):
                     hit_kind = kd
                     t_hit = te
                     wtol_hit = wtols[q]
-        if stick_cf:
-            if hit_kind < 0:
-                if needs_record(t1, istate, opts, poin, samp_t):
-                    record_until(t1, ynew, t, y, H, HOW_STICK, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
-                                 p, istate, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, opts, poin, samp_t, samp)
-                for i in range(n):
-                    y[i] = ynew[i]
-                    K[0, i] = fs[i]
-                t = t1
-                if full:
-                    sc_t = t1
-                    sc_s = sn1
-                    sc_c = cs1
-                continue
-            stick_state(t_hit, y, F, p, ys)
-        elif immediate < 0:
+
             if hit_kind < 0:
                 # -- no event: record and accept ----------------------------
                 if needs_record(t1, istate, opts, poin, samp_t):
@@ -1499,21 +1511,18 @@ def advance(y, istate, fstate, t_end, p, opts,
             if mc == CONTACT and not fixed and y[1] - y[3] > 0.0 and ys[1] - ys[3] <= 0.0 and dense_ok:
                 peak_in_step(t, t_hit, y, h, F, act, n_act, ynew, fs, p, ms, mc, nz, ne,
                              Ap, Ai, Ax, Hz, Gz, g12, fstate)
-        if immediate < 0:
-            # -- move to the event state ys at t_hit (a stick chunk or an RK step) --
             if needs_record(t_hit, istate, opts, poin, samp_t):
-                record_until(t_hit, ys, t, y, hs, how, F, act, n_act, A, B, C, ns, K2, ytmp, ynew,
+                record_until(t_hit, ys, t, y, h, how_rk, F, act, n_act, A, B, C, ns, K2, ytmp, ynew,
                              p, istate, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, opts, poin, samp_t, samp)
             for i in range(n):
                 y[i] = ys[i]
             t = t_hit
-            if not stick_cf:
-                if not fixed:
-                    h = h_next
-                if not confirmed:
-                    for i in range(n):
-                        K[0, i] = K2[ns, i]
-                    continue
+            if not fixed:
+                h = h_next
+            if not confirmed:
+                for i in range(n):
+                    K[0, i] = K2[ns, i]
+                continue
         else:
             hit_kind = immediate
 
