@@ -14,20 +14,14 @@ import sys
 
 import numpy as np
 
+from .cli_common import add_set_argument, parse_settings, run_command
+
 __all__ = ["main"]
 
 
 def _parse_settings(pairs):
-    out = {}
-    for item in pairs or []:
-        if "=" not in item:
-            raise SystemExit(f"hammerbit: --set expects KEY=VALUE, got {item!r}")
-        k, v = item.split("=", 1)
-        try:
-            out[k.strip()] = float(v)
-        except ValueError:
-            raise SystemExit(f"hammerbit: --set {k.strip()}: {v!r} is not a number") from None
-    return out
+    """Kept for the sub-command modules: the one parser of ``--set`` (:mod:`hammerbit.cli_common`)."""
+    return parse_settings(pairs)
 
 
 def _groups_from_args(args):
@@ -50,16 +44,13 @@ def _add_scene_args(p):
     from hammerbit.model.params import PRESETS
     p.add_argument("--preset", default="paper-fig9", choices=sorted(PRESETS),
                    help="parameter preset (default paper-fig9)")
-    p.add_argument("--set", action="append", metavar="KEY=VALUE",
-                   help="override a group (a, b, eta, r, mu, xi, rho, gamma_hat, kc, n, lam_hat, phi) "
-                        "or an SI parameter (m1, m2, K, C, mu_e, mu_d, gamma, F_N, Kc, lam, R, B, A, f)")
+    add_set_argument(p)
     p.add_argument("--method", default="adaptive", choices=["adaptive", "dp54", "rk4"])
     p.add_argument("--rtol", type=float, default=None, help="relative tolerance (adaptive; default 1e-8)")
     p.add_argument("--steps-per-period", type=int, default=None, help="rk4: steps per forcing period (1000)")
 
 
 def cmd_simulate(args) -> int:
-    from hammerbit.model.params import RIG_SCALES
     from .analysis import detect_period
     from .simulate import Record, simulate
     g = _groups_from_args(args)
@@ -68,12 +59,13 @@ def cmd_simulate(args) -> int:
     period = detect_period(res.poincare) if res.poincare is not None and len(res.poincare) > 8 else None
     out = {
         "preset": args.preset,
-        "groups": {k: (None if isinstance(v, float) and math.isinf(v) else v) for k, v in vars(g).items()},
+        "groups": {k: (None if isinstance(v, float) and math.isinf(v) else v) for k, v in g.values().items()},
+        "scales": g.scales.to_dict(),
         "periods": args.periods,
         "method": solver.method,
         "rtol": solver.rtol,
         "penetration": res.penetration,
-        "penetration_m": res.penetration_m(RIG_SCALES),
+        "penetration_m": res.penetration_m,
         "penetration_per_period": res.penetration / args.periods,
         "period": period,
         "events": res.counts,
@@ -157,15 +149,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
-    from hammerbit.model.params import ParameterError
-    from hammerbit.model.stepping import SolverError
     ap = build_parser()
     args = ap.parse_args(argv)
-    try:
-        return int(args.func(args) or 0)
-    except (ParameterError, SolverError) as e:
-        print(f"hammerbit: error: {e}", file=sys.stderr)
-        return 2
+    return run_command(args.func, args)
 
 
 if __name__ == "__main__":

@@ -17,7 +17,7 @@ from typing import Optional
 import numpy as np
 
 from hammerbit.model import kernels as K
-from hammerbit.model.params import Groups, ParameterError, Scales, RIG_SCALES
+from hammerbit.model.params import Groups, ParameterError
 from hammerbit.model.stepping import EVENT_NAMES, MaxStepsError, SolverOptions, Stepper
 
 __all__ = ["Record", "SimResult", "simulate", "BounceWarning", "POINCARE_DTYPE",
@@ -116,9 +116,10 @@ class SimResult:
         """Bit position x3 at the end [x0]."""
         return float(self.final[2])
 
-    def penetration_m(self, scales: Scales = RIG_SCALES) -> float:
-        """Bit position at the end [m]."""
-        return self.penetration * scales.length
+    @property
+    def penetration_m(self) -> float:
+        """Bit position at the end [m], with the scene's own length scale x0 = F0/K."""
+        return self.groups.length_m(self.penetration)
 
 
 def _energy_terms(y, ne_start, g: Groups) -> dict:

@@ -289,6 +289,23 @@ def drive_on_bit(y, p, mode_c):
     return (y[0] - y[2]) + 2.0 * p[P_XI] * dd + contact_force(d, dd, p, mode_c)
 
 
+@njit(cache=True, inline="always", _nrt=False)
+def overlap(y, p):
+    """Contact overlap d = x1 - x3 - r (> 0: the gap is closed) [x0]."""
+    return y[0] - y[2] - p[P_R]
+
+
+@njit(cache=True, inline="always", _nrt=False)
+def spring_damper_force(y, p):
+    """F_k / F0 = (x1 - x3) + 2 xi (x2 - x4): spring and damper between hammer and bit."""
+    return (y[0] - y[2]) + 2.0 * p[P_XI] * (y[1] - y[3])
+
+
+# public names of the force formulas, shared by the slave, simulate and the master
+force_on_bit = drive_on_bit
+kinetic_friction = friction_kinetic
+
+
 # ---------------------------------------------------------------------------
 # Event indicators
 # ---------------------------------------------------------------------------

@@ -25,6 +25,9 @@ import numpy as np
 __all__ = [
     "ParameterError",
     "RigParameters",
+    "DEFAULT_SCALES",
+    "Regime",
+    "regime",
     "Groups",
     "Scales",
     "PRESETS",
@@ -33,48 +36,7 @@ __all__ = [
     "P_N", "P_LAM", "P_PHI", "P_FEXT", "P_CONTACT", "N_P",
 ]
 
-G_ACCEL = 9.81  # m/s^2, for documentation of weights only
-
-
-class ParameterError(ValueError):
-    """A parameter is out of range or not finite.
-
-    Attributes
-    ----------
-    name : str
-        Parameter name as the caller spelled it.
-    value : object
-        The offending value.
-    allowed : str
-        The allowed range, human-readable.
-    """
-
-    def __init__(self, name: str, value, allowed: str):
-        self.name = name
-        self.value = value
-        self.allowed = allowed
-        super().__init__(f"parameter {name!r} = {value!r} is out of range: allowed {allowed}")
-
-
-def _check(name: str, value, lo: float, hi: float, *, lo_open=False, hi_open=False,
-           allow_inf=False) -> float:
-    """Validate one real value against [lo, hi] (open ends as flagged)."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ParameterError(name, value, f"a real number in {_rng(lo, hi, lo_open, hi_open)}") from None
-    if math.isnan(v) or (math.isinf(v) and not allow_inf):
-        raise ParameterError(name, value, f"a finite number in {_rng(lo, hi, lo_open, hi_open)}")
-    if allow_inf and math.isinf(v) and v > 0:
-        return v
-    bad = (v < lo) or (v > hi) or (lo_open and v == lo) or (hi_open and v == hi)
-    if bad:
-        raise ParameterError(name, value, _rng(lo, hi, lo_open, hi_open))
-    return v
-
-
-def _rng(lo, hi, lo_open, hi_open) -> str:
-    return f"{'(' if lo_open else '['}{lo:g}, {hi:g}{')' if hi_open else ']'}"
+from .validation import RANGES, ParameterError, check
 
 
 # ---------------------------------------------------------------------------
@@ -130,10 +92,30 @@ class Scales:
         """x0 Omega, the velocity scale [m/s]."""
         return self.length * self.omega
 
+    @property
+    def time(self) -> float:
+        """1/Omega, the time scale [s]: t = tau / Omega."""
+        return 1.0 / self.omega
+
+    def to_dict(self) -> dict:
+        """The scales in SI, for JSON output (keys name their unit)."""
+        return {"hammer_mass_kg": self.hammer_mass, "stiffness_n_per_m": self.stiffness,
+                "friction_force_n": self.friction_force, "length_m": self.length,
+                "omega_rad_per_s": self.omega, "velocity_m_per_s": self.velocity}
+
+
+#: Scales of the paper's rig (section 4): m1 = 25.3 kg, K = 2170 N/m, F0 = 54 N.
+DEFAULT_SCALES = Scales(25.3, 2170.0, 54.0)
+
 
 @dataclass(frozen=True)
 class Groups:
-    """The paper's nondimensional groups (model.md, "Nondimensional form").
+    """The paper's nondimensional groups, with the scales that make them SI.
+
+    The twelve groups fix the dynamics; :attr:`scales` (m1, K, F0) turn its
+    answers back into SI.  Every SI figure of a scene (penetration in m, rate
+    of penetration in m/h, forces in N, time in s) uses the scene's own
+    scales, so an override of ``K``, a mass or ``F_N`` changes them too.
 
     Attributes
     ----------
@@ -161,6 +143,11 @@ class Groups:
         Contact damping lam x0 Omega [-], in [0, 1e4].
     phi : float
         Forcing phase [rad], finite.
+    scales : Scales
+        m1 [kg], K [N/m] and F0 [N] of the scene (default: the paper's rig).
+    mu_static : float
+        mu_e [-]: splits F0 = mu_e F_N into a coefficient and a normal force
+        when converting to SI; it does not change the dynamics.
     """
 
     rho: float
@@ -175,28 +162,15 @@ class Groups:
     n: float
     lam_hat: float
     phi: float
-
-    _RANGES = {
-        "rho": (0.0, 1e3, True, False, False),
-        "xi": (0.0, 10.0, False, False, False),
-        "eta": (0.0, 100.0, True, False, False),
-        "a": (0.0, 1e3, False, False, False),
-        "b": (-1e3, 1e3, False, False, False),
-        "r": (0.0, 1e12, False, False, True),
-        "mu": (0.0, 1.0, True, False, False),
-        "gamma_hat": (0.0, 1e6, False, False, False),
-        "kc": (0.0, 1e12, False, False, False),
-        "n": (0.0, 5.0, True, False, False),
-        "lam_hat": (0.0, 1e4, False, False, False),
-        "phi": (-1e6, 1e6, False, False, False),
-    }
+    scales: Scales = DEFAULT_SCALES
+    mu_static: float = 0.62
 
     def __post_init__(self):
-        for f in fields(self):
-            lo, hi, lo_open, hi_open, allow_inf = self._RANGES[f.name]
-            object.__setattr__(self, f.name, _check(f.name, getattr(self, f.name), lo, hi,
-                                                    lo_open=lo_open, hi_open=hi_open,
-                                                    allow_inf=allow_inf))
+        for name in GROUP_NAMES:
+            object.__setattr__(self, name, check("group." + name, getattr(self, name), label=name))
+        if not isinstance(self.scales, Scales):
+            raise ParameterError("scales", self.scales, "a Scales(hammer_mass, stiffness, friction_force)")
+        object.__setattr__(self, "mu_static", check("mu_static", self.mu_static))
 
     # -- derived ----------------------------------------------------------
     @property
@@ -205,13 +179,36 @@ class Groups:
         return 2.0 * math.pi / self.eta
 
     @property
+    def period_s(self) -> float:
+        """Forcing period [s]: 2 pi / (eta Omega)."""
+        return self.period / self.scales.omega
+
+    @property
     def has_gap(self) -> bool:
         """True when the impact device exists and can act (finite gap, kc > 0)."""
         return math.isfinite(self.r) and self.kc > 0.0
 
+    def values(self) -> dict:
+        """The twelve groups as a dict (``inf`` kept as a float)."""
+        return {name: getattr(self, name) for name in GROUP_NAMES}
+
     def replace(self, **changes) -> "Groups":
-        """Copy with some groups changed (validated)."""
+        """Copy with some groups changed (validated); the scales stay."""
         return replace(self, **changes)
+
+    # -- SI ----------------------------------------------------------------
+    def length_m(self, x: float) -> float:
+        """A length in x0 -> m, with this scene's x0 = F0/K."""
+        return x * self.scales.length
+
+    def rop(self, per_period: float) -> dict:
+        """A rate of penetration ``per_period`` [x0 per forcing period] in SI.
+
+        Returns ``{"x0_per_period", "mm_per_period", "m_per_h"}``.
+        """
+        m = per_period * self.scales.length
+        return {"x0_per_period": per_period, "mm_per_period": m * 1e3,
+                "m_per_h": m / self.period_s * 3600.0}
 
     def to_kernel(self, *, extra_force: float = 0.0) -> np.ndarray:
         """Float array of length ``N_P`` in the kernel layout (``P_*`` indices)."""
@@ -232,12 +229,10 @@ class Groups:
         p[P_CONTACT] = 1.0 if self.has_gap else 0.0
         return p
 
-    def to_rig(self, scales: Scales, *, mu_static: float = 0.62) -> "RigParameters":
-        """SI parameters with these groups, for the given scales.
-
-        ``mu_static`` splits F0 = mu_e F_N into a friction coefficient and a
-        normal force; it does not change the dynamics.
-        """
+    def to_rig(self, scales: "Scales | None" = None, *, mu_static: "float | None" = None) -> "RigParameters":
+        """SI parameters with these groups, at ``scales`` (default: the scene's own)."""
+        scales = self.scales if scales is None else scales
+        mu_static = self.mu_static if mu_static is None else mu_static
         m1, K, F0 = scales.hammer_mass, scales.stiffness, scales.friction_force
         Om, x0 = scales.omega, scales.length
         return RigParameters(
@@ -258,6 +253,9 @@ class Groups:
             frequency=self.eta * Om / (2.0 * math.pi),
             phase=self.phi,
         )
+
+
+GROUP_NAMES = ("rho", "xi", "eta", "a", "b", "r", "mu", "gamma_hat", "kc", "n", "lam_hat", "phi")
 
 
 @dataclass(frozen=True)
@@ -322,27 +320,11 @@ class RigParameters:
     phase: float = math.pi / 2
 
     def __post_init__(self):
-        c = self._set
-        c("hammer_mass", 1e-9, 1e9, lo_open=False)
-        c("bit_mass", 1e-9, 1e9)
-        c("stiffness", 1e-9, 1e15)
-        c("damping", 0.0, 1e12)
-        c("mu_static", 1e-9, 10.0)
-        c("mu_kinetic", 1e-9, self.mu_static)
-        c("friction_decay", 0.0, 1e9)
-        c("normal_force", 1e-12, 1e12)
-        c("contact_stiffness", 0.0, 1e20)
-        c("contact_exponent", 0.0, 5.0, lo_open=True)
-        c("contact_damping", 0.0, 1e9)
-        c("gap", 0.0, 1e9, allow_inf=True)
-        c("preload", -1e12, 1e12)
-        c("amplitude", 0.0, 1e12)
-        c("frequency", 0.0, 1e9, lo_open=True)
-        c("phase", -1e6, 1e6)
-
-    def _set(self, name, lo, hi, *, lo_open=False, allow_inf=False):
-        object.__setattr__(self, name, _check(name, getattr(self, name), lo, hi,
-                                              lo_open=lo_open, allow_inf=allow_inf))
+        for f in fields(self):
+            object.__setattr__(self, f.name, check(f.name, getattr(self, f.name)))
+        if self.mu_kinetic > self.mu_static:
+            raise ParameterError("mu_kinetic", self.mu_kinetic,
+                                 f"(0, mu_static = {self.mu_static:g}]: kinetic friction above static")
 
     @property
     def scales(self) -> Scales:
@@ -366,6 +348,8 @@ class RigParameters:
             n=self.contact_exponent,
             lam_hat=self.contact_damping * x0 * Om,
             phi=self.phase,
+            scales=s,
+            mu_static=self.mu_static,
         )
 
     def replace(self, **changes) -> "RigParameters":
@@ -377,7 +361,7 @@ class RigParameters:
 # Presets
 # ---------------------------------------------------------------------------
 RIG = RigParameters()
-RIG_SCALES = RIG.scales
+RIG_SCALES = RIG.scales   # == DEFAULT_SCALES
 
 #: Short SI names accepted by ``--set`` (the spec's symbols) -> RigParameters field.
 SI_ALIASES = {
@@ -386,7 +370,6 @@ SI_ALIASES = {
     "F_N": "normal_force", "Kc": "contact_stiffness", "lam": "contact_damping",
     "R": "gap", "B": "preload", "A": "amplitude", "f": "frequency",
 }
-GROUP_NAMES = tuple(f.name for f in fields(Groups))
 
 
 def _lab() -> Groups:
@@ -433,29 +416,109 @@ def preset(name: str) -> Groups:
         raise ParameterError("preset", name, "one of " + ", ".join(PRESETS)) from None
 
 
-def apply_settings(groups: Groups, settings: dict, *, scales: Scales = RIG_SCALES) -> Groups:
-    """Apply ``{name: value}`` overrides given by group name or SI name.
+#: FMU variable names that are not RigParameters fields, accepted by ``--set`` too.
+FMU_ALIASES = {"impact_gap": "gap"}
 
-    Group names (``a``, ``b``, ``eta`` ...) change the group directly.  SI names
-    (``m1``, ``K``, ``preload``, ``frequency`` [Hz] ...) are applied to the
-    SI parameters at ``scales`` and converted back, so e.g. ``K`` changes
-    every group that depends on it.
+
+def setting_target(key: str, value=None) -> tuple[str, str]:
+    """Where a ``--set`` name points: ``("group", name)`` or ``("rig", field)``.
+
+    Accepted names: the groups (``a``, ``b``, ``eta`` ...), the spec's SI
+    symbols (``m1``, ``K``, ``mu_d``, ``B``, ``A``, ``f`` ...), the
+    :class:`RigParameters` fields, which are also the FMU's variable names
+    (``hammer_mass``, ``preload``, ``amplitude``, ``frequency`` ...).
     """
-    g_changes = {}
-    si_changes = {}
-    valid_si = {f.name for f in fields(RigParameters)}
+    if key in GROUP_NAMES:
+        return "group", key
+    if key in SI_ALIASES:
+        return "rig", SI_ALIASES[key]
+    if key in _RIG_FIELDS:
+        return "rig", key
+    if key in FMU_ALIASES:
+        return "rig", FMU_ALIASES[key]
+    raise ParameterError(key, "?" if value is None else value, "a known name: a group (" + ", ".join(GROUP_NAMES)
+                         + "), an SI symbol (" + ", ".join(SI_ALIASES)
+                         + ") or an SI/FMU name (" + ", ".join(_RIG_FIELDS) + ")")
+
+
+def apply_settings(groups: Groups, settings: dict) -> Groups:
+    """Apply ``{name: value}`` overrides given by group, SI symbol or SI/FMU name.
+
+    Group names change the group directly.  SI names are applied to the scene's
+    SI parameters (at its own scales) and converted back, so e.g. ``K`` changes
+    every group that depends on it *and* the scales that turn results into SI.
+    Errors name the parameter as it was typed.
+    """
+    g_changes, si_changes, typed = {}, {}, {}
     for key, value in settings.items():
-        if key in GROUP_NAMES:
-            g_changes[key] = float(value)
-        elif key in SI_ALIASES or key in valid_si:
-            si_changes[SI_ALIASES.get(key, key)] = float(value)
-        else:
-            raise ParameterError(key, value, "a group name (" + ", ".join(GROUP_NAMES)
-                                 + ") or an SI name (" + ", ".join(sorted(SI_ALIASES)) + ")")
-    if si_changes:
-        mu_e = si_changes.get("mu_static", 0.62)
-        rig = groups.to_rig(scales, mu_static=mu_e).replace(**si_changes)
-        groups = rig.to_groups()
-    if g_changes:
-        groups = groups.replace(**g_changes)
+        kind, name = setting_target(key, value)
+        typed[name] = key
+        (g_changes if kind == "group" else si_changes)[name] = value
+    try:
+        if si_changes:
+            groups = groups.to_rig(mu_static=float(si_changes.get("mu_static", groups.mu_static))
+                                   if _is_real(si_changes.get("mu_static", groups.mu_static))
+                                   else groups.mu_static).replace(**si_changes).to_groups()
+        if g_changes:
+            groups = groups.replace(**g_changes)
+    except ParameterError as e:
+        raise e.renamed(typed.get(e.name, e.name)) from None
     return groups
+
+
+def _is_real(v) -> bool:
+    try:
+        float(v)
+        return True
+    except (TypeError, ValueError):
+        return False
+
+
+_RIG_FIELDS = tuple(f.name for f in fields(RigParameters))
+
+
+# ---------------------------------------------------------------------------
+# Regimes: where the model's answer is not drilling
+# ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Regime:
+    """Where a scene lies relative to the model's validity domain.
+
+    Attributes
+    ----------
+    bounce : bool
+        ``a >= b``: the harmonic force can exceed the preload, the drive on
+        the bit can fall below ``-F_s`` and the rock would have to pull the
+        bit back (bit bounce).  The model holds the bit and counts it.
+    overload : bool
+        ``a + b > 1``: preload plus amplitude exceed the static threshold
+        ``F0 = mu_e F_N``, outside the paper's domain ``a + b <= 1``.
+    runaway : bool
+        ``b > f_floor`` where ``f_floor`` is the kinetic friction the bit
+        feels at high speed: ``mu`` when ``gamma_hat > 0``, else 1.  Adding
+        the two equations of motion gives ``m1 x_b'' + m2 x_s'' = B + F_h(t)
+        - F_f(v_s)`` while the bit slips; ``F_h`` averages to zero over a
+        period and ``F_f`` decreases to ``mu_d F_N`` as ``v_s`` grows.  So if
+        ``B > mu_d F_N`` a fast-sliding bit gains momentum every period and
+        the drift grows without bound; if ``B <= mu_d F_N`` the friction
+        exceeds the preload at every speed and the momentum stays bounded.
+    """
+
+    bounce: bool
+    overload: bool
+    runaway: bool
+
+    @property
+    def flags(self) -> list:
+        """Names of the flags that are set."""
+        return [k for k in ("bounce", "overload", "runaway") if getattr(self, k)]
+
+    def to_dict(self) -> dict:
+        return {"bounce": self.bounce, "overload": self.overload, "runaway": self.runaway}
+
+
+def regime(groups: Groups) -> Regime:
+    """The :class:`Regime` flags of a scene (pure function of its groups)."""
+    floor = groups.mu if groups.gamma_hat > 0.0 else 1.0
+    return Regime(bounce=groups.a >= groups.b, overload=groups.a + groups.b > 1.0,
+                  runaway=groups.b > floor)

@@ -16,7 +16,8 @@ import numpy as np
 
 from . import kernels as K
 from . import tableaux as T
-from .params import Groups, ParameterError, _check
+from .params import Groups, ParameterError
+from .validation import check
 
 __all__ = [
     "SolverOptions", "LinearSubsystem", "Stepper", "SolverError", "EventStormError",
@@ -125,15 +126,15 @@ class SolverOptions:
     def __post_init__(self):
         if self.method not in METHODS:
             raise ParameterError("method", self.method, "one of " + ", ".join(METHODS))
-        _check("rtol", self.rtol, 1e-15, 1.0)
-        _check("atol", self.atol, 1e-300, 1.0)
-        _check("steps_per_period", self.steps_per_period, 4, 1e9)
-        _check("bisection_tol", self.bisection_tol, 1e-15, 1.0)
-        _check("max_events_per_period", self.max_events_per_period, 1, 1e12)
-        _check("max_step", self.max_step, 0.0, math.inf, lo_open=True, allow_inf=True)
-        _check("graze_tol", self.graze_tol, 0.0, 1.0)
-        _check("max_steps", self.max_steps, 0, 1e15)
-        _check("max_steps_per_period", self.max_steps_per_period, 0, 1e15)
+        check("solver.rtol", self.rtol, label="rtol")
+        check("solver.atol", self.atol, label="atol")
+        check("solver.steps_per_period", self.steps_per_period, label="steps_per_period")
+        check("solver.bisection_tol", self.bisection_tol, label="bisection_tol")
+        check("solver.max_events_per_period", self.max_events_per_period, label="max_events_per_period")
+        check("solver.max_step", self.max_step, label="max_step")
+        check("solver.graze_tol", self.graze_tol, label="graze_tol")
+        check("solver.max_steps", self.max_steps, label="max_steps")
+        check("solver.max_steps_per_period", self.max_steps_per_period, label="max_steps_per_period")
 
 
 @dataclass(frozen=True)

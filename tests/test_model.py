@@ -69,6 +69,45 @@ def test_bad_group_and_settings():
     assert g.b == pytest.approx(0.6)
 
 
+@pytest.mark.parametrize("settings, x0, omega", [
+    # x0 = F0 / K and Omega = sqrt(K / m1), computed by hand for each override
+    ({"K": 4340.0}, 54.0 / 4340.0, math.sqrt(4340.0 / 25.3)),
+    ({"m1": 50.6}, 54.0 / 2170.0, math.sqrt(2170.0 / 50.6)),
+    ({"F_N": 100.0}, 0.62 * 100.0 / 2170.0, math.sqrt(2170.0 / 25.3)),
+    ({"mu_e": 0.7, "F_N": 100.0, "mu_d": 0.6}, 0.7 * 100.0 / 2170.0, math.sqrt(2170.0 / 25.3)),
+])
+def test_si_overrides_carry_their_scales(settings, x0, omega):
+    g = apply_settings(preset("paper-fig9"), settings)
+    assert g.scales.length == pytest.approx(x0, rel=1e-14)
+    assert g.scales.omega == pytest.approx(omega, rel=1e-14)
+    assert g.length_m(2.0) == pytest.approx(2.0 * x0, rel=1e-14)
+    rop = g.rop(0.5)
+    period_s = 2 * math.pi / (g.eta * omega)
+    assert rop["mm_per_period"] == pytest.approx(0.5 * x0 * 1e3, rel=1e-14)
+    assert rop["m_per_h"] == pytest.approx(0.5 * x0 / period_s * 3600, rel=1e-14)
+    # group overrides after SI overrides keep the scales
+    assert g.replace(a=0.2).scales == g.scales
+
+
+def test_si_override_reported_in_si_with_the_scene_scale():
+    """The issue's case: K doubled halves x0, so the SI penetration is the x0 value times 54/4340."""
+    out = subprocess.run([sys.executable, "-m", "hammerbit.cli", "simulate", "--preset", "paper-fig9",
+                          "--set", "a=0.11", "--set", "K=4340", "--periods", "100", "--json"],
+                         capture_output=True, text=True, check=True)
+    d = json.loads(out.stdout)
+    assert d["penetration_m"] == pytest.approx(d["penetration"] * 54.0 / 4340.0, rel=1e-12)
+    assert d["penetration_m"] == pytest.approx(0.00516, abs=5e-6)
+
+
+def test_set_errors_use_the_typed_name():
+    with pytest.raises(ParameterError) as ei:
+        apply_settings(preset("paper-fig9"), {"mu_d": 0.9})
+    assert ei.value.name == "mu_d" and "'mu_d'" in str(ei.value)
+    with pytest.raises(ParameterError) as ei:
+        apply_settings(preset("paper-fig9"), {"K": -1.0})
+    assert ei.value.name == "K"
+
+
 # --------------------------------------------------------------------------- closed forms
 def forced_oscillator(t, b, a, eta, phi, xi):
     """x'' + 2 xi x' + x = b + a sin(eta t + phi), x(0) = x'(0) = 0 (xi < 1)."""
@@ -274,7 +313,8 @@ def test_cli_simulate_reports_period_3():
                          capture_output=True, text=True, check=True)
     d = json.loads(out.stdout)
     assert d["period"] == 3
-    assert d["penetration"] > 0 and d["penetration_m"] == pytest.approx(d["penetration"] * RIG.scales.length)
+    # x0 = F0 / K = 54 N / 2170 N/m for the paper's rig (hand value, not the code's scales)
+    assert d["penetration"] > 0 and d["penetration_m"] == pytest.approx(d["penetration"] * 54.0 / 2170.0)
     assert d["events"]["slip_start"] > 0
     assert 0 < d["wall_time_s"] < 5
 
