@@ -38,7 +38,6 @@ import json
 import math
 import os
 import platform
-import shutil
 import sys
 import time
 
@@ -268,7 +267,7 @@ def stage_logger(name: str, verbose: bool):
 
 
 class LoadedFMU:
-    """An FMU loaded with fmpy's ``FMU2Slave`` and initialised.
+    """An FMU loaded and initialised through the project's loader (:class:`hammerbit.fmu_host.FMUInstance`).
 
     Parameters
     ----------
@@ -282,22 +281,9 @@ class LoadedFMU:
     """
 
     def __init__(self, path, name, reals=None):
-        from fmpy import extract, read_model_description
-        from fmpy.fmi2 import FMU2Slave
-        from hammerbit.model.slave import guard_pythonfmu_exit
-        md = read_model_description(str(path))
-        self.vr = {v.name: v.valueReference for v in md.modelVariables}
-        self.dir = extract(str(path))
-        self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=self.dir,
-                             modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
-        self.fmu.instantiate()
-        # pythonfmu 0.7.0's exit-time double free also concerns the trivial FMU's wrapper
-        guard_pythonfmu_exit(os.path.join(self.dir, "resources"))
-        self.fmu.setupExperiment(startTime=0.0)
-        self.fmu.enterInitializationMode()
-        if reals:
-            self.fmu.setReal([self.vr[k] for k in reals], [float(v) for v in reals.values()])
-        self.fmu.exitInitializationMode()
+        from hammerbit.fmu_host import FMUInstance
+        self.host = FMUInstance(path, name, reals=reals, logging=False)
+        self.vr, self.fmu, self.dir = self.host.vr, self.host.fmu, self.host.dir
         self.n = 0
 
     def loop(self, n, vin, value, vout, h):
@@ -315,9 +301,7 @@ class LoadedFMU:
         return dt / n
 
     def close(self):
-        self.fmu.terminate()
-        self.fmu.freeInstance()
-        shutil.rmtree(self.dir, ignore_errors=True)
+        self.host.close()
 
 
 _TRIVIAL_SLAVE = '''

@@ -137,7 +137,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_bifurcation)
 
-    for modname in ("hammerbit.cli_string", "hammerbit.cli_cosim"):
+    for modname in ("hammerbit.cli_string", "hammerbit.cli_cosim", "hammerbit.cli_fmu"):
         try:
             mod = importlib.import_module(modname)
         except ModuleNotFoundError as e:

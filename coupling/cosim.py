@@ -599,19 +599,13 @@ class FMUHammer:
 
     def __init__(self, path, rig: RigParameters, wob: float, *, t0: float = 0.0, rtol: float = 1e-8,
                  instance: str = "hammer"):
-        from fmpy import extract, read_model_description
-        from fmpy.fmi2 import FMU2Slave
+        from .fmu_host import FMUInstance
         self.path = str(path)
-        md = read_model_description(self.path)
+        self._host = FMUInstance(self.path, instance, start_time=t0, init=False)
+        md, self.fmu = self._host.md, self._host.fmu
         self.md = md
-        self.vr = {v.name: v.valueReference for v in md.modelVariables}
+        self.vr = dict(self._host.vr)
         self.causality = {v.name: v.causality for v in md.modelVariables}
-        self._unzip = extract(self.path)
-        self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=self._unzip,
-                             modelIdentifier=md.coSimulation.modelIdentifier, instanceName=instance)
-        self.fmu.instantiate()
-        self.fmu.setupExperiment(startTime=t0)
-        self.fmu.enterInitializationMode()
         # parameters by name
         names, vals = [], []
         for f in fields(RigParameters):
@@ -687,12 +681,7 @@ class FMUHammer:
         return np.array([v[0], v[1], v[2], v[3], wob])
 
     def close(self):
-        import shutil
-        try:
-            self.fmu.terminate()
-            self.fmu.freeInstance()
-        finally:
-            shutil.rmtree(self._unzip, ignore_errors=True)
+        self._host.close()
 
 
 # ---------------------------------------------------------------------------

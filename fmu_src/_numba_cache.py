@@ -1,26 +1,50 @@
-"""A numba cache that survives a new process *and* a new extraction directory.
+"""Where the compiled kernels come from: the FMU's shipped cache, or a cache keyed on content.
 
 numba's own locators key the cache directory on the source file's *path*.
 An FMU is unzipped into a fresh temporary directory on every load, so those
 caches never hit.  This locator keys the cache on the *content* of the source
-file instead: the same kernels, wherever they were unpacked, find the same
-compiled code.
+file and on the module name: the same kernels, wherever they were unpacked,
+find the same compiled code.  It only claims this package's own modules.
 
-The cache lives in ``$HAMMERBIT_CACHE_DIR`` if set, else
-``$XDG_CACHE_HOME/hammerbit/numba`` (``~/.cache/hammerbit/numba``).  It only
-claims this package's own modules; every other numba function keeps numba's
-default behaviour.
+Two places, decided once when this module is imported (before numba is):
+
+1. **Shipped** (an FMU built by ``hammerbit fmu build``): the build compiles
+   the kernels for numba's portable CPU target (``NUMBA_CPU_NAME=generic``,
+   no extra CPU features) into ``_compiled/`` next to this file and records
+   the numba and Python versions and the machine in
+   ``_compiled/manifest.json``.  On a machine that matches, this module sets
+   the same two environment variables before numba is imported, and numba
+   loads the shipped code: nothing is compiled.
+2. **User cache** otherwise (the library, a mismatching machine, or numba
+   already imported in this process for another CPU):
+   ``$HAMMERBIT_CACHE_DIR``, else ``$XDG_CACHE_HOME/hammerbit/numba``
+   (``~/.cache/hammerbit/numba``); if that cannot be written (read-only
+   HOME), ``<tmp>/hammerbit-<uid>/numba``.  The first process compiles once,
+   later processes load it.
+
+:func:`first_use_report` turns the outcome into one message for the FMI
+logger (the reason, and where the compiled code went), so a compilation is
+never silent.
 """
 import hashlib
+import json
 import os
-
-from numba.core import caching as _caching
+import platform
+import sys
+import tempfile
 
 _HERE = os.path.dirname(os.path.abspath(__file__))
 
+#: directory of the kernels compiled by the FMU build (absent in the library)
+SHIPPED_DIR = os.path.join(_HERE, "_compiled")
+MANIFEST = "manifest.json"
 
-def cache_root() -> str:
-    """Directory that holds hammerbit's compiled kernels."""
+#: the portable CPU target the build compiles for
+PORTABLE_ENV = {"NUMBA_CPU_NAME": "generic", "NUMBA_CPU_FEATURES": ""}
+
+
+def user_cache_root() -> str:
+    """The user's cache directory of hammerbit's compiled kernels (may not be writable)."""
     env = os.environ.get("HAMMERBIT_CACHE_DIR")
     if env:
         return env
@@ -28,19 +52,108 @@ def cache_root() -> str:
     return os.path.join(xdg, "hammerbit", "numba")
 
 
+def _writable(path: str) -> bool:
+    try:
+        os.makedirs(path, exist_ok=True)
+        tempfile.TemporaryFile(dir=path).close()
+    except OSError:
+        return False
+    return True
+
+
+def _user_cache() -> tuple:
+    """(directory, note): the user cache, or a temporary one if it cannot be written."""
+    root = user_cache_root()
+    if _writable(root):
+        return root, None
+    uid = os.getuid() if hasattr(os, "getuid") else "user"
+    fallback = os.path.join(tempfile.gettempdir(), f"hammerbit-{uid}", "numba")
+    return fallback, f"{root} cannot be written (read-only HOME?), so the cache is {fallback}"
+
+
+def runtime_manifest() -> dict:
+    """What a shipped cache must match: numba version, Python minor version, machine."""
+    import numba  # noqa: PLC0415 -- only after the CPU target is decided
+    return {"numba": numba.__version__, "python": "%d.%d" % sys.version_info[:2],
+            "machine": platform.machine(), "cpu_name": PORTABLE_ENV["NUMBA_CPU_NAME"]}
+
+
+def _shipped_mismatch(manifest: dict):
+    """Why the shipped cache cannot be used in this process (None: it can)."""
+    py = "%d.%d" % sys.version_info[:2]
+    if manifest.get("python") != py:
+        return f"the shipped kernels are for Python {manifest.get('python')}, this is Python {py}"
+    if manifest.get("machine") != platform.machine():
+        return (f"the shipped kernels are for {manifest.get('machine')}, this machine is "
+                f"{platform.machine()}")
+    if "numba" in sys.modules:
+        from numba.core import config  # noqa: PLC0415
+        if config.CPU_NAME != PORTABLE_ENV["NUMBA_CPU_NAME"] or (config.CPU_FEATURES or "") != "":
+            from llvmlite import binding as ll  # noqa: PLC0415
+            cpu = config.CPU_NAME or ll.get_host_cpu_name()
+            return (f"numba was already imported in this process for the CPU {cpu!r}; the shipped "
+                    f"kernels are compiled for the portable target 'generic'")
+    else:
+        for key, value in PORTABLE_ENV.items():
+            have = os.environ.get(key)
+            if have is not None and have != value:
+                return f"the environment sets {key}={have!r}; the shipped kernels are for {value!r}"
+    from importlib.metadata import PackageNotFoundError, version  # noqa: PLC0415
+    try:
+        nb = version("numba")
+    except PackageNotFoundError:
+        return "numba is not installed in this Python"
+    if manifest.get("numba") != nb:
+        return f"the shipped kernels are for numba {manifest.get('numba')}, this is numba {nb}"
+    return None
+
+
+def _decide() -> dict:
+    """Pick the cache directory of this process (sets the CPU target if the shipped one fits)."""
+    path = os.path.join(SHIPPED_DIR, MANIFEST)
+    if not os.path.isfile(path):
+        root, note = _user_cache()
+        return {"dir": root, "shipped": False, "reason": "no compiled kernels are shipped with this copy "
+                "of the model" + (f"; {note}" if note else "")}
+    try:
+        with open(path) as fh:
+            manifest = json.load(fh)
+    except (OSError, ValueError) as e:
+        manifest, why = {}, f"the shipped manifest cannot be read ({e})"
+    else:
+        why = _shipped_mismatch(manifest)
+    if why is None:
+        if "numba" not in sys.modules:
+            os.environ.update(PORTABLE_ENV)
+        return {"dir": SHIPPED_DIR, "shipped": True, "reason": None}
+    root, note = _user_cache()
+    return {"dir": root, "shipped": False, "reason": why + (f"; {note}" if note else "")}
+
+
+#: the decision of this process: {"dir", "shipped", "reason"}
+DECISION = _decide()
+
+from numba.core import caching as _caching  # noqa: E402  (after the CPU target is set)
+
+
+def cache_root() -> str:
+    """Directory that holds (or receives) this package's compiled kernels in this process."""
+    return DECISION["dir"]
+
+
 class ContentHashCacheLocator(_caching._SourceFileBackedLocatorMixin, _caching._CacheLocator):
-    """Cache locator keyed on the source file's SHA-256, not on its path."""
+    """Cache locator keyed on the source file's SHA-256 and module name, not on its path."""
 
     def __init__(self, py_func, py_file):
         self._py_file = py_file
         self._lineno = py_func.__code__.co_firstlineno
         with open(py_file, "rb") as fh:
             digest = hashlib.sha256(fh.read()).hexdigest()[:20]
-        # numba's cache entries remember the module they were compiled in (and
-        # re-import it on load): the library (hammerbit.model.kernels) and the
-        # FMU (hammerbit_fmu_runtime.kernels) must not share entries.
+        # numba's cache entries remember the module they were compiled in (and re-import it on
+        # load): the library (hammerbit.model.kernels) and each FMU build
+        # (hammerbit_fmu_runtime_<build hash>.kernels) have their own entries.
         module = getattr(py_func, "__module__", None) or os.path.splitext(os.path.basename(py_file))[0]
-        self._cache_path = os.path.join(cache_root(), f"{module}-{digest}")
+        self._cache_path = os.path.join(DECISION["dir"], f"{module}-{digest}")
 
     def get_cache_path(self):
         return self._cache_path
@@ -55,13 +168,49 @@ class ContentHashCacheLocator(_caching._SourceFileBackedLocatorMixin, _caching._
 def _register():
     impl = getattr(_caching, "CacheImpl", None) or getattr(_caching, "_CacheImpl")
     classes = impl._locator_classes
-    # one registration per process even if the package is imported under two names
+    # one registration per package directory, even if the package is imported under two names
     for c in classes:
-        if getattr(c, "__name__", "") == "ContentHashCacheLocator" and c is not ContentHashCacheLocator:
-            if getattr(c, "_hb_dir", None) == _HERE:
-                return
+        if getattr(c, "_hb_dir", None) == _HERE:
+            return
     ContentHashCacheLocator._hb_dir = _HERE
     classes.insert(0, ContentHashCacheLocator)
 
 
 _register()
+
+_REPORTED = []
+
+
+def kernel_cache_counts(kernels) -> tuple:
+    """(hits, misses) of the numba cache over every compiled function of the module ``kernels``."""
+    hits = misses = 0
+    for obj in vars(kernels).values():
+        stats = getattr(obj, "stats", None)
+        if stats is None or not hasattr(stats, "cache_misses"):
+            continue
+        hits += sum(stats.cache_hits.values())
+        misses += sum(stats.cache_misses.values())
+    return hits, misses
+
+
+def first_use_report(kernels, seconds: float):
+    """The one message of this process about where the kernels came from, or None.
+
+    Returns ``(message, status)`` with the FMI status (0 OK, 1 Warning) on the
+    first call, None afterwards and when the shipped kernels were loaded.
+    """
+    if _REPORTED:
+        return None
+    _REPORTED.append(True)
+    hits, misses = kernel_cache_counts(kernels)
+    where = DECISION["dir"]
+    if misses == 0:
+        if DECISION["shipped"]:
+            return None
+        return (f"numba kernels loaded from the cache in {where} ({DECISION['reason']})", 0)
+    if DECISION["shipped"]:
+        why = "the shipped cache lacks them"
+    else:
+        why = DECISION["reason"]
+    return (f"compiled {misses} numba kernel(s) in {seconds:.1f} s because {why}; the compiled code "
+            f"is cached in {where}, so later processes load it", 1)
