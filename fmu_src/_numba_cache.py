@@ -196,8 +196,8 @@ def kernel_cache_counts(kernels) -> tuple:
 def first_use_report(kernels, seconds: float):
     """The one message of this process about where the kernels came from, or None.
 
-    Returns ``(message, status)`` with the FMI status (0 OK, 1 Warning) on the
-    first call, None afterwards and when the shipped kernels were loaded.
+    Returns ``(message, status)`` with the FMI status (0 OK: loaded, 1 Warning:
+    compiled) on the first call, None afterwards.
     """
     if _REPORTED:
         return None
@@ -206,7 +206,8 @@ def first_use_report(kernels, seconds: float):
     where = DECISION["dir"]
     if misses == 0:
         if DECISION["shipped"]:
-            return None
+            return (f"numba kernels loaded from the compiled cache shipped in the FMU ({where}, "
+                    f"portable CPU target 'generic'): nothing compiled", 0)
         return (f"numba kernels loaded from the cache in {where} ({DECISION['reason']})", 0)
     if DECISION["shipped"]:
         why = "the shipped cache lacks them"

@@ -627,9 +627,9 @@ class HammerBitRock(Fmi2Slave):
                 return self._fail(f"fmi2SetFMUstate: not a {STATE_FORMAT} state"
                                   + (f" ({reason})" if reason else "") + "; state unchanged")
             arr = np.asarray(state["stepper"], dtype=np.float64)
-            if arr.shape != self._st.get_state().shape or not np.all(np.isfinite(arr)):
+            if arr.shape != self._st.get_state().shape or np.any(np.isnan(arr)):
                 return self._fail(f"fmi2SetFMUstate: the stepper state (length {arr.shape[0]}) does not "
-                                  f"fit or is not finite; state unchanged")
+                                  f"fit or holds NaN; state unchanged")
             committed = state["committed"]
             t_start_old = self._t_start
             self._t_start = float(state["t_start"])

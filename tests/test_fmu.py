@@ -1,8 +1,13 @@
-"""HammerBitRock.fmu: build, validation, importers (fmpy, libcosim), agreement with the library,
-state rollback and serialisation, rejection of bad input, independent instances, warm start.
+"""HammerBitRock.fmu: model description, importers (fmpy, libcosim), agreement with the library,
+state rollback and serialisation, statuses of bad calls, independent instances, warm start.
 
-The FMU is built once per session (``built_fmu`` in conftest.py) and loaded into this process
-by fmpy's ``FMU2Slave``/``simulate_fmu`` and by libcosim (libcosimpy), like any FMI host would.
+The FMU is built once per session (``built_fmu`` in conftest.py, ``hammerbit fmu build``) and
+loaded into this process through the project's loader (:class:`hammerbit.fmu_host.FMUInstance`,
+fmpy's ``FMU2Slave``) and by libcosim (libcosimpy), like any FMI host would.
+
+Statuses: the slave records the status of every call in its ``last_status`` variable; when the
+FMU carries the native front (``hammerbit.fmu_native``), the FMI call itself returns it too
+(fmpy raises ``FMICallException`` for Discard and Error).  Both are checked.
 """
 from __future__ import annotations
 
@@ -12,24 +17,25 @@ import subprocess
 import sys
 import textwrap
 import zipfile
+import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
 
 fmpy = pytest.importorskip("fmpy")
-from fmpy import extract, read_model_description  # noqa: E402
+from fmpy import read_model_description  # noqa: E402
 from fmpy.fmi1 import FMICallException  # noqa: E402
-from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,  # noqa: E402
-                       fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2LastSuccessfulTime)
+from fmpy.fmi2 import fmi2LastSuccessfulTime  # noqa: E402
 
+from hammerbit.fmu_host import FMI_DISCARD, FMI_ERROR, FMI_OK, FMUInstance  # noqa: E402
 from hammerbit.model import kernels as K  # noqa: E402
 from hammerbit.model.params import P_B, P_FEXT, RigParameters  # noqa: E402
 from hammerbit.model.stepping import SolverOptions, Stepper  # noqa: E402
+from hammerbit.model.validation import RANGES  # noqa: E402
 
 RIG = RigParameters()                    # the FMU's start values (lab preset)
 SCALES = RIG.scales
 TOL = 1e-8                               # the FMU's default solver tolerance
-FMI_DISCARD, FMI_ERROR, FMI_FATAL = 2, 3, 4
 
 OUTPUT_NAMES = ("hammer_position", "hammer_velocity", "bit_position", "bit_velocity", "spring_force",
                 "contact_force", "friction_force", "rock_force", "rate_of_penetration")
@@ -38,69 +44,34 @@ OUTPUT_NAMES = ("hammer_position", "hammer_velocity", "bit_position", "bit_veloc
 # ---------------------------------------------------------------------------
 # helpers
 # ---------------------------------------------------------------------------
-class Instance:
-    """One FMU instance driven through fmpy's FMU2Slave, with its log messages captured."""
-
-    def __init__(self, path, name="hammer", *, reals=None, booleans=None, start=0.0, init=True,
-                 unzipdir=None):
-        self.md = read_model_description(str(path))
-        self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
-        self.var = {v.name: v for v in self.md.modelVariables}
-        self.dir = unzipdir or extract(str(path))
-        self.messages = []                                   # (status, message)
-
-        def logger(env, instance, status, category, message):
-            self.messages.append((status, message.decode("utf-8", "replace")))
-
-        cb = fmi2CallbackFunctions()
-        cb.logger = fmi2CallbackLoggerTYPE(logger)
-        cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(fmpy.calloc)
-        cb.freeMemory = fmi2CallbackFreeMemoryTYPE(fmpy.free)
-        self._cb = cb
-        self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=self.dir,
-                             modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName=name)
-        self.fmu.instantiate(callbacks=cb, loggingOn=True)
-        self.t = start
-        self.fmu.setupExperiment(startTime=start)
-        self.fmu.enterInitializationMode()
-        if reals:
-            self.set(**reals)
-        if booleans:
-            self.fmu.setBoolean([self.vr[k] for k in booleans], list(booleans.values()))
-        if init:
-            self.fmu.exitInitializationMode()
-
-    def set(self, **values):
-        self.fmu.setReal([self.vr[k] for k in values], [float(v) for v in values.values()])
-
-    def get(self, *names):
-        return self.fmu.getReal([self.vr[n] for n in names])
-
-    def get_int(self, *names):
-        return self.fmu.getInteger([self.vr[n] for n in names])
+class Instance(FMUInstance):
+    """The project's loader plus the outputs as one tuple and the recorded status."""
 
     def outputs(self):
         reals = self.get(*OUTPUT_NAMES)
         ints = self.get_int("stick_slip", "impact_count", "slip_count", "bounce_count")
-        flag = self.fmu.getBoolean([self.vr["in_contact"]])
+        flag = self.get_bool("in_contact")
         return tuple(reals) + tuple(ints) + tuple(flag)
 
-    def step(self, h):
-        self.fmu.doStep(currentCommunicationPoint=self.t, communicationStepSize=h)
-        self.t += h
+    def last_status(self) -> int:
+        return self.get_int("last_status")[0]
 
-    def errors(self):
-        return [m for s, m in self.messages if s >= FMI_ERROR]
+    def call(self, fn, *args, **kw) -> int:
+        """Status of an FMI call as the master sees it: from the exception, or OK."""
+        try:
+            fn(*args, **kw)
+        except FMICallException as e:
+            return e.status
+        return FMI_OK
 
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.close()
-
-    def close(self):
-        self.fmu.terminate()
-        self.fmu.freeInstance()
+    def expect(self, status, fn, *args, **kw) -> None:
+        """The call records ``status``; with the native front the call returns it too."""
+        got = self.call(fn, *args, **kw)
+        assert self.last_status() == status, self.messages[-3:]
+        if self.has_front:
+            assert got == status, (got, self.messages[-3:])
+        else:
+            assert got in (FMI_OK, FMI_DISCARD) and got <= status
 
 
 def library_stepper(rig=RIG, *, y0=None):
@@ -114,14 +85,24 @@ def tau(t, rig=RIG):
 # ---------------------------------------------------------------------------
 # build and model description
 # ---------------------------------------------------------------------------
-def test_build_carries_only_the_runtime(built_fmu):
+def _runtime_package(names):
+    pkgs = {n.split("/")[1] for n in names if n.startswith("resources/hammerbit_fmu_runtime_")}
+    assert len(pkgs) == 1, pkgs
+    return pkgs.pop()
+
+
+def test_build_carries_the_runtime_and_its_compiled_kernels(built_fmu):
+    from hammerbit.fmu_build import build_hash
     with zipfile.ZipFile(built_fmu) as zf:
         names = zf.namelist()
         md = zf.read("modelDescription.xml").decode()
-    runtime = sorted(n for n in names if n.startswith("resources/hammerbit_fmu_runtime/"))
-    assert "resources/hammerbit_fmu_runtime/slave.py" in runtime
-    assert "resources/hammerbit_fmu_runtime/kernels.py" in runtime
-    assert "resources/hammerbit_fmu_slave.py" in names
+        manifest = json.loads(zf.read(f"resources/{_runtime_package(names)}/_compiled/manifest.json"))
+    pkg = _runtime_package(names)
+    assert pkg == f"hammerbit_fmu_runtime_{build_hash()}"
+    assert f"resources/{pkg}/slave.py" in names and f"resources/{pkg}/kernels.py" in names
+    assert f"resources/hammerbit_fmu_slave_{build_hash()}.py" in names
+    assert any(n.startswith(f"resources/{pkg}/_compiled/") and n.endswith(".nbc") for n in names)
+    assert manifest["cpu_name"] == "generic" and manifest["python"] == "%d.%d" % sys.version_info[:2]
     assert "binaries/linux64/HammerBitRock.so" in names
     assert not [n for n in names if "coupling" in n or "tests/" in n or n.endswith(".pyc")]
     assert 'canGetAndSetFMUstate="true"' in md and 'canSerializeFMUstate="true"' in md
@@ -156,7 +137,36 @@ def test_model_description_variables(built_fmu):
     assert float(by["frequency"].start) == pytest.approx(1.474, abs=1e-3)
     for name in OUTPUT_NAMES + ("stick_slip", "in_contact", "impact_count", "slip_count", "bounce_count"):
         assert by[name].causality == "output" and by[name].initial == "calculated"
+    status = by["last_status"]
+    assert (status.type, status.causality, status.variability, status.initial) == \
+        ("Integer", "local", "discrete", "calculated")
     assert md.defaultExperiment.stopTime and md.defaultExperiment.stepSize
+
+
+def test_model_description_ranges_nominals_and_no_feedthrough(built_fmu):
+    """Parameters and inputs declare min/max from validation.RANGES; outputs depend on no input."""
+    from hammerbit.model.fmu_variables import range_key
+    with zipfile.ZipFile(built_fmu) as zf:
+        root = ET.fromstring(zf.read("modelDescription.xml"))
+    variables = root.find("ModelVariables").findall("ScalarVariable")
+    checked = 0
+    for sv in variables:
+        real = sv.find("Real")
+        if real is None or sv.get("causality") not in ("parameter", "input"):
+            continue
+        rng = RANGES[range_key(sv.get("name"))]
+        assert float(real.get("min")) == rng.lo and float(real.get("max")) == rng.hi, sv.get("name")
+        assert rng.lo <= float(real.get("start")) <= rng.hi
+        checked += 1
+    assert checked == 20
+    assert RANGES["fmu.preload"].hi == 1e9                     # the documented physical range
+    nominal = {sv.get("name"): sv.find("Real").get("nominal") for sv in variables if sv.find("Real") is not None}
+    assert float(nominal["stiffness"]) == RIG.stiffness
+    assert float(nominal["bit_position"]) == pytest.approx(SCALES.length, rel=1e-5)
+    assert float(nominal["rock_force"]) == pytest.approx(SCALES.friction_force, rel=1e-5)
+    outputs = root.find("ModelStructure/Outputs").findall("Unknown")
+    assert len(outputs) == 14
+    assert all(u.get("dependencies") == "" for u in outputs)   # no direct feedthrough
 
 
 # ---------------------------------------------------------------------------
@@ -376,19 +386,28 @@ def test_serialized_state_restores_in_another_instance(built_fmu):
         b.close()
 
 
-def test_corrupt_serialized_state_is_refused(built_fmu):
+def test_corrupt_serialized_state_is_an_error(built_fmu):
     with Instance(built_fmu) as inst:
         inst.step(0.1)
         before = inst.outputs()
-        state = inst.fmu.deSerializeFMUstate(b"\x00not a state")
-        inst.fmu.setFMUstate(state)
-        assert any("state unchanged" in m for m in inst.errors())
+        state = None
+
+        def deserialize():
+            nonlocal state
+            state = inst.fmu.deSerializeFMUstate(b"\x00not a state")
+
+        inst.expect(FMI_ERROR, deserialize)
+        if state is not None:                        # without the front the invalid state exists
+            inst.expect(FMI_ERROR, inst.fmu.setFMUstate, state)
+            assert any("state unchanged" in m for m in inst.errors())
+        assert any("cannot deserialise" in m for m in inst.errors())
         assert inst.outputs() == before
         inst.step(0.1)
+        assert inst.last_status() == FMI_OK
 
 
 # ---------------------------------------------------------------------------
-# bad input
+# bad input: every refused call records fmi2Error (with the front: returns it) and changes nothing
 # ---------------------------------------------------------------------------
 def _reference_outputs(path, n_before, n_after, h=2e-3):
     with Instance(path, "ref") as ref:
@@ -397,101 +416,140 @@ def _reference_outputs(path, n_before, n_after, h=2e-3):
         return ref.outputs()
 
 
-BAD_STEPS = {
-    "nan-preload": (lambda i, h: i.set(preload=float("nan")), "preload", "nan"),
-    "inf-harmonic-force": (lambda i, h: i.set(harmonic_force=float("inf")), "harmonic_force", "inf"),
-    "zero-step": (lambda i, h: "h=0", "step size", "0.0"),
-    "negative-step": (lambda i, h: "h=-0.001", "step size", "-0.001"),
-    "nan-step": (lambda i, h: "h=nan", "step size", "nan"),
-    "wrong-communication-point": (lambda i, h: "t+0.5", "currentCommunicationPoint", "0.9000"),
-    "fixed-parameter-after-init": (lambda i, h: i.set(hammer_mass=50.0), "hammer_mass", "50.0"),
-    "invalid-tolerance-after-init": (lambda i, h: i.set(tolerance=-1.0), "tolerance", "-1.0"),
+def _set(name, value):
+    return lambda i: i.fmu.setReal([i.vr[name]], [value])
+
+
+def _step(dt=0.0, h=2e-3):
+    return lambda i: i.fmu.doStep(currentCommunicationPoint=i.t + dt, communicationStepSize=h)
+
+
+BAD_CALLS = {   # refused call, words its message must contain
+    "nan-preload": (_set("preload", math.nan), ("preload", "nan", "[-1e+09, 1e+09] N")),
+    "inf-harmonic-force": (_set("harmonic_force", math.inf), ("harmonic_force", "inf")),
+    "absurd-preload": (_set("preload", 1e12), ("preload", "1000000000000.0", "[-1e+09, 1e+09] N")),
+    "absurd-harmonic-force": (_set("harmonic_force", -1e308), ("harmonic_force", "-1e+308")),
+    "fixed-parameter-after-init": (_set("hammer_mass", 50.0), ("hammer_mass", "50.0", "fixed")),
+    "invalid-tolerance-after-init": (_set("tolerance", -1.0), ("tolerance", "-1.0", "[1e-14, 0.01]")),
+    "zero-step": (_step(h=0.0), ("step size", "0.0")),
+    "negative-step": (_step(h=-1e-3), ("step size", "-0.001")),
+    "nan-step": (_step(h=math.nan), ("step size", "nan")),
+    "wrong-communication-point": (_step(dt=0.5), ("currentCommunicationPoint", "0.9000")),
+    "unknown-value-reference": (lambda i: i.fmu.setReal([9999], [1.0]), ("9999", "no such variable")),
+    "output-is-not-settable": (_set("bit_position", 1.0), ("bit_position", "not settable")),
 }
 
 
 @pytest.fixture(scope="module")
-def bad_step_expected(built_fmu):
-    """Outputs of the clean run that every bad-step case must reproduce (computed once)."""
+def bad_call_expected(built_fmu):
+    """Outputs of the clean run that every bad-call case must reproduce (computed once)."""
     return _reference_outputs(built_fmu, 200, 150, 2e-3)
 
 
-@pytest.mark.parametrize("case", sorted(BAD_STEPS))
-def test_bad_step_is_refused_and_changes_nothing(built_fmu, bad_step_expected, case):
-    prepare, name, value = BAD_STEPS[case]
+@pytest.mark.parametrize("case", sorted(BAD_CALLS))
+def test_bad_call_is_an_error_and_changes_nothing(built_fmu, bad_call_expected, case):
+    call, words = BAD_CALLS[case]
     h = 2e-3
-    expected = bad_step_expected
     with Instance(built_fmu) as inst:
         for _ in range(200):
             inst.step(h)
         before = inst.outputs()
-        how = prepare(inst, h)
-        t, hh = inst.t, h
-        if how == "h=0":
-            hh = 0.0
-        elif how == "h=-0.001":
-            hh = -0.001
-        elif how == "h=nan":
-            hh = float("nan")
-        elif how == "t+0.5":
-            t = inst.t + 0.5
-        with pytest.raises(FMICallException) as exc:
-            inst.fmu.doStep(currentCommunicationPoint=t, communicationStepSize=hh)
-        assert exc.value.status in (FMI_DISCARD, FMI_ERROR)      # never fatal
+        saved = inst.fmu.getFMUstate()
+        inst.expect(FMI_ERROR, call, inst)
         errs = inst.errors()
         assert errs, "no error logged"
-        assert name in errs[-1] and value in errs[-1], errs[-1]
+        assert all(w in errs[-1] for w in words), errs[-1]
         assert inst.outputs() == before                          # nothing changed
-        # pythonfmu reports the master's currentCommunicationPoint as the last successful time
-        last = inst.fmu.getRealStatus(fmi2LastSuccessfulTime)
-        assert last == pytest.approx(t, abs=1e-12)
-        # repair the input, go on: the same result as a run without the bad call
-        inst.set(preload=RIG.preload, harmonic_force=0.0)
-        if case == "invalid-tolerance-after-init":
-            inst.set(tolerance=TOL)
+        assert inst.get("preload", "harmonic_force", "hammer_mass", "tolerance") == \
+            [RIG.preload, 0.0, RIG.hammer_mass, TOL]              # refused values were not stored
+        # after fmi2Error the master restores a saved state (FMI 2.0.4, 2.1.3) and goes on:
+        # the same result as a run without the bad call
+        inst.fmu.setFMUstate(saved)
+        inst.fmu.freeFMUstate(saved)
         for _ in range(150):
             inst.step(h)
-        assert inst.outputs() == expected
+        assert inst.last_status() == FMI_OK
+        assert inst.outputs() == bad_call_expected
 
 
 BAD_PARAMETERS = {
-    "negative-mass": ({"hammer_mass": -1.0}, "hammer_mass", "-1.0"),
-    "zero-bit-mass": ({"bit_mass": 0.0}, "bit_mass", "0.0"),
-    "mu_d-above-mu_e": ({"mu_kinetic": 0.7}, "mu_kinetic", "0.7"),
-    "n-zero": ({"contact_exponent": 0.0}, "contact_exponent", "0.0"),
-    "nan-normal-force": ({"normal_force": float("nan")}, "normal_force", "nan"),
-    "inf-stiffness": ({"stiffness": float("inf")}, "stiffness", "inf"),
-    "zero-frequency": ({"frequency": 0.0}, "frequency", "0.0"),
-    "zero-tolerance": ({"tolerance": 0.0}, "tolerance", "0.0"),
+    "negative-mass": ({"hammer_mass": -1.0}, ("hammer_mass", "-1.0", "[1e-06, 1e+09] kg")),
+    "zero-bit-mass": ({"bit_mass": 0.0}, ("bit_mass", "0.0", "[1e-06, 1e+09] kg")),
+    "mu_d-above-mu_e": ({"mu_kinetic": 0.7}, ("mu_kinetic", "0.7", "mu_static")),
+    "n-zero": ({"contact_exponent": 0.0}, ("contact_exponent", "0.0", "(0, 5]")),
+    "nan-normal-force": ({"normal_force": math.nan}, ("normal_force", "nan")),
+    "inf-stiffness": ({"stiffness": math.inf}, ("stiffness", "inf")),
+    "zero-frequency": ({"frequency": 0.0}, ("frequency", "0.0", "(0, 1e+09] Hz")),
+    "zero-tolerance": ({"tolerance": 0.0}, ("tolerance", "0.0", "[1e-14, 0.01]")),
+    "huge-initial-position": ({"initial_bit_position": 1e7}, ("initial_bit_position", "1e+07")),
 }
 
 
 @pytest.mark.parametrize("case", sorted(BAD_PARAMETERS))
-def test_bad_parameter_is_refused(built_fmu, case):
-    """An invalid parameter is reported at initialisation (log names it) and every step is refused.
-
-    pythonfmu 0.7.0 cannot return fmi2Error from fmi2ExitInitializationMode (a Python exception
-    becomes fmi2Fatal and destroys the instance), so the call returns OK with an error logged and
-    fmi2DoStep refuses (fmi2Discard).  The host never crashes and can free the instance.
-    """
-    reals, name, value = BAD_PARAMETERS[case]
-    with Instance(built_fmu, reals=reals) as inst:
+def test_bad_parameter_fails_initialisation(built_fmu, case):
+    """An invalid parameter: fmi2ExitInitializationMode is an error naming it, value and range;
+    every later step is refused; the host can still free the instance."""
+    reals, words = BAD_PARAMETERS[case]
+    with Instance(built_fmu, init=False) as inst:
+        inst.set(**reals)
+        inst.expect(FMI_ERROR, inst.fmu.exitInitializationMode)
         errs = inst.errors()
-        assert errs and name in errs[0] and value in errs[0], errs
-        with pytest.raises(FMICallException) as exc:
-            inst.step(1e-3)
-        assert exc.value.status in (FMI_DISCARD, FMI_ERROR)
-        assert name in inst.errors()[-1]
+        assert errs and all(w in errs[-1] for w in words), errs
+        assert "initialisation failed" in errs[-1]
+        if not inst.has_front:     # the front refuses doStep after a failed initialisation itself
+            inst.expect(FMI_ERROR, inst.fmu.doStep, 0.0, 1e-3)
+            assert words[0] in inst.errors()[-1]
         assert inst.get("bit_position", "hammer_position") == [0.0, 0.0]
 
 
-def test_invalid_value_references_are_logged_not_fatal(built_fmu):
+def test_outputs_are_valid_in_initialization_mode(built_fmu):
+    """spring_force = K (x_b0 - x_s0) and rock_force follow the parameters set so far."""
+    with Instance(built_fmu, init=False) as inst:
+        inst.set(initial_hammer_position=0.012, initial_bit_position=0.002, stiffness=3000.0)
+        fk, frock, xb, xs, ff = inst.get("spring_force", "rock_force", "hammer_position", "bit_position",
+                                          "friction_force")
+        assert fk == pytest.approx(3000.0 * (0.012 - 0.002), rel=1e-14)
+        assert frock == pytest.approx(fk, rel=1e-14) and ff == pytest.approx(fk, rel=1e-14)
+        assert (xb, xs) == (0.012, 0.002)
+        inst.set(stiffness=2000.0)
+        assert inst.get("spring_force")[0] == pytest.approx(2000.0 * 0.01, rel=1e-14)
+        inst.fmu.exitInitializationMode()
+        assert inst.get("spring_force")[0] == pytest.approx(2000.0 * 0.01, rel=1e-14)
+
+
+def test_terminated_fmu_refuses_steps(built_fmu):
+    inst = Instance(built_fmu)
+    try:
+        inst.step(1e-3)
+        inst.fmu.terminate()
+        inst.expect(FMI_ERROR, inst.fmu.doStep, inst.t, 1e-3)
+        assert "terminate" in inst.errors()[-1].lower()
+    finally:
+        inst.fmu.freeInstance()
+
+
+def test_setup_experiment_with_a_non_finite_start_time_is_an_error(built_fmu):
+    inst = Instance(built_fmu, init=False)
+    try:
+        inst.expect(FMI_ERROR, inst.fmu.setupExperiment, startTime=math.nan)
+        assert "startTime" in inst.errors()[-1] and "nan" in inst.errors()[-1]
+    finally:
+        inst.fmu.freeInstance()
+
+
+@pytest.mark.parametrize("kind", ["unknown-real", "wrong-type-integer", "wrong-type-boolean"])
+def test_wrong_type_and_unknown_references_in_get(built_fmu, kind):
     with Instance(built_fmu) as inst:
-        inst.fmu.setReal([9999], [1.0])
-        inst.fmu.setReal([inst.vr["bit_position"]], [1.0])          # an output: not settable
-        assert math.isnan(inst.fmu.getReal([9999])[0])
-        inst.fmu.getInteger([inst.vr["bit_position"]])               # wrong type
-        assert len(inst.errors()) == 4
-        inst.step(1e-3)                                               # still alive
+        inst.step(1e-3)
+        saved = inst.fmu.getFMUstate()
+        call = {"unknown-real": (inst.fmu.getReal, [9999]),
+                "wrong-type-integer": (inst.fmu.getInteger, [inst.vr["bit_position"]]),
+                "wrong-type-boolean": (inst.fmu.getBoolean, [inst.vr["slip_count"]])}[kind]
+        inst.expect(FMI_ERROR, *call)
+        assert inst.errors() and ("9999" in inst.errors()[-1] or "not" in inst.errors()[-1])
+        inst.fmu.setFMUstate(saved)
+        inst.step(1e-3)                                                         # alive again
+        assert inst.last_status() == FMI_OK
 
 
 def test_tolerance_is_tunable(built_fmu):
@@ -508,13 +566,15 @@ def test_tolerance_is_tunable(built_fmu):
 def test_start_time_other_than_zero(built_fmu):
     """The internal source is A sin(2 pi f t + phase) in absolute time; the clock starts at t_start."""
     t0 = 5.0
-    inst = Instance(built_fmu, start=t0)
+    inst = Instance(built_fmu, start_time=t0)
     omega_f = 2.0 * math.pi * RIG.frequency
     g = RIG.to_groups().replace(phi=math.fmod(RIG.phase + omega_f * t0, 2.0 * math.pi))
     st = Stepper(g, solver=SolverOptions(rtol=TOL, atol=1e-2 * TOL))
     try:
+        saved = inst.fmu.getFMUstate()
         with pytest.raises(FMICallException):
             inst.fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=1e-3)
+        inst.fmu.setFMUstate(saved)
         for _ in range(500):
             inst.step(4e-3)
         st.advance(tau(inst.t - t0))
@@ -554,33 +614,22 @@ def test_two_instances_with_different_parameters_are_independent(built_fmu):
 # ---------------------------------------------------------------------------
 _PROBE = textwrap.dedent("""
     import json, sys, time
-    t0 = time.perf_counter()
-    from fmpy import extract, read_model_description
-    from fmpy.fmi2 import FMU2Slave
+    from hammerbit.fmu_host import FMUInstance
     path, n = sys.argv[1], int(sys.argv[2])
     out = {}
     for i in range(n):
         t1 = time.perf_counter()
-        md = read_model_description(path)
-        d = extract(path)
-        fmu = FMU2Slave(guid=md.guid, unzipDirectory=d, modelIdentifier=md.coSimulation.modelIdentifier,
-                        instanceName="probe%d" % i)
-        fmu.instantiate()
-        fmu.setupExperiment(startTime=0.0)
-        fmu.enterInitializationMode()
-        fmu.exitInitializationMode()
+        inst = FMUInstance(path, "probe%d" % i)
         t2 = time.perf_counter()
-        fmu.doStep(0.0, 1e-3)
+        inst.step(1e-3)
         out.setdefault("load_s", t2 - t1)
-        fmu.terminate()
-        fmu.freeInstance()
-    K = sys.modules["hammerbit_fmu_runtime.kernels"]
-    S = sys.modules["hammerbit_fmu_runtime.slave"]
-    out["cache_misses"] = sum(sum(d.stats.cache_misses.values()) for d in
-                              (K.advance_hammer, K.drive_on_bit, K.friction_kinetic, K.contact_force))
-    out["cache_hits"] = sum(sum(d.stats.cache_hits.values()) for d in
-                            (K.advance_hammer, K.drive_on_bit, K.friction_kinetic, K.contact_force))
-    out["exit_guard"] = len(S._PINNED_WRAPPERS)
+        out.setdefault("messages", inst.messages)
+        inst.close()
+    pkg = [m for m in sys.modules if m.startswith("hammerbit_fmu_runtime_") and "." not in m][0]
+    nc = sys.modules[pkg + "._numba_cache"]
+    out["cache_hits"], out["cache_misses"] = nc.kernel_cache_counts(sys.modules[pkg + ".kernels"])
+    out["decision"] = nc.DECISION
+    out["exit_guard"] = len(sys.modules["hammerbit.model.pythonfmu_exit"]._PINNED_WRAPPERS)
     print(json.dumps(out), flush=True)
 """)
 
@@ -598,13 +647,13 @@ def test_repeated_instantiation_and_exit_in_a_fresh_process(built_fmu):
     assert out["exit_guard"] >= 1
 
 
-def test_warm_start_hits_the_numba_cache(built_fmu):
-    """A new process and a new extraction directory load the compiled kernels from the cache."""
-    _probe(built_fmu, 1)                                  # make sure the cache is filled
+def test_a_new_process_loads_the_shipped_kernels(built_fmu):
+    """A new process and a new extraction directory load the kernels the build compiled."""
     out = _probe(built_fmu, 1)
+    assert out["decision"]["shipped"], out["decision"]
     assert out["cache_misses"] == 0 and out["cache_hits"] >= 4, out
-    # generous bound (goal 0.5 s, see benchmarks/bench_fmu.py); a compile takes 8 s or more
-    assert out["load_s"] < 3.0, out
+    # generous bound (goal 1 s on an idle machine, see benchmarks/bench_fmu.py); a compile takes 30 s or more
+    assert out["load_s"] < 5.0, out
 
 
 def test_solver_failure_inside_a_step_restores_the_state(monkeypatch):
@@ -629,6 +678,7 @@ def test_solver_failure_inside_a_step_restores_the_state(monkeypatch):
 
     monkeypatch.setattr(st, "advance", failing_advance)
     assert s.do_step(300 * h, h) is False
+    assert s.last_status == FMI_DISCARD                  # the master may retry with a shorter step
     assert "event storm (test)" in s.log_queue[-1].msg
     after = (s._st.get_state(), s._t)
     assert np.array_equal(after[0], before[0]) and after[1] == before[1]
