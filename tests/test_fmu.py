@@ -481,7 +481,7 @@ BAD_PARAMETERS = {
     "inf-stiffness": ({"stiffness": math.inf}, ("stiffness", "inf")),
     "zero-frequency": ({"frequency": 0.0}, ("frequency", "0.0", "(0, 1e+09] Hz")),
     "zero-tolerance": ({"tolerance": 0.0}, ("tolerance", "0.0", "[1e-14, 0.01]")),
-    "huge-initial-position": ({"initial_bit_position": 1e7}, ("initial_bit_position", "1e+07")),
+    "huge-initial-position": ({"initial_bit_position": 1e7}, ("initial_bit_position", "10000000.0", "[-1e+06, 1e+06] m")),
 }
 
 
