@@ -32,6 +32,9 @@ class FMUInstance:
         ``{variable: value}`` set in Initialization Mode.
     init : bool
         Leave Initialization Mode (``fmi2ExitInitializationMode``); False stays in it.
+    setup : bool
+        Call ``fmi2SetupExperiment`` and enter Initialization Mode; False stops
+        right after ``fmi2Instantiate`` (``reals``, ``booleans``, ``init`` unused).
     logging : bool
         ``loggingOn`` of ``fmi2Instantiate``.
     unzipdir : path, optional
@@ -49,7 +52,7 @@ class FMUInstance:
     """
 
     def __init__(self, path, name: str = "hammer", *, start_time: float = 0.0, reals=None, booleans=None,
-                 init: bool = True, logging: bool = True, unzipdir=None):
+                 init: bool = True, setup: bool = True, logging: bool = True, unzipdir=None):
         import fmpy
         from fmpy import extract, read_model_description
         from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
@@ -78,6 +81,8 @@ class FMUInstance:
         self._guard()
         self._closed = False
         self.t = float(start_time)
+        if not setup:
+            return
         self.fmu.setupExperiment(startTime=start_time)
         self.fmu.enterInitializationMode()
         if reals:
@@ -129,8 +134,11 @@ class FMUInstance:
         if self._closed:
             return
         self._closed = True
+        from fmpy.fmi1 import FMICallException
         try:
             self.fmu.terminate()
+        except FMICallException:     # not allowed after fmi2Error (FMI 2.0.4); freeing is
+            pass
         finally:
             self.fmu.freeInstance()
             if self._own_dir:

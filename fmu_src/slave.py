@@ -311,9 +311,9 @@ class HammerBitRock(Fmi2Slave):
                 return OK
             try:
                 check(range_key(name), value, label=name)
-            except ParameterError as e:
-                self._fail(f"{e}; fmi2ExitInitializationMode will fail unless it is corrected")
-                return ERROR
+            except ParameterError as e:        # an error only if still so at initialisation
+                self._fail(f"{e}; fmi2ExitInitializationMode will fail unless it is corrected", WARNING)
+                return WARNING
             return OK
         return setter
 

@@ -27,7 +27,7 @@ from fmpy import read_model_description  # noqa: E402
 from fmpy.fmi1 import FMICallException  # noqa: E402
 from fmpy.fmi2 import fmi2LastSuccessfulTime  # noqa: E402
 
-from hammerbit.fmu_host import FMI_DISCARD, FMI_ERROR, FMI_OK, FMUInstance  # noqa: E402
+from hammerbit.fmu_host import FMI_DISCARD, FMI_ERROR, FMI_OK, FMI_WARNING, FMUInstance  # noqa: E402
 from hammerbit.model import kernels as K  # noqa: E402
 from hammerbit.model.params import P_B, P_FEXT, RigParameters  # noqa: E402
 from hammerbit.model.stepping import SolverOptions, Stepper  # noqa: E402
@@ -365,7 +365,7 @@ def test_serialized_state_restores_in_another_instance(built_fmu):
         for _ in range(333):
             a.step(2e-3)
         blob = a.fmu.serializeFMUstate(a.fmu.getFMUstate())
-        assert json.loads(blob.decode())["format"].startswith("hammerbit-fmu-state/")
+        assert b'"format": "hammerbit-fmu-state/' in blob         # (after the front's header, if any)
         t0 = a.t
         ref = []
         for _ in range(250):
@@ -390,6 +390,7 @@ def test_corrupt_serialized_state_is_an_error(built_fmu):
     with Instance(built_fmu) as inst:
         inst.step(0.1)
         before = inst.outputs()
+        saved = inst.fmu.getFMUstate()
         state = None
 
         def deserialize():
@@ -400,8 +401,10 @@ def test_corrupt_serialized_state_is_an_error(built_fmu):
         if state is not None:                        # without the front the invalid state exists
             inst.expect(FMI_ERROR, inst.fmu.setFMUstate, state)
             assert any("state unchanged" in m for m in inst.errors())
-        assert any("cannot deserialise" in m for m in inst.errors())
+        assert inst.errors()
+        assert inst.has_front or any("cannot deserialise" in m for m in inst.errors())
         assert inst.outputs() == before
+        inst.fmu.setFMUstate(saved)                  # the recovery from fmi2Error
         inst.step(0.1)
         assert inst.last_status() == FMI_OK
 
@@ -458,7 +461,9 @@ def test_bad_call_is_an_error_and_changes_nothing(built_fmu, bad_call_expected, 
         inst.expect(FMI_ERROR, call, inst)
         errs = inst.errors()
         assert errs, "no error logged"
-        assert all(w in errs[-1] for w in words), errs[-1]
+        assert words[0] in errs[-1], errs[-1]
+        if not inst.has_front or "value reference" not in errs[-1]:   # the slave's message
+            assert all(w in errs[-1] for w in words), errs[-1]
         assert inst.outputs() == before                          # nothing changed
         assert inst.get("preload", "harmonic_force", "hammer_mass", "tolerance") == \
             [RIG.preload, 0.0, RIG.hammer_mass, TOL]              # refused values were not stored
@@ -491,7 +496,8 @@ def test_bad_parameter_fails_initialisation(built_fmu, case):
     every later step is refused; the host can still free the instance."""
     reals, words = BAD_PARAMETERS[case]
     with Instance(built_fmu, init=False) as inst:
-        inst.set(**reals)
+        inst.set(**reals)                       # a warning at most: initialisation decides
+        assert inst.last_status() in (FMI_OK, FMI_WARNING)
         inst.expect(FMI_ERROR, inst.fmu.exitInitializationMode)
         errs = inst.errors()
         assert errs and all(w in errs[-1] for w in words), errs
@@ -529,7 +535,7 @@ def test_terminated_fmu_refuses_steps(built_fmu):
 
 
 def test_setup_experiment_with_a_non_finite_start_time_is_an_error(built_fmu):
-    inst = Instance(built_fmu, init=False)
+    inst = Instance(built_fmu, setup=False)
     try:
         inst.expect(FMI_ERROR, inst.fmu.setupExperiment, startTime=math.nan)
         assert "startTime" in inst.errors()[-1] and "nan" in inst.errors()[-1]
