@@ -1,0 +1,1321 @@
+/* Native front of a pythonfmu co-simulation FMU (FMI 2.0, Linux).
+ *
+ * binaries/linux64/<id>.so is this library; pythonfmu's export library sits next to it as
+ * HB_WRAPPER_FILE and is opened with dlopen once Python is in the process.  The front
+ *   1. brings Python into a native host: $HAMMERBIT_PYTHON, else python3 on PATH, is asked
+ *      (once, in a child process) for its libpython, its home and its sys.path; libpython is
+ *      opened RTLD_GLOBAL and initialised with that sys.path.  A host that already runs
+ *      Python (fmpy, ...) is used as it is;
+ *   2. turns any legal file URI (file:/x, file://localhost/x, file:///x, percent-encoding)
+ *      into the plain path pythonfmu understands;
+ *   3. checks the GUID and the FMU type;
+ *   4. runs the FMI 2.0 co-simulation state machine and checks value references, types and
+ *      settability against the model description, answering fmi2Error itself;
+ *   5. returns the slave's real status, which pythonfmu cannot return (variable HB_STATUS_VR);
+ *   6. logs errors even with loggingOn = false;
+ *   7. releases pythonfmu's interpreter guard at exit in the right order (see hb_at_exit).
+ *
+ * The model-specific tables come from hb_model.h, generated from modelDescription.xml by
+ * hammerbit.fmu_native.build_front(). */
+#define _GNU_SOURCE
+#include <dlfcn.h>
+#include <errno.h>
+#include <fcntl.h>
+#include <limits.h>
+#include <math.h>
+#include <pthread.h>
+#include <signal.h>
+#include <spawn.h>
+#include <stdarg.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <sys/types.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include "fmi2_abi.h"
+
+#define EXPORT __attribute__((visibility("default")))
+
+/* ------------------------------------------------------------------------------------------ */
+/* Model tables                                                                                */
+/* ------------------------------------------------------------------------------------------ */
+enum { HB_REAL, HB_INTEGER, HB_BOOLEAN, HB_STRING };
+
+/* states of an instance: bit masks, as in the FMI 2.0 co-simulation state machine */
+enum {
+    ST_INSTANTIATED = 1 << 0,
+    ST_INIT = 1 << 1,
+    ST_STEP_COMPLETE = 1 << 2,
+    ST_TERMINATED = 1 << 3,
+    ST_ERROR = 1 << 4,
+    ST_FATAL = 1 << 5,
+};
+
+typedef struct {
+    int type;                 /* HB_REAL ... */
+    fmi2ValueReference vr;
+    int set_mask;             /* states in which fmi2Set* may write the variable */
+    const char *name;
+    const char *kind;         /* "causality, variability" for messages */
+} hb_var;
+
+#include "hb_model.h"
+
+static const char *const TYPE_NAMES[] = {"Real", "Integer", "Boolean", "String"};
+
+/* allowed states per function (FMI 2.0.4, section 4.2.4; Error: only inquiries and recovery) */
+#define M_ANY_LIVE (ST_INSTANTIATED | ST_INIT | ST_STEP_COMPLETE | ST_TERMINATED | ST_ERROR)
+#define M_GET (ST_INIT | ST_STEP_COMPLETE | ST_TERMINATED | ST_ERROR)
+#define M_SET (ST_INSTANTIATED | ST_INIT | ST_STEP_COMPLETE)
+#define M_STATUS (ST_STEP_COMPLETE | ST_TERMINATED)
+
+/* ------------------------------------------------------------------------------------------ */
+/* Instances                                                                                   */
+/* ------------------------------------------------------------------------------------------ */
+typedef struct {
+    char *name;
+    fmi2CallbackFunctions user;    /* the host's callbacks (copied) */
+    fmi2CallbackFunctions inner;   /* ours, handed to pythonfmu (must outlive the instance) */
+    fmi2Component w;               /* pythonfmu's instance */
+    int state;
+    int logging_on;
+    size_t ncat;
+    char **cats;
+    fmi2Status call_max;           /* highest status pythonfmu logged during the current call */
+    double time;                   /* current communication point [s] */
+    double last_successful;        /* fmi2LastSuccessfulTime [s] */
+} hb_inst;
+
+/* an FMU state of the front: the front's own part, then pythonfmu's */
+#define HB_STATE_MAGIC 0x48425354u /* "HBST" */
+typedef struct {
+    uint32_t magic;
+    int state;
+    double time;
+    double last_successful;
+    fmi2FMUstate inner;
+} hb_fmustate;
+
+typedef struct {   /* serialised header of an hb_fmustate (followed by pythonfmu's bytes) */
+    char magic[8];
+    char guid[64];
+    int32_t state;
+    int32_t pad;
+    double time;
+    double last_successful;
+} hb_serial_header;
+
+/* ------------------------------------------------------------------------------------------ */
+/* Logging                                                                                     */
+/* ------------------------------------------------------------------------------------------ */
+/* The FMI logger takes a printf format: every '%' that does not start "%%" is doubled. */
+static void escape_percent(const char *in, char *out, size_t n) {
+    size_t j = 0;
+    for (size_t i = 0; in[i] && j + 2 < n; i++) {
+        if (in[i] == '%') {
+            if (in[i + 1] == '%') {
+                out[j++] = '%';
+                out[j++] = '%';
+                i++;
+                continue;
+            }
+            out[j++] = '%';
+            out[j++] = '%';
+        } else {
+            out[j++] = in[i];
+        }
+    }
+    out[j] = '\0';
+}
+
+static void log_to(const fmi2CallbackFunctions *cb, const char *name, fmi2Status st, const char *fmt,
+                   ...) {
+    if (!cb || !cb->logger) return;
+    char raw[4096], msg[8200];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(raw, sizeof raw, fmt, ap);
+    va_end(ap);
+    escape_percent(raw, msg, sizeof msg);
+    const char *cat = st == fmi2OK ? "logAll"
+                      : st == fmi2Warning ? "logStatusWarning"
+                      : st == fmi2Discard ? "logStatusDiscard"
+                      : st == fmi2Error ? "logStatusError" : "logStatusFatal";
+    cb->logger(cb->componentEnvironment, name ? name : "?", st, cat, msg);
+}
+
+#define LOG(I, st, ...) log_to(&(I)->user, (I)->name, (st), __VA_ARGS__)
+
+static int category_enabled(const hb_inst *I, const char *cat) {
+    if (!I->logging_on) return 0;
+    if (I->ncat == 0) return 1;
+    for (size_t i = 0; i < I->ncat; i++)
+        if (cat && strcmp(I->cats[i], cat) == 0) return 1;
+    return 0;
+}
+
+/* pythonfmu logs through this: non-OK messages always reach the host, OK ones when enabled */
+static void inner_logger(fmi2ComponentEnvironment env, fmi2String name, fmi2Status st,
+                         fmi2String cat, fmi2String message, ...) {
+    hb_inst *I = (hb_inst *)env;
+    if (!I) return;
+    if (st > I->call_max) I->call_max = st;
+    if (st == fmi2OK && !category_enabled(I, cat)) return;
+    if (!I->user.logger) return;
+    char msg[8200];
+    escape_percent(message ? message : "", msg, sizeof msg);
+    I->user.logger(I->user.componentEnvironment, name ? name : I->name, st, cat, msg);
+}
+
+/* ------------------------------------------------------------------------------------------ */
+/* Python: the few C-API functions the front needs, bound at run time                          */
+/* ------------------------------------------------------------------------------------------ */
+typedef struct {
+    int (*IsInitialized)(void);
+    void (*InitializeEx)(int);
+    void *(*EvalSaveThread)(void);
+    int (*GILEnsure)(void);
+    void (*GILRelease)(int);
+    void *(*DictNew)(void);
+    int (*DictSetItemString)(void *, const char *, void *);
+    void *(*DictGetItemString)(void *, const char *);
+    void *(*UnicodeFromString)(const char *);
+    const char *(*UnicodeAsUTF8)(void *);
+    void *(*RunStringFlags)(const char *, int, void *, void *, void *);
+    void (*DecRef)(void *);
+    void (*ErrClear)(void);
+    int *UTF8Mode;
+} py_api;
+
+#define PY_FILE_INPUT 257
+
+static pthread_mutex_t g_lock = PTHREAD_MUTEX_INITIALIZER;
+static py_api g_py;
+static int g_python_ready;      /* Python is in the process and imports numpy and numba */
+static int g_we_initialized;    /* this front initialised the interpreter */
+static int g_exit_registered;
+
+static int bind_python(void *h, char *err, size_t n) {
+#define BIND(field, sym)                                                             \
+    do {                                                                             \
+        *(void **)(&g_py.field) = dlsym(h, sym);                                     \
+        if (!g_py.field) {                                                           \
+            snprintf(err, n, "the Python library lacks the function %s", sym);     \
+            return 0;                                                                \
+        }                                                                            \
+    } while (0)
+    BIND(IsInitialized, "Py_IsInitialized");
+    BIND(InitializeEx, "Py_InitializeEx");
+    BIND(EvalSaveThread, "PyEval_SaveThread");
+    BIND(GILEnsure, "PyGILState_Ensure");
+    BIND(GILRelease, "PyGILState_Release");
+    BIND(DictNew, "PyDict_New");
+    BIND(DictSetItemString, "PyDict_SetItemString");
+    BIND(DictGetItemString, "PyDict_GetItemString");
+    BIND(UnicodeFromString, "PyUnicode_FromString");
+    BIND(UnicodeAsUTF8, "PyUnicode_AsUTF8");
+    BIND(RunStringFlags, "PyRun_StringFlags");
+    BIND(DecRef, "Py_DecRef");
+    BIND(ErrClear, "PyErr_Clear");
+#undef BIND
+    g_py.UTF8Mode = (int *)dlsym(h, "Py_UTF8Mode");
+    return 1;
+}
+
+/* Run `code` (with the GIL held) in a fresh namespace holding the string items `names`;
+ * copy the string `result` it leaves behind into out (empty if none). 0 if it raised. */
+static int py_run(const char *code, const char *const *names, const char *const *values, char *out,
+                  size_t n) {
+    if (out && n) out[0] = '\0';
+    void *d = g_py.DictNew();
+    if (!d) return 0;
+    for (int i = 0; names && names[i]; i++) {
+        void *s = g_py.UnicodeFromString(values[i]);
+        if (!s) {
+            g_py.ErrClear();
+            g_py.DecRef(d);
+            return 0;
+        }
+        g_py.DictSetItemString(d, names[i], s);
+        g_py.DecRef(s);
+    }
+    void *r = g_py.RunStringFlags(code, PY_FILE_INPUT, d, d, NULL);
+    int ok = r != NULL;
+    if (r)
+        g_py.DecRef(r);
+    else
+        g_py.ErrClear();
+    if (ok && out && n) {
+        void *res = g_py.DictGetItemString(d, "result");   /* borrowed */
+        const char *s = res ? g_py.UnicodeAsUTF8(res) : NULL;
+        if (s)
+            snprintf(out, n, "%s", s);
+        else if (res)
+            g_py.ErrClear();
+    }
+    g_py.DecRef(d);
+    return ok;
+}
+
+static const char CHECK_CODE[] =
+    "result = ''\n"
+    "try:\n"
+    "    bad = []\n"
+    "    for m in modules.split():\n"
+    "        try:\n"
+    "            __import__(m)\n"
+    "        except BaseException as e:\n"
+    "            bad.append('%s (%s: %s)' % (m, type(e).__name__, e))\n"
+    "    result = '; '.join(bad)\n"
+    "except BaseException as e:\n"
+    "    result = 'the import check failed: %r' % (e,)\n";
+
+static const char SETUP_CODE[] =
+    "result = ''\n"
+    "try:\n"
+    "    import os, site, sys\n"
+    "    def _d(s):\n"
+    "        return [os.fsdecode(bytes.fromhex(h)) for h in s.split()]\n"
+    "    want = _d(paths)\n"
+    "    for d in _d(sites):\n"
+    "        if os.path.isdir(d):\n"
+    "            site.addsitedir(d)\n"
+    "    sys.path[:] = want + [p for p in sys.path if p not in want]\n"
+    "    sys.executable = _d(exe)[0]\n"
+    "except BaseException as e:\n"
+    "    result = 'setting up sys.path failed: %r' % (e,)\n";
+
+static const char EXIT_CODE[] =
+    "try:\n"
+    "    import atexit, sys\n"
+    "    atexit._run_exitfuncs()\n"
+    "    for s in (sys.stdout, sys.stderr):\n"
+    "        try:\n"
+    "            s.flush()\n"
+    "        except Exception:\n"
+    "            pass\n"
+    "except BaseException:\n"
+    "    pass\n";
+
+/* ------------------------------------------------------------------------------------------ */
+/* Finding Python: ask the interpreter ($HAMMERBIT_PYTHON or python3 on PATH) about itself     */
+/* ------------------------------------------------------------------------------------------ */
+static const char QUERY_CODE[] =
+    "import importlib.util, os, site, sys, sysconfig\n"
+    "def h(s):\n"
+    "    return os.fsencode(s).hex()\n"
+    "v = sysconfig.get_config_var\n"
+    "ver = '%d.%d' % sys.version_info[:2]\n"
+    "names = [v('INSTSONAME'), v('LDLIBRARY'), 'libpython%s%s.so.1.0' % (ver, sys.abiflags),\n"
+    "         'libpython%s%s.so' % (ver, sys.abiflags)]\n"
+    "dirs = [v('LIBDIR'), v('LIBPL'), os.path.join(v('LIBDIR') or '', v('MULTIARCH') or ''),\n"
+    "        os.path.join(sys.base_prefix, 'lib')]\n"
+    "lib = ''\n"
+    "for n in names:\n"
+    "    if n and '.so' in n and not lib:\n"
+    "        for d in dirs:\n"
+    "            if d and os.path.isfile(os.path.join(d, n)):\n"
+    "                lib = os.path.join(d, n)\n"
+    "                break\n"
+    "print('hb:version=' + sys.version.split()[0])\n"
+    "print('hb:exe=' + h(sys.executable))\n"
+    "print('hb:lib=' + h(lib))\n"
+    "print('hb:home=' + h(sys.base_prefix + ':' + sys.base_exec_prefix))\n"
+    "for p in sys.path:\n"
+    "    if p:\n"
+    "        print('hb:path=' + h(p))\n"
+    "sites = site.getsitepackages()\n"
+    "if site.ENABLE_USER_SITE:\n"
+    "    sites.append(site.getusersitepackages())\n"
+    "for p in sites:\n"
+    "    print('hb:site=' + h(p))\n"
+    "print('hb:missing=' + ' '.join(m for m in sys.argv[1:] if importlib.util.find_spec(m) is None))\n";
+
+typedef struct {
+    char version[64];
+    char exe[PATH_MAX];
+    char lib[PATH_MAX];
+    char home[2 * PATH_MAX + 2];
+    char exe_hex[2 * PATH_MAX + 1];
+    char *paths_hex;   /* space-separated */
+    char *sites_hex;
+    char missing[256];
+} py_query;
+
+static int hex_decode(const char *hex, char *out, size_t n) {
+    size_t len = strlen(hex);
+    if (len % 2 || len / 2 + 1 > n) return 0;
+    for (size_t i = 0; i < len / 2; i++) {
+        unsigned v;
+        if (sscanf(hex + 2 * i, "%2x", &v) != 1) return 0;
+        out[i] = (char)v;
+    }
+    out[len / 2] = '\0';
+    return 1;
+}
+
+static int append_word(char **dst, const char *word) {
+    size_t old = *dst ? strlen(*dst) : 0;
+    char *p = realloc(*dst, old + strlen(word) + 2);
+    if (!p) return 0;
+    if (old) p[old++] = ' ';
+    strcpy(p + old, word);
+    *dst = p;
+    return 1;
+}
+
+/* which interpreter, and how it was chosen (for messages) */
+static const char *python_rule(char *how, size_t n) {
+    const char *env = getenv("HAMMERBIT_PYTHON");
+    if (env && *env) {
+        snprintf(how, n, "HAMMERBIT_PYTHON=%s", env);
+        return env;
+    }
+    snprintf(how, n, "python3 on PATH (PATH=%s)", getenv("PATH") ? getenv("PATH") : "");
+    return "python3";
+}
+
+extern char **environ;
+
+static int query_python(const char *python, const char *how, py_query *q, char *err, size_t n) {
+    memset(q, 0, sizeof *q);
+    int fds[2];
+    if (pipe(fds) != 0) {
+        snprintf(err, n, "cannot create a pipe to ask %s about itself: %s", how, strerror(errno));
+        return 0;
+    }
+    posix_spawn_file_actions_t fa;
+    posix_spawn_file_actions_init(&fa);
+    posix_spawn_file_actions_addclose(&fa, fds[0]);
+    posix_spawn_file_actions_adddup2(&fa, fds[1], 1);
+    posix_spawn_file_actions_adddup2(&fa, fds[1], 2);
+    posix_spawn_file_actions_addclose(&fa, fds[1]);
+    posix_spawn_file_actions_addopen(&fa, 0, "/dev/null", O_RDONLY, 0);
+    char *argv[] = {(char *)python, "-c", (char *)QUERY_CODE, HB_PYTHON_MODULES_ARGV, NULL};
+    pid_t pid;
+    int rc = strchr(python, '/') ? posix_spawn(&pid, python, &fa, NULL, argv, environ)
+                                 : posix_spawnp(&pid, python, &fa, NULL, argv, environ);
+    posix_spawn_file_actions_destroy(&fa);
+    close(fds[1]);
+    if (rc != 0) {
+        close(fds[0]);
+        snprintf(err, n,
+                 "no Python found: %s cannot be run (%s); install Python 3 with numpy and numba, "
+                 "or set HAMMERBIT_PYTHON to the path of such a python executable",
+                 how, strerror(rc));
+        return 0;
+    }
+    size_t cap = 1 << 16, len = 0;
+    char *buf = malloc(cap);
+    ssize_t k;
+    while (buf && (k = read(fds[0], buf + len, cap - len - 1)) != 0) {
+        if (k < 0) {
+            if (errno == EINTR) continue;
+            break;
+        }
+        len += (size_t)k;
+        if (cap - len < 2) {
+            char *nb = realloc(buf, cap *= 2);
+            if (!nb) {
+                free(buf);
+                buf = NULL;
+            } else
+                buf = nb;
+        }
+    }
+    close(fds[0]);
+    int status = 0;
+    while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+    }
+    if (!buf) {
+        snprintf(err, n, "out of memory reading the answer of %s", how);
+        return 0;
+    }
+    buf[len] = '\0';
+    int have_exe = 0;
+    char other[512] = "";
+    for (char *line = strtok(buf, "\n"); line; line = strtok(NULL, "\n")) {
+        if (strncmp(line, "hb:", 3) != 0) {
+            if (strlen(other) + strlen(line) + 3 < sizeof other) {
+                strcat(other, line);
+                strcat(other, " | ");
+            }
+            continue;
+        }
+        char *key = line + 3, *eq = strchr(key, '=');
+        if (!eq) continue;
+        *eq = '\0';
+        char *val = eq + 1;
+        if (!strcmp(key, "version"))
+            snprintf(q->version, sizeof q->version, "%s", val);
+        else if (!strcmp(key, "exe")) {
+            have_exe = hex_decode(val, q->exe, sizeof q->exe);
+            snprintf(q->exe_hex, sizeof q->exe_hex, "%s", val);
+        } else if (!strcmp(key, "lib"))
+            hex_decode(val, q->lib, sizeof q->lib);
+        else if (!strcmp(key, "home"))
+            hex_decode(val, q->home, sizeof q->home);
+        else if (!strcmp(key, "path"))
+            append_word(&q->paths_hex, val);
+        else if (!strcmp(key, "site"))
+            append_word(&q->sites_hex, val);
+        else if (!strcmp(key, "missing"))
+            snprintf(q->missing, sizeof q->missing, "%s", val);
+    }
+    free(buf);
+    if (!have_exe) {
+        snprintf(err, n,
+                 "%s did not answer like a Python 3 interpreter (exit status %d; output: %s); set "
+                 "HAMMERBIT_PYTHON to the path of a python executable with numpy and numba",
+                 how, WIFEXITED(status) ? WEXITSTATUS(status) : -1, other[0] ? other : "none");
+        return 0;
+    }
+    return 1;
+}
+
+static void free_query(py_query *q) {
+    free(q->paths_hex);
+    free(q->sites_hex);
+    q->paths_hex = q->sites_hex = NULL;
+}
+
+static int check_modules(char *err, size_t n) {
+    char bad[2048];
+    int g = g_py.GILEnsure();
+    const char *names[] = {"modules", NULL};
+    const char *values[] = {HB_PYTHON_MODULES, NULL};
+    int ok = py_run(CHECK_CODE, names, values, bad, sizeof bad);
+    g_py.GILRelease(g);
+    if (!ok) {
+        snprintf(err, n, "the Python in this process cannot run the module check");
+        return 0;
+    }
+    if (bad[0]) {
+        snprintf(err, n, "the Python in this process cannot import what the FMU needs: %s", bad);
+        return 0;
+    }
+    return 1;
+}
+
+/* Python in the process, with numpy and numba importable; err says why not. Lock held. */
+static int ensure_python(char *err, size_t n) {
+    if (g_python_ready) return 1;
+    void *sym = dlsym(RTLD_DEFAULT, "Py_IsInitialized");
+    if (sym && ((int (*)(void))sym)()) {   /* a Python host: use its interpreter as it is */
+        if (!bind_python(RTLD_DEFAULT, err, n)) return 0;
+        if (!check_modules(err, n)) {
+            char tmp[3000];
+            snprintf(tmp, sizeof tmp, "%s; install them into the Python that runs this host", err);
+            snprintf(err, n, "%s", tmp);
+            return 0;
+        }
+        g_python_ready = 1;
+        return 1;
+    }
+    char how[PATH_MAX + 64];
+    const char *python = python_rule(how, sizeof how);
+    py_query q;
+    if (!query_python(python, how, &q, err, n)) return 0;
+    int ok = 0;
+    if (q.missing[0]) {
+        snprintf(err, n,
+                 "Python %s at %s (%s) lacks the modules: %s; install them there (pip install %s) "
+                 "or set HAMMERBIT_PYTHON to a python executable that has them",
+                 q.version, q.exe, how, q.missing, q.missing);
+        goto done;
+    }
+    if (!q.lib[0]) {
+        snprintf(err, n,
+                 "Python %s at %s (%s) has no shared library libpython%.4s*.so, which a native host "
+                 "needs; use a Python built with --enable-shared (or install its libpython "
+                 "package) and point HAMMERBIT_PYTHON to it",
+                 q.version, q.exe, how, q.version);
+        goto done;
+    }
+    void *h = dlopen(q.lib, RTLD_NOW | RTLD_GLOBAL | RTLD_NODELETE);
+    if (!h) {
+        snprintf(err, n, "cannot load %s (the library of Python %s at %s): %s", q.lib, q.version,
+                 q.exe, dlerror());
+        goto done;
+    }
+    if (!bind_python(h, err, n)) goto done;
+    if (!g_py.IsInitialized()) {
+        /* PYTHONHOME only for the start of the interpreter (then the host's value comes back);
+         * UTF-8 mode so non-ASCII paths work whatever the host's locale */
+        const char *old = getenv("PYTHONHOME");
+        char *saved = old ? strdup(old) : NULL;
+        setenv("PYTHONHOME", q.home, 1);
+        if (g_py.UTF8Mode) *g_py.UTF8Mode = 1;
+        g_py.InitializeEx(0);   /* 0: the host keeps its signal handlers */
+        if (saved) {
+            setenv("PYTHONHOME", saved, 1);
+            free(saved);
+        } else {
+            unsetenv("PYTHONHOME");
+        }
+        if (!g_py.IsInitialized()) {
+            snprintf(err, n, "Python %s at %s did not start", q.version, q.exe);
+            goto done;
+        }
+        g_we_initialized = 1;
+        char res[2048];
+        const char *names[] = {"paths", "sites", "exe", NULL};
+        const char *values[] = {q.paths_hex ? q.paths_hex : "", q.sites_hex ? q.sites_hex : "",
+                                q.exe_hex, NULL};
+        int run_ok = py_run(SETUP_CODE, names, values, res, sizeof res);
+        g_py.EvalSaveThread();   /* release the GIL: pythonfmu takes it per call */
+        if (!run_ok || res[0]) {
+            snprintf(err, n, "Python %s at %s: %s", q.version, q.exe,
+                     res[0] ? res : "setting up sys.path failed");
+            goto done;
+        }
+    }
+    if (!check_modules(err, n)) {
+        char tmp[3000];
+        snprintf(tmp, sizeof tmp, "%s (Python %s at %s, %s)", err, q.version, q.exe, how);
+        snprintf(err, n, "%s", tmp);
+        goto done;
+    }
+    g_python_ready = 1;
+    ok = 1;
+done:
+    free_query(&q);
+    return ok;
+}
+
+/* ------------------------------------------------------------------------------------------ */
+/* The wrapped pythonfmu library                                                              */
+/* ------------------------------------------------------------------------------------------ */
+static struct {
+    void *h;
+    fmi2InstantiateFn Instantiate;
+    fmi2FreeInstanceFn FreeInstance;
+    fmi2SetupExperimentFn SetupExperiment;
+    fmi2ComponentFn EnterInitializationMode, ExitInitializationMode, Terminate, Reset;
+    fmi2GetRealFn GetReal;
+    fmi2GetIntegerFn GetInteger;
+    fmi2GetBooleanFn GetBoolean;
+    fmi2GetStringFn GetString;
+    fmi2SetRealFn SetReal;
+    fmi2SetIntegerFn SetInteger;
+    fmi2SetBooleanFn SetBoolean;
+    fmi2SetStringFn SetString;
+    fmi2GetFMUstateFn GetFMUstate;
+    fmi2SetFMUstateFn SetFMUstate;
+    fmi2FreeFMUstateFn FreeFMUstate;
+    fmi2SerializedFMUstateSizeFn SerializedFMUstateSize;
+    fmi2SerializeFMUstateFn SerializeFMUstate;
+    fmi2DeSerializeFMUstateFn DeSerializeFMUstate;
+    fmi2DoStepFn DoStep;
+    void (*finalize)(void);
+} W;
+
+/* At exit pythonfmu's export library releases its static std::shared_ptr<PyState> twice: the
+ * C++ static destructor runs first and its __attribute__((destructor)) function then resets the
+ * destroyed pointer again, a use after free of the control block that corrupts the heap (the
+ * abort shows up later, e.g. in libgfortran's exit handler).  Resetting the pointer before
+ * either runs makes both no-ops: this handler is registered right after the library is opened,
+ * so it runs before the library's static destructors. */
+static void hb_at_exit(void) {
+    if (g_we_initialized && g_py.GILEnsure) {
+        g_py.GILEnsure();   /* kept: no Python thread runs during the rest of the exit */
+        py_run(EXIT_CODE, NULL, NULL, NULL, 0);
+    }
+    if (W.finalize) W.finalize();
+}
+
+static int load_wrapper(char *err, size_t n) {
+    if (W.h) return 1;
+    Dl_info info;
+    if (!dladdr((void *)&load_wrapper, &info) || !info.dli_fname) {
+        snprintf(err, n, "cannot locate the FMU's binary directory");
+        return 0;
+    }
+    char path[PATH_MAX];
+    const char *slash = strrchr(info.dli_fname, '/');
+    if (slash)
+        snprintf(path, sizeof path, "%.*s/%s", (int)(slash - info.dli_fname), info.dli_fname,
+                 HB_WRAPPER_FILE);
+    else
+        snprintf(path, sizeof path, "./%s", HB_WRAPPER_FILE);
+    void *h = dlopen(path, RTLD_NOW | RTLD_LOCAL | RTLD_NODELETE);
+    if (!h) {
+        snprintf(err, n, "cannot load the Python wrapper %s: %s", path, dlerror());
+        return 0;
+    }
+#define WB(field)                                                                          \
+    do {                                                                                   \
+        *(void **)(&W.field) = dlsym(h, "fmi2" #field);                                    \
+        if (!W.field) {                                                                    \
+            snprintf(err, n, "the Python wrapper %s does not export fmi2" #field, path);   \
+            return 0;                                                                      \
+        }                                                                                  \
+    } while (0)
+    WB(Instantiate);
+    WB(FreeInstance);
+    WB(SetupExperiment);
+    WB(EnterInitializationMode);
+    WB(ExitInitializationMode);
+    WB(Terminate);
+    WB(Reset);
+    WB(GetReal);
+    WB(GetInteger);
+    WB(GetBoolean);
+    WB(GetString);
+    WB(SetReal);
+    WB(SetInteger);
+    WB(SetBoolean);
+    WB(SetString);
+    WB(GetFMUstate);
+    WB(SetFMUstate);
+    WB(FreeFMUstate);
+    WB(SerializedFMUstateSize);
+    WB(SerializeFMUstate);
+    WB(DeSerializeFMUstate);
+    WB(DoStep);
+#undef WB
+    *(void **)(&W.finalize) = dlsym(h, "finalizePythonInterpreter");
+    W.h = h;
+    if (!g_exit_registered) {
+        atexit(hb_at_exit);
+        g_exit_registered = 1;
+    }
+    return 1;
+}
+
+/* Kept for hosts and slave code that look this symbol up in every library of the FMU. */
+EXPORT void finalizePythonInterpreter(void) {
+    if (W.finalize) W.finalize();
+}
+
+/* ------------------------------------------------------------------------------------------ */
+/* Resource URI -> path                                                                        */
+/* ------------------------------------------------------------------------------------------ */
+static int hexval(char c) {
+    if (c >= '0' && c <= '9') return c - '0';
+    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+    return -1;
+}
+
+static int is_dir(const char *p) {
+    struct stat s;
+    return stat(p, &s) == 0 && S_ISDIR(s.st_mode);
+}
+
+/* file:/x, file://localhost/x, file:///x (percent-decoded) or a plain absolute path -> path */
+static int uri_to_path(const char *uri, char *out, size_t n, char *err, size_t en) {
+    const char *p = uri;
+    if (strncasecmp(p, "file:", 5) == 0) {
+        p += 5;
+        if (p[0] == '/' && p[1] == '/') {   /* authority */
+            const char *auth = p + 2, *end = strchr(auth, '/');
+            if (!end) {
+                snprintf(err, en, "fmuResourceLocation '%s' has no path", uri);
+                return 0;
+            }
+            size_t alen = (size_t)(end - auth);
+            if (alen != 0 && !(alen == 9 && strncasecmp(auth, "localhost", 9) == 0)) {
+                snprintf(err, en,
+                         "fmuResourceLocation '%s' names the host '%.*s'; only local files "
+                         "(file:///path or file://localhost/path) are supported",
+                         uri, (int)alen, auth);
+                return 0;
+            }
+            p = end;
+        }
+    }
+    if (p[0] != '/') {
+        snprintf(err, en, "fmuResourceLocation '%s' is not an absolute file URI", uri);
+        return 0;
+    }
+    size_t j = 0;
+    for (size_t i = 0; p[i]; i++) {
+        char c = p[i];
+        if (c == '%') {
+            int hi = hexval(p[i + 1]), lo = hi >= 0 ? hexval(p[i + 2]) : -1;
+            if (hi < 0 || lo < 0) {
+                snprintf(err, en, "fmuResourceLocation '%s' has an invalid percent-escape", uri);
+                return 0;
+            }
+            c = (char)(hi * 16 + lo);
+            i += 2;
+            if (c == '\0') {
+                snprintf(err, en, "fmuResourceLocation '%s' encodes a NUL byte", uri);
+                return 0;
+            }
+        }
+        if (j + 1 >= n) {
+            snprintf(err, en, "fmuResourceLocation '%s' is too long", uri);
+            return 0;
+        }
+        out[j++] = c;
+    }
+    out[j] = '\0';
+    while (j > 1 && out[j - 1] == '/') out[--j] = '\0';
+    if (!is_dir(out)) {
+        /* a host that wrote the path into the URI without encoding it */
+        char raw[PATH_MAX];
+        snprintf(raw, sizeof raw, "%s", p);
+        size_t k = strlen(raw);
+        while (k > 1 && raw[k - 1] == '/') raw[--k] = '\0';
+        if (is_dir(raw) && k < n) {
+            memcpy(out, raw, k + 1);
+            return 1;
+        }
+        snprintf(err, en, "fmuResourceLocation '%s': the directory '%s' does not exist", uri, out);
+        return 0;
+    }
+    return 1;
+}
+
+/* ------------------------------------------------------------------------------------------ */
+/* Helpers                                                                                     */
+/* ------------------------------------------------------------------------------------------ */
+static const char *state_name(int s) {
+    switch (s) {
+    case ST_INSTANTIATED: return "Instantiated";
+    case ST_INIT: return "Initialization Mode";
+    case ST_STEP_COMPLETE: return "Step Mode";
+    case ST_TERMINATED: return "Terminated";
+    case ST_ERROR: return "Error (after an fmi2Error)";
+    case ST_FATAL: return "Fatal";
+    default: return "?";
+    }
+}
+
+static int allowed(hb_inst *I, int mask, const char *fn) {
+    if (I->state & mask) return 1;
+    LOG(I, fmi2Error, "%s: illegal call sequence, not allowed in state %s", fn,
+        state_name(I->state));
+    if (I->state != ST_FATAL) I->state = ST_ERROR;
+    return 0;
+}
+
+/* Status of a call: errors put the instance into the Error state, fatal into Fatal. */
+static fmi2Status settle(hb_inst *I, fmi2Status st) {
+    if (st == fmi2Fatal)
+        I->state = ST_FATAL;
+    else if (st == fmi2Error)
+        I->state = ST_ERROR;
+    return st;
+}
+
+static const hb_var *find_var(int type, fmi2ValueReference vr) {
+    size_t lo = 0, hi = HB_NVARS;
+    while (lo < hi) {   /* HB_VARS is sorted by (type, vr) */
+        size_t mid = (lo + hi) / 2;
+        const hb_var *v = &HB_VARS[mid];
+        if (v->type < type || (v->type == type && v->vr < vr))
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    if (lo < HB_NVARS && HB_VARS[lo].type == type && HB_VARS[lo].vr == vr) return &HB_VARS[lo];
+    return NULL;
+}
+
+static const char *var_name_any_type(fmi2ValueReference vr, int *type) {
+    for (size_t i = 0; i < HB_NVARS; i++)
+        if (HB_VARS[i].vr == vr) {
+            *type = HB_VARS[i].type;
+            return HB_VARS[i].name;
+        }
+    return NULL;
+}
+
+static int check_vrs(hb_inst *I, const char *fn, int type, const fmi2ValueReference vr[], size_t nvr,
+                     const void *values, int setting) {
+    if (nvr == 0) return 1;
+    if (!vr || !values) {
+        LOG(I, fmi2Error, "%s: %s is NULL with nvr = %zu", fn, !vr ? "vr" : "value", nvr);
+        return 0;
+    }
+    for (size_t i = 0; i < nvr; i++) {
+        const hb_var *v = find_var(type, vr[i]);
+        if (!v) {
+            int other = -1;
+            const char *name = var_name_any_type(vr[i], &other);
+            if (name)
+                LOG(I, fmi2Error, "%s: value reference %u is %s, a %s variable, not a %s", fn,
+                    vr[i], name, TYPE_NAMES[other], TYPE_NAMES[type]);
+            else
+                LOG(I, fmi2Error, "%s: unknown value reference %u (no %s variable has it)", fn,
+                    vr[i], TYPE_NAMES[type]);
+            return 0;
+        }
+        if (setting && !(v->set_mask & I->state)) {
+            LOG(I, fmi2Error, "%s: %s (value reference %u; %s) cannot be set in state %s", fn,
+                v->name, vr[i], v->kind, state_name(I->state));
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* The status the slave says its last call should have had (variable HB_STATUS_VR). */
+static fmi2Status slave_status(hb_inst *I, fmi2Status st) {
+#if HB_HAS_STATUS_VR
+    if (st >= fmi2Error) return st;
+    fmi2ValueReference vr = HB_STATUS_VR;
+    fmi2Integer v = 0;
+    fmi2Status gs = W.GetInteger(I->w, &vr, 1, &v);
+    if (gs >= fmi2Error) return gs;
+    if (v < fmi2OK || v > fmi2Fatal) {
+        LOG(I, fmi2Error, "the slave reported the invalid status %d", v);
+        return fmi2Error;
+    }
+    if ((fmi2Status)v > st) st = (fmi2Status)v;
+#else
+    (void)I;
+#endif
+    return st;
+}
+
+/* After a hot-path call (fmi2DoStep, fmi2Set*): the slave's status is read only when the call
+ * was not clean (pythonfmu returned non-OK, or the slave logged a warning or worse): the slave
+ * logs whenever it reports a status other than OK. */
+static fmi2Status hot_status(hb_inst *I, fmi2Status st) {
+    if (st == fmi2OK && I->call_max == fmi2OK) return fmi2OK;
+    return slave_status(I, st);
+}
+
+#define BEGIN(fn, mask)                           \
+    hb_inst *I = (hb_inst *)c;                    \
+    if (!I) return fmi2Error;                     \
+    if (!allowed(I, (mask), fn)) return fmi2Error; \
+    I->call_max = fmi2OK
+
+/* ------------------------------------------------------------------------------------------ */
+/* FMI 2.0 functions                                                                           */
+/* ------------------------------------------------------------------------------------------ */
+EXPORT const char *fmi2GetTypesPlatform(void) { return "default"; }
+EXPORT const char *fmi2GetVersion(void) { return "2.0"; }
+
+static void free_inst(hb_inst *I) {
+    if (!I) return;
+    for (size_t i = 0; i < I->ncat; i++) free(I->cats[i]);
+    free(I->cats);
+    free(I->name);
+    free(I);
+}
+
+EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
+                                     fmi2String fmuResourceLocation,
+                                     const fmi2CallbackFunctions *functions, fmi2Boolean visible,
+                                     fmi2Boolean loggingOn) {
+    if (!functions || !functions->logger) return NULL;
+    const char *name = instanceName ? instanceName : "?";
+    if (!instanceName || !*instanceName) {
+        log_to(functions, name, fmi2Error, "fmi2Instantiate: instanceName must be a non-empty string");
+        return NULL;
+    }
+    if (fmuType != fmi2CoSimulation) {
+        log_to(functions, name, fmi2Error,
+               "fmi2Instantiate: %s supports only fmi2CoSimulation (fmuType = %d requested)",
+               HB_MODEL_IDENTIFIER, (int)fmuType);
+        return NULL;
+    }
+    if (!fmuGUID || strcmp(fmuGUID, HB_GUID) != 0) {
+        log_to(functions, name, fmi2Error,
+               "fmi2Instantiate: GUID '%s' does not match this FMU's GUID '%s' (the model "
+               "description and the binary come from different builds)",
+               fmuGUID ? fmuGUID : "(null)", HB_GUID);
+        return NULL;
+    }
+    if (!fmuResourceLocation) {
+        log_to(functions, name, fmi2Error, "fmi2Instantiate: fmuResourceLocation is NULL");
+        return NULL;
+    }
+    char path[PATH_MAX], err[4096];
+    if (!uri_to_path(fmuResourceLocation, path, sizeof path, err, sizeof err)) {
+        log_to(functions, name, fmi2Error, "fmi2Instantiate: %s", err);
+        return NULL;
+    }
+    pthread_mutex_lock(&g_lock);
+    int ok = ensure_python(err, sizeof err) && load_wrapper(err, sizeof err);
+    pthread_mutex_unlock(&g_lock);
+    if (!ok) {
+        log_to(functions, name, fmi2Error, "fmi2Instantiate: %s", err);
+        return NULL;
+    }
+    hb_inst *I = calloc(1, sizeof *I);
+    if (!I || !(I->name = strdup(instanceName))) {
+        free(I);
+        log_to(functions, name, fmi2Error, "fmi2Instantiate: out of memory");
+        return NULL;
+    }
+    I->user = *functions;
+    I->inner.logger = inner_logger;
+    I->inner.allocateMemory = calloc;
+    I->inner.freeMemory = free;
+    I->inner.stepFinished = NULL;
+    I->inner.componentEnvironment = I;
+    I->logging_on = loggingOn != fmi2False;
+    I->state = ST_INSTANTIATED;
+    char uri[PATH_MAX + 16];
+    snprintf(uri, sizeof uri, "file://%s", path);   /* what pythonfmu strips: plain path */
+    I->w = W.Instantiate(instanceName, fmi2CoSimulation, fmuGUID, uri, &I->inner, visible, fmi2True);
+    if (!I->w) {
+        LOG(I, fmi2Error, "fmi2Instantiate: the Python slave could not be created (see the "
+                          "messages above)");
+        free_inst(I);
+        return NULL;
+    }
+    return I;
+}
+
+EXPORT void fmi2FreeInstance(fmi2Component c) {
+    hb_inst *I = (hb_inst *)c;
+    if (!I) return;
+    /* after fmi2Fatal pythonfmu has already released the Python objects of the instance:
+     * freeing it again would release them twice */
+    if (I->state != ST_FATAL && I->w) W.FreeInstance(I->w);
+    free_inst(I);
+}
+
+EXPORT fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nCategories,
+                                      const fmi2String categories[]) {
+    BEGIN("fmi2SetDebugLogging", M_ANY_LIVE);
+    if (nCategories > 0 && !categories) {
+        LOG(I, fmi2Error, "fmi2SetDebugLogging: categories is NULL with nCategories = %zu",
+            nCategories);
+        return settle(I, fmi2Error);
+    }
+    for (size_t i = 0; i < nCategories; i++) {
+        int known = 0;
+        for (size_t k = 0; k < HB_NCATEGORIES; k++)
+            if (categories[i] && strcmp(categories[i], HB_CATEGORIES[k]) == 0) known = 1;
+        if (!known) {
+            LOG(I, fmi2Error, "fmi2SetDebugLogging: unknown log category '%s'",
+                categories[i] ? categories[i] : "(null)");
+            return settle(I, fmi2Error);
+        }
+    }
+    char **cats = nCategories ? calloc(nCategories, sizeof *cats) : NULL;
+    if (nCategories && !cats) return settle(I, fmi2Error);
+    for (size_t i = 0; i < nCategories; i++) cats[i] = strdup(categories[i]);
+    for (size_t i = 0; i < I->ncat; i++) free(I->cats[i]);
+    free(I->cats);
+    I->cats = cats;
+    I->ncat = nCategories;
+    I->logging_on = loggingOn != fmi2False;
+    return fmi2OK;
+}
+
+EXPORT fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined,
+                                      fmi2Real tolerance, fmi2Real startTime,
+                                      fmi2Boolean stopTimeDefined, fmi2Real stopTime) {
+    BEGIN("fmi2SetupExperiment", ST_INSTANTIATED);
+    if (!isfinite(startTime)) {
+        LOG(I, fmi2Error, "fmi2SetupExperiment: startTime = %g is not finite", startTime);
+        return settle(I, fmi2Error);
+    }
+    fmi2Status st = W.SetupExperiment(I->w, toleranceDefined, tolerance, startTime, stopTimeDefined,
+                                      stopTime);
+    st = slave_status(I, st);
+    if (st <= fmi2Warning) I->time = I->last_successful = startTime;
+    return settle(I, st);
+}
+
+EXPORT fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
+    BEGIN("fmi2EnterInitializationMode", ST_INSTANTIATED);
+    fmi2Status st = W.EnterInitializationMode(I->w);
+    if (st <= fmi2Warning) I->state = ST_INIT;
+    return settle(I, st);
+}
+
+EXPORT fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
+    BEGIN("fmi2ExitInitializationMode", ST_INIT);
+    fmi2Status st = slave_status(I, W.ExitInitializationMode(I->w));
+    if (st == fmi2Discard) {
+        LOG(I, fmi2Error, "fmi2ExitInitializationMode: the slave discarded the initialisation");
+        st = fmi2Error;
+    }
+    if (st <= fmi2Warning) I->state = ST_STEP_COMPLETE;
+    return settle(I, st);
+}
+
+EXPORT fmi2Status fmi2Terminate(fmi2Component c) {
+    BEGIN("fmi2Terminate", ST_STEP_COMPLETE);
+    fmi2Status st = W.Terminate(I->w);
+    if (st <= fmi2Warning) I->state = ST_TERMINATED;
+    return settle(I, st);
+}
+
+EXPORT fmi2Status fmi2Reset(fmi2Component c) {
+    BEGIN("fmi2Reset", M_ANY_LIVE);
+    fmi2Status st = W.Reset(I->w);
+    if (st <= fmi2Warning) {
+        I->state = ST_INSTANTIATED;
+        I->time = I->last_successful = 0.0;
+    }
+    return settle(I, st);
+}
+
+#define GETTER(T, CT, TYPE)                                                                     \
+    EXPORT fmi2Status fmi2Get##T(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,    \
+                                 CT value[]) {                                                  \
+        BEGIN("fmi2Get" #T, M_GET);                                                             \
+        if (nvr == 0) return fmi2OK;                                                            \
+        if (!check_vrs(I, "fmi2Get" #T, TYPE, vr, nvr, value, 0)) return settle(I, fmi2Error);  \
+        return settle(I, W.Get##T(I->w, vr, nvr, value));                                       \
+    }
+GETTER(Real, fmi2Real, HB_REAL)
+GETTER(Integer, fmi2Integer, HB_INTEGER)
+GETTER(Boolean, fmi2Boolean, HB_BOOLEAN)
+GETTER(String, fmi2String, HB_STRING)
+
+#define SETTER(T, CT, TYPE)                                                                     \
+    EXPORT fmi2Status fmi2Set##T(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,    \
+                                 const CT value[]) {                                            \
+        BEGIN("fmi2Set" #T, M_SET);                                                             \
+        if (nvr == 0) return fmi2OK;                                                            \
+        if (!check_vrs(I, "fmi2Set" #T, TYPE, vr, nvr, value, 1)) return settle(I, fmi2Error);  \
+        return settle(I, hot_status(I, W.Set##T(I->w, vr, nvr, value)));                        \
+    }
+SETTER(Real, fmi2Real, HB_REAL)
+SETTER(Integer, fmi2Integer, HB_INTEGER)
+SETTER(Boolean, fmi2Boolean, HB_BOOLEAN)
+SETTER(String, fmi2String, HB_STRING)
+
+EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
+                             fmi2Real communicationStepSize,
+                             fmi2Boolean noSetFMUStatePriorToCurrentPoint) {
+    BEGIN("fmi2DoStep", ST_STEP_COMPLETE);
+    fmi2Status st = hot_status(I, W.DoStep(I->w, currentCommunicationPoint, communicationStepSize,
+                                           noSetFMUStatePriorToCurrentPoint));
+    if (st <= fmi2Warning) {
+        I->time = currentCommunicationPoint + communicationStepSize;
+        I->last_successful = I->time;
+    } else if (st == fmi2Discard) {
+        I->last_successful = I->time;   /* the slave refuses a step as a whole */
+    }
+    return settle(I, st);
+}
+
+EXPORT fmi2Status fmi2CancelStep(fmi2Component c) {
+    BEGIN("fmi2CancelStep", 0);   /* fmi2DoStep never returns fmi2Pending */
+    return fmi2Error;
+}
+
+/* -- FMU state -------------------------------------------------------------------------------- */
+EXPORT fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
+    BEGIN("fmi2GetFMUstate", M_ANY_LIVE);
+    if (!FMUstate) {
+        LOG(I, fmi2Error, "fmi2GetFMUstate: FMUstate is NULL");
+        return settle(I, fmi2Error);
+    }
+    hb_fmustate *s = (hb_fmustate *)*FMUstate;
+    if (s && s->magic != HB_STATE_MAGIC) {
+        LOG(I, fmi2Error, "fmi2GetFMUstate: *FMUstate is not a state of this FMU (pass NULL for a "
+                          "new one)");
+        return settle(I, fmi2Error);
+    }
+    int fresh = s == NULL;
+    if (fresh && !(s = calloc(1, sizeof *s))) return settle(I, fmi2Error);
+    fmi2Status st = W.GetFMUstate(I->w, &s->inner);
+    if (st > fmi2Warning) {
+        if (fresh) free(s);
+        return settle(I, st);
+    }
+    s->magic = HB_STATE_MAGIC;
+    s->state = I->state;
+    s->time = I->time;
+    s->last_successful = I->last_successful;
+    *FMUstate = s;
+    return st;
+}
+
+static int check_state(hb_inst *I, const char *fn, fmi2FMUstate FMUstate) {
+    const hb_fmustate *s = (const hb_fmustate *)FMUstate;
+    if (!s || s->magic != HB_STATE_MAGIC || !s->inner) {
+        LOG(I, fmi2Error, "%s: not an FMU state of this FMU%s", fn, s ? "" : " (NULL)");
+        return 0;
+    }
+    return 1;
+}
+
+EXPORT fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) {
+    BEGIN("fmi2SetFMUstate", M_ANY_LIVE);
+    if (!check_state(I, "fmi2SetFMUstate", FMUstate)) return settle(I, fmi2Error);
+    hb_fmustate *s = (hb_fmustate *)FMUstate;
+    fmi2Status st = slave_status(I, W.SetFMUstate(I->w, s->inner));
+    if (st <= fmi2Warning) {
+        I->state = s->state;
+        I->time = s->time;
+        I->last_successful = s->last_successful;
+    }
+    return settle(I, st);
+}
+
+EXPORT fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
+    BEGIN("fmi2FreeFMUstate", M_ANY_LIVE);
+    if (!FMUstate || !*FMUstate) return fmi2OK;
+    if (!check_state(I, "fmi2FreeFMUstate", *FMUstate)) return settle(I, fmi2Error);
+    hb_fmustate *s = (hb_fmustate *)*FMUstate;
+    fmi2Status st = W.FreeFMUstate(I->w, &s->inner);
+    s->magic = 0;
+    free(s);
+    *FMUstate = NULL;
+    return settle(I, st);
+}
+
+EXPORT fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size) {
+    BEGIN("fmi2SerializedFMUstateSize", M_ANY_LIVE);
+    if (!size || !check_state(I, "fmi2SerializedFMUstateSize", FMUstate)) {
+        if (!size) LOG(I, fmi2Error, "fmi2SerializedFMUstateSize: size is NULL");
+        return settle(I, fmi2Error);
+    }
+    size_t inner = 0;
+    fmi2Status st = W.SerializedFMUstateSize(I->w, ((hb_fmustate *)FMUstate)->inner, &inner);
+    if (st > fmi2Warning) return settle(I, st);
+    *size = sizeof(hb_serial_header) + inner;
+    return st;
+}
+
+EXPORT fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate,
+                                        fmi2Byte serializedState[], size_t size) {
+    BEGIN("fmi2SerializeFMUstate", M_ANY_LIVE);
+    if (!check_state(I, "fmi2SerializeFMUstate", FMUstate)) return settle(I, fmi2Error);
+    hb_fmustate *s = (hb_fmustate *)FMUstate;
+    size_t inner = 0;
+    fmi2Status st = W.SerializedFMUstateSize(I->w, s->inner, &inner);
+    if (st > fmi2Warning) return settle(I, st);
+    if (!serializedState || size != sizeof(hb_serial_header) + inner) {
+        LOG(I, fmi2Error, "fmi2SerializeFMUstate: size = %zu, but the state needs %zu bytes", size,
+            sizeof(hb_serial_header) + inner);
+        return settle(I, fmi2Error);
+    }
+    hb_serial_header h;
+    memset(&h, 0, sizeof h);
+    memcpy(h.magic, "HBFMU01", 8);
+    snprintf(h.guid, sizeof h.guid, "%s", HB_GUID);
+    h.state = s->state;
+    h.time = s->time;
+    h.last_successful = s->last_successful;
+    memcpy(serializedState, &h, sizeof h);
+    return settle(I, W.SerializeFMUstate(I->w, s->inner, serializedState + sizeof h, inner));
+}
+
+EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[],
+                                          size_t size, fmi2FMUstate *FMUstate) {
+    BEGIN("fmi2DeSerializeFMUstate", M_ANY_LIVE);
+    hb_serial_header h;
+    if (!FMUstate || !serializedState || size < sizeof h) {
+        LOG(I, fmi2Error, "fmi2DeSerializeFMUstate: %s", !FMUstate ? "FMUstate is NULL"
+                                                         : !serializedState ? "serializedState is NULL"
+                                                                            : "too few bytes for a state of this FMU");
+        return settle(I, fmi2Error);
+    }
+    memcpy(&h, serializedState, sizeof h);
+    char guid[sizeof h.guid + 1];
+    memcpy(guid, h.guid, sizeof h.guid);
+    guid[sizeof h.guid] = '\0';
+    if (memcmp(h.magic, "HBFMU01", 8) != 0 || strcmp(guid, HB_GUID) != 0 ||
+        !(h.state & M_ANY_LIVE) || (h.state & (h.state - 1))) {
+        LOG(I, fmi2Error, "fmi2DeSerializeFMUstate: the bytes are not a serialized state of this "
+                          "FMU (GUID %s)", HB_GUID);
+        return settle(I, fmi2Error);
+    }
+    hb_fmustate *s = (hb_fmustate *)*FMUstate;
+    if (s && s->magic != HB_STATE_MAGIC) {
+        LOG(I, fmi2Error, "fmi2DeSerializeFMUstate: *FMUstate is not a state of this FMU");
+        return settle(I, fmi2Error);
+    }
+    int fresh = s == NULL;
+    if (fresh && !(s = calloc(1, sizeof *s))) return settle(I, fmi2Error);
+    fmi2Status st = slave_status(
+        I, W.DeSerializeFMUstate(I->w, serializedState + sizeof h, size - sizeof h, &s->inner));
+    if (st > fmi2Warning) {
+        if (fresh) free(s);
+        return settle(I, st);
+    }
+    s->magic = HB_STATE_MAGIC;
+    s->state = h.state;
+    s->time = h.time;
+    s->last_successful = h.last_successful;
+    *FMUstate = s;
+    return st;
+}
+
+/* -- not supported (capability flags false) ------------------------------------------------- */
+EXPORT fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference u[],
+                                               size_t nu, const fmi2ValueReference z[], size_t nz,
+                                               const fmi2Real dv[], fmi2Real dz[]) {
+    (void)u, (void)nu, (void)z, (void)nz, (void)dv, (void)dz;
+    BEGIN("fmi2GetDirectionalDerivative", M_GET);
+    LOG(I, fmi2Error, "fmi2GetDirectionalDerivative is not supported "
+                      "(providesDirectionalDerivative = false)");
+    return settle(I, fmi2Error);
+}
+
+EXPORT fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[],
+                                              size_t nvr, const fmi2Integer order[],
+                                              const fmi2Real value[]) {
+    (void)vr, (void)nvr, (void)order, (void)value;
+    BEGIN("fmi2SetRealInputDerivatives", M_SET);
+    LOG(I, fmi2Error, "fmi2SetRealInputDerivatives is not supported (canInterpolateInputs = false)");
+    return settle(I, fmi2Error);
+}
+
+EXPORT fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[],
+                                               size_t nvr, const fmi2Integer order[],
+                                               fmi2Real value[]) {
+    (void)vr, (void)nvr, (void)order, (void)value;
+    BEGIN("fmi2GetRealOutputDerivatives", ST_STEP_COMPLETE | ST_TERMINATED | ST_ERROR);
+    LOG(I, fmi2Error, "fmi2GetRealOutputDerivatives is not supported "
+                      "(maxOutputDerivativeOrder = 0)");
+    return settle(I, fmi2Error);
+}
+
+/* -- status inquiries ------------------------------------------------------------------------- */
+static fmi2Status bad_kind(hb_inst *I, const char *fn, fmi2StatusKind s) {
+    LOG(I, fmi2Discard, "%s: status kind %d is not provided (fmi2DoStep never returns fmi2Pending)",
+        fn, (int)s);
+    return fmi2Discard;
+}
+
+EXPORT fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *value) {
+    (void)value;
+    BEGIN("fmi2GetStatus", M_STATUS);
+    return bad_kind(I, "fmi2GetStatus", s);
+}
+
+EXPORT fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value) {
+    BEGIN("fmi2GetRealStatus", M_STATUS);
+    if (s != fmi2LastSuccessfulTime) return bad_kind(I, "fmi2GetRealStatus", s);
+    if (!value) {
+        LOG(I, fmi2Error, "fmi2GetRealStatus: value is NULL");
+        return settle(I, fmi2Error);
+    }
+    *value = I->last_successful;
+    return fmi2OK;
+}
+
+EXPORT fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Integer *value) {
+    (void)value;
+    BEGIN("fmi2GetIntegerStatus", M_STATUS);
+    return bad_kind(I, "fmi2GetIntegerStatus", s);
+}
+
+EXPORT fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value) {
+    BEGIN("fmi2GetBooleanStatus", M_STATUS);
+    if (s != fmi2Terminated) return bad_kind(I, "fmi2GetBooleanStatus", s);
+    if (!value) {
+        LOG(I, fmi2Error, "fmi2GetBooleanStatus: value is NULL");
+        return settle(I, fmi2Error);
+    }
+    *value = I->state == ST_TERMINATED ? fmi2True : fmi2False;
+    return fmi2OK;
+}
+
+EXPORT fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2String *value) {
+    (void)value;
+    BEGIN("fmi2GetStringStatus", M_STATUS);
+    return bad_kind(I, "fmi2GetStringStatus", s);
+}
