@@ -304,6 +304,27 @@ def test_python_host_with_front_matches_and_exits_0(front_dir, oracle_10s):
     assert float(proc.stdout.split()[-1]) == pytest.approx(oracle_10s, rel=0, abs=1e-12)
 
 
+def test_python_host_without_numba_logs_the_reason(front_dir):
+    script = textwrap.dedent(f"""
+        import sys
+        sys.modules["numba"] = None
+        sys.path.insert(0, {str(HERE)!r})
+        from pathlib import Path
+        from test_fmu_native import Slave
+        s = Slave.__new__(Slave)
+        try:
+            Slave.__init__(s, Path({str(front_dir)!r}), init=False)
+        except Exception as e:
+            print("refused:", e)
+        print("\\n".join(m for _, m in s.messages))
+    """)
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "refused: Failed to instantiate model" in proc.stdout
+    assert "cannot import what the FMU needs: numba" in proc.stdout
+    assert "install them into the Python that runs this host" in proc.stdout
+
+
 def test_wrong_guid_and_model_exchange_are_refused_with_logging_off(front_dir):
     s = Slave(front_dir, init=False)
     uri = (front_dir / "resources").as_uri()
@@ -348,6 +369,15 @@ def test_terminated_status_and_calls_after_terminate(front_dir):
     assert s.status_of(s.fmu.doStep, s.t, 1e-3) == FMI_ERROR
     assert any("fmi2DoStep: illegal call sequence" in m for m in s.errors())
     assert s.fmu.getReal([s.vr["bit_position"]])[0] >= 0.0     # outputs stay readable
+    # fmi2Reset leaves the Error state: a new run from Instantiated
+    s.fmu.reset()
+    s.fmu.setupExperiment(startTime=0.0)
+    s.fmu.enterInitializationMode()
+    s.fmu.exitInitializationMode()
+    s.t = 0.0
+    s.step()
+    assert s.fmu.getBooleanStatus(fmi2Terminated) is False
+    s.fmu.terminate()
     s.fmu.freeInstance()
 
 

@@ -159,7 +159,7 @@ def generate_header(spec: FrontSpec, *, wrapper_file: str, python_modules=PYTHON
         f"#define HB_HAS_STATUS_VR {0 if spec.status_vr is None else 1}",
         f"#define HB_STATUS_VR {0 if spec.status_vr is None else spec.status_vr}u",
         f"#define HB_PYTHON_MODULES {_c_string(' '.join(python_modules))}",
-        "#define HB_PYTHON_MODULES_ARGV " + ", ".join(_c_string(m) for m in python_modules),
+        "#define HB_PYTHON_MODULES_ARGV " + "".join(_c_string(m) + ", " for m in python_modules),
         f"#define HB_NVARS {len(order)}u",
         f"static const hb_var HB_VARS[{max(len(order), 1)}] = {{",
         *(rows or ["    {0, 0u, 0, \"\", \"\"},"]),

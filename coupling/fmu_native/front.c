@@ -395,7 +395,7 @@ static int query_python(const char *python, const char *how, py_query *q, char *
     posix_spawn_file_actions_adddup2(&fa, fds[1], 2);
     posix_spawn_file_actions_addclose(&fa, fds[1]);
     posix_spawn_file_actions_addopen(&fa, 0, "/dev/null", O_RDONLY, 0);
-    char *argv[] = {(char *)python, "-c", (char *)QUERY_CODE, HB_PYTHON_MODULES_ARGV, NULL};
+    char *argv[] = {(char *)python, "-c", (char *)QUERY_CODE, HB_PYTHON_MODULES_ARGV NULL};
     pid_t pid;
     int rc = strchr(python, '/') ? posix_spawn(&pid, python, &fa, NULL, argv, environ)
                                  : posix_spawnp(&pid, python, &fa, NULL, argv, environ);
