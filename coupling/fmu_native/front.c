@@ -289,10 +289,12 @@ static const char SETUP_CODE[] =
     "except BaseException as e:\n"
     "    result = 'setting up sys.path failed: %r' % (e,)\n";
 
+/* At exit of a native host: only the output buffers.  Python's atexit hooks and finalizers are
+ * not run: shared libraries loaded after this front (LLVM of numba, ...) have already run their
+ * static destructors by then, and some finalizers would call into them. */
 static const char EXIT_CODE[] =
     "try:\n"
-    "    import atexit, sys\n"
-    "    atexit._run_exitfuncs()\n"
+    "    import sys\n"
     "    for s in (sys.stdout, sys.stderr):\n"
     "        try:\n"
     "            s.flush()\n"
