@@ -511,7 +511,9 @@ static int ensure_python(char *err, size_t n) {
         if (!bind_python(RTLD_DEFAULT, err, n)) return 0;
         if (!check_modules(err, n)) {
             char tmp[3000];
-            snprintf(tmp, sizeof tmp, "%s; install them into the Python that runs this host", err);
+            snprintf(tmp, sizeof tmp, "%s; install them into %s", err,
+                     g_we_initialized ? "the Python found for this FMU"
+                                      : "the Python that runs this host");
             snprintf(err, n, "%s", tmp);
             return 0;
         }
