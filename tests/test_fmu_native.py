@@ -502,10 +502,25 @@ def test_stub_discard_and_error_from_do_step(stub_dir):
     s.fmu.setReal([s.vr["x"]], [2.0])                 # after a Discard the master may go on
     s.step(0.5)
     assert s.fmu.getReal([s.vr["y"]]) == [0.5 + 1.0]
+    assert s.fmu.getInteger([s.vr["last_status"]]) == [FMI_OK]
     s.fmu.setReal([s.vr["x"]], [1e7])
     assert s.status_of(s.fmu.doStep, s.t, 0.5) == FMI_ERROR
+    assert s.fmu.getInteger([s.vr["last_status"]]) == [FMI_ERROR]
     assert s.status_of(s.fmu.terminate) == FMI_ERROR                # Error state
     assert s.fmu.getReal([s.vr["y"]]) == [1.5]                       # still readable
+
+
+def test_stub_last_status_reports_errors_found_by_the_front(stub_dir):
+    s = _stub(stub_dir)
+    s.fmu.exitInitializationMode()
+    s.step(0.5)
+    assert s.fmu.getInteger([s.vr["last_status"]]) == [FMI_OK]
+    assert s.status_of(s.fmu.getReal, [999]) == FMI_ERROR          # refused before the slave
+    assert s.fmu.getInteger([s.vr["last_status"], s.vr["fail_init"]]) == [FMI_ERROR, 0]
+    s.fmu.reset()                                                    # a new run starts clean
+    s.fmu.setupExperiment(startTime=0.0)
+    s.fmu.enterInitializationMode()
+    assert s.fmu.getInteger([s.vr["last_status"]]) == [FMI_OK]
 
 
 # ---------------------------------------------------------------------------

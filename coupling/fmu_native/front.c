@@ -86,6 +86,7 @@ typedef struct {
     size_t ncat;
     char **cats;
     fmi2Status call_max;           /* highest status pythonfmu logged during the current call */
+    fmi2Status last_status;        /* what fmi2GetInteger reports for HB_STATUS_VR (see record) */
     double time;                   /* current communication point [s] */
     double last_successful;        /* fmi2LastSuccessfulTime [s] */
 } hb_inst;
@@ -797,16 +798,26 @@ static int allowed(hb_inst *I, int mask, const char *fn) {
     LOG(I, fmi2Error, "%s: illegal call sequence, not allowed in state %s", fn,
         state_name(I->state));
     if (I->state != ST_FATAL) I->state = ST_ERROR;
+    I->last_status = fmi2Error;
     return 0;
 }
 
-/* Status of a call: errors put the instance into the Error state, fatal into Fatal. */
+/* Status of a call: errors put the instance into the Error state, fatal into Fatal.  An error of
+ * any call, found here or by the slave, is also what the host then reads from last_status. */
 static fmi2Status settle(hb_inst *I, fmi2Status st) {
+    if (st >= fmi2Error) I->last_status = st;
     if (st == fmi2Fatal)
         I->state = ST_FATAL;
     else if (st == fmi2Error)
         I->state = ST_ERROR;
     return st;
+}
+
+/* The calls whose status the slave records (exit of initialisation, steps, setters, state
+ * restore, setup): last_status becomes their status, whatever it is. */
+static fmi2Status record(hb_inst *I, fmi2Status st) {
+    I->last_status = st;
+    return settle(I, st);
 }
 
 static const hb_var *find_var(int type, fmi2ValueReference vr) {
@@ -1023,7 +1034,7 @@ EXPORT fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefi
                                       stopTime);
     st = slave_status(I, st);
     if (st <= fmi2Warning) I->time = I->last_successful = startTime;
-    return settle(I, st);
+    return record(I, st);
 }
 
 EXPORT fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
@@ -1041,7 +1052,7 @@ EXPORT fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
         st = fmi2Error;
     }
     if (st <= fmi2Warning) I->state = ST_STEP_COMPLETE;
-    return settle(I, st);
+    return record(I, st);
 }
 
 EXPORT fmi2Status fmi2Terminate(fmi2Component c) {
@@ -1057,6 +1068,7 @@ EXPORT fmi2Status fmi2Reset(fmi2Component c) {
     if (st <= fmi2Warning) {
         I->state = ST_INSTANTIATED;
         I->time = I->last_successful = 0.0;
+        I->last_status = fmi2OK;
     }
     return settle(I, st);
 }
@@ -1070,7 +1082,21 @@ EXPORT fmi2Status fmi2Reset(fmi2Component c) {
         return settle(I, W.Get##T(I->w, vr, nvr, value));                                       \
     }
 GETTER(Real, fmi2Real, HB_REAL)
-GETTER(Integer, fmi2Integer, HB_INTEGER)
+/* fmi2GetInteger answers last_status itself: the status of the last call as the host saw it,
+ * also when the front refused that call before it reached the slave */
+EXPORT fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                                 fmi2Integer value[]) {
+    BEGIN("fmi2GetInteger", M_GET);
+    if (nvr == 0) return fmi2OK;
+    if (!check_vrs(I, "fmi2GetInteger", HB_INTEGER, vr, nvr, value, 0)) return settle(I, fmi2Error);
+    fmi2Status st = settle(I, W.GetInteger(I->w, vr, nvr, value));
+#if HB_HAS_STATUS_VR
+    if (st <= fmi2Warning)
+        for (size_t i = 0; i < nvr; i++)
+            if (vr[i] == HB_STATUS_VR) value[i] = (fmi2Integer)I->last_status;
+#endif
+    return st;
+}
 GETTER(Boolean, fmi2Boolean, HB_BOOLEAN)
 GETTER(String, fmi2String, HB_STRING)
 
@@ -1080,7 +1106,7 @@ GETTER(String, fmi2String, HB_STRING)
         BEGIN("fmi2Set" #T, M_SET);                                                             \
         if (nvr == 0) return fmi2OK;                                                            \
         if (!check_vrs(I, "fmi2Set" #T, TYPE, vr, nvr, value, 1)) return settle(I, fmi2Error);  \
-        return settle(I, hot_status(I, W.Set##T(I->w, vr, nvr, value)));                        \
+        return record(I, hot_status(I, W.Set##T(I->w, vr, nvr, value)));                        \
     }
 SETTER(Real, fmi2Real, HB_REAL)
 SETTER(Integer, fmi2Integer, HB_INTEGER)
@@ -1099,7 +1125,7 @@ EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint
     } else if (st == fmi2Discard) {
         I->last_successful = I->time;   /* the slave refuses a step as a whole */
     }
-    return settle(I, st);
+    return record(I, st);
 }
 
 EXPORT fmi2Status fmi2CancelStep(fmi2Component c) {
@@ -1154,7 +1180,7 @@ EXPORT fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) {
         I->time = s->time;
         I->last_successful = s->last_successful;
     }
-    return settle(I, st);
+    return record(I, st);
 }
 
 EXPORT fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
@@ -1235,6 +1261,7 @@ EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serial
     if (fresh && !(s = calloc(1, sizeof *s))) return settle(I, fmi2Error);
     fmi2Status st = slave_status(
         I, W.DeSerializeFMUstate(I->w, serializedState + sizeof h, size - sizeof h, &s->inner));
+    I->last_status = st;
     if (st > fmi2Warning) {
         if (fresh) free(s);
         return settle(I, st);
