@@ -321,7 +321,7 @@ def test_python_host_without_numba_logs_the_reason(front_dir):
     proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "refused: Failed to instantiate model" in proc.stdout
-    assert "cannot import what the FMU needs: numba" in proc.stdout
+    assert "lacks what the FMU needs: numba (not installed)" in proc.stdout
     assert "install them into the Python that runs this host" in proc.stdout
 
 

@@ -262,18 +262,21 @@ static int py_run(const char *code, const char *const *names, const char *const 
     return ok;
 }
 
+/* Found, not imported: the slave configures numba (its CPU target) before the first import. */
 static const char CHECK_CODE[] =
     "result = ''\n"
     "try:\n"
+    "    import importlib.util\n"
     "    bad = []\n"
     "    for m in modules.split():\n"
     "        try:\n"
-    "            __import__(m)\n"
+    "            if importlib.util.find_spec(m) is None:\n"
+    "                bad.append('%s (not installed)' % m)\n"
     "        except BaseException as e:\n"
     "            bad.append('%s (%s: %s)' % (m, type(e).__name__, e))\n"
     "    result = '; '.join(bad)\n"
     "except BaseException as e:\n"
-    "    result = 'the import check failed: %r' % (e,)\n";
+    "    result = 'the module check failed: %r' % (e,)\n";
 
 static const char SETUP_CODE[] =
     "result = ''\n"
@@ -498,7 +501,7 @@ static int check_modules(char *err, size_t n) {
         return 0;
     }
     if (bad[0]) {
-        snprintf(err, n, "the Python in this process cannot import what the FMU needs: %s", bad);
+        snprintf(err, n, "the Python in this process lacks what the FMU needs: %s", bad);
         return 0;
     }
     return 1;
