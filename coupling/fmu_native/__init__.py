@@ -7,8 +7,8 @@ directory for what the front does and why).
 
 The front is compiled per FMU: :func:`build_front` reads the model description
 (GUID, model identifier, variables, log categories, the value reference of the
-slave's ``last_status`` variable), writes the header ``hb_model.h`` and runs the
-system C compiler (``$CC``, else ``cc``, ``gcc`` or ``clang`` on PATH)::
+slave's ``last_status`` variable), writes the header ``hb_model.h`` for
+``front.c`` and runs the system C compiler (``$CC``, else ``cc``, ``gcc`` or ``clang`` on PATH)::
 
     from hammerbit.fmu_native import build_front
     so = build_front(Path("modelDescription.xml").read_text(), fmu_dir / "binaries" / "linux64",
@@ -26,11 +26,14 @@ from dataclasses import dataclass
 from pathlib import Path
 
 __all__ = ["FrontBuildError", "FrontSpec", "Variable", "STATUS_VARIABLE", "PYTHON_MODULES",
-           "SOURCE_DIR", "read_model_description", "generate_header", "find_compiler", "build_front"]
+           "SOURCE_DIR", "SOURCES", "read_model_description", "generate_header", "find_compiler",
+           "build_front"]
 
 #: directory of the C sources (package data)
 SOURCE_DIR = Path(__file__).resolve().parent
-FRONT_SOURCE = SOURCE_DIR / "front.c"
+#: the front's C sources (front.h says what each holds)
+SOURCES = tuple(SOURCE_DIR / f for f in ("front.c", "python_embed.c", "pythonfmu_wrapper.c",
+                                         "resource_uri.c"))
 
 #: name of the slave's Integer variable holding the FMI status its last call should have returned
 STATUS_VARIABLE = "last_status"
@@ -145,7 +148,7 @@ def _c_string(s: str) -> str:
 
 
 def generate_header(spec: FrontSpec, *, wrapper_file: str, python_modules=PYTHON_MODULES) -> str:
-    """Text of ``hb_model.h``: the model's tables for front.c."""
+    """Text of ``hb_model.h``: the model's tables for front.c (included there only)."""
     order = sorted(spec.variables, key=lambda v: (_TYPES.index(v.type), v.value_reference))
     types = {"Real": "HB_REAL", "Integer": "HB_INTEGER", "Boolean": "HB_BOOLEAN", "String": "HB_STRING"}
     rows = [f"    {{{types[v.type]}, {v.value_reference}u, {v.set_mask}, {_c_string(v.name)}, "
@@ -159,7 +162,6 @@ def generate_header(spec: FrontSpec, *, wrapper_file: str, python_modules=PYTHON
         f"#define HB_HAS_STATUS_VR {0 if spec.status_vr is None else 1}",
         f"#define HB_STATUS_VR {0 if spec.status_vr is None else spec.status_vr}u",
         f"#define HB_PYTHON_MODULES {_c_string(' '.join(python_modules))}",
-        "#define HB_PYTHON_MODULES_ARGV " + "".join(_c_string(m) + ", " for m in python_modules),
         f"#define HB_NVARS {len(order)}u",
         f"static const hb_var HB_VARS[{max(len(order), 1)}] = {{",
         *(rows or ["    {0, 0u, 0, \"\", \"\"},"]),
@@ -217,7 +219,7 @@ def build_front(model_description_xml, out_dir, *, model_identifier: str | None 
         target = Path(tmp) / out.name
         cmd = [compiler, "-std=gnu11", "-O2", "-fPIC", "-shared", "-fvisibility=hidden",
                "-Wall", "-Wextra", "-Wno-unused-parameter", "-I", tmp, "-I", str(SOURCE_DIR),
-               "-o", str(target), str(FRONT_SOURCE),
+               "-o", str(target), *(str(f) for f in SOURCES),
                "-Wl,-z,nodelete", "-Wl,-Bsymbolic", "-ldl", "-lpthread"]
         try:
             proc = subprocess.run(cmd, capture_output=True, text=True)

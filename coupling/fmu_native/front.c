@@ -16,29 +16,18 @@
  *   7. releases pythonfmu's interpreter guard at exit in the right order (see hb_at_exit).
  *
  * The model-specific tables come from hb_model.h, generated from modelDescription.xml by
- * hammerbit.fmu_native.build_front(). */
+ * hammerbit.fmu_native.build_front(); the other parts are listed in front.h. */
 #define _GNU_SOURCE
-#include <dlfcn.h>
-#include <errno.h>
-#include <fcntl.h>
 #include <limits.h>
 #include <math.h>
 #include <pthread.h>
-#include <signal.h>
-#include <spawn.h>
 #include <stdarg.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
-#include <sys/types.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
-#include "fmi2_abi.h"
-
-#define EXPORT __attribute__((visibility("default")))
+#include "front.h"
 
 /* ------------------------------------------------------------------------------------------ */
 /* Model tables                                                                                */
@@ -66,6 +55,8 @@ typedef struct {
 #include "hb_model.h"
 
 static const char *const TYPE_NAMES[] = {"Real", "Integer", "Boolean", "String"};
+
+static pthread_mutex_t g_lock = PTHREAD_MUTEX_INITIALIZER;   /* Python start, wrapper load */
 
 /* allowed states per function (FMI 2.0.4, section 4.2.4; Error: only inquiries and recovery) */
 #define M_ANY_LIVE (ST_INSTANTIATED | ST_INIT | ST_STEP_COMPLETE | ST_TERMINATED | ST_ERROR)
@@ -173,615 +164,6 @@ static void inner_logger(fmi2ComponentEnvironment env, fmi2String name, fmi2Stat
 }
 
 /* ------------------------------------------------------------------------------------------ */
-/* Python: the few C-API functions the front needs, bound at run time                          */
-/* ------------------------------------------------------------------------------------------ */
-typedef struct {
-    int (*IsInitialized)(void);
-    void (*InitializeEx)(int);
-    void *(*EvalSaveThread)(void);
-    int (*GILEnsure)(void);
-    void (*GILRelease)(int);
-    void *(*DictNew)(void);
-    int (*DictSetItemString)(void *, const char *, void *);
-    void *(*DictGetItemString)(void *, const char *);
-    void *(*UnicodeFromString)(const char *);
-    const char *(*UnicodeAsUTF8)(void *);
-    void *(*RunStringFlags)(const char *, int, void *, void *, void *);
-    void (*DecRef)(void *);
-    void (*ErrClear)(void);
-    int *UTF8Mode;
-} py_api;
-
-#define PY_FILE_INPUT 257
-
-static pthread_mutex_t g_lock = PTHREAD_MUTEX_INITIALIZER;
-static py_api g_py;
-static int g_python_ready;      /* Python is in the process and imports numpy and numba */
-static int g_we_initialized;    /* this front initialised the interpreter */
-static int g_exit_registered;
-
-static int bind_python(void *h, char *err, size_t n) {
-#define BIND(field, sym)                                                             \
-    do {                                                                             \
-        *(void **)(&g_py.field) = dlsym(h, sym);                                     \
-        if (!g_py.field) {                                                           \
-            snprintf(err, n, "the Python library lacks the function %s", sym);     \
-            return 0;                                                                \
-        }                                                                            \
-    } while (0)
-    BIND(IsInitialized, "Py_IsInitialized");
-    BIND(InitializeEx, "Py_InitializeEx");
-    BIND(EvalSaveThread, "PyEval_SaveThread");
-    BIND(GILEnsure, "PyGILState_Ensure");
-    BIND(GILRelease, "PyGILState_Release");
-    BIND(DictNew, "PyDict_New");
-    BIND(DictSetItemString, "PyDict_SetItemString");
-    BIND(DictGetItemString, "PyDict_GetItemString");
-    BIND(UnicodeFromString, "PyUnicode_FromString");
-    BIND(UnicodeAsUTF8, "PyUnicode_AsUTF8");
-    BIND(RunStringFlags, "PyRun_StringFlags");
-    BIND(DecRef, "Py_DecRef");
-    BIND(ErrClear, "PyErr_Clear");
-#undef BIND
-    g_py.UTF8Mode = (int *)dlsym(h, "Py_UTF8Mode");
-    return 1;
-}
-
-/* Run `code` (with the GIL held) in a fresh namespace holding the string items `names`;
- * copy the string `result` it leaves behind into out (empty if none). 0 if it raised. */
-static int py_run(const char *code, const char *const *names, const char *const *values, char *out,
-                  size_t n) {
-    if (out && n) out[0] = '\0';
-    void *d = g_py.DictNew();
-    if (!d) return 0;
-    for (int i = 0; names && names[i]; i++) {
-        void *s = g_py.UnicodeFromString(values[i]);
-        if (!s) {
-            g_py.ErrClear();
-            g_py.DecRef(d);
-            return 0;
-        }
-        g_py.DictSetItemString(d, names[i], s);
-        g_py.DecRef(s);
-    }
-    void *r = g_py.RunStringFlags(code, PY_FILE_INPUT, d, d, NULL);
-    int ok = r != NULL;
-    if (r)
-        g_py.DecRef(r);
-    else
-        g_py.ErrClear();
-    if (ok && out && n) {
-        void *res = g_py.DictGetItemString(d, "result");   /* borrowed */
-        const char *s = res ? g_py.UnicodeAsUTF8(res) : NULL;
-        if (s)
-            snprintf(out, n, "%s", s);
-        else if (res)
-            g_py.ErrClear();
-    }
-    g_py.DecRef(d);
-    return ok;
-}
-
-/* Found, not imported: the slave configures numba (its CPU target) before the first import. */
-static const char CHECK_CODE[] =
-    "result = ''\n"
-    "try:\n"
-    "    import importlib.util\n"
-    "    bad = []\n"
-    "    for m in modules.split():\n"
-    "        try:\n"
-    "            if importlib.util.find_spec(m) is None:\n"
-    "                bad.append('%s (not installed)' % m)\n"
-    "        except BaseException as e:\n"
-    "            bad.append('%s (%s: %s)' % (m, type(e).__name__, e))\n"
-    "    result = '; '.join(bad)\n"
-    "except BaseException as e:\n"
-    "    result = 'the module check failed: %r' % (e,)\n";
-
-static const char SETUP_CODE[] =
-    "result = ''\n"
-    "try:\n"
-    "    import os, site, sys\n"
-    "    def _d(s):\n"
-    "        return [os.fsdecode(bytes.fromhex(h)) for h in s.split()]\n"
-    "    want = _d(paths)\n"
-    "    for d in _d(sites):\n"
-    "        if os.path.isdir(d):\n"
-    "            site.addsitedir(d)\n"
-    "    sys.path[:] = want + [p for p in sys.path if p not in want]\n"
-    "    sys.executable = _d(exe)[0]\n"
-    "except BaseException as e:\n"
-    "    result = 'setting up sys.path failed: %r' % (e,)\n";
-
-/* At exit of a native host: only the output buffers.  Python's atexit hooks and finalizers are
- * not run: shared libraries loaded after this front (LLVM of numba, ...) have already run their
- * static destructors by then, and some finalizers would call into them. */
-static const char EXIT_CODE[] =
-    "try:\n"
-    "    import sys\n"
-    "    for s in (sys.stdout, sys.stderr):\n"
-    "        try:\n"
-    "            s.flush()\n"
-    "        except Exception:\n"
-    "            pass\n"
-    "except BaseException:\n"
-    "    pass\n";
-
-/* ------------------------------------------------------------------------------------------ */
-/* Finding Python: ask the interpreter ($HAMMERBIT_PYTHON or python3 on PATH) about itself     */
-/* ------------------------------------------------------------------------------------------ */
-static const char QUERY_CODE[] =
-    "import importlib.util, os, site, sys, sysconfig\n"
-    "def h(s):\n"
-    "    return os.fsencode(s).hex()\n"
-    "v = sysconfig.get_config_var\n"
-    "ver = '%d.%d' % sys.version_info[:2]\n"
-    "names = [v('INSTSONAME'), v('LDLIBRARY'), 'libpython%s%s.so.1.0' % (ver, sys.abiflags),\n"
-    "         'libpython%s%s.so' % (ver, sys.abiflags)]\n"
-    "dirs = [v('LIBDIR'), v('LIBPL'), os.path.join(v('LIBDIR') or '', v('MULTIARCH') or ''),\n"
-    "        os.path.join(sys.base_prefix, 'lib')]\n"
-    "lib = ''\n"
-    "for n in names:\n"
-    "    if n and '.so' in n and not lib:\n"
-    "        for d in dirs:\n"
-    "            if d and os.path.isfile(os.path.join(d, n)):\n"
-    "                lib = os.path.join(d, n)\n"
-    "                break\n"
-    "print('hb:version=' + sys.version.split()[0])\n"
-    "print('hb:exe=' + h(sys.executable))\n"
-    "print('hb:lib=' + h(lib))\n"
-    "print('hb:home=' + h(sys.base_prefix + ':' + sys.base_exec_prefix))\n"
-    "for p in sys.path:\n"
-    "    if p:\n"
-    "        print('hb:path=' + h(p))\n"
-    "sites = site.getsitepackages()\n"
-    "if site.ENABLE_USER_SITE:\n"
-    "    sites.append(site.getusersitepackages())\n"
-    "for p in sites:\n"
-    "    print('hb:site=' + h(p))\n"
-    "print('hb:missing=' + ' '.join(m for m in sys.argv[1:] if importlib.util.find_spec(m) is None))\n";
-
-typedef struct {
-    char version[64];
-    char exe[PATH_MAX];
-    char lib[PATH_MAX];
-    char home[2 * PATH_MAX + 2];
-    char exe_hex[2 * PATH_MAX + 1];
-    char *paths_hex;   /* space-separated */
-    char *sites_hex;
-    char missing[256];
-} py_query;
-
-static int hex_decode(const char *hex, char *out, size_t n) {
-    size_t len = strlen(hex);
-    if (len % 2 || len / 2 + 1 > n) return 0;
-    for (size_t i = 0; i < len / 2; i++) {
-        unsigned v;
-        if (sscanf(hex + 2 * i, "%2x", &v) != 1) return 0;
-        out[i] = (char)v;
-    }
-    out[len / 2] = '\0';
-    return 1;
-}
-
-static int append_word(char **dst, const char *word) {
-    size_t old = *dst ? strlen(*dst) : 0;
-    char *p = realloc(*dst, old + strlen(word) + 2);
-    if (!p) return 0;
-    if (old) p[old++] = ' ';
-    strcpy(p + old, word);
-    *dst = p;
-    return 1;
-}
-
-/* which interpreter, and how it was chosen (for messages) */
-static const char *python_rule(char *how, size_t n) {
-    const char *env = getenv("HAMMERBIT_PYTHON");
-    if (env && *env) {
-        snprintf(how, n, "HAMMERBIT_PYTHON=%s", env);
-        return env;
-    }
-    snprintf(how, n, "python3 on PATH (PATH=%s)", getenv("PATH") ? getenv("PATH") : "");
-    return "python3";
-}
-
-extern char **environ;
-
-static int query_python(const char *python, const char *how, py_query *q, char *err, size_t n) {
-    memset(q, 0, sizeof *q);
-    int fds[2];
-    if (pipe(fds) != 0) {
-        snprintf(err, n, "cannot create a pipe to ask %s about itself: %s", how, strerror(errno));
-        return 0;
-    }
-    posix_spawn_file_actions_t fa;
-    posix_spawn_file_actions_init(&fa);
-    posix_spawn_file_actions_addclose(&fa, fds[0]);
-    posix_spawn_file_actions_adddup2(&fa, fds[1], 1);
-    posix_spawn_file_actions_adddup2(&fa, fds[1], 2);
-    posix_spawn_file_actions_addclose(&fa, fds[1]);
-    posix_spawn_file_actions_addopen(&fa, 0, "/dev/null", O_RDONLY, 0);
-    char *argv[] = {(char *)python, "-c", (char *)QUERY_CODE, HB_PYTHON_MODULES_ARGV NULL};
-    pid_t pid;
-    int rc = strchr(python, '/') ? posix_spawn(&pid, python, &fa, NULL, argv, environ)
-                                 : posix_spawnp(&pid, python, &fa, NULL, argv, environ);
-    posix_spawn_file_actions_destroy(&fa);
-    close(fds[1]);
-    if (rc != 0) {
-        close(fds[0]);
-        snprintf(err, n,
-                 "no Python found: %s cannot be run (%s); install Python 3 with numpy and numba, "
-                 "or set HAMMERBIT_PYTHON to the path of such a python executable",
-                 how, strerror(rc));
-        return 0;
-    }
-    size_t cap = 1 << 16, len = 0;
-    char *buf = malloc(cap);
-    ssize_t k;
-    while (buf && (k = read(fds[0], buf + len, cap - len - 1)) != 0) {
-        if (k < 0) {
-            if (errno == EINTR) continue;
-            break;
-        }
-        len += (size_t)k;
-        if (cap - len < 2) {
-            char *nb = realloc(buf, cap *= 2);
-            if (!nb) {
-                free(buf);
-                buf = NULL;
-            } else
-                buf = nb;
-        }
-    }
-    close(fds[0]);
-    int status = 0;
-    while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-    }
-    if (!buf) {
-        snprintf(err, n, "out of memory reading the answer of %s", how);
-        return 0;
-    }
-    buf[len] = '\0';
-    int have_exe = 0;
-    char other[512] = "";
-    for (char *line = strtok(buf, "\n"); line; line = strtok(NULL, "\n")) {
-        if (strncmp(line, "hb:", 3) != 0) {
-            if (strlen(other) + strlen(line) + 3 < sizeof other) {
-                strcat(other, line);
-                strcat(other, " | ");
-            }
-            continue;
-        }
-        char *key = line + 3, *eq = strchr(key, '=');
-        if (!eq) continue;
-        *eq = '\0';
-        char *val = eq + 1;
-        if (!strcmp(key, "version"))
-            snprintf(q->version, sizeof q->version, "%s", val);
-        else if (!strcmp(key, "exe")) {
-            have_exe = hex_decode(val, q->exe, sizeof q->exe);
-            snprintf(q->exe_hex, sizeof q->exe_hex, "%s", val);
-        } else if (!strcmp(key, "lib"))
-            hex_decode(val, q->lib, sizeof q->lib);
-        else if (!strcmp(key, "home"))
-            hex_decode(val, q->home, sizeof q->home);
-        else if (!strcmp(key, "path"))
-            append_word(&q->paths_hex, val);
-        else if (!strcmp(key, "site"))
-            append_word(&q->sites_hex, val);
-        else if (!strcmp(key, "missing"))
-            snprintf(q->missing, sizeof q->missing, "%s", val);
-    }
-    free(buf);
-    if (!have_exe) {
-        snprintf(err, n,
-                 "%s did not answer like a Python 3 interpreter (exit status %d; output: %s); set "
-                 "HAMMERBIT_PYTHON to the path of a python executable with numpy and numba",
-                 how, WIFEXITED(status) ? WEXITSTATUS(status) : -1, other[0] ? other : "none");
-        return 0;
-    }
-    return 1;
-}
-
-static void free_query(py_query *q) {
-    free(q->paths_hex);
-    free(q->sites_hex);
-    q->paths_hex = q->sites_hex = NULL;
-}
-
-static int check_modules(char *err, size_t n) {
-    char bad[2048];
-    int g = g_py.GILEnsure();
-    const char *names[] = {"modules", NULL};
-    const char *values[] = {HB_PYTHON_MODULES, NULL};
-    int ok = py_run(CHECK_CODE, names, values, bad, sizeof bad);
-    g_py.GILRelease(g);
-    if (!ok) {
-        snprintf(err, n, "the Python in this process cannot run the module check");
-        return 0;
-    }
-    if (bad[0]) {
-        snprintf(err, n, "the Python in this process lacks what the FMU needs: %s", bad);
-        return 0;
-    }
-    return 1;
-}
-
-/* Python in the process, with numpy and numba importable; err says why not. Lock held. */
-static int ensure_python(char *err, size_t n) {
-    if (g_python_ready) return 1;
-    void *sym = dlsym(RTLD_DEFAULT, "Py_IsInitialized");
-    if (sym && ((int (*)(void))sym)()) {   /* a Python host: use its interpreter as it is */
-        if (!bind_python(RTLD_DEFAULT, err, n)) return 0;
-        if (!check_modules(err, n)) {
-            char tmp[3000];
-            snprintf(tmp, sizeof tmp, "%s; install them into %s", err,
-                     g_we_initialized ? "the Python found for this FMU"
-                                      : "the Python that runs this host");
-            snprintf(err, n, "%s", tmp);
-            return 0;
-        }
-        g_python_ready = 1;
-        return 1;
-    }
-    char how[PATH_MAX + 64];
-    const char *python = python_rule(how, sizeof how);
-    py_query q;
-    if (!query_python(python, how, &q, err, n)) return 0;
-    int ok = 0;
-    if (q.missing[0]) {
-        snprintf(err, n,
-                 "Python %s at %s (%s) lacks the modules: %s; install them there (pip install %s) "
-                 "or set HAMMERBIT_PYTHON to a python executable that has them",
-                 q.version, q.exe, how, q.missing, q.missing);
-        goto done;
-    }
-    if (!q.lib[0]) {
-        snprintf(err, n,
-                 "Python %s at %s (%s) has no shared library libpython%.4s*.so, which a native host "
-                 "needs; use a Python built with --enable-shared (or install its libpython "
-                 "package) and point HAMMERBIT_PYTHON to it",
-                 q.version, q.exe, how, q.version);
-        goto done;
-    }
-    void *h = dlopen(q.lib, RTLD_NOW | RTLD_GLOBAL | RTLD_NODELETE);
-    if (!h) {
-        snprintf(err, n, "cannot load %s (the library of Python %s at %s): %s", q.lib, q.version,
-                 q.exe, dlerror());
-        goto done;
-    }
-    if (!bind_python(h, err, n)) goto done;
-    if (!g_py.IsInitialized()) {
-        /* PYTHONHOME only for the start of the interpreter (then the host's value comes back);
-         * UTF-8 mode so non-ASCII paths work whatever the host's locale */
-        const char *old = getenv("PYTHONHOME");
-        char *saved = old ? strdup(old) : NULL;
-        setenv("PYTHONHOME", q.home, 1);
-        if (g_py.UTF8Mode) *g_py.UTF8Mode = 1;
-        g_py.InitializeEx(0);   /* 0: the host keeps its signal handlers */
-        if (saved) {
-            setenv("PYTHONHOME", saved, 1);
-            free(saved);
-        } else {
-            unsetenv("PYTHONHOME");
-        }
-        if (!g_py.IsInitialized()) {
-            snprintf(err, n, "Python %s at %s did not start", q.version, q.exe);
-            goto done;
-        }
-        g_we_initialized = 1;
-        char res[2048];
-        const char *names[] = {"paths", "sites", "exe", NULL};
-        const char *values[] = {q.paths_hex ? q.paths_hex : "", q.sites_hex ? q.sites_hex : "",
-                                q.exe_hex, NULL};
-        int run_ok = py_run(SETUP_CODE, names, values, res, sizeof res);
-        g_py.EvalSaveThread();   /* release the GIL: pythonfmu takes it per call */
-        if (!run_ok || res[0]) {
-            snprintf(err, n, "Python %s at %s: %s", q.version, q.exe,
-                     res[0] ? res : "setting up sys.path failed");
-            goto done;
-        }
-    }
-    if (!check_modules(err, n)) {
-        char tmp[3000];
-        snprintf(tmp, sizeof tmp, "%s (Python %s at %s, %s)", err, q.version, q.exe, how);
-        snprintf(err, n, "%s", tmp);
-        goto done;
-    }
-    g_python_ready = 1;
-    ok = 1;
-done:
-    free_query(&q);
-    return ok;
-}
-
-/* ------------------------------------------------------------------------------------------ */
-/* The wrapped pythonfmu library                                                              */
-/* ------------------------------------------------------------------------------------------ */
-static struct {
-    void *h;
-    fmi2InstantiateFn Instantiate;
-    fmi2FreeInstanceFn FreeInstance;
-    fmi2SetupExperimentFn SetupExperiment;
-    fmi2ComponentFn EnterInitializationMode, ExitInitializationMode, Terminate, Reset;
-    fmi2GetRealFn GetReal;
-    fmi2GetIntegerFn GetInteger;
-    fmi2GetBooleanFn GetBoolean;
-    fmi2GetStringFn GetString;
-    fmi2SetRealFn SetReal;
-    fmi2SetIntegerFn SetInteger;
-    fmi2SetBooleanFn SetBoolean;
-    fmi2SetStringFn SetString;
-    fmi2GetFMUstateFn GetFMUstate;
-    fmi2SetFMUstateFn SetFMUstate;
-    fmi2FreeFMUstateFn FreeFMUstate;
-    fmi2SerializedFMUstateSizeFn SerializedFMUstateSize;
-    fmi2SerializeFMUstateFn SerializeFMUstate;
-    fmi2DeSerializeFMUstateFn DeSerializeFMUstate;
-    fmi2DoStepFn DoStep;
-    void (*finalize)(void);
-} W;
-
-/* At exit pythonfmu's export library releases its static std::shared_ptr<PyState> twice: the
- * C++ static destructor runs first and its __attribute__((destructor)) function then resets the
- * destroyed pointer again, a use after free of the control block that corrupts the heap (the
- * abort shows up later, e.g. in libgfortran's exit handler).  Resetting the pointer before
- * either runs makes both no-ops: this handler is registered right after the library is opened,
- * so it runs before the library's static destructors. */
-static void hb_at_exit(void) {
-    if (g_we_initialized && g_py.GILEnsure) {
-        g_py.GILEnsure();   /* kept: no Python thread runs during the rest of the exit */
-        py_run(EXIT_CODE, NULL, NULL, NULL, 0);
-    }
-    if (W.finalize) W.finalize();
-}
-
-static int load_wrapper(char *err, size_t n) {
-    if (W.h) return 1;
-    Dl_info info;
-    if (!dladdr((void *)&load_wrapper, &info) || !info.dli_fname) {
-        snprintf(err, n, "cannot locate the FMU's binary directory");
-        return 0;
-    }
-    char path[PATH_MAX];
-    const char *slash = strrchr(info.dli_fname, '/');
-    if (slash)
-        snprintf(path, sizeof path, "%.*s/%s", (int)(slash - info.dli_fname), info.dli_fname,
-                 HB_WRAPPER_FILE);
-    else
-        snprintf(path, sizeof path, "./%s", HB_WRAPPER_FILE);
-    void *h = dlopen(path, RTLD_NOW | RTLD_LOCAL | RTLD_NODELETE);
-    if (!h) {
-        snprintf(err, n, "cannot load the Python wrapper %s: %s", path, dlerror());
-        return 0;
-    }
-#define WB(field)                                                                          \
-    do {                                                                                   \
-        *(void **)(&W.field) = dlsym(h, "fmi2" #field);                                    \
-        if (!W.field) {                                                                    \
-            snprintf(err, n, "the Python wrapper %s does not export fmi2" #field, path);   \
-            return 0;                                                                      \
-        }                                                                                  \
-    } while (0)
-    WB(Instantiate);
-    WB(FreeInstance);
-    WB(SetupExperiment);
-    WB(EnterInitializationMode);
-    WB(ExitInitializationMode);
-    WB(Terminate);
-    WB(Reset);
-    WB(GetReal);
-    WB(GetInteger);
-    WB(GetBoolean);
-    WB(GetString);
-    WB(SetReal);
-    WB(SetInteger);
-    WB(SetBoolean);
-    WB(SetString);
-    WB(GetFMUstate);
-    WB(SetFMUstate);
-    WB(FreeFMUstate);
-    WB(SerializedFMUstateSize);
-    WB(SerializeFMUstate);
-    WB(DeSerializeFMUstate);
-    WB(DoStep);
-#undef WB
-    *(void **)(&W.finalize) = dlsym(h, "finalizePythonInterpreter");
-    W.h = h;
-    if (!g_exit_registered) {
-        atexit(hb_at_exit);
-        g_exit_registered = 1;
-    }
-    return 1;
-}
-
-/* Kept for hosts and slave code that look this symbol up in every library of the FMU. */
-EXPORT void finalizePythonInterpreter(void) {
-    if (W.finalize) W.finalize();
-}
-
-/* ------------------------------------------------------------------------------------------ */
-/* Resource URI -> path                                                                        */
-/* ------------------------------------------------------------------------------------------ */
-static int hexval(char c) {
-    if (c >= '0' && c <= '9') return c - '0';
-    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
-    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
-    return -1;
-}
-
-static int is_dir(const char *p) {
-    struct stat s;
-    return stat(p, &s) == 0 && S_ISDIR(s.st_mode);
-}
-
-/* file:/x, file://localhost/x, file:///x (percent-decoded) or a plain absolute path -> path */
-static int uri_to_path(const char *uri, char *out, size_t n, char *err, size_t en) {
-    const char *p = uri;
-    if (strncasecmp(p, "file:", 5) == 0) {
-        p += 5;
-        if (p[0] == '/' && p[1] == '/') {   /* authority */
-            const char *auth = p + 2, *end = strchr(auth, '/');
-            if (!end) {
-                snprintf(err, en, "fmuResourceLocation '%s' has no path", uri);
-                return 0;
-            }
-            size_t alen = (size_t)(end - auth);
-            if (alen != 0 && !(alen == 9 && strncasecmp(auth, "localhost", 9) == 0)) {
-                snprintf(err, en,
-                         "fmuResourceLocation '%s' names the host '%.*s'; only local files "
-                         "(file:///path or file://localhost/path) are supported",
-                         uri, (int)alen, auth);
-                return 0;
-            }
-            p = end;
-        }
-    }
-    if (p[0] != '/') {
-        snprintf(err, en, "fmuResourceLocation '%s' is not an absolute file URI", uri);
-        return 0;
-    }
-    size_t j = 0;
-    for (size_t i = 0; p[i]; i++) {
-        char c = p[i];
-        if (c == '%') {
-            int hi = hexval(p[i + 1]), lo = hi >= 0 ? hexval(p[i + 2]) : -1;
-            if (hi < 0 || lo < 0) {
-                snprintf(err, en, "fmuResourceLocation '%s' has an invalid percent-escape", uri);
-                return 0;
-            }
-            c = (char)(hi * 16 + lo);
-            i += 2;
-            if (c == '\0') {
-                snprintf(err, en, "fmuResourceLocation '%s' encodes a NUL byte", uri);
-                return 0;
-            }
-        }
-        if (j + 1 >= n) {
-            snprintf(err, en, "fmuResourceLocation '%s' is too long", uri);
-            return 0;
-        }
-        out[j++] = c;
-    }
-    out[j] = '\0';
-    while (j > 1 && out[j - 1] == '/') out[--j] = '\0';
-    if (!is_dir(out)) {
-        /* a host that wrote the path into the URI without encoding it */
-        char raw[PATH_MAX];
-        snprintf(raw, sizeof raw, "%s", p);
-        size_t k = strlen(raw);
-        while (k > 1 && raw[k - 1] == '/') raw[--k] = '\0';
-        if (is_dir(raw) && k < n) {
-            memcpy(out, raw, k + 1);
-            return 1;
-        }
-        snprintf(err, en, "fmuResourceLocation '%s': the directory '%s' does not exist", uri, out);
-        return 0;
-    }
-    return 1;
-}
-
-/* ------------------------------------------------------------------------------------------ */
 /* Helpers                                                                                     */
 /* ------------------------------------------------------------------------------------------ */
 static const char *state_name(int s) {
@@ -881,7 +263,7 @@ static fmi2Status slave_status(hb_inst *I, fmi2Status st) {
     if (st >= fmi2Error) return st;
     fmi2ValueReference vr = HB_STATUS_VR;
     fmi2Integer v = 0;
-    fmi2Status gs = W.GetInteger(I->w, &vr, 1, &v);
+    fmi2Status gs = hb_W.GetInteger(I->w, &vr, 1, &v);
     if (gs >= fmi2Error) return gs;
     if (v < fmi2OK || v > fmi2Fatal) {
         LOG(I, fmi2Error, "the slave reported the invalid status %d", v);
@@ -950,12 +332,13 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, 
         return NULL;
     }
     char path[PATH_MAX], err[4096];
-    if (!uri_to_path(fmuResourceLocation, path, sizeof path, err, sizeof err)) {
+    if (!hb_uri_to_path(fmuResourceLocation, path, sizeof path, err, sizeof err)) {
         log_to(functions, name, fmi2Error, "fmi2Instantiate: %s", err);
         return NULL;
     }
     pthread_mutex_lock(&g_lock);
-    int ok = ensure_python(err, sizeof err) && load_wrapper(err, sizeof err);
+    int ok = hb_ensure_python(HB_PYTHON_MODULES, err, sizeof err) &&
+             hb_load_wrapper(HB_WRAPPER_FILE, err, sizeof err);
     pthread_mutex_unlock(&g_lock);
     if (!ok) {
         log_to(functions, name, fmi2Error, "fmi2Instantiate: %s", err);
@@ -977,7 +360,7 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, 
     I->state = ST_INSTANTIATED;
     char uri[PATH_MAX + 16];
     snprintf(uri, sizeof uri, "file://%s", path);   /* what pythonfmu strips: plain path */
-    I->w = W.Instantiate(instanceName, fmi2CoSimulation, fmuGUID, uri, &I->inner, visible, fmi2True);
+    I->w = hb_W.Instantiate(instanceName, fmi2CoSimulation, fmuGUID, uri, &I->inner, visible, fmi2True);
     if (!I->w) {
         LOG(I, fmi2Error, "fmi2Instantiate: the Python slave could not be created (see the "
                           "messages above)");
@@ -992,7 +375,7 @@ EXPORT void fmi2FreeInstance(fmi2Component c) {
     if (!I) return;
     /* after fmi2Fatal pythonfmu has already released the Python objects of the instance:
      * freeing it again would release them twice */
-    if (I->state != ST_FATAL && I->w) W.FreeInstance(I->w);
+    if (I->state != ST_FATAL && I->w) hb_W.FreeInstance(I->w);
     free_inst(I);
 }
 
@@ -1033,7 +416,7 @@ EXPORT fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefi
         LOG(I, fmi2Error, "fmi2SetupExperiment: startTime = %g is not finite", startTime);
         return settle(I, fmi2Error);
     }
-    fmi2Status st = W.SetupExperiment(I->w, toleranceDefined, tolerance, startTime, stopTimeDefined,
+    fmi2Status st = hb_W.SetupExperiment(I->w, toleranceDefined, tolerance, startTime, stopTimeDefined,
                                       stopTime);
     st = slave_status(I, st);
     if (st <= fmi2Warning) I->time = I->last_successful = startTime;
@@ -1042,14 +425,14 @@ EXPORT fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefi
 
 EXPORT fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
     BEGIN("fmi2EnterInitializationMode", ST_INSTANTIATED);
-    fmi2Status st = W.EnterInitializationMode(I->w);
+    fmi2Status st = hb_W.EnterInitializationMode(I->w);
     if (st <= fmi2Warning) I->state = ST_INIT;
     return settle(I, st);
 }
 
 EXPORT fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     BEGIN("fmi2ExitInitializationMode", ST_INIT);
-    fmi2Status st = slave_status(I, W.ExitInitializationMode(I->w));
+    fmi2Status st = slave_status(I, hb_W.ExitInitializationMode(I->w));
     if (st == fmi2Discard) {
         LOG(I, fmi2Error, "fmi2ExitInitializationMode: the slave discarded the initialisation");
         st = fmi2Error;
@@ -1060,14 +443,14 @@ EXPORT fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
 
 EXPORT fmi2Status fmi2Terminate(fmi2Component c) {
     BEGIN("fmi2Terminate", ST_STEP_COMPLETE);
-    fmi2Status st = W.Terminate(I->w);
+    fmi2Status st = hb_W.Terminate(I->w);
     if (st <= fmi2Warning) I->state = ST_TERMINATED;
     return settle(I, st);
 }
 
 EXPORT fmi2Status fmi2Reset(fmi2Component c) {
     BEGIN("fmi2Reset", M_ANY_LIVE);
-    fmi2Status st = W.Reset(I->w);
+    fmi2Status st = hb_W.Reset(I->w);
     if (st <= fmi2Warning) {
         I->state = ST_INSTANTIATED;
         I->time = I->last_successful = 0.0;
@@ -1082,7 +465,7 @@ EXPORT fmi2Status fmi2Reset(fmi2Component c) {
         BEGIN("fmi2Get" #T, M_GET);                                                             \
         if (nvr == 0) return fmi2OK;                                                            \
         if (!check_vrs(I, "fmi2Get" #T, TYPE, vr, nvr, value, 0)) return settle(I, fmi2Error);  \
-        return settle(I, W.Get##T(I->w, vr, nvr, value));                                       \
+        return settle(I, hb_W.Get##T(I->w, vr, nvr, value));                                       \
     }
 GETTER(Real, fmi2Real, HB_REAL)
 /* fmi2GetInteger answers last_status itself: the status of the last call as the host saw it,
@@ -1092,7 +475,7 @@ EXPORT fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[],
     BEGIN("fmi2GetInteger", M_GET);
     if (nvr == 0) return fmi2OK;
     if (!check_vrs(I, "fmi2GetInteger", HB_INTEGER, vr, nvr, value, 0)) return settle(I, fmi2Error);
-    fmi2Status st = settle(I, W.GetInteger(I->w, vr, nvr, value));
+    fmi2Status st = settle(I, hb_W.GetInteger(I->w, vr, nvr, value));
 #if HB_HAS_STATUS_VR
     if (st <= fmi2Warning)
         for (size_t i = 0; i < nvr; i++)
@@ -1109,7 +492,7 @@ GETTER(String, fmi2String, HB_STRING)
         BEGIN("fmi2Set" #T, M_SET);                                                             \
         if (nvr == 0) return fmi2OK;                                                            \
         if (!check_vrs(I, "fmi2Set" #T, TYPE, vr, nvr, value, 1)) return settle(I, fmi2Error);  \
-        return record(I, hot_status(I, W.Set##T(I->w, vr, nvr, value)));                        \
+        return record(I, hot_status(I, hb_W.Set##T(I->w, vr, nvr, value)));                        \
     }
 SETTER(Real, fmi2Real, HB_REAL)
 SETTER(Integer, fmi2Integer, HB_INTEGER)
@@ -1120,7 +503,7 @@ EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint
                              fmi2Real communicationStepSize,
                              fmi2Boolean noSetFMUStatePriorToCurrentPoint) {
     BEGIN("fmi2DoStep", ST_STEP_COMPLETE);
-    fmi2Status st = hot_status(I, W.DoStep(I->w, currentCommunicationPoint, communicationStepSize,
+    fmi2Status st = hot_status(I, hb_W.DoStep(I->w, currentCommunicationPoint, communicationStepSize,
                                            noSetFMUStatePriorToCurrentPoint));
     if (st <= fmi2Warning) {
         I->time = currentCommunicationPoint + communicationStepSize;
@@ -1151,7 +534,7 @@ EXPORT fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
     }
     int fresh = s == NULL;
     if (fresh && !(s = calloc(1, sizeof *s))) return settle(I, fmi2Error);
-    fmi2Status st = W.GetFMUstate(I->w, &s->inner);
+    fmi2Status st = hb_W.GetFMUstate(I->w, &s->inner);
     if (st > fmi2Warning) {
         if (fresh) free(s);
         return settle(I, st);
@@ -1177,7 +560,7 @@ EXPORT fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) {
     BEGIN("fmi2SetFMUstate", M_ANY_LIVE);
     if (!check_state(I, "fmi2SetFMUstate", FMUstate)) return settle(I, fmi2Error);
     hb_fmustate *s = (hb_fmustate *)FMUstate;
-    fmi2Status st = slave_status(I, W.SetFMUstate(I->w, s->inner));
+    fmi2Status st = slave_status(I, hb_W.SetFMUstate(I->w, s->inner));
     if (st <= fmi2Warning) {
         I->state = s->state;
         I->time = s->time;
@@ -1191,7 +574,7 @@ EXPORT fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
     if (!FMUstate || !*FMUstate) return fmi2OK;
     if (!check_state(I, "fmi2FreeFMUstate", *FMUstate)) return settle(I, fmi2Error);
     hb_fmustate *s = (hb_fmustate *)*FMUstate;
-    fmi2Status st = W.FreeFMUstate(I->w, &s->inner);
+    fmi2Status st = hb_W.FreeFMUstate(I->w, &s->inner);
     s->magic = 0;
     free(s);
     *FMUstate = NULL;
@@ -1205,7 +588,7 @@ EXPORT fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUst
         return settle(I, fmi2Error);
     }
     size_t inner = 0;
-    fmi2Status st = W.SerializedFMUstateSize(I->w, ((hb_fmustate *)FMUstate)->inner, &inner);
+    fmi2Status st = hb_W.SerializedFMUstateSize(I->w, ((hb_fmustate *)FMUstate)->inner, &inner);
     if (st > fmi2Warning) return settle(I, st);
     *size = sizeof(hb_serial_header) + inner;
     return st;
@@ -1217,7 +600,7 @@ EXPORT fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate,
     if (!check_state(I, "fmi2SerializeFMUstate", FMUstate)) return settle(I, fmi2Error);
     hb_fmustate *s = (hb_fmustate *)FMUstate;
     size_t inner = 0;
-    fmi2Status st = W.SerializedFMUstateSize(I->w, s->inner, &inner);
+    fmi2Status st = hb_W.SerializedFMUstateSize(I->w, s->inner, &inner);
     if (st > fmi2Warning) return settle(I, st);
     if (!serializedState || size != sizeof(hb_serial_header) + inner) {
         LOG(I, fmi2Error, "fmi2SerializeFMUstate: size = %zu, but the state needs %zu bytes", size,
@@ -1232,7 +615,7 @@ EXPORT fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate,
     h.time = s->time;
     h.last_successful = s->last_successful;
     memcpy(serializedState, &h, sizeof h);
-    return settle(I, W.SerializeFMUstate(I->w, s->inner, serializedState + sizeof h, inner));
+    return settle(I, hb_W.SerializeFMUstate(I->w, s->inner, serializedState + sizeof h, inner));
 }
 
 EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[],
@@ -1263,7 +646,7 @@ EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serial
     int fresh = s == NULL;
     if (fresh && !(s = calloc(1, sizeof *s))) return settle(I, fmi2Error);
     fmi2Status st = slave_status(
-        I, W.DeSerializeFMUstate(I->w, serializedState + sizeof h, size - sizeof h, &s->inner));
+        I, hb_W.DeSerializeFMUstate(I->w, serializedState + sizeof h, size - sizeof h, &s->inner));
     I->last_status = st;
     if (st > fmi2Warning) {
         if (fresh) free(s);
