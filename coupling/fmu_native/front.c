@@ -13,7 +13,8 @@
  *      settability against the model description, answering fmi2Error itself;
  *   5. returns the slave's real status, which pythonfmu cannot return (variable HB_STATUS_VR);
  *   6. logs errors even with loggingOn = false;
- *   7. releases pythonfmu's interpreter guard at exit in the right order (hb_at_exit in pythonfmu_wrapper.c).
+ *   7. releases pythonfmu's interpreter guard at exit in the right order (hb_at_exit in
+ *      pythonfmu_wrapper.c).
  *
  * The model-specific tables come from hb_model.h, generated from modelDescription.xml by
  * hammerbit.fmu_native.build_front(); the other parts are listed in front.h. */
