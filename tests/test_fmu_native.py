@@ -426,7 +426,8 @@ from pythonfmu.enums import Fmi2Status
 
 
 class StatusStub(Fmi2Slave):
-    """x < 0: the step is discarded; x > 1e6: the step is an error; fail_init: init fails."""
+    """x < 0: the step is discarded; x > 1e6: the step is an error; x == 42: the step raises
+    (pythonfmu: fmi2Fatal); fail_init: init fails; every good step logs an OK message."""
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
@@ -456,8 +457,11 @@ class StatusStub(Fmi2Slave):
             self.last_status = 3
             self.log("x > 1e6: step failed", Fmi2Status.error)
             return False
+        if self.x == 42:
+            raise RuntimeError("the stub raises")
         self.last_status = 0
         self.y += self.x * h
+        self.log("stepped")
         return True
 '''
 
@@ -521,6 +525,52 @@ def test_stub_last_status_reports_errors_found_by_the_front(stub_dir):
     s.fmu.setupExperiment(startTime=0.0)
     s.fmu.enterInitializationMode()
     assert s.fmu.getInteger([s.vr["last_status"]]) == [FMI_OK]
+
+
+def test_stub_ok_messages_follow_the_debug_logging_settings(stub_dir):
+    s = _stub(stub_dir)                              # loggingOn = false
+    s.fmu.exitInitializationMode()
+    s.step(0.5)
+    assert not any("stepped" in m for _, m in s.messages)
+    s.fmu.setDebugLogging(True, [])
+    s.step(0.5)
+    assert sum("stepped" in m for _, m in s.messages) == 1
+    s.fmu.setDebugLogging(True, ["logStatusError"])
+    s.step(0.5)
+    assert sum("stepped" in m for _, m in s.messages) == 1
+    assert s.status_of(s.fmu.setDebugLogging, True, ["noSuchCategory"]) == FMI_ERROR
+    assert any("unknown log category 'noSuchCategory'" in m for m in s.errors())
+
+
+def test_stub_fatal_step_does_not_crash_the_host(stub_dir):
+    script = textwrap.dedent(f"""
+        import sys
+        sys.path.insert(0, {str(HERE)!r})
+        from pathlib import Path
+        from test_fmu_native import FMI_ERROR, _stub
+        s = _stub(Path({str(stub_dir)!r}))
+        s.fmu.exitInitializationMode()
+        s.fmu.setReal([s.vr["x"]], [42.0])
+        print("doStep", s.status_of(s.fmu.doStep, 0.0, 0.5))
+        print("getReal", s.status_of(s.fmu.getReal, [s.vr["y"]]))
+        s.fmu.freeInstance()                         # must not touch the released slave
+        for _ in range(3):                           # the process goes on with new instances
+            t = _stub(Path({str(stub_dir)!r}))
+            t.fmu.exitInitializationMode()
+            t.step(0.5)
+            t.fmu.terminate()
+            t.fmu.freeInstance()
+        print("messages", " | ".join(m for _, m in s.messages))
+        print("survived")
+    """)
+    # the debug allocator overwrites freed objects: a second release of the slave would crash
+    env = dict(os.environ, PYTHONMALLOC="debug")
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120,
+                          env=env)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    out = proc.stdout
+    assert "doStep 4" in out and "getReal 3" in out and "survived" in out, out
+    assert "the stub raises" in out and "illegal call sequence" in out
 
 
 # ---------------------------------------------------------------------------
