@@ -334,6 +334,10 @@ def test_wrong_guid_and_model_exchange_are_refused_with_logging_off(front_dir):
     assert any("supports only fmi2CoSimulation" in m for m in s.errors())
     assert s.raw_instantiate(1, s.md.guid, "file://otherhost" + uri[7:]) is None
     assert any("names the host 'otherhost'" in m for m in s.errors())
+    assert s.raw_instantiate(1, s.md.guid, uri + "/nowhere") is None
+    assert any("no such directory" in m for m in s.errors())
+    assert s.raw_instantiate(1, s.md.guid, uri + "/%zz") is None
+    assert any("invalid percent-escape" in m for m in s.errors())
     s.fmu.freeInstance()
 
 

@@ -24,6 +24,31 @@ static int is_dir(const char *p) {
     return stat(p, &s) == 0 && S_ISDIR(s.st_mode);
 }
 
+static void strip_slashes(char *path) {
+    size_t j = strlen(path);
+    while (j > 1 && path[j - 1] == '/') path[--j] = '\0';
+}
+
+/* %XX escapes of p -> bytes in out; NULL, or what is wrong */
+static const char *percent_decode(const char *p, char *out, size_t n) {
+    size_t j = 0;
+    for (size_t i = 0; p[i]; i++) {
+        char c = p[i];
+        if (c == '%') {
+            int hi = hexval(p[i + 1]), lo = hi >= 0 ? hexval(p[i + 2]) : -1;
+            if (hi < 0 || lo < 0) return "has an invalid percent-escape";
+            c = (char)(hi * 16 + lo);
+            i += 2;
+            if (c == '\0') return "encodes a NUL byte";
+        }
+        if (j + 1 >= n) return "is too long";
+        out[j++] = c;
+    }
+    out[j] = '\0';
+    strip_slashes(out);
+    return NULL;
+}
+
 int hb_uri_to_path(const char *uri, char *out, size_t n, char *err, size_t en) {
     const char *p = uri;
     if (strncasecmp(p, "file:", 5) == 0) {
@@ -49,42 +74,17 @@ int hb_uri_to_path(const char *uri, char *out, size_t n, char *err, size_t en) {
         snprintf(err, en, "fmuResourceLocation '%s' is not an absolute file URI", uri);
         return 0;
     }
-    size_t j = 0;
-    for (size_t i = 0; p[i]; i++) {
-        char c = p[i];
-        if (c == '%') {
-            int hi = hexval(p[i + 1]), lo = hi >= 0 ? hexval(p[i + 2]) : -1;
-            if (hi < 0 || lo < 0) {
-                snprintf(err, en, "fmuResourceLocation '%s' has an invalid percent-escape", uri);
-                return 0;
-            }
-            c = (char)(hi * 16 + lo);
-            i += 2;
-            if (c == '\0') {
-                snprintf(err, en, "fmuResourceLocation '%s' encodes a NUL byte", uri);
-                return 0;
-            }
-        }
-        if (j + 1 >= n) {
-            snprintf(err, en, "fmuResourceLocation '%s' is too long", uri);
-            return 0;
-        }
-        out[j++] = c;
+    const char *why = percent_decode(p, out, n);
+    if (!why && is_dir(out)) return 1;
+    /* a host that wrote the path into the URI without encoding it */
+    if (strlen(p) < n) {
+        strcpy(out, p);
+        strip_slashes(out);
+        if (is_dir(out)) return 1;
     }
-    out[j] = '\0';
-    while (j > 1 && out[j - 1] == '/') out[--j] = '\0';
-    if (!is_dir(out)) {
-        /* a host that wrote the path into the URI without encoding it */
-        char raw[PATH_MAX];
-        snprintf(raw, sizeof raw, "%s", p);
-        size_t k = strlen(raw);
-        while (k > 1 && raw[k - 1] == '/') raw[--k] = '\0';
-        if (is_dir(raw) && k < n) {
-            memcpy(out, raw, k + 1);
-            return 1;
-        }
-        snprintf(err, en, "fmuResourceLocation '%s': the directory '%s' does not exist", uri, out);
-        return 0;
-    }
-    return 1;
+    if (why)
+        snprintf(err, en, "fmuResourceLocation '%s' %s", uri, why);
+    else
+        snprintf(err, en, "fmuResourceLocation '%s': no such directory", uri);
+    return 0;
 }
