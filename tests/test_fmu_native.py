@@ -401,6 +401,17 @@ def test_serialized_state_round_trip_and_corrupt_bytes(front_dir):
     for _ in range(50):
         s.step()
     assert s.fmu.getReal([s.vr["bit_position"], s.vr["hammer_velocity"]]) == after
+    # a state handed back to fmi2GetFMUstate is overwritten with the current one
+    s.fmu.fmi2GetFMUstate(s.fmu.component, ctypes.byref(state))
+    s.step()
+    s.fmu.setFMUstate(state)
+    s.t -= 1e-3
+    s.step()
+    again = s.fmu.getReal([s.vr["bit_position"], s.vr["hammer_velocity"]])
+    s.fmu.setFMUstate(state)
+    s.t -= 1e-3
+    s.step()
+    assert s.fmu.getReal([s.vr["bit_position"], s.vr["hammer_velocity"]]) == again
     s.fmu.freeFMUstate(state)
     s.fmu.freeFMUstate(restored)
     bad = bytearray(data)

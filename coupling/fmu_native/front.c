@@ -535,7 +535,10 @@ EXPORT fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
     }
     int fresh = s == NULL;
     if (fresh && !(s = calloc(1, sizeof *s))) return settle(I, fmi2Error);
+    fmi2FMUstate old = s->inner;   /* a state given back to be overwritten: release its old part */
+    s->inner = NULL;
     fmi2Status st = hb_W.GetFMUstate(I->w, &s->inner);
+    if (old) hb_W.FreeFMUstate(I->w, &old);
     if (st > fmi2Warning) {
         if (fresh) free(s);
         return settle(I, st);
@@ -573,9 +576,12 @@ EXPORT fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) {
 EXPORT fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
     BEGIN("fmi2FreeFMUstate", M_ANY_LIVE);
     if (!FMUstate || !*FMUstate) return fmi2OK;
-    if (!check_state(I, "fmi2FreeFMUstate", *FMUstate)) return settle(I, fmi2Error);
     hb_fmustate *s = (hb_fmustate *)*FMUstate;
-    fmi2Status st = hb_W.FreeFMUstate(I->w, &s->inner);
+    if (s->magic != HB_STATE_MAGIC) {
+        LOG(I, fmi2Error, "fmi2FreeFMUstate: not an FMU state of this FMU");
+        return settle(I, fmi2Error);
+    }
+    fmi2Status st = s->inner ? hb_W.FreeFMUstate(I->w, &s->inner) : fmi2OK;
     s->magic = 0;
     free(s);
     *FMUstate = NULL;
@@ -646,8 +652,11 @@ EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serial
     }
     int fresh = s == NULL;
     if (fresh && !(s = calloc(1, sizeof *s))) return settle(I, fmi2Error);
+    fmi2FMUstate old = s->inner;
+    s->inner = NULL;
     fmi2Status st = slave_status(
         I, hb_W.DeSerializeFMUstate(I->w, serializedState + sizeof h, size - sizeof h, &s->inner));
+    if (old) hb_W.FreeFMUstate(I->w, &old);
     I->last_status = st;
     if (st > fmi2Warning) {
         if (fresh) free(s);
