@@ -47,6 +47,16 @@ def _compiler_or_skip() -> str:
         pytest.skip(str(e))
 
 
+def _shared_libpython_or_skip() -> None:
+    """A native host embeds this Python through its shared library; skip if it has none."""
+    import sysconfig
+    v = sysconfig.get_config_var
+    names = [n for n in (v("INSTSONAME"), v("LDLIBRARY")) if n and ".so" in n]
+    dirs = [v("LIBDIR") or "", os.path.join(v("LIBDIR") or "", v("MULTIARCH") or "")]
+    if not any(os.path.isfile(os.path.join(d, n)) for d in dirs for n in names):
+        pytest.skip(f"{sys.executable} has no shared libpython, which a native host needs")
+
+
 def add_front(fmu: Path, dest: Path) -> Path:
     """Extract ``fmu`` into ``dest`` with the native front as ``binaries/linux64/<id>.so`` and
     pythonfmu's library next to it as ``<id>_python.so``; return ``dest``."""
@@ -172,6 +182,7 @@ def front_dir(built_fmu, tmp_path_factory):
 @pytest.fixture(scope="module")
 def c_host(tmp_path_factory):
     cc = _compiler_or_skip()
+    _shared_libpython_or_skip()
     include = Path(fmpy.__file__).parent / "c-code"
     exe = tmp_path_factory.mktemp("host") / "fmu_native_host"
     subprocess.run([cc, "-O1", "-I", str(include), "-o", str(exe), str(HOST_SOURCE), "-ldl"],
@@ -613,6 +624,7 @@ def _ecos_or_skip(tmp: Path) -> tuple[Path, dict]:
 
 
 def test_ecos_runs_the_fmu_natively(front_dir, plain_dir, tmp_path):
+    _shared_libpython_or_skip()
     ecos, env = _ecos_or_skip(tmp_path)
     fmu = zip_dir(front_dir, tmp_path / f"{ID}.fmu")
     proc = subprocess.run([str(ecos), "simulate", "--path", str(fmu), "--stopTime", "0.5",
