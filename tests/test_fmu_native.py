@@ -11,6 +11,7 @@ from __future__ import annotations
 import csv
 import ctypes
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -226,6 +227,26 @@ def test_missing_compiler_is_a_clear_error(built_fmu, tmp_path, monkeypatch):
 def test_non_fmi2_description_is_refused(tmp_path):
     with pytest.raises(FrontBuildError, match="FMI 2.0"):
         build_front('<fmiModelDescription fmiVersion="3.0"/>', tmp_path)
+
+
+def test_front_exports_fmi_only_and_needs_an_old_glibc(front_dir):
+    """Only the FMI functions (and pythonfmu's finalizePythonInterpreter) are exported; the
+    glibc symbol versions stay at 2.17 or older, whatever glibc built the front."""
+    objdump = shutil.which("objdump")
+    if objdump is None:
+        pytest.skip("objdump (binutils) is not installed")
+
+    def dynamic_symbols(name):
+        out = subprocess.run([objdump, "-T", str(front_dir / "binaries" / "linux64" / name)],
+                             capture_output=True, text=True, check=True).stdout
+        return out, {line.split()[-1] for line in out.splitlines() if " .text" in line}
+
+    out, defined = dynamic_symbols(f"{ID}.so")
+    _, wrapped = dynamic_symbols(f"{ID}_python.so")
+    assert all(n.startswith("fmi2") or n == "finalizePythonInterpreter" for n in defined)
+    assert {n for n in wrapped if n.startswith("fmi2")} <= defined     # all that pythonfmu offers
+    versions = {tuple(int(x) for x in m.split(".")) for m in re.findall(r"GLIBC_([0-9.]+)", out)}
+    assert versions and max(versions) <= (2, 17), sorted(versions)
 
 
 # ---------------------------------------------------------------------------

@@ -220,7 +220,7 @@ def build_front(model_description_xml, out_dir, *, model_identifier: str | None 
         cmd = [compiler, "-std=gnu11", "-O2", "-fPIC", "-shared", "-fvisibility=hidden",
                "-Wall", "-Wextra", "-Wno-unused-parameter", "-I", tmp, "-I", str(SOURCE_DIR),
                "-o", str(target), *(str(f) for f in SOURCES),
-               "-Wl,-z,nodelete", "-Wl,-Bsymbolic", "-ldl", "-lpthread"]
+               "-Wl,-z,nodelete", "-Wl,-Bsymbolic", "-Wl,--no-as-needed", "-l:libdl.so.2", "-lpthread"]
         try:
             proc = subprocess.run(cmd, capture_output=True, text=True)
         except OSError as e:

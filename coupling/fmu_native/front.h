@@ -8,11 +8,21 @@
 #ifndef HAMMERBIT_FRONT_H
 #define HAMMERBIT_FRONT_H
 
+#include <limits.h>   /* and with it glibc's __GLIBC__ */
 #include <stddef.h>
 
 #include "fmi2_abi.h"
 
 #define EXPORT __attribute__((visibility("default")))
+
+/* The dl* functions bound to their first version: a front built with glibc >= 2.34 (where they
+ * moved into libc) still loads with an older glibc (where libdl holds them). */
+#if defined(__GLIBC__) && defined(__x86_64__)
+__asm__(".symver dlopen,dlopen@GLIBC_2.2.5");
+__asm__(".symver dlsym,dlsym@GLIBC_2.2.5");
+__asm__(".symver dlerror,dlerror@GLIBC_2.2.5");
+__asm__(".symver dladdr,dladdr@GLIBC_2.2.5");
+#endif
 
 /* python_embed.c ------------------------------------------------------------------------------
  * Python in this process with the space-separated `modules` installed; 1, or 0 with the reason

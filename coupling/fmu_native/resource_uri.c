@@ -4,11 +4,11 @@
  * bytes, '#', ...), and unencoded paths from hosts that write the path as it is; any other host
  * than localhost is refused.  pythonfmu itself only strips "file://" and decodes "%20". */
 #define _GNU_SOURCE
+#include <dirent.h>
 #include <limits.h>
 #include <stdio.h>
 #include <string.h>
 #include <strings.h>
-#include <sys/stat.h>
 
 #include "front.h"
 
@@ -19,9 +19,10 @@ static int hexval(char c) {
     return -1;
 }
 
-static int is_dir(const char *p) {
-    struct stat s;
-    return stat(p, &s) == 0 && S_ISDIR(s.st_mode);
+static int is_dir(const char *p) {   /* opendir, not stat: stat needs glibc >= 2.33 */
+    DIR *d = opendir(p);
+    if (d) closedir(d);
+    return d != NULL;
 }
 
 static void strip_slashes(char *path) {
