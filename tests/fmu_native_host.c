@@ -2,13 +2,16 @@
  * Real output, terminate, free, exit.  Built against the standard FMI 2.0 headers (fmpy's copy),
  * not against anything of the FMU.
  *
- *   fmu_native_host SO URI GUID [type=1] [steps=10000] [h=1e-3] [out=VR] [logging=0]
+ *   fmu_native_host SO URI GUID [type=1] [steps=10000] [h=1e-3] [out=VR] [logging=0] [threads=1]
  *
- * stdout: "log <status> <category> <message>" per logger call, "value <%.17g>" at the end.
+ * threads=N runs N instances at once, each in its own thread, from instantiation to the end.
+ * stdout: "log <status> <category> <message>" per logger call, "value <%.17g>" per instance.
  * Exit codes: 0 ok, 2 dlopen, 3 missing symbol, 10 fmi2Instantiate returned NULL, 11 a call
  * failed. */
 #include <dlfcn.h>
+#include <pthread.h>
 #include <stdarg.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -34,12 +37,21 @@ static const char *opt(int argc, char **argv, const char *key, const char *dflt)
     return dflt;
 }
 
-#define LOAD(T, var)                                                   \
-    fmi2##T##TYPE *var = (fmi2##T##TYPE *)dlsym(h, "fmi2" #T);         \
-    if (!var) {                                                        \
-        printf("missing fmi2%s\n", #T);                                \
-        return 3;                                                      \
-    }
+static struct {
+    fmi2InstantiateTYPE *instantiate;
+    fmi2SetupExperimentTYPE *setup;
+    fmi2EnterInitializationModeTYPE *enter;
+    fmi2ExitInitializationModeTYPE *exit_init;
+    fmi2DoStepTYPE *do_step;
+    fmi2GetRealTYPE *get_real;
+    fmi2TerminateTYPE *terminate;
+    fmi2FreeInstanceTYPE *free_instance;
+} F;
+
+static int g_argc;
+static char **g_argv;
+static pthread_mutex_t g_out = PTHREAD_MUTEX_INITIALIZER;
+
 #define CHECK(call)                                                    \
     do {                                                               \
         fmi2Status s_ = (call);                                        \
@@ -49,11 +61,55 @@ static const char *opt(int argc, char **argv, const char *key, const char *dflt)
         }                                                              \
     } while (0)
 
+/* one instance from fmi2Instantiate to fmi2FreeInstance; the exit code */
+static int run(const char *name) {
+    fmi2CallbackFunctions cb = {logger, calloc, free, NULL, NULL};
+    int type = atoi(opt(g_argc, g_argv, "type", "1"));
+    int logging = atoi(opt(g_argc, g_argv, "logging", "0"));
+    fmi2Component c = F.instantiate(name, (fmi2Type)type, g_argv[3], g_argv[2], &cb, fmi2False,
+                                    logging ? fmi2True : fmi2False);
+    if (!c) {
+        printf("instantiate NULL\n");
+        return 10;
+    }
+    long steps = atol(opt(g_argc, g_argv, "steps", "10000"));
+    double hstep = atof(opt(g_argc, g_argv, "h", "1e-3"));
+    fmi2ValueReference vr = (fmi2ValueReference)atol(opt(g_argc, g_argv, "out", "0"));
+    CHECK(F.setup(c, fmi2False, 0.0, 0.0, fmi2False, 0.0));
+    CHECK(F.enter(c));
+    CHECK(F.exit_init(c));
+    for (long i = 0; i < steps; i++) CHECK(F.do_step(c, (double)i * hstep, hstep, fmi2True));
+    double value = 0.0;
+    CHECK(F.get_real(c, &vr, 1, &value));
+    pthread_mutex_lock(&g_out);
+    printf("value %.17g\n", value);
+    fflush(stdout);
+    pthread_mutex_unlock(&g_out);
+    CHECK(F.terminate(c));
+    F.free_instance(c);
+    return 0;
+}
+
+static void *run_thread(void *arg) {
+    char name[32];
+    snprintf(name, sizeof name, "host%ld", (long)(intptr_t)arg);
+    return (void *)(intptr_t)run(name);
+}
+
+#define LOAD(T, var)                                                   \
+    F.var = (fmi2##T##TYPE *)dlsym(h, "fmi2" #T);                      \
+    if (!F.var) {                                                      \
+        printf("missing fmi2%s\n", #T);                                \
+        return 3;                                                      \
+    }
+
 int main(int argc, char **argv) {
     if (argc < 4) {
         fprintf(stderr, "usage: %s SO URI GUID [key=value ...]\n", argv[0]);
         return 1;
     }
+    g_argc = argc;
+    g_argv = argv;
     void *h = dlopen(argv[1], RTLD_NOW | RTLD_LOCAL);
     if (!h) {
         printf("dlopen %s\n", dlerror());
@@ -67,27 +123,16 @@ int main(int argc, char **argv) {
     LOAD(GetReal, get_real)
     LOAD(Terminate, terminate)
     LOAD(FreeInstance, free_instance)
-
-    fmi2CallbackFunctions cb = {logger, calloc, free, NULL, NULL};
-    int type = atoi(opt(argc, argv, "type", "1"));
-    int logging = atoi(opt(argc, argv, "logging", "0"));
-    fmi2Component c = instantiate("host", (fmi2Type)type, argv[3], argv[2], &cb, fmi2False,
-                                  logging ? fmi2True : fmi2False);
-    if (!c) {
-        printf("instantiate NULL\n");
-        return 10;
+    int threads = atoi(opt(argc, argv, "threads", "1"));
+    if (threads <= 1) return run("host");
+    pthread_t t[16];
+    if (threads > 16) threads = 16;
+    for (long i = 0; i < threads; i++) pthread_create(&t[i], NULL, run_thread, (void *)(intptr_t)i);
+    int rc = 0;
+    for (int i = 0; i < threads; i++) {
+        void *r;
+        pthread_join(t[i], &r);
+        if ((intptr_t)r) rc = (int)(intptr_t)r;
     }
-    long steps = atol(opt(argc, argv, "steps", "10000"));
-    double hstep = atof(opt(argc, argv, "h", "1e-3"));
-    fmi2ValueReference vr = (fmi2ValueReference)atol(opt(argc, argv, "out", "0"));
-    CHECK(setup(c, fmi2False, 0.0, 0.0, fmi2False, 0.0));
-    CHECK(enter(c));
-    CHECK(exit_init(c));
-    for (long i = 0; i < steps; i++) CHECK(do_step(c, (double)i * hstep, hstep, fmi2True));
-    double value = 0.0;
-    CHECK(get_real(c, &vr, 1, &value));
-    printf("value %.17g\n", value);
-    CHECK(terminate(c));
-    free_instance(c);
-    return 0;
+    return rc;
 }

@@ -186,7 +186,7 @@ def c_host(tmp_path_factory):
     _shared_libpython_or_skip()
     include = Path(fmpy.__file__).parent / "c-code"
     exe = tmp_path_factory.mktemp("host") / "fmu_native_host"
-    subprocess.run([cc, "-O1", "-I", str(include), "-o", str(exe), str(HOST_SOURCE), "-ldl"],
+    subprocess.run([cc, "-O1", "-I", str(include), "-o", str(exe), str(HOST_SOURCE), "-ldl", "-lpthread"],
                    check=True, capture_output=True)
     return exe
 
@@ -258,6 +258,14 @@ def test_c_host_steps_10_s_like_fmpy_and_exits_0(front_dir, c_host, oracle_10s):
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert value is not None and value > 0.0
     assert abs(value - oracle_10s) <= 1e-12 * max(1.0, abs(oracle_10s)), (value, oracle_10s)
+
+
+def test_c_host_threads_start_python_once_and_agree(front_dir, c_host):
+    """Three instances created and stepped at once, each in its own host thread."""
+    proc, _ = run_host(c_host, front_dir, threads=3, steps=300, out=vr_of(front_dir, "bit_position"))
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    values = [float(line.split()[1]) for line in proc.stdout.splitlines() if line.startswith("value ")]
+    assert len(values) == 3 and len(set(values)) == 1 and values[0] > 0.0, values
 
 
 def test_python3_on_path_is_found(front_dir, c_host):
