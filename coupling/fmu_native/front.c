@@ -173,7 +173,7 @@ static const char *state_name(int s) {
     case ST_INIT: return "Initialization Mode";
     case ST_STEP_COMPLETE: return "Step Mode";
     case ST_TERMINATED: return "Terminated";
-    case ST_ERROR: return "Error (after an fmi2Error)";
+    case ST_ERROR: return "Error (after an fmi2Error: fmi2SetFMUstate or fmi2Reset recover)";
     case ST_FATAL: return "Fatal";
     default: return "?";
     }
