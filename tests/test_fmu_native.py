@@ -399,6 +399,29 @@ def test_unknown_and_mistyped_value_references(front_dir):
     assert any("illegal call sequence" in m for m in s.errors())
 
 
+def test_error_state_recovers_by_restoring_a_state(front_dir):
+    """After fmi2Error a state saved before brings the instance back to Step Mode; the run then
+    equals a run without the error."""
+    clean = Slave(front_dir)
+    for _ in range(40):
+        clean.step()
+    s = Slave(front_dir)
+    for _ in range(20):
+        s.step()
+    saved = s.fmu.getFMUstate()
+    assert s.status_of(s.fmu.setReal, [s.vr["bit_velocity"]], [1.0]) == FMI_ERROR
+    assert s.status_of(s.fmu.doStep, s.t, 1e-3) == FMI_ERROR
+    s.fmu.setFMUstate(saved)
+    for _ in range(20):
+        s.step()
+    names = [s.vr["bit_position"], s.vr["hammer_velocity"], s.vr["spring_force"]]
+    assert s.fmu.getReal(names) == clean.fmu.getReal(names)
+    s.fmu.freeFMUstate(saved)
+    for inst in (s, clean):
+        inst.fmu.terminate()
+        inst.fmu.freeInstance()
+
+
 def test_terminated_status_and_calls_after_terminate(front_dir):
     s = Slave(front_dir)
     s.step()
