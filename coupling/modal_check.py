@@ -479,9 +479,13 @@ class _Config:
         m = modes(string, top, bottom, f_max=f_band, rtol=config.rtol, mass=config.mass)
         fine = string.with_elements(m.elements_per_section)
         # one mode above the band range classifies the last one
-        asm, lam, lam_c, phi = _solve(fine, top, bottom, None, len(m) + 1, config.mass, True)
-        self.asm, self.lam, self.phi = asm, lam_c, phi
-        self.freqs = np.sqrt(lam_c) / (2.0 * math.pi)
+        asm, _, lam_x, phi_x = _solve(fine, top, bottom, None, len(m) + 1, config.mass, True, first=len(m))
+        phi = m.shapes[asm.start:asm.stop]
+        lam_c = (2.0 * math.pi * m.frequencies_hz) ** 2
+        self.asm = asm
+        self.lam = np.concatenate((lam_c, lam_x))
+        self.phi = np.concatenate((phi, phi_x), axis=1)
+        self.freqs = np.sqrt(self.lam) / (2.0 * math.pi)
         self.error_estimate = np.full(self.freqs.size, np.nan)
         if m.error_estimate is not None:
             self.error_estimate[:len(m)] = m.error_estimate

@@ -57,7 +57,7 @@ __all__ = ["Modes", "modes", "exact_frequencies", "impedance_factor", "corrected
 # eigenvalues
 # --------------------------------------------------------------------------
 def _eigen(asm: Assembly, f_max: float | None, count: int | None, *,
-           all_modes: bool = False) -> tuple[np.ndarray, np.ndarray]:
+           all_modes: bool = False, first: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """Lowest eigenpairs ``(omega^2 (n,), Phi (n_dof, n))`` with ``Phi^T M Phi = I``.
 
     Only eigenvalues ``omega <= 2 pi f_max`` and/or the ``count`` lowest are
@@ -74,9 +74,9 @@ def _eigen(asm: Assembly, f_max: float | None, count: int | None, *,
             count = 10
         hi = None if f_max is None else (2.0 * math.pi * f_max) ** 2
         lam, phi = pencil_eigenpairs(kd, ke, md, me, upper=hi,
-                                     count=None if count is None else min(int(count), n))
+                                     count=None if count is None else min(int(count), n), first=first)
     lam = np.where(lam < 0.0, 0.0, lam)
-    if lam.size and _has_rigid_mode(asm.top, asm.bottom):
+    if lam.size and first == 0 and _has_rigid_mode(asm.top, asm.bottom):
         lam[0] = 0.0  # exact zero instead of round-off (~eps * max eigenvalue)
     # deterministic sign: bit (last DOF) displacement >= 0, else largest entry > 0
     ref = phi[-1].copy()
@@ -164,11 +164,11 @@ class Modes:
         return d
 
 
-def _solve(string: DrillString, top, bottom, f_max, count, mass, correct):
+def _solve(string: DrillString, top, bottom, f_max, count, mass, correct, first=0):
     asm = assemble(string, top, bottom, mass=mass)
-    lam, phi = _eigen(asm, f_max, count)
+    lam, phi = _eigen(asm, f_max, count, first=first)
     lam_c = corrected_eigenvalues(asm, lam, phi) if correct else lam
-    if correct and lam.size and _has_rigid_mode(asm.top, asm.bottom):
+    if correct and lam.size and first == 0 and _has_rigid_mode(asm.top, asm.bottom):
         lam_c[0] = 0.0
     return asm, lam, lam_c, phi
 
