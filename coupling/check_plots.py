@@ -96,7 +96,7 @@ def plot_campbell(result: CheckResult, ax=None, path: "str | Path | None" = None
                    label=f"hammer {result.excitation_hz:g} Hz: {result.verdict_label}")
         _shade_windows(ax, result, vertical=False, xmin=0.93, xmax=1.0)
     ax.set_xlim(0, rpm_max)
-    ax.set_ylim(0, f_hi)
+    ax.set_ylim(f_lo if c.rpm is None else 0.0, f_hi)
     ax.set_xlabel("rotary speed [rpm]")
     ax.set_ylabel("frequency [Hz]")
     ax.set_title(f"{result.string_name}: axial modes vs excitation")
