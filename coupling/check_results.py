@@ -155,8 +155,8 @@ class ModeRow:
     def to_dict(self) -> dict:
         return {"configuration": self.configuration, "index": self.index,
                 "frequency_hz": self.frequency_hz, "separation_pct": _finite(self.separation_pct),
-                "in_band": self.in_band, "isolated": self.isolated, "bit_receptance": self.bit_receptance,
-                "share": self.share, "rank": self.rank, "error_estimate": self.error_estimate}
+                "in_band": self.in_band, "isolated": self.isolated, "bit_receptance": _finite(self.bit_receptance),
+                "share": _finite(self.share), "rank": self.rank, "error_estimate": self.error_estimate}
 
 
 @dataclass(frozen=True)
