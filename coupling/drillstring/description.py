@@ -406,7 +406,9 @@ class DrillString:
     description: str = ""
     """Free text."""
     modal_damping_ratio: float = 0.0
-    """Damping ratio zeta [-] given to every mode (0 <= zeta < 1)."""
+    """Damping ratio zeta [-] (0 <= zeta < 1): the frequency response and the
+    check use the hysteretic loss factor ``2 zeta`` (mesh-independent); the
+    state space of the co-simulation gives every mode the ratio zeta."""
     mud_density: float = 0.0
     """Mud density [kg/m^3] for buoyancy; 0 = none (in air)."""
     max_element_length: float = DEFAULT_MAX_ELEMENT_LENGTH
