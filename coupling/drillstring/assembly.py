@@ -10,7 +10,6 @@ mass pattern; boundary springs, dashpots and masses sit on the end nodes.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
