@@ -25,6 +25,10 @@ WINDOW_STYLE = {
 }
 
 
+#: Colour of the safe speed segments on the excitation line, by label.
+_RPM_COLOR = {"margin": "tab:green", "receptance": "tab:blue", "receptance (nominal damping only)": "tab:orange"}
+
+
 def _shade_windows(ax, result, vertical: bool = True, **span) -> None:
     seen = set()
     for w in result.windows:
@@ -82,13 +86,17 @@ def plot_campbell(result: CheckResult, ax=None, path: "str | Path | None" = None
     if c.rpm is not None:
         ax.plot(rpm, rpm / 60.0, color="0.4", lw=1, ls=":", label="1x rpm")
         ax.plot(rpm, c.factor * rpm / 60.0, color="k", lw=1.5, label=f"{c.factor:g}x rpm (excitation)")
-        for lo, hi in result.safe_windows_rpm or ():
-            ax.plot([lo, min(hi, rpm_max)], [c.factor * lo / 60.0, c.factor * min(hi, rpm_max) / 60.0],
-                    color="tab:green", lw=5, alpha=0.6, solid_capstyle="butt")
+        k = 60.0 / c.factor
+        seen = set()
+        for w in result.windows:
+            lo, hi = w.lo_hz * k, min(w.hi_hz * k, rpm_max)
+            ax.plot([lo, hi], [c.factor * lo / 60.0, c.factor * hi / 60.0], color=_RPM_COLOR[w.label], lw=5,
+                    alpha=0.7, solid_capstyle="butt",
+                    label=None if w.label in seen else f"safe speeds: {w.label}")
+            seen.add(w.label)
         ax.plot([c.rpm], [result.excitation_hz], "o", ms=8,
                 color="tab:red" if result.verdict == "fail" else "tab:green",
                 label=f"operating point: {result.verdict_label}")
-        ax.plot([], [], color="tab:green", lw=5, alpha=0.6, label="safe speed windows")
     else:
         for k, ls in ((1.0, ":"), (3.0, "-.")):
             ax.plot(rpm, k * rpm / 60.0, color="0.5", lw=0.8, ls=ls, label=f"{k:g}x rpm (bit, reference)")
