@@ -701,3 +701,24 @@ def test_pencil_solver_matches_dense_eigh():
     lam3, _ = pencil_eigenpairs(kd, ke, md, me, count=8, first=5)
     assert np.allclose(lam3, ref[5:8], rtol=1e-12)
     assert sturm_count(kd, ke, md, me, 0.5 * (ref[9] + ref[10])) == 10
+
+
+def test_tighter_rtol_refines_the_mesh_and_meets_it():
+    lab = DrillString((LAB_ROD, LAB_HOLDER), name="lab3", top=Boundary.spring(2e4), bottom=Boundary.free(2.5))
+    ref = lab_closed_form(3.0, LAB_ROD, 0.25, LAB_HOLDER, 2e4, 0.0, 2.5, 4)
+    loose = modes(lab, count=4, rtol=1e-4)
+    tight = modes(lab, count=4, rtol=1e-8)
+    assert tight.n_elements > loose.n_elements
+    assert np.all(np.abs(loose.frequencies_hz / ref - 1) <= 1e-4)
+    assert np.all(np.abs(tight.frequencies_hz / ref - 1) <= 1e-8)
+
+
+def test_a_bottom_with_its_own_mass_keeps_it():
+    s = DrillString((LAB_ROD,), bottom=Boundary.free(2.5))
+    assert s.resolve_bottom("free") == Boundary.free(2.5)
+    assert s.resolve_bottom("free:10") == Boundary.free(10.0)
+    assert s.resolve_bottom("spring:5e6") == Boundary.spring(5e6, 0.0, 2.5)
+    assert s.resolve_bottom("fixed") == Boundary.fixed()
+    assert s.resolve_bottom("hammer:1e9") == Boundary.hammer(1e9)
+    assert assemble(s, "fixed", "hammer:1e9").md_full[-1] - assemble(s, "fixed", "free:0.0001").md_full[-1] \
+        == pytest.approx(2.5 - 1e-4)
