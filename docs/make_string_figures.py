@@ -125,6 +125,8 @@ def checks() -> None:
          200.0),
         ("string_check_field_hammer.png", field, CheckConfig(excitation_hz=20.0, frequency_range_hz=(0.0, 40.0)),
          None),
+        ("string_check_field_nominal_only.png", field,
+         CheckConfig(excitation_hz=5.2, frequency_range_hz=(4.0, 7.0)), None),
         ("string_check_field_hammer_band.png", field,
          CheckConfig(excitation_hz=30.0, frequency_range_hz=(15.0, 50.0), min_window=0.0), None),
     ]
