@@ -1641,9 +1641,18 @@ def advance(y, istate, fstate, t_end, p, opts,
 
 
 # ---------------------------------------------------------------------------
-# Entry points with the tableau and an empty subsystem bound as constants.
-# Fewer arguments make a call from Python cheaper (the FMU calls once per
-# communication step).
+# Entry points.  numba compiles each on its first call (or loads it from the
+# on-disk cache), so a scene compiles only the specialisation it uses:
+#
+# * ``advance_hammer``: DOP853, no linear subsystem, no energy block -- the
+#   tableau and the empty subsystem are constants, folded into the code (a
+#   plain ``simulate``, the FMU, the sweeps);
+# * ``advance``: every other combination (DP54, RK4, the energy block, the
+#   linear subsystem of the monolithic reference), compiled once for all of
+#   them, the first time one is used.
+#
+# Fewer arguments also make a call from Python cheaper (the FMU calls once
+# per communication step).
 # ---------------------------------------------------------------------------
 from . import tableaux as _T  # noqa: E402
 

@@ -441,9 +441,9 @@ class Stepper:
         self.p[:] = s[n + ni + nf:]
 
 
-#: Compile time of each entry point with an empty cache [s], measured on a
-#: 2-core machine by ``benchmarks/bench_throughput.py`` (``compile_s``), for the notice.
-COMPILE_SECONDS = {"advance_hammer": 40, "advance": 60}
+#: CPU time to compile each entry point with an empty cache [s] on a 2-core
+#: machine (``benchmarks/bench_throughput.py``, CLI cold start), for the notice.
+COMPILE_SECONDS = {"advance_hammer": 50, "advance": 50}
 _NOTICE_CHECKED = set()
 
 
