@@ -75,8 +75,9 @@ def _config(quick: bool) -> dict:
 
 
 def _cli_cmd() -> list:
-    exe = shutil.which("hammerbit")
-    if exe:
+    """The ``hammerbit`` console script of this Python's environment (not another one on PATH)."""
+    exe = os.path.join(os.path.dirname(sys.executable), "hammerbit")
+    if os.path.isfile(exe) and os.access(exe, os.X_OK):
         return [exe]
     return [sys.executable, "-m", "hammerbit.cli"]
 
