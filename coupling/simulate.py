@@ -18,7 +18,7 @@ import numpy as np
 
 from hammerbit.model import kernels as K
 from hammerbit.model.params import Groups, ParameterError
-from hammerbit.model.stepping import EVENT_NAMES, MaxStepsError, SolverOptions, Stepper
+from hammerbit.model.stepping import EVENT_NAMES, SolverOptions, Stepper
 
 __all__ = ["Record", "SimResult", "simulate", "BounceWarning", "POINCARE_DTYPE",
            "SAMPLE_DTYPE", "EVENT_DTYPE"]
