@@ -657,7 +657,7 @@ def test_a_new_process_loads_the_shipped_kernels(built_fmu):
     """A new process and a new extraction directory load the kernels the build compiled."""
     out = _probe(built_fmu, 1)
     assert out["decision"]["shipped"], out["decision"]
-    assert out["cache_misses"] == 0 and out["cache_hits"] >= 4, out
+    assert out["cache_misses"] == 0 and out["cache_hits"] >= 3, out         # advance + two force formulas
     # generous bound (goal 1 s on an idle machine, see benchmarks/bench_fmu.py); a compile takes 30 s or more
     assert out["load_s"] < 5.0, out
 

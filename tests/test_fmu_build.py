@@ -139,7 +139,7 @@ def test_cold_start_loads_the_shipped_kernels_with_a_read_only_home(built_fmu, t
     env = _cold_env(tmp_path)
     out = _cold_probe(built_fmu, env)
     assert out["decision"]["shipped"], out["decision"]
-    assert out["misses"] == 0 and out["hits"] >= 4, out
+    assert out["misses"] == 0 and out["hits"] >= 3, out        # advance + two force formulas
     msgs = [m for s, m in out["messages"]]
     assert any("shipped in the FMU" in m and "nothing compiled" in m for m in msgs), msgs
     assert not any(s >= 1 for s, m in out["messages"]), out["messages"]
@@ -160,7 +160,7 @@ def test_cold_start_fallback_compiles_once_says_so_and_uses_a_writable_directory
     assert warn and "compiled" in warn[0] and "NUMBA_CPU_NAME" in warn[0] and fallback in warn[0], warn
     assert "cannot be written" in warn[0]
     second = _cold_probe(built_fmu, env)
-    assert second["misses"] == 0 and second["hits"] >= 4
+    assert second["misses"] == 0 and second["hits"] >= 3
     assert any("loaded from the cache" in m and fallback in m for s, m in second["messages"])
 
 
