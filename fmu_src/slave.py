@@ -49,7 +49,7 @@ from .fmu_variables import (BOOL_PARAMETERS, DEFAULT_TOLERANCE, FIXED_REALS, INP
                             variable_range)
 from .params import P_B, P_FEXT, RigParameters
 from .pythonfmu_exit import guard_pythonfmu_exit
-from .stepping import SolverError, SolverOptions, Stepper
+from .stepping import _EMPTY_F, _NO_LOG, _NO_POIN, _NO_SAMP, SolverError, SolverOptions, Stepper
 from .validation import ParameterError, check
 
 __all__ = ["HammerBitRock", "PARAMETERS", "INPUTS", "OUTPUTS", "UNITS", "STATE_FORMAT",
@@ -374,6 +374,9 @@ class HammerBitRock(Fmi2Slave):
         self._st = st
         self._y, self._ist, self._p = st.y, st.istate, st.p      # updated in place by the stepper
         self._yi, self._ii = st.y.item, st.istate.item
+        # do_step's hot path calls the stepper's compiled entry point with the stepper's own
+        # arrays: Stepper.advance would repeat the argument checks do_step has made already
+        self._kernel = K.advance_hammer if st._fast else None
         self._rig = rig
         self._x0 = x0
         self._v0 = s.velocity
@@ -490,7 +493,13 @@ class HammerBitRock(Fmi2Slave):
                 self._applied_force = fh
             tau_end = (current_time + step_size - self._t_start) * self._omega
             try:
-                st.advance(tau_end)
+                if self._kernel is not None:
+                    status = self._kernel(y, ist, fst, tau_end, p, st.opts, _NO_POIN, _EMPTY_F, _NO_SAMP,
+                                          _NO_LOG)
+                    if status != K.ST_DONE:
+                        st._status(status)          # raises the solver's error
+                else:
+                    st.advance(tau_end)
             except Exception as e:  # noqa: BLE001 -- restore the state, report, never raise
                 _restore(y, snap[0])
                 _restore(ist, snap[1])
