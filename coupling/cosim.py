@@ -19,29 +19,44 @@ Causality
 
 Exact string step
 -----------------
-Over a macro step ``[t_n, t_n + H]`` the hammer motion seen by the string is
+Over a macro step ``[t_n, t_n + h]`` the hammer motion seen by the string is
 a polynomial (degree 0, 1 or 2) given by its Taylor coefficients.  The string
 state ``xi`` (deviation from static equilibrium) obeys
 ``xi' = A' xi + E w(s)``, ``A' = A - B (k_i C_u + c_i C_v)``, ``E = B [k_i, c_i]``.
 Appending the polynomial's coefficients as a nilpotent chain and the time
 integral of the interface force as one more state gives one linear
-autonomous system whose matrix exponential ``expm(Z H)`` (computed once per
-``H``, :func:`scipy.linalg.expm`) maps ``[xi_n, coefficients]`` exactly to
-``[xi_{n+1}, int F_i dt]``: one dense mat-vec per macro step, no loops over
-elements.  ``CosimConfig.f_max`` truncates to the modes below ``f_max``.
+autonomous system whose matrix exponential ``expm(Z h)`` (computed once per
+step length, :func:`scipy.linalg.expm`) maps ``[xi_n, coefficients]`` exactly
+to ``[xi_{n+1}, int F_i dt]``.  When the eigenvectors of ``A'`` reproduce it,
+the step runs in modal coordinates (O(n) per step), else as a dense mat-vec;
+both in one numba kernel per step (:func:`_exchange_modal`, :func:`_exchange_dense`).
+``CosimConfig.f_max`` truncates to the modes below ``f_max``.
 
 Schemes
 -------
 * ``jacobi``: both sides step from the data at ``t_n``.  The hammer gets the
-  mean over the step of the force extrapolated (order 0, 1, 2) from
-  ``F(t_n), F(t_{n-1}), F(t_{n-2})`` (weights 1; 3/2, -1/2; 23/12, -16/12, 5/12);
-  the string gets the hammer motion extrapolated from ``t_n, t_{n-1}, t_{n-2}``.
+  mean over the step of the force extrapolated (order 0, 1, 2) through
+  ``F(t_n), F(t_{n-1}), F(t_{n-2})`` (uniform steps: weights 1; 3/2, -1/2;
+  23/12, -16/12, 5/12; any spacing: :func:`extrapolation_weights`); the
+  string gets the hammer motion extrapolated from ``t_n, t_{n-1}, t_{n-2}``.
 * ``gauss-seidel``: the hammer steps first (as above); the string then
   *interpolates* the hammer motion through the new value: order 0 holds the
   value at ``t_{n+1}``, order 1 is linear between ``t_n`` and ``t_{n+1}``,
   order 2 the parabola through ``t_{n-1}, t_n, t_{n+1}``.
 
-Communication times are ``t0 + n H`` (never accumulated).
+Communication times are ``t0 + n H`` (never accumulated); a stop time that is
+not a whole number of steps ends with one shorter step.  With
+``adaptive=True`` the step is chosen per step (powers of two of ``step``)
+from the interface force defect, with rollback of both sides (the FMU through
+``fmi2SetFMUstate``).
+
+Coupling error estimate
+-----------------------
+Every run (``estimate=True``) carries a companion co-simulation that takes two
+half steps per macro step; the difference, scaled by the measured order, is
+the a posteriori estimate of the run's error in WOB amplitude and penetration
+(:mod:`hammerbit.cosim_error`).  ``CosimResult.estimate.meets_tolerance``
+says whether it is within ``tol``.
 
 Coupling instability
 --------------------
@@ -75,11 +90,15 @@ import numpy as np
 import scipy.linalg as sla
 
 from hammerbit.model.params import RigParameters, Scales, RIG
+from hammerbit.model.validation import check as _check
+
+from .cosim_error import CouplingErrorEstimate, StepResolutionError, check_step, measured_order, richardson
 
 __all__ = [
-    "CosimConfig", "CosimResult", "CouplingInstabilityError", "field_hammer", "StringSide",
-    "StepperHammer", "FMUHammer", "cosimulate", "monolithic", "RECORDABLE", "SCHEMES",
-    "extrapolation_weights", "coupled_modes", "sweep", "plot_sweep", "write_sweep_csv", "SWEEP_DTYPE", "wob_frf",
+    "CosimConfig", "CosimResult", "CouplingInstabilityError", "StepResolutionError", "CouplingErrorEstimate",
+    "field_hammer", "StringSide", "StepperHammer", "FMUHammer", "cosimulate", "cosimulate_adaptive",
+    "monolithic", "RECORDABLE", "SCHEMES", "extrapolation_weights", "coupled_modes",
+    "sweep", "plot_sweep", "write_sweep_csv", "SWEEP_DTYPE", "wob_frf",
 ]
 
 SCHEMES = ("jacobi", "gauss-seidel")
@@ -93,10 +112,15 @@ RECORDABLE = {
     "hammer_velocity": "hammer velocity [m/s]",
     "bit_position": "bit position = penetration [m]",
     "bit_velocity": "bit velocity [m/s]",
+    "stick": "1 while the bit sticks to the rock, 0 while it slips [-]",
+    "contact": "1 while the hammer is in contact with the bit (gap closed), else 0 [-]",
     "string_bit_displacement": "displacement of the string's bottom node from equilibrium [m]",
     "string_bit_velocity": "velocity of the string's bottom node [m/s]",
     "hook_load": "hook load [N]: static hook load plus the dynamic tension of the top element",
     "energy_residual": "coupling energy residual of the step (power-bond residual x H) [J]",
+    "step_size": "macro step that ended at this time [s]",
+    "force_defect": "interface force defect of the step, F_held - mean F_i [N]",
+    "wob_error_estimate": "estimated coupling error of the WOB at this time, factor x (run - companion) [N]",
 }
 
 
@@ -164,9 +188,9 @@ class CosimConfig:
     Attributes
     ----------
     stop : float
-        End time [s] (start at ``start``).
+        End time [s] (start at ``start``); reached exactly (a shorter last step).
     step : float
-        Macro step H [s].
+        Macro step H [s]; with ``adaptive`` the first step.
     start : float
         Start time t0 [s].
     scheme : {'jacobi', 'gauss-seidel'}
@@ -189,6 +213,25 @@ class CosimConfig:
         Mass scheme of the string (``mixed``, ``lumped``, ``consistent``).
     f_max : float, optional
         Modal truncation of the string at f_max [Hz] (None: all nodal DOFs).
+    ramp : float
+        Duration [s] over which the harmonic force rises linearly from 0 to its
+        amplitude (0: on at full amplitude).  The ramp factor is held per macro
+        step at its value at the step's midpoint; with the FMU the master then
+        feeds the harmonic force (``harmonic_source='master'``).
+    adaptive : bool
+        Adaptive macro step with rollback (see :func:`cosimulate`).
+    tol : float
+        Relative tolerance [-] of the coupling error on the WOB amplitude and
+        the penetration: the estimate is held against it; with ``adaptive`` it
+        also drives the step.
+    estimate : bool
+        Run the half-step companion and estimate the coupling error
+        (:mod:`hammerbit.cosim_error`); costs about twice the run itself.
+    check_step : bool
+        Refuse a step that cannot resolve the forcing, the slip dynamics or the
+        string modes in the exchange (:func:`hammerbit.cosim_error.check_step`).
+    h_min, h_max : float, optional
+        Adaptive step limits [s] (default ``step / 64`` and ``step * 8``).
     record : tuple of str
         Variables to record (keys of :data:`RECORDABLE`); ``time`` is always first.
     record_every : int
@@ -198,7 +241,7 @@ class CosimConfig:
     energy_tol, growth, growth_windows, stability_window, blowup : float/int
         Thresholds of the instability detector.
     progress : bool, optional
-        Progress bar on stderr (None: only for runs above 20000 steps on a tty).
+        Progress bar on stderr (tqdm; None: only for runs above 20000 steps on a terminal).
     rtol : float
         Tolerance of the in-process hammer / the monolithic reference.
     """
@@ -214,6 +257,16 @@ class CosimConfig:
     interface_damping: float = 2.0e3
     mass: str = "mixed"
     f_max: Optional[float] = None
+    ramp: float = 0.0
+    adaptive: bool = False
+    tol: float = 1e-3
+    estimate: bool = True
+    check_step: bool = True
+    h_min: Optional[float] = None
+    h_max: Optional[float] = None
+    string_step: str = "auto"
+    """``auto``: the modal form of the exact string step when the eigenbasis
+    reproduces it, else dense; ``dense``: always the dense mat-vec."""
     record: tuple = ("wob", "interface_force", "hammer_position", "hammer_velocity",
                      "bit_position", "bit_velocity")
     record_every: int = 1
@@ -236,21 +289,34 @@ class CosimConfig:
             raise ValueError(f"scheme = {self.scheme!r}: allowed {', '.join(SCHEMES)}")
         if self.extrapolation not in (0, 1, 2):
             raise ValueError(f"extrapolation = {self.extrapolation!r}: allowed 0, 1, 2")
+        if self.string_step not in ("auto", "dense"):
+            raise ValueError(f"string_step = {self.string_step!r}: allowed 'auto', 'dense'")
         if self.harmonic_source not in ("fmu", "master"):
             raise ValueError(f"harmonic_source = {self.harmonic_source!r}: allowed 'fmu', 'master'")
-        if not (self.step > 0 and math.isfinite(self.step)):
-            raise ValueError(f"step = {self.step!r}: must be > 0 s")
+        for key, name in (("cosim.step", "step"), ("cosim.start", "start"), ("cosim.stop", "stop"),
+                          ("cosim.interface_stiffness", "interface_stiffness"),
+                          ("cosim.interface_damping", "interface_damping"), ("cosim.ramp", "ramp"),
+                          ("cosim.tol", "tol")):
+            _check(key, getattr(self, name), label=name)
         if not self.stop > self.start:
             raise ValueError(f"stop = {self.stop!r}: must be > start = {self.start!r}")
-        if self.interface_stiffness <= 0 or self.interface_damping < 0:
-            raise ValueError("interface_stiffness must be > 0 and interface_damping >= 0")
+        if self.step > self.stop - self.start:
+            raise ValueError(f"step = {self.step!r} s is longer than the run ({self.stop - self.start:g} s "
+                             f"from start = {self.start!r} to stop = {self.stop!r})")
+        if self.f_max is not None:
+            _check("cosim.f_max", self.f_max, label="f_max")
+        if self.wob is not None:
+            _check("cosim.wob", self.wob, label="wob")
         bad = [r for r in self.record if r not in RECORDABLE]
         if bad:
             raise ValueError(f"record: unknown variable(s) {bad}; allowed {', '.join(RECORDABLE)}")
         if self.record_every < 1:
             raise ValueError("record_every must be >= 1")
-        if self.wob is not None and self.wob < 0:
-            raise ValueError("wob must be >= 0 N")
+        if self.adaptive:
+            lo, hi = self.step_range
+            if not (0 < lo <= self.step <= hi):
+                raise ValueError(f"need 0 < h_min <= step <= h_max; got h_min={lo!r}, step={self.step!r}, "
+                                 f"h_max={hi!r}")
 
     @property
     def weight_on_bit(self) -> float:
@@ -259,8 +325,31 @@ class CosimConfig:
 
     @property
     def macro_steps(self) -> int:
-        """Number of macro steps ``round((stop - start)/step)``."""
-        return int(round((self.stop - self.start) / self.step))
+        """Number of fixed macro steps: whole steps, plus one shorter last step if needed."""
+        n, rem = self.whole_steps
+        return n + (1 if rem > 0.0 else 0)
+
+    @property
+    def whole_steps(self) -> tuple:
+        """``(n, rem)``: whole steps of ``step`` in the run and the remaining time [s] (0 if none)."""
+        span = self.stop - self.start
+        n = int(math.floor(span / self.step * (1.0 + 1e-12)))
+        rem = span - n * self.step
+        if rem <= 1e-9 * self.step:
+            rem = 0.0
+        return n, rem
+
+    @property
+    def step_range(self) -> tuple:
+        """``(h_min, h_max)`` of the adaptive step [s]."""
+        return (self.step / 64 if self.h_min is None else self.h_min,
+                self.step * 8 if self.h_max is None else self.h_max)
+
+    def ramp_factor(self, t: float) -> float:
+        """Factor of the harmonic amplitude at time t [s] (1 after the ramp)."""
+        if self.ramp <= 0.0:
+            return 1.0
+        return min(1.0, max(0.0, (t - self.start) / self.ramp))
 
     def replace(self, **changes) -> "CosimConfig":
         return replace(self, **changes)
@@ -281,14 +370,20 @@ class CosimResult:
     config : CosimConfig
     macro_steps : int
     wall_time_s : float
-        Time of the stepping loop (set-up excluded).
+        Time of the stepping loop (set-up excluded; with the companion).
     setup_time_s : float
     penetration_m : float
         Bit position at the end [m].
     stats : dict
-        Maximum window energy residual, hammer calls, ...
+        Energy residuals, rejected steps, ...
     method : str
-        ``cosim`` or ``monolithic``.
+        ``cosim``, ``cosim-adaptive`` or ``monolithic``.
+    counts : dict
+        Events of the hammer side by kind: ``slips``, ``sticks``, ``impacts``,
+        ``bounce_violations``.
+    estimate : CouplingErrorEstimate, optional
+        A posteriori coupling-error estimate (None without the companion or for
+        the monolithic reference).
     """
 
     data: np.ndarray
@@ -299,11 +394,18 @@ class CosimResult:
     penetration_m: float
     stats: dict
     method: str = "cosim"
+    counts: dict = field(default_factory=dict)
+    estimate: Optional[CouplingErrorEstimate] = None
+
+    @property
+    def stop_s(self) -> float:
+        """Time of the last communication point [s]."""
+        return float(self.data["time"][-1]) if len(self.data) else self.config.start
 
     def window(self, t_from: Optional[float] = None) -> np.ndarray:
-        """Rows with time >= t_from (default: the second half of the run)."""
+        """Rows with time >= t_from (default: the second half of the run, the steady window)."""
         if t_from is None:
-            t_from = 0.5 * (self.config.start + self.config.stop)
+            t_from = steady_start(self.config)
         return self.data[self.data["time"] >= t_from - 1e-12]
 
     def wob_amplitude(self, t_from: Optional[float] = None) -> float:
@@ -319,12 +421,16 @@ class CosimResult:
         """JSON-ready figures."""
         out = {"method": self.method, "scheme": self.config.scheme,
                "extrapolation": self.config.extrapolation, "step_s": self.config.step,
-               "stop_s": self.config.stop, "macro_steps": self.macro_steps,
+               "stop_s": self.stop_s, "macro_steps": self.macro_steps,
                "wall_time_s": self.wall_time_s, "setup_time_s": self.setup_time_s,
-               "penetration_m": self.penetration_m}
+               "penetration_m": self.penetration_m, "ramp_s": self.config.ramp,
+               "steady_window_start_s": steady_start(self.config) if t_from is None else t_from}
         if "wob" in self.data.dtype.names:
             out["wob_mean_n"] = self.wob_mean(t_from)
             out["wob_amplitude_n"] = self.wob_amplitude(t_from)
+        out["counts"] = dict(self.counts)
+        if self.estimate is not None:
+            out["error_estimate"] = self.estimate.to_dict()
         out.update({k: v for k, v in self.stats.items() if isinstance(v, (int, float, str))})
         return out
 
@@ -338,21 +444,41 @@ class CosimResult:
         return path
 
 
+def steady_start(config: CosimConfig) -> float:
+    """Start of the steady window [s]: the later of the run's midpoint and the end of the ramp."""
+    return max(0.5 * (config.start + config.stop), min(config.start + config.ramp, config.stop))
+
+
+def event_counts(raw: dict) -> dict:
+    """The hammer's event counts under the names the results use."""
+    return {"slips": int(raw.get("slip_start", 0)), "sticks": int(raw.get("stick", 0)),
+            "impacts": int(raw.get("impact", 0)), "bounce_violations": int(raw.get("bounce", 0))}
+
+
 # ---------------------------------------------------------------------------
 # extrapolation
 # ---------------------------------------------------------------------------
-def extrapolation_weights(order: int) -> np.ndarray:
-    """Weights on (F_n, F_{n-1}, F_{n-2}) of the mean over [t_n, t_n+H] of the
-    extrapolation polynomial of the given order (Adams–Bashforth weights)."""
-    return {0: np.array([1.0, 0.0, 0.0]), 1: np.array([1.5, -0.5, 0.0]),
-            2: np.array([23.0, -16.0, 5.0]) / 12.0}[order]
+def extrapolation_weights(order: int, ratio: float = 1.0, ratio_past: float = 1.0) -> np.ndarray:
+    """Weights on (F_n, F_{n-1}, F_{n-2}) of the mean over [t_n, t_n + h] of the
+    extrapolation polynomial of the given order.
+
+    ``ratio = h / (t_n - t_{n-1})`` and ``ratio_past = (t_{n-1} - t_{n-2}) / (t_n - t_{n-1})``;
+    with uniform steps (both 1) these are the Adams–Bashforth weights.
+    """
+    w = np.zeros(3)
+    _held_weights(order, 1.0, ratio_past, ratio, w)
+    return w
 
 
 # ---------------------------------------------------------------------------
 # string side
 # ---------------------------------------------------------------------------
 class StringSide:
-    """The drillstring plus interface spring, stepped exactly over a macro step.
+    """The drillstring plus interface spring and its exact step over any macro step.
+
+    Holds the model and the discretisations (one per step length, cached);
+    the state of a run lives in :class:`_StringState` (a run and its
+    companion share one side).
 
     Parameters
     ----------
@@ -387,15 +513,46 @@ class StringSide:
         self.n = ss.A.shape[0]
         self.frow = ki * self.Cu + ci * self.Cv   # F_i - W = frow.xi - ki x_dev - ci v
         self.hook_eq = float(ss.hook_load)
-        self.xi = np.zeros(self.n)
-        self._H = None
+        self._disc = {}
+        self._eig = None
+        self.modal = False if config.string_step == "dense" else None  # decided at the first discretisation
+        self.m_Vinv = None
+        self.xi = np.zeros(self.n)    # state of :meth:`step` (the single-run helper)
 
-    def discretise(self, H: float, modal: bool = True) -> None:
-        """Precompute ``expm`` of the augmented system for the macro step H.
+    # -- modes ---------------------------------------------------------------
+    def _eigen(self):
+        if self._eig is None:
+            try:
+                lam, V = np.linalg.eig(self.A1)
+                self._eig = (lam, V, np.linalg.inv(V))
+            except np.linalg.LinAlgError:
+                self._eig = False
+        return self._eig
 
-        ``modal=False`` skips the modal form (:meth:`_modal`); ``self.modal``
-        is then False and only the dense ``P`` is set.
-        """
+    def exchange_frequency(self, share: float = 1e-3) -> float:
+        """Highest mode [Hz] of the string side carrying at least ``share`` of the
+        interface's static compliance (the string modes the exchange sees)."""
+        eig = self._eigen()
+        if eig is False:
+            return float(np.max(np.abs(np.linalg.eigvals(self.A1).imag)) / (2 * math.pi))
+        lam, V, Vinv = eig
+        r = np.abs((self.frow @ V) * (Vinv @ self.E[:, 0]) / np.where(lam == 0, 1.0, lam))
+        if not np.any(r > 0):
+            return 0.0
+        keep = r >= share * r.sum()
+        return float(np.max(np.abs(lam.imag[keep])) / (2 * math.pi))
+
+    # -- discretisation ------------------------------------------------------
+    def discretisation(self, h: float) -> "_Discretisation":
+        """The exact step over ``h`` [s] (cached by ``h`` to 12 significant digits: steps that
+        differ by rounding only, e.g. ``t_end - t``, share one)."""
+        key = float(f"{h:.12g}")
+        d = self._disc.get(key)
+        if d is None:
+            d = self._disc[key] = self._discretise(key)
+        return d
+
+    def _discretise(self, h: float) -> "_Discretisation":
         n = self.n
         N = n + 6 + 1
         Z = np.zeros((N, N))
@@ -405,114 +562,219 @@ class StringSide:
         Z[n + 2:n + 4, n + 4:n + 6] = np.eye(2)
         Z[N - 1, :n] = self.frow
         Z[N - 1, n:n + 2] = (-self.ki, -self.ci)
-        Phi = sla.expm(Z * H)
+        Phi = sla.expm(Z * h)
         rows = np.r_[np.arange(n), N - 1]
-        self.P = np.ascontiguousarray(Phi[np.ix_(rows, np.arange(n + 6))])
-        self._H = H
-        self._buf = np.zeros(n + 6)
-        if modal:
-            self._modal(Phi, H)
-        else:
-            self.modal = False
+        d = _Discretisation(h=h, P=np.ascontiguousarray(Phi[np.ix_(rows, np.arange(n + 6))]))
+        self._modal(Phi, h, d)
+        return d
 
-    def _modal(self, Phi: np.ndarray, H: float) -> None:
+    def _modal(self, Phi: np.ndarray, h: float, d: "_Discretisation") -> None:
         """Diagonal (modal) form of the exact step: O(n) per macro step instead of O(n^2).
 
-        With ``A1 = V diag(lam) V^-1`` the step is ``eta <- exp(lam H) * eta + G c``
+        With ``A1 = V diag(lam) V^-1`` the step is ``eta <- exp(lam h) * eta + G c``
         in modal coordinates ``eta = V^-1 xi``, and the interface force row is
-        ``frow V``.  Used only when the eigenvector basis reproduces the dense
-        step to 1e-10 (otherwise the dense ``P`` is kept).
+        ``frow V``.  Decided once, at the first step length: used only when the
+        eigenvector basis reproduces the dense step to 1e-10 (otherwise every
+        step is the dense ``P``).
         """
         n = self.n
-        self.modal = False
-        if getattr(self, "_eig", None) is None:
-            try:
-                lam, V = np.linalg.eig(self.A1)
-                self._eig = (lam, V, np.linalg.inv(V))
-            except np.linalg.LinAlgError:
-                self._eig = False
-        if self._eig is False:
+        if self.modal is False:
             return
-        lam, V, Vinv = self._eig
-        d = np.exp(lam * H)
-        recon = (V * d[None, :]) @ Vinv
-        scale = max(np.max(np.abs(Phi[:n, :n])), 1.0)
-        if not np.all(np.isfinite(recon)) or np.max(np.abs(recon - Phi[:n, :n])) > 1e-10 * scale:
+        eig = self._eigen()
+        if eig is False:
+            self.modal = False
             return
-        # A1 is real: its complex modes come in conjugate pairs, whose two halves
-        # carry conjugate states.  Keep one of each pair with weight 2 on every
-        # real output (and the real modes with weight 1): half the work.
-        tol = 1e-12 * max(np.max(np.abs(lam)), 1.0)
-        keep = np.flatnonzero((lam.imag > tol) | (np.abs(lam.imag) <= tol))
-        if np.count_nonzero(lam.imag > tol) != np.count_nonzero(lam.imag < -tol):
-            return
-        wgt = np.where(lam[keep].imag > tol, 2.0, 1.0)
-        Vk = V[:, keep]
-        self.m_d = np.ascontiguousarray(d[keep])
-        self.m_G = np.ascontiguousarray((Vinv @ Phi[:n, n:n + 6])[keep])
-        self.m_frow = np.ascontiguousarray((self.frow @ Vk) * wgt)
-        self.m_rows = ((self.Cu @ Vk) * wgt, (self.Cv @ Vk) * wgt, (self.Ct @ Vk) * wgt)
-        self._V = Vk * wgt[None, :]          # xi = Re(_V @ eta)
-        self._Vinv = Vinv[keep]               # eta = _Vinv @ xi
-        self.modal = True
+        lam, V, Vinv = eig
+        ex = np.exp(lam * h)
+        if self.modal is None:
+            recon = (V * ex[None, :]) @ Vinv
+            scale = max(np.max(np.abs(Phi[:n, :n])), 1.0)
+            tol = 1e-12 * max(np.max(np.abs(lam)), 1.0)
+            if (not np.all(np.isfinite(recon)) or np.max(np.abs(recon - Phi[:n, :n])) > 1e-10 * scale
+                    or np.count_nonzero(lam.imag > tol) != np.count_nonzero(lam.imag < -tol)):
+                self.modal = False
+                return
+            # A1 is real: its complex modes come in conjugate pairs, whose two halves
+            # carry conjugate states.  Keep one of each pair with weight 2 on every
+            # real output (and the real modes with weight 1): half the work.
+            keep = np.flatnonzero((lam.imag > tol) | (np.abs(lam.imag) <= tol))
+            wgt = np.where(lam[keep].imag > tol, 2.0, 1.0)
+            Vk = V[:, keep]
+            self._keep = keep
+            self._Vk_w = Vk * wgt[None, :]
+            self.m_frow = np.ascontiguousarray(self.frow @ self._Vk_w)
+            self.m_rows = (self.Cu @ self._Vk_w, self.Cv @ self._Vk_w, self.Ct @ self._Vk_w)
+            self.m_V = self._Vk_w                 # xi = Re(m_V @ eta)
+            self.m_Vinv = Vinv[keep]              # eta = m_Vinv @ xi
+            self.modal = True
+        keep = self._keep
+        N = n + 6 + 1
+        d.modal = True
+        d.m_d = np.ascontiguousarray(ex[keep])
+        d.m_G = np.ascontiguousarray((Vinv @ Phi[:n, n:n + 6])[keep])
+        d.m_irow = np.ascontiguousarray(Phi[N - 1, :n] @ self._Vk_w)   # int (F_i - W) dt from eta
+        d.m_icol = np.ascontiguousarray(Phi[N - 1, n:n + 6])           # ... and from the coefficients
 
-    def step(self, coeffs: np.ndarray) -> float:
-        """Advance xi over one step with hammer-motion Taylor coefficients
+    # -- single-run helper (tests, one step from xi) -------------------------
+    def step(self, coeffs: np.ndarray, h: float) -> float:
+        """Advance ``self.xi`` over ``h`` with hammer-motion Taylor coefficients
         (6,) = (x, v, x', v', x'', v''); x as deviation from equilibrium.
-        Returns the integral of (F_i - W) over the step [N s]."""
-        b = self._buf
-        b[:self.n] = self.xi
-        b[self.n:] = coeffs
-        out = self.P @ b
-        self.xi = out[:self.n]
-        return float(out[self.n])
+        Returns the integral of (F_i - W) over the step [N s].  The same kernels
+        as the master (modal form when available)."""
+        st = _StringState(self, self.xi)
+        imp = st.advance(self.discretisation(h), np.asarray(coeffs, dtype=float))
+        self.xi = st.xi()
+        return imp
 
-    eta = None
-    """Modal state while the master steps in modal coordinates (else None)."""
 
-    def force(self, x_dev: float, v: float) -> float:
-        """Interface force on the hammer [N] for hammer deviation x_dev and velocity v."""
-        f = float((self.m_frow @ self.eta).real) if self.eta is not None else float(self.frow @ self.xi)
-        return self.wob + f - self.ki * x_dev - self.ci * v
+@dataclass
+class _Discretisation:
+    """The exact step over ``h``: dense ``P`` (n + 1 rows: xi and int (F_i - W) dt) and,
+    when the eigenbasis reproduces it, the modal form."""
+
+    h: float
+    P: np.ndarray
+    modal: bool = False
+    m_d: Optional[np.ndarray] = None
+    m_G: Optional[np.ndarray] = None
+    m_irow: Optional[np.ndarray] = None
+    m_icol: Optional[np.ndarray] = None
+
+
+class _StringState:
+    """The string's state in one run: modal ``eta`` when the side has a modal form, else ``xi``."""
+
+    def __init__(self, side: StringSide, xi0: Optional[np.ndarray] = None):
+        self.side = side
+        xi0 = np.zeros(side.n) if xi0 is None else np.asarray(xi0, dtype=float)
+        side.discretisation(side.config.step)       # decides the form
+        self.modal = bool(side.modal)
+        if self.modal:
+            self.eta = (side.m_Vinv @ xi0).astype(np.complex128)
+            self.v = self.eta
+        else:
+            self.v = xi0.copy()
+        self.buf = np.zeros(side.n + 6)
+        self.tmp = np.zeros(side.n + 1)
+        self.c = np.zeros(6)
+
+    def xi(self) -> np.ndarray:
+        return (self.side.m_V @ self.v).real if self.modal else self.v.copy()
+
+    def f_xi(self) -> float:
+        """frow . xi: the string's share of F_i - W [N]."""
+        s = self.side
+        if self.modal:
+            return float((s.m_frow @ self.v).real)
+        return float(s.frow @ self.v)
 
     def bit(self) -> tuple:
         """(displacement deviation [m], velocity [m/s]) of the string's bottom node."""
-        if self.eta is not None:
-            return float((self.m_rows[0] @ self.eta).real), float((self.m_rows[1] @ self.eta).real)
-        return float(self.Cu @ self.xi), float(self.Cv @ self.xi)
+        s = self.side
+        if self.modal:
+            return float((s.m_rows[0] @ self.v).real), float((s.m_rows[1] @ self.v).real)
+        return float(s.Cu @ self.v), float(s.Cv @ self.v)
 
     def hook_load(self) -> float:
-        if self.eta is not None:
-            return self.hook_eq + float((self.m_rows[2] @ self.eta).real)
-        return self.hook_eq + float(self.Ct @ self.xi)
+        s = self.side
+        if self.modal:
+            return s.hook_eq + float((s.m_rows[2] @ self.v).real)
+        return s.hook_eq + float(s.Ct @ self.v)
+
+    def copy_state(self):
+        return self.v.copy()
+
+    def restore(self, v) -> None:
+        self.v[:] = v
+
+    def advance(self, d: _Discretisation, coeffs: np.ndarray) -> float:
+        """Advance with given coefficients; returns int (F_i - W) dt [N s]."""
+        if self.modal:
+            return _string_step_modal(d.m_d, d.m_G, d.m_irow, d.m_icol, self.v, coeffs)
+        self.buf[self.side.n:] = coeffs
+        return _string_step_dense(d.P, self.v, self.buf, self.tmp)
 
 
 # ---------------------------------------------------------------------------
 # hammer sides
 # ---------------------------------------------------------------------------
 class _MasterHarmonic:
-    """The harmonic force A sin(2 pi f t + phi) computed by the master and held
-    over each macro step at its mean (the exact impulse of the step)."""
+    """The harmonic force r(t) A sin(2 pi f t + phi) computed by the master and held
+    over each macro step at its mean (the exact impulse of the step; the ramp
+    factor r at the step's midpoint)."""
 
-    def __init__(self, rig: RigParameters):
+    def __init__(self, rig: RigParameters, config: Optional[CosimConfig] = None):
         self.A = rig.amplitude
         self.w = 2.0 * math.pi * rig.frequency
         self.phi = rig.phase
+        self.config = config
 
     def mean(self, t: float, H: float) -> float:
         w, phi = self.w, self.phi
-        return self.A * (math.cos(w * t + phi) - math.cos(w * (t + H) + phi)) / (w * H)
+        r = 1.0 if self.config is None else self.config.ramp_factor(t + 0.5 * H)
+        return r * self.A * (math.cos(w * t + phi) - math.cos(w * (t + H) + phi)) / (w * H)
 
 
-def _hammer_side(fmu, rig: RigParameters, W: float, c) -> object:
-    """The hammer side of a run: the FMU (fmpy) or the same kernels in process."""
-    master = _MasterHarmonic(rig) if c.harmonic_source == "master" else None
+def _hammer_side(fmu, rig: RigParameters, W: float, c, instance: str = "hammer") -> object:
+    """The hammer side of a run: the FMU (fmpy) or the same kernels in process.
+
+    With a ramp the FMU's fixed amplitude cannot follow it: the master feeds the
+    (ramped) harmonic force; in process the amplitude is set per step."""
+    use_master = c.harmonic_source == "master" or (c.ramp > 0.0 and fmu is not None)
+    master = _MasterHarmonic(rig, c) if use_master else None
     if master is not None:
         rig = rig.replace(amplitude=0.0)       # the FMU's internal source off
-    h = FMUHammer(fmu, rig, W, t0=c.start, rtol=c.rtol) if fmu is not None else \
-        StepperHammer(rig, W, rtol=c.rtol, t0=c.start)
+    if fmu is not None:
+        _check_fmu_file(fmu)
+        h = FMUHammer(fmu, rig, W, t0=c.start, rtol=c.rtol, instance=instance)
+    else:
+        h = StepperHammer(rig, W, rtol=c.rtol, t0=c.start, ramp=c if (c.ramp > 0.0 and master is None) else None)
     h.master_harmonic = master
     return h
+
+
+def _check_fmu_file(path) -> None:
+    """A clear error for a path that is not an FMU (before fmpy's own)."""
+    import zipfile
+    p = Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(f"fmu {str(path)!r}: no such file (build it with `hammerbit fmu build` "
+                                f"or python build_fmu.py)")
+    if not zipfile.is_zipfile(p):
+        raise ValueError(f"fmu {str(path)!r}: not an FMU (an FMU is a zip archive with a "
+                         f"modelDescription.xml)")
+    with zipfile.ZipFile(p) as z:
+        if "modelDescription.xml" not in z.namelist():
+            raise ValueError(f"fmu {str(path)!r}: the archive has no modelDescription.xml: not an FMU")
+
+
+def _hammer_flags(h) -> tuple:
+    """(stick, contact) flags of a hammer side (1.0/0.0)."""
+    if isinstance(h, StepperHammer):
+        return h.flags()
+    vr = getattr(h, "_flag_vrs", None)
+    if vr is None:
+        names = h.vr
+        vr = h._flag_vrs = (names.get("stick_slip"), names.get("in_contact"))
+    s = 0.0
+    if vr[0] is not None:
+        s = 1.0 if h.fmu.getInteger([vr[0]])[0] == 0 else 0.0
+    ct = 0.0
+    if vr[1] is not None:
+        ct = 1.0 if h.fmu.getBoolean([vr[1]])[0] else 0.0
+    return s, ct
+
+
+def _hammer_counts(h) -> dict:
+    """Event counts of a hammer side (:func:`event_counts` names)."""
+    if isinstance(h, StepperHammer):
+        return event_counts(h.st.counts)
+    out = {}
+    for key, name in (("slips", "slip_count"), ("impacts", "impact_count"),
+                      ("bounce_violations", "bounce_count")):
+        if name in h.vr:
+            out[key] = int(h.fmu.getInteger([h.vr[name]])[0])
+    return out
 
 
 class StepperHammer:
@@ -521,9 +783,12 @@ class StepperHammer:
     Starts in static equilibrium under the WOB ``W``: hammer at ``x_h = W/K``
     (its spring compressed by ``W/K``), bit stuck at 0, both at rest.  The
     ``preload`` (interface force) is held over each step as in the FMU.
+    With ``ramp`` (a :class:`CosimConfig` with ``ramp > 0``) the harmonic
+    amplitude is set per step to its ramped value at the step's midpoint.
     """
 
-    def __init__(self, rig: RigParameters, wob: float, *, rtol: float = 1e-10, t0: float = 0.0):
+    def __init__(self, rig: RigParameters, wob: float, *, rtol: float = 1e-10, t0: float = 0.0,
+                 ramp: Optional[CosimConfig] = None):
         from hammerbit.model import kernels as K
         from hammerbit.model.stepping import SolverOptions, Stepper
         self.rig = rig
@@ -536,13 +801,18 @@ class StepperHammer:
                           y0=[wob / self.F0, 0.0, 0.0, 0.0])
         self.st.fstate[K.F_T] = self.Om * t0
         self.x_eq = wob / rig.stiffness
+        self._ramp = ramp
+        self._a = float(g.a)
 
     master_harmonic = None
 
     def step(self, t: float, H: float, force: float) -> None:
-        self.st.p[self._K.P_B] = force / self.F0
+        p = self.st.p
+        p[self._K.P_B] = force / self.F0
         if self.master_harmonic is not None:
-            self.st.p[self._K.P_FEXT] = self.master_harmonic.mean(t, H) / self.F0
+            p[self._K.P_FEXT] = self.master_harmonic.mean(t, H) / self.F0
+        elif self._ramp is not None:
+            p[self._K.P_A] = self._a * self._ramp.ramp_factor(t + 0.5 * H)
         self.st.advance(self.Om * (t + H))
 
     def get_state(self):
@@ -558,15 +828,16 @@ class StepperHammer:
 
     def read(self) -> np.ndarray:
         """(x_h [m], v_h [m/s], x_bit [m], v_bit [m/s], drive on bit [N])."""
-        y, g = self.st.y, self.groups
-        fk = (y[0] - y[2]) + 2.0 * g.xi * (y[1] - y[3])
-        fc = 0.0
-        if g.has_gap:
-            d = y[0] - y[2] - g.r
-            if d > 0:
-                fc = max(0.0, g.kc * d ** g.n * (1.0 + g.lam_hat * (y[1] - y[3])))
-        return np.array([y[0] * self.x0, y[1] * self.v0, y[2] * self.x0, y[3] * self.v0,
-                         (fk + fc) * self.F0])
+        K = self._K
+        y = self.st.y
+        fd = K.force_on_bit(y, self.st.p, self.st.istate[K.I_CONTACT])
+        return np.array([y[0] * self.x0, y[1] * self.v0, y[2] * self.x0, y[3] * self.v0, fd * self.F0])
+
+    def flags(self) -> tuple:
+        """(stick, contact): 1.0 while the bit sticks / while the gap is closed."""
+        K = self._K
+        ist = self.st.istate
+        return (1.0 if ist[K.I_STICK] == K.STICK else 0.0, 0.0 if ist[K.I_CONTACT] == K.FREE else 1.0)
 
     def close(self):
         pass
@@ -695,142 +966,368 @@ class FMUHammer:
             shutil.rmtree(self._unzip, ignore_errors=True)
 
 
+
+
 # ---------------------------------------------------------------------------
 # progress
 # ---------------------------------------------------------------------------
-class _Progress:
-    def __init__(self, total: int, enabled: bool):
-        self.total, self.enabled = total, enabled
-        self.t0 = _time.perf_counter()
-        self.next = 0
+def _progress_bar(total: float, enabled: Optional[bool], n_steps: int):
+    """A tqdm bar over simulated time [s] on stderr, or None.
 
-    def update(self, k: int):
-        if not self.enabled or k < self.next:
-            return
-        self.next = k + max(1, self.total // 100)
-        frac = k / self.total
-        el = _time.perf_counter() - self.t0
-        eta = el / frac - el if frac > 0 else 0.0
-        bar = "#" * int(30 * frac)
-        sys.stderr.write(f"\rcosim [{bar:<30}] {100 * frac:5.1f}%  {el:6.1f}s  eta {eta:6.1f}s")
-        sys.stderr.flush()
-
-    def close(self):
-        if self.enabled:
-            self.update(self.total)
-            sys.stderr.write("\n")
+    ``enabled=None``: only for runs above 20000 macro steps and when stderr is a terminal."""
+    if enabled is None:
+        enabled = n_steps > 20000 and sys.stderr.isatty()
+    if not enabled:
+        return None
+    from tqdm import tqdm
+    return tqdm(total=total, unit="s", desc="cosim", file=sys.stderr, leave=False,
+                bar_format="{desc}: {percentage:5.1f}% |{bar}| {n:.3g}/{total:.3g} s [{elapsed}<{remaining}]")
 
 
 # ---------------------------------------------------------------------------
-# per-step exchange kernel (numba): coefficients, exact string step, residual
+# per-step exchange kernels (numba): coefficients, exact string step, residual
 # ---------------------------------------------------------------------------
 from numba import njit as _njit  # noqa: E402
 
 
-@_njit(cache=True, fastmath=True)
-def _matvec(P, b, out):
-    """out[i] = sum_k P[i, k] b[k] for the first len(out) rows (SIMD reduction)."""
-    m = b.shape[0]
-    for i in range(out.shape[0]):
-        acc = 0.0
-        for k in range(m):
-            acc += P[i, k] * b[k]
-        out[i] = acc
+@_njit(cache=True)
+def _held_weights(order, a, a2, h, w):
+    """Weights on (F_n, F_{n-1}, F_{n-2}) of the mean over [t_n, t_n + h] of the
+    polynomial of degree ``order`` through them; ``a = t_n - t_{n-1}``,
+    ``a2 = t_{n-1} - t_{n-2}`` (Newton form)."""
+    if order == 0:
+        w[0], w[1], w[2] = 1.0, 0.0, 0.0
+    elif order == 1:
+        r = 0.5 * h / a
+        w[0], w[1], w[2] = 1.0 + r, -r, 0.0
+    else:
+        m2 = h * h / 3.0 + 0.5 * a * h          # mean of s (s + a) over [0, h]
+        q = 1.0 / (a + a2)
+        w[0] = 1.0 + 0.5 * h / a + m2 * q / a
+        w[1] = -0.5 * h / a - m2 * q * (1.0 / a + 1.0 / a2)
+        w[2] = m2 * q / a2
 
 
 @_njit(cache=True)
-def _coefficients(gs, order, H, wh, x_new, v_new, c):
-    """Taylor coefficients (x, v, x', v', x'', v'') of the hammer motion over the step:
-    Jacobi extrapolates from the history ``wh``, Gauss–Seidel interpolates through
-    the new value."""
+def _coefficients(gs, order, a, a2, h, wh, x_new, v_new, c):
+    """Taylor coefficients (x, v, x', v', x'', v'') at t_n of the hammer motion over
+    the step ``h``: Jacobi extrapolates through the history ``wh`` (t_n, t_{n-1},
+    t_{n-2}; spacings ``a``, ``a2``), Gauss–Seidel interpolates through the new value."""
     for k in range(2):
         w0 = wh[0, k]
         w1 = wh[1, k]
         w2 = wh[2, k]
         wn = x_new if k == 0 else v_new
-        c[k] = 0.0
+        c[k] = w0
         c[2 + k] = 0.0
         c[4 + k] = 0.0
         if not gs:
-            c[k] = w0
             if order == 1:
-                c[2 + k] = (w0 - w1) / H
+                c[2 + k] = (w0 - w1) / a
             elif order == 2:
-                c[2 + k] = (3.0 * w0 - 4.0 * w1 + w2) / (2.0 * H)
-                c[4 + k] = (w0 - 2.0 * w1 + w2) / (H * H)
+                f01 = (w0 - w1) / a
+                f012 = (f01 - (w1 - w2) / a2) / (a + a2)
+                c[2 + k] = f01 + f012 * a
+                c[4 + k] = 2.0 * f012
         else:
             if order == 0:
                 c[k] = wn
             elif order == 1:
-                c[k] = w0
-                c[2 + k] = (wn - w0) / H
+                c[2 + k] = (wn - w0) / h
             else:
-                c[k] = w0
-                c[2 + k] = (wn - w1) / (2.0 * H)
-                c[4 + k] = (wn - 2.0 * w0 + w1) / (H * H)
+                f0h = (wn - w0) / h
+                f3 = (f0h - (w0 - w1) / a) / (h + a)
+                c[2 + k] = f0h - f3 * h
+                c[4 + k] = 2.0 * f3
 
 
-@_njit(cache=True)
-def _exchange(gs, order, H, P, xi, buf, frow, ki, ci, W, wh, Fh, x_new, v_new, F_held, out):
-    """One macro step of the string side after the hammer's step (dense exact step).
-
-    ``wh`` (3, 2): hammer (x deviation, v) at t_n, t_{n-1}, t_{n-2}; ``Fh`` (3,):
-    interface forces at the same times.  Builds the Taylor coefficients of the
-    hammer motion, advances ``xi`` with the precomputed ``P``, shifts the
-    histories and writes ``out = [F(t_{n+1}), energy residual of the step,
-    frow.xi at t_{n+1}]``; ``out[2]`` on entry is ``frow.xi`` at ``t_n`` (the
-    previous call's, or the master's initial value).
-    """
+@_njit(cache=True, fastmath=True)
+def _string_step_dense(P, xi, buf, tmp):
+    """xi <- P[:n] [xi, c]; returns int (F_i - W) dt (row n).  ``buf[n:]`` holds c."""
     n = xi.shape[0]
-    c = buf[n:]
-    _coefficients(gs, order, H, wh, x_new, v_new, c)
+    m = buf.shape[0]
     for i in range(n):
         buf[i] = xi[i]
-    F_start = W + out[2] - ki * c[0] - ci * c[1]
     # P @ buf by hand: no BLAS call (its thread pool costs more than this small mat-vec)
-    _matvec(P, buf, xi)
-    f_xi = 0.0
+    for i in range(n + 1):
+        acc = 0.0
+        for k in range(m):
+            acc += P[i, k] * buf[k]
+        tmp[i] = acc
     for i in range(n):
-        f_xi += frow[i] * xi[i]
-    _finish(H, c, f_xi, F_start, ki, ci, W, wh, Fh, x_new, v_new, F_held, out)
+        xi[i] = tmp[i]
+    return tmp[n]
 
 
 @_njit(cache=True)
-def _exchange_modal(gs, order, H, d, G, eta, c, frow_m, ki, ci, W, wh, Fh, x_new, v_new, F_held, out):
-    """As :func:`_exchange` in modal coordinates: ``eta <- d * eta + G c`` (O(n))."""
-    _coefficients(gs, order, H, wh, x_new, v_new, c)
-    f1 = 0.0
+def _string_step_modal(d, G, irow, icol, eta, c):
+    """eta <- d * eta + G c (modal exact step); returns int (F_i - W) dt."""
+    imp = 0.0
+    for k in range(6):
+        imp += icol[k] * c[k]
     for i in range(eta.shape[0]):
-        e = d[i] * eta[i]
+        e0 = eta[i]
+        imp += (irow[i] * e0).real
+        e = d[i] * e0
         for k in range(6):
             e += G[i, k] * c[k]
         eta[i] = e
-        f1 += (frow_m[i] * e).real
-    F_start = W + out[2] - ki * c[0] - ci * c[1]
-    _finish(H, c, f1, F_start, ki, ci, W, wh, Fh, x_new, v_new, F_held, out)
+    return imp
 
 
 @_njit(cache=True)
-def _finish(H, c, f_xi, F_start, ki, ci, W, wh, Fh, x_new, v_new, F_held, out):
-    """Interface force at the step end, energy residual, history shift."""
-    xe = c[0] + c[2] * H + 0.5 * c[4] * H * H
-    ve = c[1] + c[3] * H + 0.5 * c[5] * H * H
+def _exchange(gs, order, h, modal, P, xi, buf, tmp, d, G, irow, icol, eta, frow, ki, ci, W,
+              th, wh, Fh, x_new, v_new, F_held, c, out):
+    """One macro step of the string side after the hammer's step.
+
+    ``th`` (3,): communication times t_n, t_{n-1}, t_{n-2}; ``wh`` (3, 2): hammer
+    (x deviation, v) at those times; ``Fh`` (3,): interface forces.  Builds the
+    Taylor coefficients of the hammer motion, advances the string (modal ``eta``
+    or dense ``xi``), shifts the histories and writes ``out = [F(t_{n+1}), energy
+    residual of the step, frow.xi at t_{n+1}, force defect F_held - mean F_i]``;
+    ``out[2]`` on entry is ``frow.xi`` at ``t_n``.
+    """
+    a = th[0] - th[1]
+    a2 = th[1] - th[2]
+    _coefficients(gs, order, a, a2, h, wh, x_new, v_new, c)
+    F_start = W + out[2] - ki * c[0] - ci * c[1]
+    if modal:
+        imp = _string_step_modal(d, G, irow, icol, eta, c)
+        f_xi = 0.0
+        for i in range(eta.shape[0]):
+            f_xi += (frow[i] * eta[i]).real
+    else:
+        n = xi.shape[0]
+        for k in range(6):
+            buf[n + k] = c[k]
+        imp = _string_step_dense(P, xi, buf, tmp)
+        f_xi = 0.0
+        for i in range(n):
+            f_xi += frow[i].real * xi[i]
+    xe = c[0] + c[2] * h + 0.5 * c[4] * h * h
+    ve = c[1] + c[3] * h + 0.5 * c[5] * h * h
     F_end = W + f_xi - ki * xe - ci * ve
-    e_string = 0.5 * H * (F_start * c[1] + F_end * ve)
+    e_string = 0.5 * h * (F_start * c[1] + F_end * ve)
     e_hammer = F_held * (x_new - wh[0, 0])
     F = W + f_xi - ki * x_new - ci * v_new
-    wh[2, 0] = wh[1, 0]
-    wh[2, 1] = wh[1, 1]
-    wh[1, 0] = wh[0, 0]
-    wh[1, 1] = wh[0, 1]
+    for j in (2, 1):
+        th[j] = th[j - 1]
+        wh[j, 0] = wh[j - 1, 0]
+        wh[j, 1] = wh[j - 1, 1]
+        Fh[j] = Fh[j - 1]
+    th[0] = th[0] + h
     wh[0, 0] = x_new
     wh[0, 1] = v_new
-    Fh[2] = Fh[1]
-    Fh[1] = Fh[0]
     Fh[0] = F
     out[0] = F
     out[1] = e_string - e_hammer
-    out[2] = f_xi          # the next step's start value of the interface sum
+    out[2] = f_xi
+    out[3] = F_held - (W + imp / h)
+
+
+# ---------------------------------------------------------------------------
+# one co-simulation lane: a hammer side and a string state
+# ---------------------------------------------------------------------------
+_NONE_C = np.zeros(0, dtype=np.complex128)
+_NONE_2 = np.zeros((0, 6), dtype=np.complex128)
+_NONE_F = np.zeros(0)
+_NONE_P = np.zeros((0, 0))
+
+
+class _Lane:
+    """A run of the coupled system: its hammer side, its string state, its histories.
+
+    The run and its half-step companion are two lanes on one :class:`StringSide`.
+    """
+
+    def __init__(self, side: StringSide, hammer, config: CosimConfig, H_hist: float):
+        c = config
+        self.side, self.hammer, self.c = side, hammer, c
+        self.gs = c.scheme == "gauss-seidel"
+        self.order = c.extrapolation
+        self.string = _StringState(side)
+        self.x_eq = hammer.x_eq
+        self.out = hammer.read()
+        self.th = np.array([c.start, c.start - H_hist, c.start - 2 * H_hist])
+        self.wh = np.zeros((3, 2))
+        self.wh[:] = (self.out[0] - self.x_eq, self.out[1])
+        self.sc = np.zeros(4)
+        self.sc[2] = self.string.f_xi()
+        F = side.wob + self.sc[2] - side.ki * self.wh[0, 0] - side.ci * self.wh[0, 1]
+        self.sc[0] = F
+        self.Fh = np.array([F, F, F])
+        self.F_held = F
+        self.w = np.zeros(3)
+        self.cbuf = np.zeros(6)
+        self.frow = side.m_frow if self.string.modal else side.frow.astype(np.float64)
+
+    @property
+    def F(self) -> float:
+        return float(self.sc[0])
+
+    def held_force(self, h: float) -> float:
+        th = self.th
+        _held_weights(self.order, th[0] - th[1], th[1] - th[2], h, self.w)
+        return float(self.w @ self.Fh)
+
+    def step(self, t: float, h: float) -> None:
+        """One macro step [t, t + h]: hammer first, then the string (both schemes;
+        Jacobi's string input does not use the new hammer value)."""
+        F_held = self.held_force(h)
+        self.F_held = F_held
+        self.hammer.step(t, h, F_held)
+        out = self.out = self.hammer.read()
+        d = self.side.discretisation(h)
+        s = self.string
+        if s.modal:
+            _exchange(self.gs, self.order, h, True, _NONE_P, _NONE_F, _NONE_F, _NONE_F, d.m_d, d.m_G,
+                      d.m_irow, d.m_icol, s.v, self.frow, self.side.ki, self.side.ci, self.side.wob,
+                      self.th, self.wh, self.Fh, out[0] - self.x_eq, out[1], F_held, self.cbuf, self.sc)
+        else:
+            _exchange(self.gs, self.order, h, False, d.P, s.v, s.buf, s.tmp, _NONE_C, _NONE_2, _NONE_C,
+                      _NONE_F, _NONE_C, self.frow, self.side.ki, self.side.ci, self.side.wob,
+                      self.th, self.wh, self.Fh, out[0] - self.x_eq, out[1], F_held, self.cbuf, self.sc)
+
+    def snapshot(self):
+        return (self.hammer.get_state(), self.string.copy_state(), self.th.copy(), self.wh.copy(),
+                self.Fh.copy(), self.sc.copy(), self.out.copy())
+
+    def restore(self, snap) -> None:
+        hs, v, th, wh, Fh, sc, out = snap
+        self.hammer.set_state(hs)
+        self.string.restore(v)
+        self.th[:], self.wh[:], self.Fh[:], self.sc[:] = th, wh, Fh, sc
+        self.out = out.copy()
+
+    def free(self, snap) -> None:
+        self.hammer.free_state(snap[0])
+
+
+class _StabilityWatch:
+    """The power-bond residual watch (see the module docstring)."""
+
+    def __init__(self, c: CosimConfig, side: StringSide, t_steady: float):
+        rig = c.rig
+        W = side.wob
+        self.c, self.ki = c, side.ki
+        E_ref = W * W / (2 * side.ki) + W * W / (2 * rig.stiffness) + rig.amplitude ** 2 / rig.stiffness
+        self.E_ref = max(E_ref, 1e-12)
+        self.F_scale = c.blowup * (W + rig.amplitude + rig.scales.friction_force)
+        self.W = W
+        self.win_sum, self.win_prev, self.n_grow, self.k_in_win = 0.0, math.inf, 0, 0
+        self.max_win = self.max_steady = 0.0
+        self.total = 0.0
+        self.t_steady = t_steady
+
+    def hammer_failed(self, err, t, n, H, F_held):
+        # the hammer side gave up; if the interface was already growing, that is the cause
+        c = self.c
+        if c.check_stability and (self.n_grow > 0 or abs(F_held - self.W) > 0.2 * self.F_scale
+                                  or not math.isfinite(F_held)):
+            raise CouplingInstabilityError(
+                f"coupling unstable: the hammer side failed at t = {t:.6g} s (step {n + 1}, "
+                f"H = {H:g} s, k_i = {self.ki:g} N/m) under a growing interface force "
+                f"{F_held:.4g} N: {err}", time=t, step=n + 1, residual=math.nan,
+                reference=self.E_ref) from err
+
+    def update(self, t_end, n, H, F, out, r_step) -> None:
+        c = self.c
+        self.total += r_step
+        if not c.check_stability:
+            return
+        if not (math.isfinite(F) and math.isfinite(out[0]) and math.isfinite(out[1])):
+            raise CouplingInstabilityError(
+                f"coupling unstable: non-finite interface values at t = {t_end:.6g} s "
+                f"(step {n + 1}, H = {H:g} s, k_i = {self.ki:g} N/m)",
+                time=t_end, step=n + 1, residual=math.inf, reference=self.E_ref)
+        if abs(F - self.W) > self.F_scale:
+            raise CouplingInstabilityError(
+                f"coupling unstable: interface force {F:.4g} N left {c.blowup:g} x its scale "
+                f"at t = {t_end:.6g} s (step {n + 1}, H = {H:g} s, k_i = {self.ki:g} N/m); "
+                f"reduce H or the interface stiffness",
+                time=t_end, step=n + 1, residual=self.win_sum, reference=self.E_ref)
+        self.win_sum += abs(r_step)
+        self.k_in_win += 1
+        if self.k_in_win < c.stability_window:
+            return
+        w = self.win_sum
+        self.max_win = max(self.max_win, w)
+        if t_end >= self.t_steady + c.stability_window * H:
+            self.max_steady = max(self.max_steady, w)
+        self.n_grow = self.n_grow + 1 if w > c.growth * self.win_prev else 0
+        if w > c.energy_tol * self.E_ref and self.n_grow >= c.growth_windows:
+            raise CouplingInstabilityError(
+                f"coupling unstable: interface energy residual {w:.4g} J over "
+                f"{c.stability_window} steps (reference {self.E_ref:.4g} J) grew {self.n_grow} "
+                f"windows in a row, at t = {t_end:.6g} s (step {n + 1}, H = {H:g} s, "
+                f"k_i = {self.ki:g} N/m, scheme {c.scheme}, order {c.extrapolation}); "
+                f"reduce H or the interface stiffness",
+                time=t_end, step=n + 1, residual=w, reference=self.E_ref)
+        self.win_prev = w
+        self.win_sum, self.k_in_win = 0.0, 0
+
+    def stats(self) -> dict:
+        return {"max_window_energy_residual_j": self.max_win,
+                "steady_window_energy_residual_j": self.max_steady,
+                "energy_residual_total_j": self.total, "reference_energy_j": self.E_ref}
+
+
+class _Recorder:
+    """The recorded series (grows as needed; adaptive runs do not know their length)."""
+
+    def __init__(self, c: CosimConfig, capacity: int, lane: _Lane):
+        self.names = tuple(c.record)
+        self.data = np.zeros(max(capacity, 2), dtype=_dtype(self.names))
+        self.j = 0
+        self.lane = lane
+        self.need_flags = "stick" in self.names or "contact" in self.names
+
+    def add(self, t, h, r_step, defect, wob_diff) -> None:
+        if self.j == len(self.data):
+            self.data = np.resize(self.data, 2 * len(self.data))
+        lane = self.lane
+        row = self.data[self.j]
+        row["time"] = t
+        out = lane.out
+        flags = _hammer_flags(lane.hammer) if self.need_flags else (0.0, 0.0)
+        for name in self.names:
+            if name == "wob":
+                v = out[4]
+            elif name == "interface_force":
+                v = lane.F
+            elif name == "hammer_force":
+                v = lane.F_held
+            elif name == "hammer_position":
+                v = out[0]
+            elif name == "hammer_velocity":
+                v = out[1]
+            elif name == "bit_position":
+                v = out[2]
+            elif name == "bit_velocity":
+                v = out[3]
+            elif name == "stick":
+                v = flags[0]
+            elif name == "contact":
+                v = flags[1]
+            elif name == "string_bit_displacement":
+                v = lane.string.bit()[0]
+            elif name == "string_bit_velocity":
+                v = lane.string.bit()[1]
+            elif name == "hook_load":
+                v = lane.string.hook_load()
+            elif name == "energy_residual":
+                v = r_step
+            elif name == "step_size":
+                v = h
+            elif name == "force_defect":
+                v = defect
+            else:   # wob_error_estimate: the difference now, the factor at the end
+                v = wob_diff
+            row[name] = v
+        self.j += 1
+
+    def result(self) -> np.ndarray:
+        return self.data[:self.j]
 
 
 # ---------------------------------------------------------------------------
@@ -844,385 +1341,224 @@ def cosimulate(string, config: CosimConfig = CosimConfig(), *, fmu=None, hammer=
     string : DrillString
         E.g. ``hammerbit.drillstring.load_string('field-2200m')``.
     config : CosimConfig
+        ``adaptive=False``: fixed macro step ``step`` (communication times
+        ``t0 + n H``, a shorter last step to reach ``stop``).  ``adaptive=True``:
+        Gauss–Seidel-or-Jacobi as configured with the step chosen per step: the
+        step's interface force defect ``|F_held - mean F_i|`` (the force the
+        hammer held against the force the string transmitted) is held below
+        ``tol / 4`` times the WOB; above it both sides roll back (the FMU
+        through ``fmi2SetFMUstate``) and the step halves, below ``tol / 16``
+        the next step doubles, within ``[h_min, h_max]`` (powers of two of
+        ``step``).  When the run's estimate still exceeds ``tol`` the run is
+        repeated once with the defect tolerance scaled down accordingly.
     fmu : path, optional
-        ``HammerBitRock.fmu``; the hammer is then the FMU (fmpy ``FMU2Slave``).
+        ``HammerBitRock.fmu``; the hammer is then the FMU (fmpy ``FMU2Slave``);
+        the companion is a second instance.
     hammer : object, optional
-        A ready hammer side with ``step(t, H, force)``, ``read()``, ``close()``
-        and ``x_eq``; default: the FMU if ``fmu`` is given, else
-        :class:`StepperHammer` (the same kernels in process).
+        A ready hammer side with ``step(t, H, force)``, ``read()``, ``close()``,
+        ``get_state``/``set_state``/``free_state`` and ``x_eq``; default: the FMU
+        if ``fmu`` is given, else :class:`StepperHammer` (the same kernels in
+        process).  The companion is built from ``fmu`` (or in process).
+
+    Returns
+    -------
+    CosimResult
+        With ``estimate`` (:class:`~hammerbit.cosim_error.CouplingErrorEstimate`)
+        when ``config.estimate``; it does not raise when the estimate exceeds
+        ``tol`` (``result.estimate.meets_tolerance`` says so).
 
     Raises
     ------
+    StepResolutionError
+        ``check_step`` and a step that cannot resolve the forcing, the slip
+        dynamics or the string modes in the exchange (before the run).
     CouplingInstabilityError
         When the interface energy residual grows (see module docstring).
     """
     c = config
+    if not c.adaptive:
+        return _run(string, c, fmu=fmu, hammer=hammer, defect_tol=None)
+    defect_tol = DEFECT_TOL_FACTOR * c.tol
+    res = _run(string, c, fmu=fmu, hammer=hammer, defect_tol=defect_tol)
+    est = res.estimate
+    if est is not None and not est.meets_tolerance and math.isfinite(est.worst) and hammer is None:
+        first = res
+        # the global error grows about as defect_tol^1.5 (measured on the drilling case)
+        defect_tol *= max(min((0.5 * c.tol / est.worst) ** (1 / 1.5), 0.5), 1e-2)
+        res = _run(string, c, fmu=fmu, hammer=None, defect_tol=defect_tol)
+        res.stats["passes"] = 2
+        res.wall_time_s += first.wall_time_s
+        res.stats["rejected"] += first.stats["rejected"]
+    return res
+
+
+#: Per-step force-defect tolerance of the adaptive step, relative to the WOB, per unit of ``tol``
+#: (the first pass; a second pass tightens it when the run's estimate exceeds ``tol``).
+DEFECT_TOL_FACTOR = 1.0 / 40.0
+
+
+def cosimulate_adaptive(string, config: CosimConfig = CosimConfig(), *, fmu=None, tol: Optional[float] = None,
+                        h_min: Optional[float] = None, h_max: Optional[float] = None) -> CosimResult:
+    """:func:`cosimulate` with ``adaptive=True`` (and ``tol``, ``h_min``, ``h_max`` if given)."""
+    ch = {"adaptive": True}
+    for k, v in (("tol", tol), ("h_min", h_min), ("h_max", h_max)):
+        if v is not None:
+            ch[k] = v
+    return cosimulate(string, config.replace(**ch), fmu=fmu)
+
+
+def _run(string, c: CosimConfig, *, fmu, hammer, defect_tol) -> CosimResult:
     ts = _time.perf_counter()
     side = StringSide(string, c)
-    H = c.step
-    side.discretise(H)
+    if c.check_step:
+        H_chk = c.step_range[1] if c.adaptive else min(c.step, c.stop - c.start)
+        if c.adaptive:
+            # the adaptive step never grows past what resolves the system
+            from .cosim_error import step_limits
+            H_chk = min(H_chk, min(lim.max_step_s for lim in step_limits(side, c)))
+            c = c.replace(h_max=max(min(c.step_range[1], H_chk), c.step_range[0]))
+            check_step(side, c, c.step)
+        else:
+            check_step(side, c, H_chk)
     W = side.wob
-    rig = c.rig
     own = hammer is None
     if hammer is None:
-        hammer = _hammer_side(fmu, rig, W, c)
-    setup = _time.perf_counter() - ts
-    n_steps = c.macro_steps
-    rec = tuple(c.record)
-    nrec = n_steps // c.record_every + 1
-    data = np.zeros(nrec, dtype=_dtype(rec))
-    cols = {r: data[r] for r in rec}
-    tcol = data["time"]
-    ext_w = extrapolation_weights(c.extrapolation)
-    order = c.extrapolation
-    gs = c.scheme == "gauss-seidel"
-    x_eq = hammer.x_eq
-    # histories (index 0 newest): hammer motion (x_dev, v), forces
-    out = hammer.read()
-    wh = np.zeros((3, 2))
-    wh[:] = (out[0] - x_eq, out[1])
-    F = side.force(wh[0, 0], wh[0, 1])
-    Fh = np.array([F, F, F])
-    E_ref = W * W / (2 * side.ki) + W * W / (2 * rig.stiffness) + rig.amplitude ** 2 / rig.stiffness
-    E_ref = max(E_ref, 1e-12)
-    F_scale = c.blowup * (W + rig.amplitude + rig.scales.friction_force)
-    win_sum, win_prev, n_grow, max_win, k_in_win = 0.0, math.inf, 0, 0.0, 0
-    res_total = 0.0
-    progress = _Progress(n_steps, c.progress if c.progress is not None
-                         else (n_steps > 20000 and sys.stderr.isatty()))
-    F_held = F
-    r_step = 0.0
-
-    def record(j, t, out, F, F_held, r_step):
-        tcol[j] = t
-        for name, col in cols.items():
-            if name == "wob":
-                col[j] = out[4]
-            elif name == "interface_force":
-                col[j] = F
-            elif name == "hammer_force":
-                col[j] = F_held
-            elif name == "hammer_position":
-                col[j] = out[0]
-            elif name == "hammer_velocity":
-                col[j] = out[1]
-            elif name == "bit_position":
-                col[j] = out[2]
-            elif name == "bit_velocity":
-                col[j] = out[3]
-            elif name == "string_bit_displacement":
-                col[j] = side.bit()[0]
-            elif name == "string_bit_velocity":
-                col[j] = side.bit()[1]
-            elif name == "hook_load":
-                col[j] = side.hook_load()
-            elif name == "energy_residual":
-                col[j] = r_step
-
-    def _hammer_step(hammer, t, H, F_held, n, n_grow):
-        try:
-            hammer.step(t, H, F_held)
-        except Exception as err:
-            # the hammer side gave up; if the interface was already growing, that is the cause
-            if c.check_stability and (n_grow > 0 or abs(F_held - W) > 0.2 * F_scale
-                                      or not math.isfinite(F_held)):
-                raise CouplingInstabilityError(
-                    f"coupling unstable: the hammer side failed at t = {t:.6g} s (step {n + 1}, "
-                    f"H = {H:g} s, k_i = {side.ki:g} N/m) under a growing interface force "
-                    f"{F_held:.4g} N: {err}", time=t, step=n + 1, residual=math.nan,
-                    reference=E_ref) from err
-            raise
-
-    record(0, c.start, out, F, F, 0.0)
-    j = 1
-    P, xi, frow = side.P, side.xi, side.frow
-    buf = np.zeros(P.shape[1])
-    modal = side.modal
-    if modal:
-        eta = (side._Vinv @ xi).astype(np.complex128)
-        side.eta = eta
-        m_d, m_G, m_frow = side.m_d, side.m_G, side.m_frow
-        cbuf = np.zeros(6)
-    scratch = np.zeros(4)
-    # interface sum at the first step's start; later steps take it from _finish
-    scratch[2] = float((m_frow @ eta).real) if modal else float(frow @ xi)
-    ki, ci = side.ki, side.ci
-    check = c.check_stability
-    t_loop = _time.perf_counter()
-    progress.t0 = t_loop
+        hammer = _hammer_side(fmu, c.rig, W, c, instance="hammer")
+    lanes = [hammer]
     try:
-        for n in range(n_steps):
-            t = c.start + n * H
-            F_held = ext_w[0] * Fh[0] + ext_w[1] * Fh[1] + ext_w[2] * Fh[2]
-            _hammer_step(hammer, t, H, F_held, n, n_grow)
-            out = hammer.read()
-            if modal:
-                _exchange_modal(gs, order, H, m_d, m_G, eta, cbuf, m_frow, ki, ci, W, wh, Fh,
-                                out[0] - x_eq, out[1], F_held, scratch)
-            else:
-                _exchange(gs, order, H, P, xi, buf, frow, ki, ci, W, wh, Fh, out[0] - x_eq, out[1],
-                          F_held, scratch)
-            F, r_step = scratch[0], scratch[1]
-            res_total += r_step
-            if check:
-                if not (math.isfinite(F) and math.isfinite(out[0]) and math.isfinite(out[1])):
-                    raise CouplingInstabilityError(
-                        f"coupling unstable: non-finite interface values at t = {t + H:.6g} s "
-                        f"(step {n + 1}, H = {H:g} s, k_i = {side.ki:g} N/m)",
-                        time=t + H, step=n + 1, residual=math.inf, reference=E_ref)
-                if abs(F - W) > F_scale:
-                    raise CouplingInstabilityError(
-                        f"coupling unstable: interface force {F:.4g} N left {c.blowup:g} x its scale "
-                        f"at t = {t + H:.6g} s (step {n + 1}, H = {H:g} s, k_i = {side.ki:g} N/m); "
-                        f"reduce H or the interface stiffness",
-                        time=t + H, step=n + 1, residual=win_sum, reference=E_ref)
-                win_sum += abs(r_step)
-                k_in_win += 1
-                if k_in_win == c.stability_window:
-                    max_win = max(max_win, win_sum)
-                    if win_sum > c.growth * win_prev:
-                        n_grow += 1
-                    else:
-                        n_grow = 0
-                    if win_sum > c.energy_tol * E_ref and n_grow >= c.growth_windows:
+        comp = _hammer_side(fmu, c.rig, W, c, instance="companion") if c.estimate else None
+        if comp is not None:
+            lanes.append(comp)
+        H = c.step
+        main = _Lane(side, hammer, c, H)
+        fine = _Lane(side, comp, c, 0.5 * H) if comp is not None else None
+        n_full, rem = c.whole_steps
+        n_est = n_full + 1 if not c.adaptive else int((c.stop - c.start) / H) + 1
+        rec = _Recorder(c, n_est // c.record_every + 2, main)
+        watch = _StabilityWatch(c, side, steady_start(c))
+        setup = _time.perf_counter() - ts
+        t_loop = _time.perf_counter()
+        bar = _progress_bar(c.stop - c.start, c.progress, n_est)
+        wob_m, wob_f, t_all = [main.out[4]], [fine.out[4] if fine is not None else 0.0], [c.start]
+        rec.add(c.start, 0.0, 0.0, 0.0, 0.0)
+        d_main, d_fine = [], []
+        accepted = rejected = at_min = 0
+        h_used = (math.inf, 0.0)
+        h_lo, h_hi = c.step_range
+        t = c.start
+        n = 0
+        unit = h_lo / 2.0                   # adaptive times: t0 + k * unit (exact)
+        k_t = 0
+        try:
+            while True:
+                if c.adaptive:
+                    if t >= c.stop - 1e-12 * max(1.0, abs(c.stop)):
+                        break
+                    h = min(H, c.stop - t)
+                    last = h < H
+                else:
+                    if n >= n_full + (1 if rem > 0.0 else 0):
+                        break
+                    h = H if n < n_full else rem
+                    t = c.start + n * H
+                    last = True
+                snap = main.snapshot() if defect_tol is not None else None
+                try:
+                    main.step(t, h, )
+                except CouplingInstabilityError:
+                    raise
+                except Exception as err:
+                    watch.hammer_failed(err, t, n, h, main.F_held)
+                    raise
+                defect = float(main.sc[3])
+                if defect_tol is not None:
+                    rel = abs(defect) / max(W, 1.0)
+                    if not math.isfinite(rel):
+                        main.free(snap)
                         raise CouplingInstabilityError(
-                            f"coupling unstable: interface energy residual {win_sum:.4g} J over "
-                            f"{c.stability_window} steps (reference {E_ref:.4g} J) grew {n_grow} "
-                            f"windows in a row, at t = {t + H:.6g} s (step {n + 1}, H = {H:g} s, "
-                            f"k_i = {side.ki:g} N/m, scheme {c.scheme}, order {order}); "
-                            f"reduce H or the interface stiffness",
-                            time=t + H, step=n + 1, residual=win_sum, reference=E_ref)
-                    win_prev = win_sum
-                    win_sum, k_in_win = 0.0, 0
-            if (n + 1) % c.record_every == 0:
-                record(j, c.start + (n + 1) * H, out, F, F_held, r_step)
-                j += 1
-            if progress.enabled:
-                progress.update(n + 1)
+                            f"coupling unstable: non-finite interface values at t = {t + h:.6g} s "
+                            f"(H = {h:g} s)", time=t + h, step=n + 1, residual=math.inf, reference=W)
+                    if rel > defect_tol and h > h_lo * (1 + 1e-12) and not last:
+                        main.restore(snap)
+                        main.free(snap)
+                        rejected += 1
+                        H = max(H / 2, h_lo)
+                        continue
+                    main.free(snap)
+                    if rel > defect_tol:
+                        at_min += 1
+                t_end = c.stop if (c.adaptive and last) else (
+                    c.start + (k_t + int(round(h / unit))) * unit if c.adaptive else
+                    (c.start + (n + 1) * H if n < n_full else c.stop))
+                if c.adaptive:
+                    k_t += int(round(h / unit))
+                if fine is not None:
+                    fine.step(t, 0.5 * h)
+                    d_fine.append(float(fine.sc[3]))
+                    fine.step(t + 0.5 * h, t_end - (t + 0.5 * h))
+                    d_fine.append(float(fine.sc[3]))
+                    wob_f.append(fine.out[4])
+                d_main.append(defect)
+                wob_m.append(main.out[4])
+                t_all.append(t_end)
+                watch.update(t_end, n, h, main.F, main.out, float(main.sc[1]))
+                n += 1
+                accepted += 1
+                if (n % c.record_every == 0) or t_end >= c.stop - 1e-12 * max(1.0, abs(c.stop)):
+                    rec.add(t_end, h, float(main.sc[1]), defect,
+                            main.out[4] - fine.out[4] if fine is not None else math.nan)
+                if bar is not None:
+                    bar.update(t_end - t)
+                t = t_end
+                if c.adaptive:
+                    h_used = (min(h_used[0], h), max(h_used[1], h)) if not last or h == H else h_used
+                    if abs(defect) / max(W, 1.0) < 0.1 * defect_tol:
+                        H = min(2 * H, h_hi)
+        finally:
+            if bar is not None:
+                bar.close()
+        wall = _time.perf_counter() - t_loop
+        counts = _hammer_counts(hammer)
+        pen = float(main.out[2])
+        data = rec.result()
+        est = None
+        if fine is not None:
+            # both amplitudes on the run's communication points in the steady window
+            sel = np.asarray(t_all) >= steady_start(c) - 1e-12
+            amp = 0.5 * float(np.ptp(np.asarray(wob_m)[sel]))
+            amp_f = 0.5 * float(np.ptp(np.asarray(wob_f)[sel]))
+            p = measured_order(np.asarray(d_main), np.asarray(d_fine))
+            est = richardson(amplitude=amp, amplitude_fine=amp_f,
+                             penetration=pen, penetration_fine=float(fine.out[2]), order=p, tol=c.tol,
+                             length_scale=c.rig.scales.length)
+            if "wob_error_estimate" in data.dtype.names:
+                data["wob_error_estimate"] *= est.factor
+        stats = watch.stats()
+        stats["string_states"] = side.n
+        stats["modal"] = bool(side.modal)
+        if c.adaptive:
+            stats.update({"accepted": accepted, "rejected": rejected, "at_min_step": at_min,
+                          "defect_tol": defect_tol, "passes": 1, "tol": c.tol,
+                          "h_min_used": h_used[0], "h_max_used": h_used[1]})
+        return CosimResult(data, c, accepted, wall, setup, pen, stats,
+                           "cosim-adaptive" if c.adaptive else "cosim", counts=counts, estimate=est)
     finally:
-        progress.close()
         if own:
             hammer.close()
-        if modal:
-            side.xi[:] = (side._V @ eta).real
-            side.eta = None
-    wall = _time.perf_counter() - t_loop
-    stats = {"max_window_energy_residual_j": max_win, "energy_residual_total_j": res_total,
-             "reference_energy_j": E_ref, "string_states": side.n}
-    return CosimResult(data[:j], c, n_steps, wall, setup, float(out[2]), stats, "cosim")
+        if len(lanes) > 1:
+            lanes[1].close()
 
 
-# ---------------------------------------------------------------------------
-# monolithic reference
-# ---------------------------------------------------------------------------
 def monolithic(string, config: CosimConfig = CosimConfig()) -> CosimResult:
-    """The same coupled system as one hybrid system (reference solution).
-
-    The string with the interface spring is the linear subsystem of
-    :class:`hammerbit.model.stepping.Stepper` (nondimensional: lengths in
-    ``x0``, velocities in ``x0 Omega``, time ``tau = Omega t``, forces in
-    ``F0``), integrated by the same adaptive event-located solver as the
-    hammer at ``config.rtol``.  A constant state (``z_c = 1``) carries the
-    equilibrium offsets.  Samples at the communication times ``t0 + n H``;
-    string-side variables that the sampler does not return
-    (``string_bit_*``, ``hook_load``, ``energy_residual``, ``hammer_force``)
-    are NaN, except ``hammer_force`` = ``interface_force``.
-    """
-    from hammerbit.model.stepping import LinearSubsystem, SolverOptions, Stepper
-    c = config
-    ts = _time.perf_counter()
-    side = StringSide(string, c)
-    rig = c.rig
-    s = rig.scales
-    F0, x0, Om, v0 = s.friction_force, s.length, s.omega, s.velocity
-    W = side.wob
-    n = side.n
-    nq = n // 2
-    D = np.r_[np.full(nq, x0), np.full(n - nq, v0)]
-    x1eq = W / F0  # hammer position [x0] with the bit at 0: spring compressed by W/K
-    # z = [xi / D, 1]
-    A = np.zeros((n + 1, n + 1))
-    A[:n, :n] = (side.A1 * D[None, :]) / D[:, None] / Om
-    Hm = (side.E * np.array([x0, v0])[None, :]) / D[:, None] / Om
-    A[:n, n] = -Hm[:, 0] * x1eq
-    Hz = np.zeros((n + 1, 2))
-    Hz[:n] = Hm
-    G = np.zeros(n + 1)
-    G[:n] = side.frow * D / F0
-    G[n] = (W + side.ki * x0 * x1eq) / F0
-    g = np.array([-side.ki * x0 / F0, -side.ci * v0 / F0])
-    z0 = np.zeros(n + 1)
-    z0[n] = 1.0
-    lin = LinearSubsystem(A=A, H=Hz, G=G, g=g, z0=z0)
-    grp = rig.to_groups().replace(b=0.0)
-    st = Stepper(grp, solver=SolverOptions(rtol=c.rtol, atol=c.rtol * 1e-2), linear=lin,
-                 y0=[x1eq, 0.0, 0.0, 0.0])
-    from hammerbit.model import kernels as K
-    st.fstate[K.F_T] = Om * c.start
-    n_steps = c.macro_steps
-    idx = np.arange(0, n_steps + 1, c.record_every)
-    t_s = c.start + idx * c.step
-    samples = np.zeros((len(t_s), K.N_SAMPLE_COLS))
-    setup = _time.perf_counter() - ts
-    t_loop = _time.perf_counter()
-    st.advance(Om * (c.start + n_steps * c.step), sample_times=Om * t_s, samples=samples)
-    wall = _time.perf_counter() - t_loop
-    data = np.full(len(t_s), np.nan, dtype=_dtype(c.record))
-    data["time"] = t_s
-    x1, x2, x3, x4, fc, fl = (samples[:, i] for i in range(6))
-    wob = ((x1 - x3) + 2 * grp.xi * (x2 - x4) + fc) * F0
-    m = {"wob": wob, "interface_force": fl * F0, "hammer_force": fl * F0,
-         "hammer_position": x1 * x0, "hammer_velocity": x2 * v0, "bit_position": x3 * x0,
-         "bit_velocity": x4 * v0}
-    for r in c.record:
-        if r in m:
-            data[r] = m[r]
-    stats = {"string_states": n, "events": st.counts}
-    return CosimResult(data, c, n_steps, wall, setup, float(st.y[2] * x0), stats, "monolithic")
+    """The same coupled system as one hybrid system (reference); see
+    :func:`hammerbit.cosim_reference.monolithic`."""
+    from .cosim_reference import monolithic as _mono
+    return _mono(string, config)
 
 
 # ---------------------------------------------------------------------------
 # linear modes of the coupled system and frequency sweep
 # ---------------------------------------------------------------------------
-ADAPTIVE_DTYPE = np.dtype([("time", "f8"), ("step_size", "f8"), ("wob", "f8"), ("interface_force", "f8"),
-                           ("hammer_force", "f8"), ("hammer_position", "f8"), ("bit_position", "f8"),
-                           ("force_defect", "f8")])
-
-
-def _held_force(ts, Fs, t, H, order):
-    """Mean over [t, t + H] of the polynomial of degree ``order`` through the
-    last forces (non-uniform times): the force the hammer holds over the step."""
-    k = min(order, len(ts) - 1)
-    if k == 0:
-        return Fs[-1]
-    tt = np.asarray(ts[-(k + 1):]) - t
-    c = np.polynomial.polynomial.polyfit(tt, np.asarray(Fs[-(k + 1):]), k)
-    ci = np.polynomial.polynomial.polyint(c)
-    return float((np.polynomial.polynomial.polyval(H, ci) - np.polynomial.polynomial.polyval(0.0, ci)) / H)
-
-
-def cosimulate_adaptive(string, config: CosimConfig = CosimConfig(), *, fmu=None, tol: float = 1e-3,
-                        h_min: Optional[float] = None, h_max: Optional[float] = None) -> CosimResult:
-    """Co-simulation with an adaptive macro step and rollback through the FMU state.
-
-    Scheme: Gauss–Seidel with the hammer first.  The hammer holds the mean of
-    the interface force extrapolated (order ``config.extrapolation``, from the
-    last accepted communication points, non-uniform in time) over the step;
-    the string then follows the hammer motion interpolated linearly through
-    the new value, stepped exactly.  The step's error estimate is the
-    *interface force defect* ``|F_held - mean F_i|`` over the step -- the
-    force the hammer saw against the force the string actually transmitted
-    (its product with the hammer displacement is the power-bond energy
-    residual of ECCO).  When the defect exceeds ``tol`` times the force scale
-    (the WOB), both sides roll back (FMU: ``fmi2SetFMUstate``) and the step is
-    halved; below ``tol / 4`` the next step doubles, within ``[h_min, h_max]``
-    (powers of two of ``config.step``, so the exact string discretisations are
-    reused).
-
-    Parameters
-    ----------
-    string : DrillString
-    config : CosimConfig
-        ``step`` is the initial macro step [s].
-    fmu : path, optional
-        The hammer FMU (``canGetAndSetFMUstate`` is used); default the same
-        kernels in process.
-    tol : float
-        Allowed force defect relative to the WOB [-].
-    h_min, h_max : float, optional
-        Step limits [s]; default ``step / 64`` and ``step * 8``.
-
-    Returns
-    -------
-    CosimResult
-        ``data`` has ``ADAPTIVE_DTYPE`` (time first, with the step size used and
-        the force defect); ``stats`` counts accepted and rejected steps.
-    """
-    c = config
-    H0 = c.step
-    h_min = H0 / 64 if h_min is None else h_min
-    h_max = H0 * 8 if h_max is None else h_max
-    if not (0 < h_min <= H0 <= h_max) or not (0 < tol < 1):
-        raise ValueError(f"need 0 < h_min <= step <= h_max and 0 < tol < 1; got h_min={h_min!r}, "
-                         f"step={H0!r}, h_max={h_max!r}, tol={tol!r}")
-    ts0 = _time.perf_counter()
-    side = StringSide(string, c)
-    W = side.wob
-    rig = c.rig
-    hammer = _hammer_side(fmu, rig, W, c)
-    x_eq = hammer.x_eq
-    disc = {}
-
-    def discretisation(H):
-        key = round(H / H0 * 2 ** 20)
-        if key not in disc:
-            side.discretise(H, modal=False)
-            disc[key] = side.P
-        side.P = disc[key]   # side._buf (n + 6, any H) is fully overwritten by side.step
-
-    setup = _time.perf_counter() - ts0
-    out = hammer.read()
-    F = side.force(out[0] - x_eq, out[1])
-    hist_t, hist_F = [c.start], [F]
-    rows = [(c.start, 0.0, out[4], F, F, out[0], out[2], 0.0)]
-    t = c.start
-    H = H0
-    accepted = rejected = 0
-    at_min = 0
-    t_loop = _time.perf_counter()
-    try:
-        while t < c.stop - 1e-12 * max(1.0, abs(c.stop)):
-            H = min(H, c.stop - t)
-            F_held = _held_force(hist_t, hist_F, t, H, c.extrapolation)
-            snap = hammer.get_state()
-            xi0 = side.xi.copy()
-            x_old, v_old = out[0] - x_eq, out[1]
-            hammer.step(t, H, F_held)
-            new = hammer.read()
-            x_new, v_new = new[0] - x_eq, new[1]
-            discretisation(H)
-            coeffs = np.array([x_old, v_old, (x_new - x_old) / H, (v_new - v_old) / H, 0.0, 0.0])
-            impulse = side.step(coeffs)            # integral of (F_i - W) over the step
-            F_mean = W + impulse / H
-            defect = abs(F_held - F_mean) / max(W, 1.0)
-            if not math.isfinite(defect):
-                hammer.free_state(snap)
-                raise CouplingInstabilityError(
-                    f"coupling unstable: non-finite interface values at t = {t + H:.6g} s (H = {H:g} s)",
-                    time=t + H, step=accepted + 1, residual=math.inf, reference=W)
-            if defect > tol and H > h_min * (1 + 1e-12):
-                hammer.set_state(snap)            # roll back both sides and halve the step
-                hammer.free_state(snap)
-                side.xi[:] = xi0
-                rejected += 1
-                H = max(H / 2, h_min)
-                continue
-            hammer.free_state(snap)
-            if defect > tol:
-                at_min += 1
-            t = t + H
-            accepted += 1
-            out = new
-            F = side.force(x_new, v_new)
-            hist_t.append(t)
-            hist_F.append(F)
-            del hist_t[:-3], hist_F[:-3]
-            rows.append((t, H, out[4], F, F_held, out[0], out[2], defect))
-            if defect < 0.25 * tol:
-                H = min(2 * H, h_max)
-    finally:
-        hammer.close()
-    wall = _time.perf_counter() - t_loop
-    data = np.array(rows, dtype=ADAPTIVE_DTYPE)
-    steps = data["step_size"][1:]
-    return CosimResult(data=data, config=c, macro_steps=accepted, wall_time_s=wall, setup_time_s=setup,
-                       penetration_m=float(out[2]),
-                       stats={"accepted": accepted, "rejected": rejected, "at_min_step": at_min,
-                              "h_min_used": float(steps.min()) if steps.size else H0,
-                              "h_max_used": float(steps.max()) if steps.size else H0, "tol": tol},
-                       method="cosim-adaptive")
-
-
 def _coupled_system(string, config: CosimConfig):
     """State matrix of string + interface + hammer with the bit stuck (linear).
 
