@@ -83,8 +83,9 @@ def test_schemes_and_extrapolation_orders(string, base, reference, scheme):
 def test_instability_detected_stiff_interface(string):
     from hammerbit.cosim import StepResolutionError
     cfg = CosimConfig(stop=1.0, step=5e-3, interface_stiffness=1e10, estimate=False)
-    with pytest.raises(StepResolutionError, match="string mode"):   # refused before the run ...
+    with pytest.raises(StepResolutionError, match="string mode") as ei:   # refused before the run ...
         cosimulate(string, cfg)
+    assert ei.value.limit.frequency_hz == pytest.approx(689.0, rel=1e-2)
     cfg = cfg.replace(check_step=False)                             # ... or caught while it runs
     with pytest.raises(CouplingInstabilityError) as ei:
         cosimulate(string, cfg)
@@ -310,6 +311,8 @@ def test_step_that_cannot_resolve_is_refused(string):
     with pytest.raises(StepResolutionError, match="slip dynamics") as ei:
         cosimulate(string, CosimConfig(stop=1.0, step=0.015, rig=DRILL))
     assert ei.value.limit.name == "slip"
+    assert ei.value.limit.frequency_hz == pytest.approx(43.7, abs=0.05)      # sqrt(K (1/m1 + 1/m2)) / 2 pi
+    assert ei.value.limit.max_step_s == pytest.approx(0.01144, abs=1e-5)
     with pytest.raises(StepResolutionError, match="forcing period"):
         cosimulate(string, CosimConfig(stop=1.0, step=0.012, rig=field_hammer().replace(frequency=45.0)))
     # the same step passes with the check off (the benchmark's coarse end)
