@@ -118,6 +118,7 @@ def measure_estimate(cfg: dict, log) -> dict:
 def _accuracy(string, base, ref, log) -> dict:
     """The drilling case at H = 1, 0.5, 0.25 ms (no estimate), the default adaptive run and
     today's fixed H = 1 ms run (no estimate) for the wall time."""
+    from hammerbit.cosim import cosimulate
     rows = []
     for H in (1e-3, 0.5e-3, 0.25e-3):
         r = min((cosimulate(string, base.replace(step=H, estimate=False)) for _ in range(2)),
