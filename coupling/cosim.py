@@ -639,21 +639,29 @@ def cosimulate(string, config: CosimConfig = CosimConfig(), *, fmu=None, hammer=
         When the interface energy residual grows (see module docstring).
     """
     c = config
+    ts = _time.perf_counter()
+    side = StringSide(string, c)                 # shared by the run, its companion and every pass
+    t_side = _time.perf_counter() - ts
     if not c.adaptive:
-        return _run(string, c, fmu=fmu, hammer=hammer, defect_tol=None)
+        res = _run(side, c, fmu=fmu, hammer=hammer, defect_tol=None)
+        res.setup_time_s += t_side
+        return res
     defect_tol = DEFECT_TOL_FACTOR * c.tol
-    res = _run(string, c, fmu=fmu, hammer=hammer, defect_tol=defect_tol)
+    res = _run(side, c, fmu=fmu, hammer=hammer, defect_tol=defect_tol)
+    setup = res.setup_time_s + t_side
     passes, wall, rejected = 1, res.wall_time_s, res.stats["rejected"]
     while (res.estimate is not None and not res.estimate.meets_tolerance and math.isfinite(res.estimate.worst)
            and hammer is None and passes < MAX_PASSES):
         # the global error grows at least linearly with the defect tolerance
         defect_tol *= max(min(0.5 * c.tol / res.estimate.worst, 0.5), 1e-2)
-        res = _run(string, c, fmu=fmu, hammer=None, defect_tol=defect_tol)
+        res = _run(side, c, fmu=fmu, hammer=None, defect_tol=defect_tol)
+        setup += res.setup_time_s
         passes += 1
         wall += res.wall_time_s
         rejected += res.stats["rejected"]
     res.stats.update(passes=passes, rejected=rejected)
     res.wall_time_s = wall
+    res.setup_time_s = setup
     return res
 
 
@@ -674,9 +682,8 @@ def cosimulate_adaptive(string, config: CosimConfig = CosimConfig(), *, fmu=None
     return cosimulate(string, config.replace(**ch), fmu=fmu)
 
 
-def _run(string, c: CosimConfig, *, fmu, hammer, defect_tol) -> CosimResult:
+def _run(side: StringSide, c: CosimConfig, *, fmu, hammer, defect_tol) -> CosimResult:
     ts = _time.perf_counter()
-    side = StringSide(string, c)
     if c.check_step:
         H_chk = c.step_range[1] if c.adaptive else min(c.step, c.stop - c.start)
         if c.adaptive:
@@ -697,6 +704,9 @@ def _run(string, c: CosimConfig, *, fmu, hammer, defect_tol) -> CosimResult:
         if comp is not None:
             lanes.append(comp)
         H = c.step
+        if comp is not None:
+            side.discretisation(0.5 * H)        # first: the run's step is then its square
+        side.discretisation(H)
         main = _Lane(side, hammer, c, H)
         fine = _Lane(side, comp, c, 0.5 * H) if comp is not None else None
         n_full, rem = c.whole_steps

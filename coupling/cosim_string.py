@@ -71,6 +71,7 @@ class StringSide:
         self.frow = ki * self.Cu + ci * self.Cv   # F_i - W = frow.xi - ki x_dev - ci v
         self.hook_eq = float(ss.hook_load)
         self._disc = {}
+        self._phi = {}                # step length -> expm(Z h) (the squaring base of longer steps)
         self._eig = None
         self.modal = False if config.string_step == "dense" else None  # decided at the first discretisation
         self.m_Vinv = None
@@ -89,6 +90,12 @@ class StringSide:
     def exchange_frequency(self, share: float = 1e-3) -> float:
         """Highest mode [Hz] of the string side carrying at least ``share`` of the
         interface's static compliance (the string modes the exchange sees)."""
+        key = ("exchange_frequency", share)
+        if key not in self._phi:
+            self._phi[key] = self._exchange_frequency(share)
+        return self._phi[key]
+
+    def _exchange_frequency(self, share: float) -> float:
         eig = self._eigen()
         if eig is False:
             return float(np.max(np.abs(np.linalg.eigvals(self.A1).imag)) / (2 * math.pi))
@@ -110,16 +117,28 @@ class StringSide:
         return d
 
     def _discretise(self, h: float) -> "_Discretisation":
+        """``expm(Z h)``; by squaring ``expm(Z h 2^-k)`` when a step ``h 2^-k`` is cached
+        (the adaptive step and the companion use powers of two: one ``expm`` for all)."""
         n = self.n
         N = n + 6 + 1
-        Z = np.zeros((N, N))
-        Z[:n, :n] = self.A1
-        Z[:n, n:n + 2] = self.E
-        Z[n:n + 2, n + 2:n + 4] = np.eye(2)
-        Z[n + 2:n + 4, n + 4:n + 6] = np.eye(2)
-        Z[N - 1, :n] = self.frow
-        Z[N - 1, n:n + 2] = (-self.ki, -self.ci)
-        Phi = sla.expm(Z * h)
+        Phi = None
+        for k in range(1, 13):
+            base = self._phi.get(float(f"{h / 2 ** k:.12g}"))
+            if base is not None:
+                Phi = base
+                for _ in range(k):
+                    Phi = Phi @ Phi
+                break
+        if Phi is None:
+            Z = np.zeros((N, N))
+            Z[:n, :n] = self.A1
+            Z[:n, n:n + 2] = self.E
+            Z[n:n + 2, n + 2:n + 4] = np.eye(2)
+            Z[n + 2:n + 4, n + 4:n + 6] = np.eye(2)
+            Z[N - 1, :n] = self.frow
+            Z[N - 1, n:n + 2] = (-self.ki, -self.ci)
+            Phi = sla.expm(Z * h)
+        self._phi[float(f"{h:.12g}")] = Phi
         rows = np.r_[np.arange(n), N - 1]
         d = _Discretisation(h=h, P=np.ascontiguousarray(Phi[np.ix_(rows, np.arange(n + 6))]))
         self._modal(Phi, h, d)
