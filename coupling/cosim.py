@@ -88,7 +88,7 @@ from hammerbit.model.params import RigParameters
 from .cosim_config import (RECORDABLE, SCHEMES, CosimConfig, CosimResult, CouplingInstabilityError, _dtype,
                            event_counts, field_hammer, steady_start)
 from .cosim_error import CouplingErrorEstimate, StepResolutionError, check_step, measured_order, richardson
-from .cosim_exchange import _exchange, _held_weights, extrapolation_weights
+from .cosim_exchange import _exchange, _held_force, extrapolation_weights
 from .cosim_string import StringSide, _StringState
 
 __all__ = [
@@ -422,15 +422,14 @@ class _Lane:
         self.w = np.zeros(3)
         self.cbuf = np.zeros(6)
         self.frow = side.m_frow if self.string.modal else side.frow.astype(np.float64)
+        self._h, self._d = None, None            # the last step length and its discretisation
 
     @property
     def F(self) -> float:
         return float(self.sc[0])
 
     def held_force(self, h: float) -> float:
-        th = self.th
-        _held_weights(self.order, th[0] - th[1], th[1] - th[2], h, self.w)
-        return float(self.w @ self.Fh)
+        return _held_force(self.order, self.th, self.Fh, h, self.w)
 
     def step(self, t: float, h: float) -> None:
         """One macro step [t, t + h]: hammer first, then the string (both schemes;
@@ -439,7 +438,9 @@ class _Lane:
         self.F_held = F_held
         self.hammer.step(t, h, F_held)
         out = self.out = self.hammer.read()
-        d = self.side.discretisation(h)
+        if h != self._h:
+            self._h, self._d = h, self.side.discretisation(h)
+        d = self._d
         s = self.string
         if s.modal:
             _exchange(self.gs, self.order, h, True, _NONE_P, _NONE_F, _NONE_F, _NONE_F, d.m_d, d.m_G,
@@ -543,49 +544,23 @@ class _Recorder:
         self.j = 0
         self.lane = lane
         self.need_flags = "stick" in self.names or "contact" in self.names
+        self.need_string = bool({"string_bit_displacement", "string_bit_velocity", "hook_load"} & set(self.names))
 
     def add(self, t, h, r_step, defect, wob_diff) -> None:
         if self.j == len(self.data):
             self.data = np.resize(self.data, 2 * len(self.data))
         lane = self.lane
-        row = self.data[self.j]
-        row["time"] = t
         out = lane.out
-        flags = _hammer_flags(lane.hammer) if self.need_flags else (0.0, 0.0)
-        for name in self.names:
-            if name == "wob":
-                v = out[4]
-            elif name == "interface_force":
-                v = lane.F
-            elif name == "hammer_force":
-                v = lane.F_held
-            elif name == "hammer_position":
-                v = out[0]
-            elif name == "hammer_velocity":
-                v = out[1]
-            elif name == "bit_position":
-                v = out[2]
-            elif name == "bit_velocity":
-                v = out[3]
-            elif name == "stick":
-                v = flags[0]
-            elif name == "contact":
-                v = flags[1]
-            elif name == "string_bit_displacement":
-                v = lane.string.bit()[0]
-            elif name == "string_bit_velocity":
-                v = lane.string.bit()[1]
-            elif name == "hook_load":
-                v = lane.string.hook_load()
-            elif name == "energy_residual":
-                v = r_step
-            elif name == "step_size":
-                v = h
-            elif name == "force_defect":
-                v = defect
-            else:   # wob_error_estimate: the difference now, the factor at the end
-                v = wob_diff
-            row[name] = v
+        v = {"wob": out[4], "interface_force": lane.sc[0], "hammer_force": lane.F_held,
+             "hammer_position": out[0], "hammer_velocity": out[1], "bit_position": out[2],
+             "bit_velocity": out[3], "energy_residual": r_step, "step_size": h, "force_defect": defect,
+             "wob_error_estimate": wob_diff}     # the difference now, the factor at the end
+        if self.need_flags:
+            v["stick"], v["contact"] = _hammer_flags(lane.hammer)
+        if self.need_string:
+            v["string_bit_displacement"], v["string_bit_velocity"] = lane.string.bit()
+            v["hook_load"] = lane.string.hook_load()
+        self.data[self.j] = (t, *[v[n] for n in self.names])
         self.j += 1
 
     def result(self) -> np.ndarray:

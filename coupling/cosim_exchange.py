@@ -55,6 +55,13 @@ def _held_weights(order, a, a2, h, w):
 
 
 @_njit(cache=True)
+def _held_force(order, th, Fh, h, w):
+    """The force the hammer holds over [t_n, t_n + h]: :func:`_held_weights` on the history."""
+    _held_weights(order, th[0] - th[1], th[1] - th[2], h, w)
+    return w[0] * Fh[0] + w[1] * Fh[1] + w[2] * Fh[2]
+
+
+@_njit(cache=True)
 def _coefficients(gs, order, a, a2, h, wh, x_new, v_new, c):
     """Taylor coefficients (x, v, x', v', x'', v'') at t_n of the hammer motion over
     the step ``h``: Jacobi extrapolates through the history ``wh`` (t_n, t_{n-1},
