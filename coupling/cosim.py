@@ -706,8 +706,7 @@ def _run(side: StringSide, c: CosimConfig, *, fmu, hammer, defect_tol) -> CosimR
                 if c.adaptive:
                     if t >= c.stop - 1e-12 * max(1.0, abs(c.stop)):
                         break
-                    h = min(H, c.stop - t)
-                    last = h < H
+                    h, last = _adaptive_step(H, c.stop - t, unit)
                 else:
                     if n >= n_full + (1 if rem > 0.0 else 0):
                         break
@@ -799,6 +798,21 @@ def _run(side: StringSide, c: CosimConfig, *, fmu, hammer, defect_tol) -> CosimR
             hammer.close()
         if len(lanes) > 1:
             lanes[1].close()
+
+
+def _adaptive_step(H: float, remaining: float, unit: float) -> tuple:
+    """``(h, last)``: the adaptive step ``H``, or near the end the longest power of two of
+    ``unit`` within the remaining time (its exact step is a square of a cached one, no new
+    ``expm``), and the remaining time itself when less than one ``unit`` is left."""
+    if remaining >= H:
+        return H, abs(remaining - H) <= 1e-9 * unit
+    k = int(math.floor(remaining / unit * (1.0 + 1e-12)))
+    if k < 1:
+        return remaining, True
+    h = unit * 2.0 ** int(math.floor(math.log2(k)))
+    if abs(remaining - h) <= 1e-9 * unit:
+        return remaining, True
+    return h, False
 
 
 def monolithic(string, config: CosimConfig = CosimConfig()) -> CosimResult:
