@@ -78,16 +78,17 @@ def poincare_tail(groups: Groups, periods: int, keep: int, solver: SolverOptions
                   phase: float = 0.0) -> np.ndarray:
     """The last ``keep`` Poincaré rows [tau, x1, x2, x3, x4] of a run from rest (no trajectory).
 
-    Rows are taken at ``(k + phase) T`` for ``k = periods - keep + 1 .. periods``
-    (at most ``keep`` rows).
+    Rows are taken at ``(k + phase) T`` for ``k = 0 .. periods`` and the last
+    ``keep`` returned: the same sampling times, to the bit, as
+    :func:`hammerbit.simulate.simulate` with ``Record(poincare=True)``.
     """
     T = groups.period
     st = Stepper(groups, solver=solver)
-    start = max(periods - keep + 1, 0)
-    st.opts[K.O_POIN_T0] = (start + phase) * T
-    poin = np.zeros((keep, 5))
+    st.opts[K.O_POIN_T0] = phase * T
+    poin = np.zeros((periods + 1, 5))
     st.advance(periods * T + (phase * T if phase > 0 else 0.0), poincare=poin)
-    return poin[: int(st.istate[K.I_POIN_NEXT])]
+    n = int(st.istate[K.I_POIN_NEXT])
+    return poin[max(n - keep, 0):n].copy()
 
 
 def _scenes(groups: Groups, param: str, values: np.ndarray) -> list:

@@ -234,15 +234,19 @@ class _Problem:
         return m
 
     @staticmethod
-    def feasible(m: dict) -> bool:
-        # bounce is a >= b, so its margin must be strictly positive
-        return (m["bounce"] > 0 and all(v >= 0 for k, v in m.items() if v is not None and k != "bounce"))
+    def feasible(g: Groups, m: dict) -> bool:
+        """The regime flags decide bounce, threshold and runaway (one definition,
+        :func:`regime`); the frequency and contact-force margins must be >= 0."""
+        r = regime(g)
+        if r.bounce or r.overload or r.runaway:
+            return False
+        return all(m[k] >= 0 for k in ("frequency", "contact_force") if m[k] is not None)
 
     def candidate(self, values: dict, g: Optional[Groups], period, rop_h, rop_mm, peak_n, ok: bool) -> Candidate:
         if g is None:
             return Candidate(values, self.groups, None, math.nan, math.nan, math.nan, {}, False)
         m = self.margins(g, peak_n)
-        return Candidate(values, g, period, rop_h, rop_mm, peak_n, m, ok and self.feasible(m))
+        return Candidate(values, g, period, rop_h, rop_mm, peak_n, m, ok and self.feasible(g, m))
 
     def evaluate(self, x: np.ndarray) -> Candidate:
         values = {n: float(v) for n, v in zip(self.names, x)}
