@@ -206,11 +206,10 @@ def dask_cluster():
                 time.sleep(0.5)
         yield addr
     finally:
-        for p in reversed(procs):
+        for p in reversed(procs):        # workers first, then the scheduler
             p.terminate()
-        for p in procs:
             try:
-                p.wait(timeout=20)
+                p.wait(timeout=5)
             except subprocess.TimeoutExpired:
                 p.kill()
                 p.wait()
