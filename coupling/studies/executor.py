@@ -153,7 +153,7 @@ class Executor:
         else:
             self.cluster = LocalCluster(n_workers=self.options.local_workers, threads_per_worker=1,
                                         processes=True, dashboard_address=None,
-                                        silence_logs=logging.ERROR)
+                                        silence_logs=logging.CRITICAL)
             self.client = Client(self.cluster)
         self.client.run(warm_worker)
         self.workers = max(1, len(self.client.scheduler_info().get("workers", {})))

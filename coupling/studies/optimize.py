@@ -195,20 +195,27 @@ class OptimizeResult:
 
 
 def frequency_windows(string, lo_hz: float, hi_hz: float, margin: float) -> list:
-    """Safe hammer-frequency windows [Hz] of the string over [lo, hi] (bit on and off bottom)."""
+    """Safe hammer-frequency windows [Hz] of the string over [lo, hi] (bit on and off bottom).
+
+    A window edge at an end of the checked range is not a limit of the check:
+    it is returned as 0 or inf.
+    """
     from hammerbit.modal_check import CheckConfig, check
     res = check(string, CheckConfig(excitation_hz=0.5 * (lo_hz + hi_hz), margin=margin,
                                     frequency_range_hz=(lo_hz, hi_hz)))
-    return [(float(a), float(b)) for a, b in res.safe_windows_hz]
+    tol = 1e-9 * hi_hz
+    return [(0.0 if a <= lo_hz + tol else float(a), math.inf if b >= hi_hz - tol else float(b))
+            for a, b in res.safe_windows_hz]
 
 
 def _frequency_margin(f: float, windows) -> float:
     """Relative distance of f into the nearest safe window (negative outside all)."""
     best = -math.inf
     for lo, hi in windows:
+        edges = [e for e in (lo, hi) if 0.0 < e < math.inf]    # 0 and inf: ends of the checked range
         if lo <= f <= hi:
-            return min(f - lo, hi - f) / f
-        best = max(best, -min(abs(f - lo), abs(f - hi)) / f)
+            return min(abs(f - e) for e in edges) / f if edges else math.inf
+        best = max(best, -min(abs(f - e) for e in edges) / f)
     return best
 
 
@@ -323,9 +330,9 @@ def optimize(groups: Groups, config: OptimizeConfig, *, string=None, executor: O
             g = apply_settings(groups, {b.name: (b.hi if k else b.lo) for b, k in zip(c.bounds, corner)})
             fs.append(g.to_rig().frequency)
         f_lo, f_hi = min(fs + [base.to_rig().frequency]), max(fs + [base.to_rig().frequency])
-        if f_hi <= f_lo * (1 + 1e-9):
-            f_lo, f_hi = 0.5 * f_lo, 1.5 * f_hi
-        windows = frequency_windows(string, f_lo, f_hi, c.margin)
+        # checked over a wider range than the bounds, so that the margin measures the distance
+        # to the nearest mode band, not to the end of the range (inf: no band in 0.25-4 x the bounds)
+        windows = frequency_windows(string, 0.25 * f_lo, 4.0 * f_hi, c.margin)
     prob = _Problem(groups, c, windows)
     axes = [Axis(b.name, tuple(float(v) for v in np.linspace(b.lo, b.hi, c.grid))) for b in c.bounds]
     grid = np.stack(np.meshgrid(*[np.asarray(a.values) for a in axes], indexing="ij"), axis=-1)
