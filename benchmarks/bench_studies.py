@@ -14,6 +14,9 @@
    included).  Goal <= 20 s.  The peer is the former sweep (one
    co-simulation per frequency with a fresh string discretisation and a
    fixed 6 s horizon), timed on 2 frequencies and scaled to 31.
+5. **The README's optimize example** (full run only): ``hammerbit optimize
+   --preset lab --string lab --confirm ...``, its JSON kept under
+   ``readme_optimize``.
 
 Run ``python -m benchmarks --only studies [--quick]``.
 """
@@ -132,6 +135,29 @@ def measure_sweep(cfg, log) -> dict:
             "peak_frequency_hz": float(res["frequency_hz"][int(np.argmax(res["wob_amplitude_n"]))])}
 
 
+#: The README's optimize example (lab rig on the lab string).
+README_OPTIMIZE = ["optimize", "--preset", "lab", "--string", "lab", "--confirm", "--interface-stiffness", "700",
+                   "--interface-damping", "10", "--workers", "2", "--json"]
+
+
+def measure_readme_optimize(log) -> dict:
+    """Run the README's ``hammerbit optimize`` example and keep its JSON."""
+    import contextlib
+    import io
+    import json
+    from hammerbit.cli import main
+    log("README optimize example ...")
+    buf = io.StringIO()
+    t0 = time.perf_counter()
+    with contextlib.redirect_stdout(buf):
+        rc = main(README_OPTIMIZE)
+    out = {"command": "hammerbit " + " ".join(README_OPTIMIZE), "returncode": rc,
+           "wall_s": time.perf_counter() - t0}
+    if rc == 0:
+        out["result"] = json.loads(buf.getvalue())
+    return out
+
+
 def _plot(result):
     import matplotlib
     matplotlib.use("Agg")
@@ -175,6 +201,7 @@ def run(quick: bool = False, *, verbose: bool = True) -> dict:
     machine = machine_info()
     maps = measure_maps(cfg, log)
     sw = measure_sweep(cfg, log)
+    readme = None if quick else measure_readme_optimize(log)
     cmd = harness_command(NAME, quick)
     ip, d1, d2 = maps["in_process"], maps["dask_1"], maps["dask_2"]
     scene = (f"paper-fig9 map a 0.05-0.25 x eta 0.6-1.4 ({cfg['n_a']}x{cfg['n_eta']} cells x "
@@ -201,7 +228,7 @@ def run(quick: bool = False, *, verbose: bool = True) -> dict:
     ]
     result = {"benchmark": NAME, "quick": quick, "command": cmd, "argv": sys.argv, "machine": machine,
               "config": cfg, "rtol": RTOL, "kernels": kernel_source(), "maps": maps, "sweep": sw,
-              "identical_results": maps["identical"], "summary": summary,
+              "identical_results": maps["identical"], "readme_optimize": readme, "summary": summary,
               "elapsed_s": time.perf_counter() - t0}
     save_result(NAME, result, _plot(result))
     return result

@@ -284,7 +284,8 @@ def cmd_optimize(args) -> int:
     res = optimize(g, cfg, string=string, options=_executor_options(args))
     out = res.to_dict()
     out.update({"preset": args.preset, "string": None if string is None else string.name,
-                "bounds": [{"name": b.name, "lo": b.lo, "hi": b.hi, "unit": b.unit} for b in bounds]})
+                "bounds": [{"name": b.name, "lo": b.lo, "hi": b.hi, "unit": b.unit} for b in bounds],
+                "at_bounds": res.at_bounds(bounds)})
     if res.optimum is None:
         msg = (f"no feasible operating point on the {'x'.join(map(str, res.grid_shape))} grid within the "
                f"bounds (no bounce, a + b <= 1, no runaway"
@@ -308,6 +309,8 @@ def cmd_optimize(args) -> int:
           f"({o['rop_mm_per_period']:.4g} mm per period); best grid cell "
           f"{out['best_grid_cell']['rop_m_per_h']:.4g} m/h; {res.grid_feasible} feasible of "
           f"{'x'.join(map(str, res.grid_shape))} cells, {res.evaluations} evaluations")
+    for name, side in out["at_bounds"].items():
+        print(f"  {name} sits on its {side} bound: widen --bounds to look further")
     for k, m in o["margins"].items():
         if m["margin"] is None:
             print(f"  constraint {k}: not checked")

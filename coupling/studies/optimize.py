@@ -185,6 +185,20 @@ class OptimizeResult:
     frequency_windows_hz: Optional[list]
     wall_time_s: float = 0.0
 
+    def at_bounds(self, bounds) -> dict:
+        """Variables of the optimum that sit on a bound: name -> ``"lower"`` or ``"upper"``."""
+        out = {}
+        if self.optimum is None:
+            return out
+        for b in bounds:
+            v = self.optimum.values[b.name]
+            tol = 1e-6 * (b.hi - b.lo)
+            if v <= b.lo + tol:
+                out[b.name] = "lower"
+            elif v >= b.hi - tol:
+                out[b.name] = "upper"
+        return out
+
     def to_dict(self) -> dict:
         return {"optimum": None if self.optimum is None else self.optimum.to_dict(),
                 "runners_up": [c.to_dict() for c in self.runners_up],
