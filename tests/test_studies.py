@@ -355,7 +355,7 @@ def test_sweep_reuses_the_string_side_and_detects_steady_state():
     from hammerbit.drillstring import load_string
     from hammerbit.studies.sweep import steady_figures, sweep
     string = load_string("field-2200m")
-    cfg = CosimConfig(stop=0.5, step=1e-3, rig=field_hammer().replace(amplitude=2e3))
+    cfg = CosimConfig(stop=0.5, step=1e-3, rig=field_hammer().replace(amplitude=2e3), f_max=60.0)
     res = sweep(string, [22.0, 23.0], cfg, window_periods=4, steady_tol=0.02, max_duration=2.0,
                 options=IN_PROCESS)
     for row in res:
