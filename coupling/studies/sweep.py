@@ -119,8 +119,8 @@ def sweep(string, frequencies, config: CosimConfig = CosimConfig(), *, fmu=None,
 
     For each frequency ``f`` the hammer's harmonic source runs at ``f`` from
     the static equilibrium for ``config.stop - config.start`` seconds (at
-    least three windows), doubled until the WOB amplitude settles (see the
-    module docstring).  Over the last two windows:
+    least three windows), doubled up to ``max_duration`` until the WOB
+    amplitude settles (see the module docstring).  Over the last two windows:
 
     * ``wob_amplitude_n``: dynamic WOB amplitude at the bit, (max - min)/2 [N];
     * ``bounce_margin``: ``1 + min(WOB)/F_s`` with ``F_s = mu_e F_N`` the static
@@ -145,7 +145,8 @@ def sweep(string, frequencies, config: CosimConfig = CosimConfig(), *, fmu=None,
     steady_tol : float
         Allowed relative change of the amplitude between the two windows.
     max_duration : float, optional
-        Longest simulated time per frequency [s] (default 8 x the initial).
+        Longest simulated time per frequency [s]; default the initial duration
+        (no repetition: unsettled rows are only flagged).
     executor, options
         Where the frequencies run (default: in this process).
 
@@ -162,7 +163,7 @@ def sweep(string, frequencies, config: CosimConfig = CosimConfig(), *, fmu=None,
     if not 0 < steady_tol < 1:
         raise ParameterError("steady_tol", steady_tol, "(0, 1)")
     dur0 = config.stop - config.start
-    max_duration = 8.0 * dur0 if max_duration is None else float(max_duration)
+    max_duration = dur0 if max_duration is None else float(max_duration)
     if not max_duration >= dur0:
         raise ParameterError("max_duration", max_duration, f">= the initial duration {dur0:g} s")
     fmu = None if fmu is None else str(fmu)
