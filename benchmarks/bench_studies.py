@@ -22,7 +22,6 @@ Run ``python -m benchmarks --only studies [--quick]``.
 """
 from __future__ import annotations
 
-import os
 import sys
 import tempfile
 import time
@@ -83,7 +82,7 @@ def measure_maps(cfg, log) -> dict:
         log(f"map on a local cluster of {n} worker(s) ...")
         t0 = time.perf_counter()
         with Executor(ExecutorOptions(workers=n, chunk_seconds=0.2)) as ex:
-            ex._connect()
+            ex.connect()
             startup = time.perf_counter() - t0
             r = _timed_map(cfg, ex)
         r["cluster_startup_s"] = startup

@@ -20,13 +20,11 @@ import numpy as np
 import pytest
 
 from hammerbit.analysis import detect_period
-from hammerbit.model import kernels as K
 from hammerbit.model.params import ParameterError, apply_settings, preset, regime
-from hammerbit.model.stepping import SolverOptions
 from hammerbit.simulate import Record, simulate
 from hammerbit.studies.bifurcation import bifurcation, penetration_sweep
-from hammerbit.studies.executor import Executor, ExecutorOptions, chunk_bounds
-from hammerbit.studies.map import Axis, map_to_json, regime_map, run_cell
+from hammerbit.studies.executor import ExecutorOptions, chunk_bounds
+from hammerbit.studies.map import Axis, map_to_json, regime_map
 from hammerbit.studies.optimize import Bound, OptimizeConfig, optimize
 
 IN_PROCESS = ExecutorOptions(workers=1)

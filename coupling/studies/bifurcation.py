@@ -151,7 +151,7 @@ def bifurcation(groups: Groups, param: str, values: Sequence[float], *, periods:
     own = executor is None
     ex = Executor(options) if own else executor
     try:
-        ex._connect()
+        ex.connect()
         t0 = _time.perf_counter()
         tails = ex.run(_bifurcation_chunk, scenes, fixed=(int(periods), keep, solver, phase),
                        cost_s=periods * SECONDS_PER_PERIOD, label=f"bifurcation {param}")

@@ -27,7 +27,7 @@ import os
 import sys
 import time
 from dataclasses import dataclass
-from typing import Any, Callable, Optional, Sequence
+from typing import Callable, Optional, Sequence
 
 import numpy as np
 
@@ -139,7 +139,8 @@ class Executor:
     def __exit__(self, *exc) -> None:
         self.close()
 
-    def _connect(self) -> None:
+    def connect(self) -> None:
+        """Start or join the Dask cluster (no-op in process or when connected)."""
         if self.client is not None or self.options.in_process:
             return
         t0 = time.perf_counter()
@@ -216,7 +217,7 @@ class Executor:
                     out[a:b] = res
                     bar.update(b - a)
                 return out
-            self._connect()
+            self.connect()
             from dask.distributed import as_completed
             futures = [self.client.submit(_run_chunk, fn, ch, fixed, pure=False) for ch in chunks]
             where = {f.key: bnd for f, bnd in zip(futures, bounds)}

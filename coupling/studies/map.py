@@ -36,7 +36,7 @@ from typing import Optional, Sequence
 import numpy as np
 
 from hammerbit.model import kernels as K
-from hammerbit.model.params import (GROUP_NAMES, Groups, ParameterError, apply_settings, regime,
+from hammerbit.model.params import (Groups, ParameterError, apply_settings, regime,
                                     setting_target)
 from hammerbit.model.stepping import MaxStepsError, SolverError, SolverOptions, Stepper
 
@@ -265,7 +265,7 @@ def regime_map(groups: Groups, axes: Sequence[Axis], *, periods: int = 300,
     own = executor is None
     ex = Executor(options) if own else executor
     try:
-        ex._connect()
+        ex.connect()
         t0 = _time.perf_counter()
         res = ex.run(_map_chunk, cells, fixed=(groups, names, int(periods), solver),
                      cost_s=periods * SECONDS_PER_PERIOD, label="map")

@@ -9,7 +9,8 @@
 * **no runaway**: the preload stays below the kinetic friction floor
   (:func:`hammerbit.model.params.regime`);
 * **frequency check**: with a drillstring, the hammer frequency lies in a
-  safe window of :func:`hammerbit.modal_check.check` (bit on and off bottom);
+  window where :func:`hammerbit.modal_check.check` passes robustly (bit on
+  and off bottom, over the check's damping range);
 * **contact force**: the peak hammer-bit contact force stays below a limit.
 
 The ROP landscape is piecewise smooth, with steps where the period-n of the
@@ -23,7 +24,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Optional, Sequence
+from typing import Optional
 
 import numpy as np
 
@@ -209,17 +210,31 @@ class OptimizeResult:
 
 
 def frequency_windows(string, lo_hz: float, hi_hz: float, margin: float) -> list:
-    """Safe hammer-frequency windows [Hz] of the string over [lo, hi] (bit on and off bottom).
+    """Robustly safe hammer-frequency windows [Hz] of the string over [lo, hi].
 
-    A window edge at an end of the checked range is not a limit of the check:
-    it is returned as 0 or inf.
+    The windows where the frequency check passes, bit on and off bottom, over
+    the check's whole damping range (a *robust pass*; windows that pass at the
+    nominal damping only are left out).  A window edge at an end of the
+    checked range is not a limit of the check: it is returned as 0 or inf.
     """
     from hammerbit.modal_check import CheckConfig, check
     res = check(string, CheckConfig(excitation_hz=0.5 * (lo_hz + hi_hz), margin=margin,
                                     frequency_range_hz=(lo_hz, hi_hz)))
+    labelled = getattr(res, "windows", None)
+    if labelled is None:                       # a check without damping range: nominal windows
+        spans = [tuple(w) for w in res.safe_windows_hz]
+    else:
+        spans = []
+        for w in labelled:
+            if not w.robust:
+                continue
+            if spans and abs(spans[-1][1] - w.lo_hz) <= 1e-12 * max(1.0, w.lo_hz):
+                spans[-1] = (spans[-1][0], w.hi_hz)
+            else:
+                spans.append((w.lo_hz, w.hi_hz))
     tol = 1e-9 * hi_hz
     return [(0.0 if a <= lo_hz + tol else float(a), math.inf if b >= hi_hz - tol else float(b))
-            for a, b in res.safe_windows_hz]
+            for a, b in spans]
 
 
 def _frequency_margin(f: float, windows) -> float:
