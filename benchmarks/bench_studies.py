@@ -10,7 +10,8 @@
    in-process run (ratio of wall times), and the start-up time of a local
    cluster (start, connect, warm the workers).
 4. **31-frequency ``sweep --fmu``**: ``field-2200m``, 15-30 Hz, the hammer
-   FMU, 2 local workers, from the call to the result (cluster start-up
+   FMU, 2 local workers, the CLI's defaults (1.5 s, doubled up to 12 s until
+   the WOB amplitude settles), from the call to the result (cluster start-up
    included).  Goal <= 20 s.  The peer is the former sweep (one
    co-simulation per frequency with a fresh string discretisation and a
    fixed 6 s horizon), timed on 2 frequencies and scaled to 31.
@@ -57,14 +58,16 @@ def _timed_map(cfg, executor) -> dict:
     from hammerbit.studies.map import regime_map
     g = preset("paper-fig9")
     solver = SolverOptions(rtol=RTOL, atol=RTOL * 1e-2)
-    best, ds = None, None
+    best, best_cpu, ds = None, None, None
     for _ in range(cfg["repeats"]):
         ds = regime_map(g, _axes(cfg), periods=cfg["periods"], solver=solver, executor=executor)
-        w = float(ds.attrs["wall_time_s"])
+        w, c = float(ds.attrs["wall_time_s"]), float(ds.attrs["cpu_time_s"])
         best = w if best is None else min(best, w)
+        best_cpu = c if best_cpu is None else min(best_cpu, c)
     tp = int(ds.attrs["total_periods"])
     per = ds["period"].values
-    return {"wall_s": best, "total_periods": tp, "periods_per_second": tp / best,
+    return {"wall_s": best, "cpu_s": best_cpu, "total_periods": tp, "periods_per_second": tp / best,
+            "periods_per_cpu_second": tp / best_cpu,
             "workers": int(ds.attrs["workers"]), "failed_cells": int(ds.attrs["failed_cells"]),
             "period_n_histogram": {("none" if not np.isfinite(k) else str(int(k))): int(np.sum(
                 (per == k) if np.isfinite(k) else ~np.isfinite(per))) for k in np.unique(per)},
@@ -116,7 +119,7 @@ def measure_sweep(cfg, log) -> dict:
         log(f"sweep --fmu, {len(freqs)} frequencies, 2 workers ...")
         cfg_s = CosimConfig(stop=1.5, progress=False)
         t0 = time.perf_counter()
-        res = sweep(string, freqs, cfg_s, fmu=fmu, options=ExecutorOptions(workers=2))
+        res = sweep(string, freqs, cfg_s, fmu=fmu, max_duration=12.0, options=ExecutorOptions(workers=2))
         wall = time.perf_counter() - t0
         log(f"former sweep (fresh discretisation, 6 s per frequency), {cfg['old_n']} frequencies ...")
         old = []
@@ -206,8 +209,11 @@ def run(quick: bool = False, *, verbose: bool = True) -> dict:
     scene = (f"paper-fig9 map a 0.05-0.25 x eta 0.6-1.4 ({cfg['n_a']}x{cfg['n_eta']} cells x "
              f"{cfg['periods']} periods, rtol {RTOL:g})")
     summary = [
-        summary_row(f"map throughput per worker, {scene}, in process",
-                    f"{ip['periods_per_second']:,.0f} periods/s", goal=f">= {GOAL_PPS:,.0f} periods/s",
+        summary_row(f"map throughput per worker, {scene}, in process (wall time; per CPU second of "
+                    f"the worker as peer: the machine is shared)",
+                    f"{ip['periods_per_second']:,.0f} periods/s",
+                    peer=f"{ip['periods_per_cpu_second']:,.0f} periods per CPU second",
+                    goal=f">= {GOAL_PPS:,.0f} periods/s",
                     met=ip["periods_per_second"] >= GOAL_PPS, command=cmd),
         summary_row("map parallel efficiency, 2 local Dask workers vs in process (same map)",
                     f"{maps['parallel_efficiency_2']:.2f}",

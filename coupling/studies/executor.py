@@ -109,7 +109,10 @@ def warm_worker() -> str:
 
 
 def _run_chunk(fn, items, fixed):
-    return fn(items, *fixed)
+    """Run one chunk; its results and the CPU time [s] it took in this worker."""
+    c0 = time.process_time()
+    res = fn(items, *fixed)
+    return res, time.process_time() - c0
 
 
 class Executor:
@@ -131,6 +134,8 @@ class Executor:
         self.cluster = None
         self.workers = 1
         self.setup_s = 0.0
+        self.cpu_s = 0.0
+        """CPU time [s] the chunks took, summed over the workers (all runs so far)."""
 
     # -- life cycle ---------------------------------------------------------
     def __enter__(self) -> "Executor":
@@ -213,8 +218,9 @@ class Executor:
             if self.options.in_process or len(chunks) <= 1 and self.options.address is None \
                     and self.client is None:
                 for (a, b), ch in zip(bounds, chunks):
-                    res = fn(ch, *fixed)
+                    res, cpu = _run_chunk(fn, ch, fixed)
                     out[a:b] = res
+                    self.cpu_s += cpu
                     bar.update(b - a)
                 return out
             self.connect()
@@ -224,7 +230,8 @@ class Executor:
             try:
                 for fut in as_completed(futures):
                     a, b = where[fut.key]
-                    out[a:b] = fut.result()
+                    out[a:b], cpu = fut.result()
+                    self.cpu_s += cpu
                     bar.update(b - a)
             except BaseException:
                 self.client.cancel(futures)

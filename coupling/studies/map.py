@@ -242,7 +242,8 @@ def regime_map(groups: Groups, axes: Sequence[Axis], *, periods: int = 300,
         variables of ``CELL_DTYPE`` (see the module docstring).  Attributes:
         ``periods``, ``method``, ``rtol``, ``atol``, ``groups`` and ``scales``
         of the base scene (JSON), ``failed_cells``, ``errors`` (JSON list of
-        the first messages), ``wall_time_s``, ``workers``.
+        the first messages), ``wall_time_s``, ``cpu_time_s`` (summed over the
+        workers), ``workers``.
     """
     import xarray as xr
     axes = list(axes)
@@ -267,9 +268,11 @@ def regime_map(groups: Groups, axes: Sequence[Axis], *, periods: int = 300,
     try:
         ex.connect()
         t0 = _time.perf_counter()
+        cpu0 = ex.cpu_s
         res = ex.run(_map_chunk, cells, fixed=(groups, names, int(periods), solver),
                      cost_s=periods * SECONDS_PER_PERIOD, label="map")
         wall = _time.perf_counter() - t0
+        cpu = ex.cpu_s - cpu0
         workers = ex.workers
     finally:
         if own:
@@ -291,7 +294,7 @@ def regime_map(groups: Groups, axes: Sequence[Axis], *, periods: int = 300,
                               for k, v in groups.values().items()}),
         "scales": json.dumps(groups.scales.to_dict()),
         "failed_cells": len(errors), "errors": json.dumps(errors[:20]),
-        "wall_time_s": wall, "workers": int(workers),
+        "wall_time_s": wall, "cpu_time_s": cpu, "workers": int(workers),
         "total_periods": int(periods * len(cells)),
     }
     at.update(attrs or {})
