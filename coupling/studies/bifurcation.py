@@ -49,6 +49,8 @@ class BifurcationResult:
         Forcing periods integrated in all.
     workers : int
         Worker processes that ran it (1: in process).
+    groups : Groups, optional
+        The base scene (its scales turn the results into SI).
     """
 
     param: str
@@ -59,6 +61,7 @@ class BifurcationResult:
     wall_time_s: float
     total_periods: int
     workers: int = 1
+    groups: Optional[Groups] = None
 
     @property
     def periods_per_second(self) -> float:
@@ -167,7 +170,8 @@ def bifurcation(groups: Groups, param: str, values: Sequence[float], *, periods:
         per.append(detect_period(pts))
         drift[i] = (out[i, -1, 3] - out[i, 0, 3]) / max(keep - 1, 1)
     return BifurcationResult(param=param, values=values, points=out, periods=per, drift=drift,
-                             wall_time_s=wall, total_periods=int(periods * values.size), workers=workers)
+                             wall_time_s=wall, total_periods=int(periods * values.size), workers=workers,
+                             groups=groups)
 
 
 def penetration_sweep(groups: Groups, values: Sequence[float], *, param: str = "a", periods: int = 100,
