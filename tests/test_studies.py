@@ -44,6 +44,13 @@ def test_chunk_bounds_cover_items_once(n, cost, target):
     assert all(s * cost >= target - 1e-12 for s in sizes[:-1])
 
 
+def test_scheduler_from_the_environment(monkeypatch):
+    monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", "tcp://127.0.0.1:8786")
+    o = ExecutorOptions(workers=1)
+    assert o.address == "tcp://127.0.0.1:8786" and not o.in_process
+    assert ExecutorOptions(scheduler="tcp://h:1").address == "tcp://h:1"
+
+
 def test_executor_options_validate():
     with pytest.raises(ParameterError, match="workers"):
         ExecutorOptions(workers=0)
