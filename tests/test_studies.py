@@ -428,3 +428,22 @@ def test_cli_bifurcation(tmp_path, capsys):
     assert rc == 0
     d = json.loads(capsys.readouterr().out)
     assert len(d["period_n"]) == 2 and (tmp_path / "b.png").exists()
+
+
+def test_frequency_windows_are_the_robust_passes():
+    """Windows that pass at the nominal damping only do not count for the optimizer."""
+    from hammerbit.drillstring import load_string
+    from hammerbit.modal_check import CheckConfig, check
+    from hammerbit.studies.optimize import frequency_windows
+    string = load_string("field-2200m")
+    wins = frequency_windows(string, 10.0, 40.0, 0.15)
+    res = check(string, CheckConfig(excitation_hz=25.0, margin=0.15, frequency_range_hz=(10.0, 40.0)))
+    nominal_only = [w for w in res.windows if not w.robust]
+    assert nominal_only                                   # the case has some
+    for w in nominal_only:
+        mid = 0.5 * (w.lo_hz + w.hi_hz)
+        assert not any(a <= mid <= b for a, b in wins)
+    for w in res.windows:
+        if w.robust:
+            mid = 0.5 * (w.lo_hz + w.hi_hz)
+            assert any(a <= mid <= b for a, b in wins)
