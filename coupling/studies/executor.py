@@ -157,8 +157,9 @@ class Executor:
             except (OSError, TimeoutError) as e:
                 raise ParameterError("scheduler", addr, f"a reachable Dask scheduler ({e})") from None
         else:
+            # ":0": the scheduler's HTTP server on a free port (8787 may be taken by another study)
             self.cluster = LocalCluster(n_workers=self.options.local_workers, threads_per_worker=1,
-                                        processes=True, dashboard_address=None,
+                                        processes=True, dashboard_address=":0",
                                         silence_logs=logging.CRITICAL)
             self.client = Client(self.cluster)
         self.client.run(warm_worker)
