@@ -112,23 +112,20 @@ def cmd_bifurcation(args) -> int:
 # ---------------------------------------------------------------------------
 def cmd_sweep(args) -> int:
     import numpy as np
-    from .cli_cosim import _config, _fmu, _string
+    from .cli_cosim import config_from_args, fmu_arg, load_string_arg
     from .cosim import coupled_modes
-    from .studies.sweep import plot_sweep, supports_ramp, sweep, write_sweep_csv
+    from .studies.sweep import plot_sweep, sweep, write_sweep_csv
     lo, hi, n = args.frequencies
     if not (0 < lo < hi) or n < 1 or n != int(n):
         raise UsageError(f"--frequencies {lo:g} {hi:g} {n:g}: need 0 < LO < HI and a whole N >= 1")
     n = int(n)
     freqs = np.linspace(lo, hi, n) if n > 1 else np.array([lo])
-    extra = {}
-    if args.ramp is not None:
-        if not supports_ramp():
-            raise UsageError("--ramp: this co-simulation master has no force ramp")
-        extra["ramp"] = args.ramp
-    cfg = _config(args, stop=args.duration, progress=False, **extra)
-    string = _string(args)
+    # a fixed step (1 ms unless --step) without the error-estimate companion: one run per frequency
+    cfg = config_from_args(args, stop=args.duration, progress=False, estimate=False,
+                           **({} if args.step is not None else {"step": 1e-3}))
+    string = load_string_arg(args)
     t0 = time.perf_counter()
-    res = sweep(string, freqs, cfg, fmu=_fmu(args), window_periods=args.window_periods,
+    res = sweep(string, freqs, cfg, fmu=fmu_arg(args), window_periods=args.window_periods,
                 steady_tol=args.steady_tol, max_duration=args.max_duration,
                 options=_executor_options(args))
     modes = coupled_modes(string, cfg, f_max=hi * 1.2)
@@ -239,7 +236,7 @@ def _default_bounds(g):
 
 def _confirm(groups, string, args) -> dict:
     """Co-simulate the optimum on the string; dynamic WOB amplitude and bounce margin."""
-    from .cli_cosim import _fmu
+    from .cli_cosim import fmu_arg
     from .cosim import CosimConfig, cosimulate
     rig = groups.to_rig()
     T = 1.0 / rig.frequency
@@ -257,7 +254,7 @@ def _confirm(groups, string, args) -> dict:
     step = min(T / 200.0, 1.0 / (20.0 * f_max))
     cfg = base.replace(stop=periods * T, step=step, f_max=f_max, record=("wob", "bit_position"), progress=False)
     t0 = time.perf_counter()
-    r = cosimulate(string, cfg, fmu=_fmu(args))
+    r = cosimulate(string, cfg, fmu=fmu_arg(args))
     w = r.window()
     F_s = rig.scales.friction_force
     wmin = float(w["wob"].min())
@@ -352,11 +349,11 @@ def register(subparsers) -> None:
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_bifurcation)
 
-    from .cli_cosim import _common
+    from .cli_cosim import add_cosim_options
     p = subparsers.add_parser("sweep", help="frequency sweep of the co-simulated hammer on a string",
                               description="Steady dynamic WOB amplitude, bounce margin and rate of "
                                           "penetration against the hammer's excitation frequency.")
-    _common(p)
+    add_cosim_options(p)
     p.add_argument("--frequencies", nargs=3, type=float, required=True, metavar=("LO", "HI", "N"),
                    help="LO HI [Hz] and the number of frequencies N")
     p.add_argument("--duration", type=float, default=1.5,
@@ -369,8 +366,6 @@ def register(subparsers) -> None:
     p.add_argument("--steady-tol", type=float, default=0.01,
                    help="allowed relative change of the WOB amplitude between the last two windows "
                         "(default 0.01)")
-    p.add_argument("--ramp", type=float, default=None, metavar="SECONDS",
-                   help="ramp the hammer force up over this time [s] (when the master supports it)")
     _add_executor_args(p)
     p.add_argument("--plot", default=None, help="figure file (png, svg, pdf)")
     p.add_argument("--csv", default=None, help="CSV of the sweep")

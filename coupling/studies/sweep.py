@@ -13,10 +13,10 @@ and rows that never settle are flagged ``steady = 0``.
 """
 from __future__ import annotations
 
+import copy
 import hashlib
 import math
 import pickle
-from dataclasses import fields
 from pathlib import Path
 from typing import Optional
 
@@ -27,18 +27,12 @@ from hammerbit.model.validation import ParameterError
 from ..cosim import CosimConfig, StringSide, _coupled_system, cosimulate
 from .executor import Executor, ExecutorOptions
 
-__all__ = ["SWEEP_DTYPE", "sweep", "plot_sweep", "write_sweep_csv", "wob_frf", "steady_figures",
-           "supports_ramp"]
+__all__ = ["SWEEP_DTYPE", "sweep", "plot_sweep", "write_sweep_csv", "wob_frf", "steady_figures"]
 
 SWEEP_DTYPE = np.dtype([("frequency_hz", "f8"), ("wob_mean_n", "f8"), ("wob_amplitude_n", "f8"),
                         ("wob_min_n", "f8"), ("bounce_margin", "f8"), ("rop_m_per_h", "f8"),
                         ("penetration_m", "f8"), ("duration_s", "f8"), ("amplitude_change", "f8"),
                         ("steady", "i1")])
-
-
-def supports_ramp() -> bool:
-    """True when the co-simulation master takes a force ramp (``CosimConfig.ramp``)."""
-    return "ramp" in {f.name for f in fields(CosimConfig)}
 
 
 # one discretised string side per worker process, keyed by what it depends on
@@ -51,14 +45,21 @@ def _side_key(string, config: CosimConfig) -> str:
 
 
 def _side_for(string, config: CosimConfig) -> StringSide:
+    """A copy of this worker's discretised string side.
+
+    The template is warmed by a one-step run, so it holds the discretisations
+    a run computes, in the order it computes them; every frequency gets its own
+    copy, so a result does not depend on which frequencies the worker ran
+    before (the same bits whatever the chunking).
+    """
     key = _side_key(string, config)
     side = _SIDES.get(key)
     if side is None:
         _SIDES.clear()
         side = StringSide(string, config)
-        side.discretise(config.step)
+        cosimulate(string, config.replace(stop=config.start + config.step, record=("wob",)), side=side)
         _SIDES[key] = side
-    return side
+    return copy.deepcopy(side)
 
 
 def steady_figures(data: np.ndarray, frequency: float, window_periods: int, friction_force: float) -> dict:
@@ -92,7 +93,8 @@ def steady_figures(data: np.ndarray, frequency: float, window_periods: int, fric
 
 def _sweep_one(string, f, config, fmu, window_periods, steady_tol, max_duration):
     rig = config.rig.replace(frequency=float(f))
-    dur = max(config.stop - config.start, 3.0 * window_periods / f)
+    # at least three windows after the force ramp
+    dur = max(config.stop - config.start, config.ramp + 3.0 * window_periods / f)
     F_s = config.rig.scales.friction_force
     while True:
         cfg = config.replace(rig=rig, stop=config.start + dur, record=("wob", "bit_position"),
