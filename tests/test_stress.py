@@ -31,7 +31,8 @@ from hypothesis import strategies as st
 
 from hammerbit.analysis import detect_period
 from hammerbit.model.params import preset
-from hammerbit.model.stepping import EventStormError, SolverError, SolverOptions
+from hammerbit.model.stepping import (EventStormError, MaxStepsError, NonFiniteStateError,
+                                      SolverError, SolverOptions, StepSizeError)
 from hammerbit.simulate import BounceWarning, Record, simulate
 
 RTOL = 1e-8
@@ -444,14 +445,82 @@ def test_event_cap_raises_clear_error():
 
 
 def test_step_cap_is_not_silent():
+    """max_steps caps the accepted steps of one call: below the steps a run needs it raises
+    MaxStepsError where it stopped; at or above, the run is the uncapped run exactly."""
     g = preset("paper-fig9")
+    full, _ = bounded(simulate, g, 100)
+    n = full.stats["steps"]
+    assert n > 100
+    with pytest.raises(MaxStepsError) as ei:
+        bounded(simulate, g, 100, solver=SolverOptions(max_steps=n // 2))
+    assert "max_steps" in str(ei.value)
+    assert 0.0 < ei.value.time < 100 * g.period
+    capped, _ = bounded(simulate, g, 100, solver=SolverOptions(max_steps=n))
+    assert capped.stats["steps"] == n
+    assert np.array_equal(capped.final, full.final)
+
+
+def test_step_below_time_resolution_raises_step_size_error():
+    """At tau = 1e9 the spacing of doubles (1.2e-7, and the solver's floor of 10 ulp) exceeds
+    the stable step of a contact of stiffness 1e12 (1.5 / sqrt(kc) = 1.5e-6 is below 10 ulp
+    = 2.2e-6): StepSizeError where it stopped.  The same contact near tau = 0 integrates."""
+    from hammerbit.model import kernels as K
+    from hammerbit.model.stepping import Stepper
+    g = preset("paper-fig12").replace(a=0.06, kc=1e12, n=1.0, r=0.0, lam_hat=0.0)
+    y0 = [0.01, 0.0, 0.0, 0.0]                 # in contact, 1e10 x 0.01 = 1e10 F0 of force
+    early = Stepper(g, y0=y0)
+    assert bounded(early.advance, 1e-3)[0] == "done"
+    assert np.all(np.isfinite(early.y))
+    late = Stepper(g, y0=y0)
+    late.fstate[K.F_T] = 1e9
+    with pytest.raises(StepSizeError) as ei:
+        bounded(late.advance, 1e9 + 1.0, timeout=60)
+    assert ei.value.time == 1e9
+    assert "resolution" in str(ei.value)
+
+
+_LATE_START = """
+import sys
+from hammerbit.model import kernels as K
+from hammerbit.model.params import preset
+from hammerbit.model.stepping import SolverError, Stepper
+st = Stepper(preset("paper-fig12").replace(a=0.06), y0=[0.0, 0.0, 0.0, 0.5])
+st.fstate[K.F_T] = 1e13
+try:
+    print(st.advance(1e13 + 10.0))
+except SolverError as e:
+    print(type(e).__name__)
+"""
+
+
+@pytest.mark.xfail(strict=True, reason="a rejected step whose size is re-expanded to the whole "
+                   "remaining interval (remaining < 1e3 x the step floor) loops forever")
+def test_late_start_does_not_hang():
+    """At tau = 1e13 the step floor (10 ulp = 0.022) times 1e3 exceeds the remaining 10: every
+    shrunk step is re-expanded to the whole interval.  The call must end (a result or a
+    SolverError), not spin.  Run in a subprocess: a spinning nopython thread cannot be stopped."""
+    import subprocess
+    import sys
     try:
-        res = simulate(g, 100, solver=SolverOptions(max_steps=50))
-    except SolverError:
-        return
-    # a result must be at the requested horizon
-    full = simulate(g, 100)
-    assert res.penetration == pytest.approx(full.penetration, rel=1e-6)
+        out = subprocess.run([sys.executable, "-c", _LATE_START], capture_output=True, text=True,
+                             timeout=30)
+    except subprocess.TimeoutExpired:
+        pytest.fail("Stepper.advance from tau = 1e13 to 1e13 + 10 did not return within 30 s")
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() in ("done", "StepSizeError")
+
+
+def test_fixed_step_blow_up_raises_non_finite_state_error():
+    """The paper's RK4 with 10 steps per period in a contact of stiffness 1e10 and exponent 3
+    is far outside its stability region: the state overflows, and the run says so."""
+    g = preset("paper-fig12").replace(a=0.5, kc=1e10, n=3.0, r=0.01)
+    with pytest.raises(NonFiniteStateError) as ei:
+        bounded(simulate, g, 50, solver=SolverOptions(method="rk4", steps_per_period=10))
+    assert 0.0 < ei.value.time < 50 * g.period
+    assert "non-finite" in str(ei.value)
+    # the adaptive method gets through the same scene
+    res, _ = bounded(simulate, g, 5)
+    assert np.all(np.isfinite(res.final)) and res.counts["impact"] > 0
 
 
 #: A stiff-contact scene (found by hypothesis, shrunk): 47 impacts in 20 periods (solve_ivp
