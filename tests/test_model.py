@@ -108,6 +108,45 @@ def test_set_errors_use_the_typed_name():
     assert ei.value.name == "K"
 
 
+# --------------------------------------------------------------------------- force formulas
+def test_force_formulas_against_hand_values():
+    """The public force formulas of the kernels at hand-computed points (model.md)."""
+    g = preset("paper-fig12").replace(xi=0.1, mu=0.8, gamma_hat=5.0, kc=1e4, n=1.5, lam_hat=0.3, r=0.5)
+    p = g.to_kernel()
+    # kinetic friction mu + (1 - mu) exp(-gamma_hat v): 1 at rest, mu at high speed
+    assert K.kinetic_friction(0.0, p) == pytest.approx(1.0, rel=1e-15)
+    assert K.kinetic_friction(0.2, p) == pytest.approx(0.8 + 0.2 * math.exp(-1.0), rel=1e-15)
+    assert K.kinetic_friction(100.0, p) == pytest.approx(0.8, rel=1e-15)
+    # Hunt-Crossley kc d^n (1 + lam d') in contact, 0 when free or clamped, odd in d
+    assert K.contact_force(0.01, 0.5, p, K.CONTACT) == pytest.approx(1e4 * 1e-3 * 1.15, rel=1e-14)
+    assert K.contact_force(0.04, -1.0, p, K.CONTACT) == pytest.approx(1e4 * 0.008 * 0.7, rel=1e-14)
+    assert K.contact_force(-0.01, 0.0, p, K.CONTACT) == pytest.approx(-10.0, rel=1e-14)
+    assert K.contact_force(0.01, 0.5, p, K.FREE) == 0.0
+    assert K.contact_force(0.01, 0.5, p, K.CLAMPED) == 0.0
+    y = np.array([1.5, 0.7, 0.96, 0.2])
+    assert K.overlap(y, p) == pytest.approx(1.5 - 0.96 - 0.5, rel=1e-14)
+    fk = (1.5 - 0.96) + 2 * 0.1 * (0.7 - 0.2)                       # 0.64
+    assert K.spring_damper_force(y, p) == pytest.approx(fk, rel=1e-15)
+    fc = 1e4 * 0.04 ** 1.5 * (1 + 0.3 * 0.5)                        # 92
+    assert K.force_on_bit(y, p, K.CONTACT) == pytest.approx(fk + fc, rel=1e-14)
+    assert K.force_on_bit(y, p, K.FREE) == pytest.approx(fk, rel=1e-15)
+
+
+@pytest.mark.parametrize("kw, flags", [
+    # bounce: a >= b; overload: a + b > 1; runaway: b above the kinetic floor (mu, or 1 if gamma_hat = 0)
+    (dict(a=0.1, b=0.55, mu=0.85, gamma_hat=92.0), (False, False, False)),
+    (dict(a=0.55, b=0.55, mu=0.85, gamma_hat=92.0), (True, True, False)),
+    (dict(a=0.45, b=0.55, mu=0.85, gamma_hat=92.0), (False, False, False)),   # a + b = 1 exactly
+    (dict(a=0.1, b=0.9, mu=0.85, gamma_hat=92.0), (False, False, True)),
+    (dict(a=0.1, b=0.9, mu=0.85, gamma_hat=0.0), (False, False, False)),      # floor 1 without decay
+    (dict(a=0.3, b=0.2, mu=0.85, gamma_hat=0.0), (True, False, False)),
+])
+def test_regime_flags(kw, flags):
+    from hammerbit.model.params import regime
+    r = regime(preset("paper-fig9").replace(**kw))
+    assert (r.bounce, r.overload, r.runaway) == flags
+
+
 # --------------------------------------------------------------------------- closed forms
 def stuck_hammer_exact(g, t0, x1, v1, x3, times):
     """Exact (x1, x1') of the stuck system x1'' + 2 xi x1' + x1 = x3 + b + a sin(eta t + phi)
