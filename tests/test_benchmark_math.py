@@ -20,12 +20,13 @@ from benchmarks.readme_table import END, START, load_results, render_table, upda
 
 # --------------------------------------------------------------------------- pareto_front
 def test_pareto_front_drops_dominated_and_invalid_points():
-    #        a      b      c      d      e(nan) f(err 0) g      h(same time as a, worse)
-    err = [1e-3, 1e-5, 1e-4, 1e-6, math.nan, 0.0, 1e-4, 1e-2]
-    t = [1.0, 3.0, 2.0, 10.0, 0.5, 0.5, 5.0, 1.0]
+    #        a      b      c      d      e(nan) f(err 0) g      h(same time as a, worse)  i
+    err = [1e-3, 1e-5, 1e-4, 1e-6, math.nan, 0.0, 1e-4, 1e-2, 1.5e-5]
+    t = [1.0, 3.0, 2.0, 10.0, 0.5, 0.5, 5.0, 1.0, 4.0]
     fe, ft = pareto_front(err, t)
-    # by time: a(1, 1e-3) c(2, 1e-4) b(3, 1e-5) [g(5, 1e-4) dominated by c] d(10, 1e-6);
-    # h ties a in time with a larger error; e and f are not valid errors
+    # by time: a(1, 1e-3) c(2, 1e-4) b(3, 1e-5) [i(4, 1.5e-5) dominated by b, only just]
+    # [g(5, 1e-4) dominated by c] d(10, 1e-6); h ties a in time with a larger error;
+    # e and f are not valid errors
     assert fe.tolist() == [1e-3, 1e-4, 1e-5, 1e-6]
     assert ft.tolist() == [1.0, 2.0, 3.0, 10.0]
 
