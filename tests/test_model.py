@@ -386,8 +386,10 @@ def test_resumable_advance_equals_one_call():
 # --------------------------------------------------------------------------- solvers
 @pytest.mark.parametrize("name, a", [("paper-fig9", 0.11), ("paper-fig12", 0.06)])
 def test_rk4_and_adaptive_agree_within_rk4_error(name, a):
+    """Both methods against the independent solve_ivp reference (benchmarks.scipy_reference)."""
+    from benchmarks.scipy_reference import simulate_reference
     g = preset(name).replace(a=a)
-    ref = simulate(g, 30, solver=TIGHT).penetration
+    ref = simulate_reference(g, 30, rtol=1e-12, atol=1e-14).penetration
     ad = simulate(g, 30).penetration
     rk = simulate(g, 30, solver=SolverOptions(method="rk4")).penetration
     rk_err = abs(rk - ref)
@@ -407,8 +409,9 @@ def test_adaptive_converges_as_rtol_falls(name, a):
 
 
 def test_dp54_agrees():
+    from benchmarks.scipy_reference import simulate_reference
     g = preset("paper-fig12")
-    ref = simulate(g, 20, solver=TIGHT).penetration
+    ref = simulate_reference(g, 20, rtol=1e-12, atol=1e-14).penetration
     assert simulate(g, 20, solver=SolverOptions(method="dp54", rtol=1e-10, atol=1e-12)).penetration == \
         pytest.approx(ref, rel=1e-6)
 
