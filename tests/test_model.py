@@ -99,6 +99,19 @@ def test_si_override_reported_in_si_with_the_scene_scale():
     assert d["penetration_m"] == pytest.approx(0.00516, abs=5e-6)
 
 
+@pytest.mark.parametrize("settings, x0", [
+    # x0 = F0 / K = mu_e F_N / K by hand (paper rig: mu_e = 0.62, F_N = 87.1 N, K = 2170 N/m)
+    ({"m1": 50.6}, 54.0 / 2170.0),
+    ({"F_N": 100.0}, 0.62 * 100.0 / 2170.0),
+    ({"K": 4340.0, "m1": 12.65}, 54.0 / 4340.0),
+])
+def test_simulation_result_in_si_uses_the_scene_scale(settings, x0):
+    g = apply_settings(preset("paper-fig9"), settings).replace(a=0.3, eta=1.0)   # a drilling scene
+    r = simulate(g, 20)
+    assert r.penetration > 0.0
+    assert r.penetration_m == pytest.approx(r.penetration * x0, rel=1e-13)
+
+
 def test_set_errors_use_the_typed_name():
     with pytest.raises(ParameterError) as ei:
         apply_settings(preset("paper-fig9"), {"mu_d": 0.9})
