@@ -90,7 +90,7 @@ def test_si_overrides_carry_their_scales(settings, x0, omega):
 
 
 def test_si_override_reported_in_si_with_the_scene_scale():
-    """The issue's case: K doubled halves x0, so the SI penetration is the x0 value times 54/4340."""
+    """K doubled halves x0 = F0 / K: the SI penetration is the x0 value times 54 N / 4340 N/m."""
     out = subprocess.run([sys.executable, "-m", "hammerbit.cli", "simulate", "--preset", "paper-fig9",
                           "--set", "a=0.11", "--set", "K=4340", "--periods", "100", "--json"],
                          capture_output=True, text=True, check=True)
