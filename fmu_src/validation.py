@@ -149,6 +149,16 @@ RANGES: dict[str, Range] = {
     "solver.graze_tol": Range(0.0, 1.0),
     "solver.max_steps": Range(0, 1e15),
     "solver.max_steps_per_period": Range(0, 1e15),
+    # -- co-simulation master (hammerbit.cosim.CosimConfig) ----------------------
+    "cosim.step": Range(0.0, 10.0, lo_open=True, unit="s"),
+    "cosim.start": Range(-1e9, 1e9, unit="s"),
+    "cosim.stop": Range(-1e9, 1e9, unit="s"),
+    "cosim.interface_stiffness": Range(0.0, 1e13, lo_open=True, unit="N/m"),
+    "cosim.interface_damping": Range(0.0, 1e10, unit="N s/m"),
+    "cosim.ramp": Range(0.0, 1e6, unit="s"),
+    "cosim.tol": Range(0.0, 1.0, lo_open=True, hi_open=True),
+    "cosim.f_max": Range(0.0, 1e6, lo_open=True, unit="Hz"),
+    "cosim.wob": Range(0.0, 1e9, unit="N"),
     # -- the stepper's state and clock (nondimensional: x0, x0 Omega, 1/Omega) --
     "state.hammer_position": Range(-1e12, 1e12),
     "state.hammer_velocity": Range(-1e12, 1e12),
