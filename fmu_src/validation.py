@@ -148,6 +148,9 @@ RANGES: dict[str, Range] = {
     "solver.graze_tol": Range(0.0, 1.0),
     "solver.max_steps": Range(0, 1e15),
     "solver.max_steps_per_period": Range(0, 1e15),
+    # -- a scene (simulate) --------------------------------------------------
+    "simulate.periods": Range(0.0, 1e9, lo_open=True),
+    "simulate.sample_dt": Range(0.0, 1e9, lo_open=True, unit="s"),
     # -- the FMU's own parameters and its inputs --------------------------------
     "fmu.tolerance": Range(1e-14, 1e-2, unit="1"),
     "fmu.initial_hammer_position": Range(-1e6, 1e6, unit="m"),
