@@ -150,7 +150,7 @@ class SimResult:
         dt = (p["time"][-1] - p["time"][k0]) / self.groups.period
         if dt <= 0:
             return None
-        return self.groups.rop(float(p["bit_position"][-1] - p["bit_position"][k0]) / dt)
+        return self.groups.rop(float((p["bit_position"][-1] - p["bit_position"][k0]) / dt))
 
     def peak_contact_force_n(self) -> Optional[float]:
         """Largest contact force of the run [N] (from the event log), None without ``Record(events=True)``."""
