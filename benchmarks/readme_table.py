@@ -7,8 +7,8 @@ as one Markdown table and writes it into ``README.md`` between the markers::
     <!-- perf-table:start -->
     <!-- perf-table:end -->
 
-Usage: ``python -m benchmarks.readme_table`` (rewrites the README, or prints
-the table when the README has no markers), ``--print`` to only print.
+Usage: ``python -m benchmarks.readme_table`` prints the table from the tracked
+results; ``--update`` rewrites it in the README.
 """
 from __future__ import annotations
 
@@ -17,16 +17,16 @@ import json
 import os
 import sys
 
-from benchmarks import REPO_ROOT, RESULTS_DIR
+from benchmarks import REPO_ROOT, TRACKED_RESULTS_DIR
 
-__all__ = ["START", "END", "load_results", "render_table", "update_readme", "main"]
+__all__ = ["START", "END", "load_results", "merge_results", "render_table", "update_readme", "main"]
 
 START = "<!-- perf-table:start -->"
 END = "<!-- perf-table:end -->"
 README = os.path.join(REPO_ROOT, "README.md")
 
 
-def load_results(results_dir: str = RESULTS_DIR) -> list:
+def load_results(results_dir: str = TRACKED_RESULTS_DIR) -> list:
     """Results dicts of every ``*.json`` in ``results_dir`` that has a ``summary`` list.
 
     Unreadable files are reported on stderr and skipped.  Sorted by benchmark name.
@@ -43,6 +43,21 @@ def load_results(results_dir: str = RESULTS_DIR) -> list:
             data.setdefault("benchmark", os.path.splitext(os.path.basename(path))[0])
             out.append(data)
     return out
+
+
+def merge_results(tracked: list, fresh: list, names) -> list:
+    """``tracked`` with the results of ``names`` replaced by those in ``fresh``, sorted by name.
+
+    A benchmark that ran (``names``) but has no fresh result keeps no row
+    from the tracked set either: the table never mixes an old number into a
+    new run without saying so.
+    """
+    names = set(names)
+    by_name = {r.get("benchmark"): r for r in tracked if r.get("benchmark") not in names}
+    for r in fresh:
+        if r.get("benchmark") in names:
+            by_name[r.get("benchmark")] = r
+    return [by_name[k] for k in sorted(by_name)]
 
 
 def _cell(v) -> str:
@@ -124,18 +139,20 @@ def update_readme(table: str, readme: str = README) -> bool:
 def main(argv=None) -> int:
     import argparse
     ap = argparse.ArgumentParser(prog="python -m benchmarks.readme_table",
-                                 description="Regenerate the README performance table from results JSON.")
-    ap.add_argument("--print", action="store_true", help="only print the table")
-    ap.add_argument("--readme", default=README)
-    ap.add_argument("--results", default=RESULTS_DIR)
+                                 description="The README performance table from results JSON: printed, "
+                                             "or written into the README with --update.")
+    ap.add_argument("--update", action="store_true", help="rewrite the table in the README")
+    ap.add_argument("--readme", default=README, help="the README to update")
+    ap.add_argument("--results", default=TRACKED_RESULTS_DIR, help="directory of results JSON")
     a = ap.parse_args(argv)
     table = render_table(load_results(a.results))
-    if a.print or not update_readme(table, a.readme):
-        if not a.print:
-            print(f"readme_table: no {START} ... {END} markers in {a.readme}; the table:", file=sys.stderr)
+    if not a.update:
         print(table)
-    else:
+    elif update_readme(table, a.readme):
         print(f"readme_table: updated {a.readme}", file=sys.stderr)
+    else:
+        print(f"readme_table: no {START} ... {END} markers in {a.readme}; the table:", file=sys.stderr)
+        print(table)
     return 0
 
 
