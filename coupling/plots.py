@@ -76,7 +76,7 @@ def plot_scene(groups, periods, path, *, solver: SolverOptions = SolverOptions()
     a1.plot(t_s, rel_mm, lw=0.9)
     if groups.has_gap:
         a1.axhline(groups.length_m(groups.r) * 1e3, color="r", ls="--", lw=0.8, label="gap R (contact above)")
-        a1.legend(loc="upper left")
+        a1.legend(loc="lower right")
     a1.set_xlabel("time [s]")
     a1.set_ylabel("relative displacement $x_b - x_s$ [mm]")
     a1.set_title("relative motion")
@@ -108,22 +108,46 @@ def plot_scene(groups, periods, path, *, solver: SolverOptions = SolverOptions()
     return path
 
 
-def plot_bifurcation(res, path):
-    """Bifurcation diagram (x1 - x3 at the Poincaré section) and drift per period."""
+def _scales(scales, res=None):
+    """The scales of a figure: given, else the result's scene's, else the paper's rig."""
+    from hammerbit.model.params import DEFAULT_SCALES
+    if scales is not None:
+        return scales
+    g = getattr(res, "groups", None)
+    return getattr(g, "scales", None) or getattr(res, "scales", None) or DEFAULT_SCALES
+
+
+def _si_top_axis(ax, param: str, scales):
+    """A top axis in newtons when the x axis is the amplitude or preload group."""
+    F0 = scales.friction_force
+    if param in ("a", "b"):
+        top = ax.secondary_xaxis("top", functions=(lambda v: v * F0, lambda v: v / F0))
+        top.set_xlabel(("amplitude A" if param == "a" else "preload B") + " [N]")
+
+
+def plot_bifurcation(res, path, *, scales=None):
+    """Bifurcation diagram (relative displacement at the Poincaré section [mm]) and drift per period [mm].
+
+    ``scales`` (default: the scene's, else the paper's rig) turn lengths into mm.
+    """
     plt = _plt()
+    sc = _scales(scales, res)
+    mm = sc.length * 1e3
     fig, ax = plt.subplots(2, 1, figsize=(8, 7), sharex=True)
     for i, v in enumerate(res.values):
         P = res.points[i]
-        ax[0].plot(np.full(P.shape[0], v), P[:, 1] - P[:, 3], "k.", ms=1.5)
-    ax[0].set_ylabel("x1 - x3 at Poincaré section")
-    ax[0].set_title(f"bifurcation diagram over {res.param}")
-    ax[1].plot(res.values, res.drift, "b.-", ms=3)
-    ax[1].set_ylabel("penetration per period [x0]")
+        ax[0].plot(np.full(P.shape[0], v), (P[:, 1] - P[:, 3]) * mm, "k.", ms=1.5)
+    ax[0].set_ylabel("$x_b - x_s$ at the Poincaré section [mm]")
+    ax[0].set_title(f"bifurcation diagram over {res.param} (x0 = {mm:.4g} mm)")
+    _si_top_axis(ax[0], res.param, sc)
+    ax[1].plot(res.values, np.asarray(res.drift) * mm, "b.-", ms=3)
+    ax[1].set_ylabel("penetration per period [mm]")
     ax[1].set_xlabel(res.param)
+    ax[1].grid(alpha=0.3)
     for i, v in enumerate(res.values):
         n = res.periods[i]
         if n and (i == 0 or res.periods[i - 1] != n):
-            ax[0].annotate(f"P{n}", (v, np.nanmax(res.points[i, :, 1] - res.points[i, :, 3])),
+            ax[0].annotate(f"P{n}", (v, np.nanmax(res.points[i, :, 1] - res.points[i, :, 3]) * mm),
                            fontsize=7, color="r")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
@@ -131,14 +155,20 @@ def plot_bifurcation(res, path):
     return path
 
 
-def plot_penetration(values, curves: dict, path, *, periods: int = 100):
-    """Penetration after ``periods`` forcing periods against a (Fig. 14)."""
+def plot_penetration(values, curves: dict, path, *, periods: int = 100, scales=None, param: str = "a"):
+    """Penetration [mm] after ``periods`` forcing periods against a group (Fig. 14).
+
+    ``curves`` maps a label to penetrations in x0; ``scales`` (default: the
+    paper's rig) turn them into mm.
+    """
     plt = _plt()
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+    sc = _scales(scales)
+    fig, ax = plt.subplots(figsize=(7, 4.8))
     for label, y in curves.items():
-        ax.plot(values, y, ".-", label=label)
-    ax.set_xlabel("a")
-    ax.set_ylabel(f"penetration after {periods} periods [x0]")
+        ax.plot(values, np.asarray(y) * sc.length * 1e3, ".-", label=label)
+    ax.set_xlabel(param)
+    ax.set_ylabel(f"penetration after {periods} periods [mm]")
+    _si_top_axis(ax, param, sc)
     ax.legend()
     ax.grid(alpha=0.3)
     fig.tight_layout()
@@ -147,14 +177,15 @@ def plot_penetration(values, curves: dict, path, *, periods: int = 100):
     return path
 
 
-def plot_attractor(poincare, path, *, title=""):
-    """Poincaré section of a (possibly strange) attractor (Fig. 15)."""
+def plot_attractor(poincare, path, *, title="", scales=None):
+    """Poincaré section of a (possibly strange) attractor (Fig. 15), relative motion in mm and m/s."""
     plt = _plt()
+    sc = _scales(scales)
     fig, ax = plt.subplots(figsize=(6, 5))
-    ax.plot(poincare["hammer_position"] - poincare["bit_position"],
-            poincare["hammer_velocity"] - poincare["bit_velocity"], "k.", ms=1)
-    ax.set_xlabel("x1 - x3")
-    ax.set_ylabel("x2 - x4")
+    ax.plot((poincare["hammer_position"] - poincare["bit_position"]) * sc.length * 1e3,
+            (poincare["hammer_velocity"] - poincare["bit_velocity"]) * sc.velocity, "k.", ms=1)
+    ax.set_xlabel("relative displacement $x_b - x_s$ [mm]")
+    ax.set_ylabel("relative velocity $v_b - v_s$ [m/s]")
     ax.set_title(title, fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=120)

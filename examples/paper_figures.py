@@ -39,14 +39,14 @@ def main(argv=None):
     for name, lo, hi in (("paper-fig9", 0.0, 0.25), ("paper-fig12", 0.0, 0.25)):
         t0 = time.perf_counter()
         res = bifurcation(preset(name), "a", np.linspace(lo, hi, args.num), periods=args.periods, keep=48)
-        plot_bifurcation(res, OUT / f"bifurcation_{name}.png")
+        plot_bifurcation(res, OUT / f"bifurcation_{name}.png", scales=preset(name).scales)
         summary[name] = {"periods_per_second": res.periods_per_second, "wall_s": time.perf_counter() - t0,
                          "period_n": dict(zip([round(v, 4) for v in res.values.tolist()], res.periods))}
     a = np.linspace(0.0, 0.4, 41)
     p9 = penetration_sweep(preset("paper-fig9"), a, periods=100)
     p12 = penetration_sweep(preset("paper-fig12"), a, periods=100)
     plot_penetration(a, {"no impact (paper-fig9)": p9, "impact r=0.84 (paper-fig12)": p12},
-                     OUT / "penetration_fig14.png", periods=100)
+                     OUT / "penetration_fig14.png", periods=100, scales=preset("paper-fig9").scales)
     plot_scene(preset("paper-fig9").replace(a=0.083), 300, OUT / "scene_fig9_a0.083.png", preset="paper-fig9")
     plot_scene(preset("paper-fig12").replace(a=0.06), 300, OUT / "scene_fig12_a0.06.png", preset="paper-fig12")
     from hammerbit.analysis import largest_lyapunov
@@ -55,7 +55,7 @@ def main(argv=None):
     g = preset("chaos")
     lam = largest_lyapunov(g, windows=100)
     r = simulate(g, 5000, record=Record(poincare=True))
-    plot_attractor(r.poincare[200:], OUT / "chaos_fig15.png",
+    plot_attractor(r.poincare[200:], OUT / "chaos_fig15.png", scales=g.scales,
                    title=f"strange attractor: eta=0.8, b=0.3, r=0.84, mu=0.6, a=0.1967\n"
                          f"lambda_max = {lam['lambda_per_period']:.3f}/period")
     summary["chaos"] = {"lambda_per_period": lam["lambda_per_period"]}
