@@ -190,7 +190,8 @@ def cmd_simulate(args) -> int:
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", BounceWarning)
-        res = simulate(g, args.periods, record=Record(poincare=True, events=True, times=times), solver=solver)
+        res = simulate(g, args.periods, record=Record(poincare=True, events=g.has_gap, times=times),
+                       solver=solver)
     for w in caught:
         if not issubclass(w.category, BounceWarning):
             warnings.showwarning(w.message, w.category, w.filename, w.lineno)

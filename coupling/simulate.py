@@ -221,7 +221,8 @@ def simulate(groups: Groups, periods: float, *, record: Record = Record(),
     if record.times is not None:
         samp_t = np.ascontiguousarray(record.times[record.times <= tau_end * (1 + 1e-15)])
         samp = np.zeros((samp_t.shape[0], K.N_SAMPLE_COLS))
-    log = np.zeros((max(64, int(8 * periods)) if record.events else 0, K.N_LOG_COLS))
+    # the log starts small and doubles when full (status "log_full"), so a long run costs what it logs
+    log = np.zeros((min(max(64, int(8 * periods)), 65536) if record.events else 0, K.N_LOG_COLS))
     st.advance(st.time, poincare=poin, sample_times=samp_t, samples=samp, log=log)  # load compiled code
     t0 = _time.perf_counter()
     while True:
