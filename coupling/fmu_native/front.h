@@ -1,0 +1,72 @@
+/* Internal interface between the parts of the native front (not installed with the FMU).
+ *
+ *   front.c              the FMI 2.0 functions: state machine, checks, status mapping, logging
+ *   python_embed.c       Python in the process: found, loaded, initialised, checked
+ *   pythonfmu_wrapper.c  pythonfmu's export library: loaded, its exit order fixed
+ *   resource_uri.c       fmuResourceLocation -> directory path
+ */
+#ifndef HAMMERBIT_FRONT_H
+#define HAMMERBIT_FRONT_H
+
+#include <limits.h>   /* and with it glibc's __GLIBC__ */
+#include <stddef.h>
+
+#include "fmi2_abi.h"
+
+#define EXPORT __attribute__((visibility("default")))
+
+/* The dl* functions bound to their first version: a front built with glibc >= 2.34 (where they
+ * moved into libc) still loads with an older glibc (where libdl holds them). */
+#if defined(__GLIBC__) && defined(__x86_64__)
+__asm__(".symver dlopen,dlopen@GLIBC_2.2.5");
+__asm__(".symver dlsym,dlsym@GLIBC_2.2.5");
+__asm__(".symver dlerror,dlerror@GLIBC_2.2.5");
+__asm__(".symver dladdr,dladdr@GLIBC_2.2.5");
+#endif
+
+/* python_embed.c ------------------------------------------------------------------------------
+ * Python in this process with the space-separated `modules` installed; 1, or 0 with the reason
+ * in err.  A Python host's interpreter is used as it is; otherwise $HAMMERBIT_PYTHON, else
+ * python3 on PATH, is asked about itself and its libpython is loaded and initialised.
+ * Not thread-safe: the caller serialises. */
+int hb_ensure_python(const char *modules, char *err, size_t n);
+/* At exit: flush Python's output if this front initialised the interpreter. */
+void hb_python_at_exit(void);
+
+/* pythonfmu_wrapper.c -------------------------------------------------------------------------- */
+typedef struct {
+    void *h;
+    fmi2InstantiateFn Instantiate;
+    fmi2FreeInstanceFn FreeInstance;
+    fmi2SetupExperimentFn SetupExperiment;
+    fmi2ComponentFn EnterInitializationMode, ExitInitializationMode, Terminate, Reset;
+    fmi2GetRealFn GetReal;
+    fmi2GetIntegerFn GetInteger;
+    fmi2GetBooleanFn GetBoolean;
+    fmi2GetStringFn GetString;
+    fmi2SetRealFn SetReal;
+    fmi2SetIntegerFn SetInteger;
+    fmi2SetBooleanFn SetBoolean;
+    fmi2SetStringFn SetString;
+    fmi2GetFMUstateFn GetFMUstate;
+    fmi2SetFMUstateFn SetFMUstate;
+    fmi2FreeFMUstateFn FreeFMUstate;
+    fmi2SerializedFMUstateSizeFn SerializedFMUstateSize;
+    fmi2SerializeFMUstateFn SerializeFMUstate;
+    fmi2DeSerializeFMUstateFn DeSerializeFMUstate;
+    fmi2DoStepFn DoStep;
+    void (*finalize)(void);
+} hb_wrapper;
+
+/* the loaded library (all NULL before hb_load_wrapper succeeded) */
+extern hb_wrapper hb_W;
+/* Load `file` from the directory of this library (once); 1, or 0 with the reason in err.
+ * Not thread-safe: the caller serialises. */
+int hb_load_wrapper(const char *file, char *err, size_t n);
+
+/* resource_uri.c ------------------------------------------------------------------------------
+ * file:/x, file://localhost/x, file:///x (percent-decoded) or an absolute path -> an existing
+ * directory path in out; 1, or 0 with the reason in err. */
+int hb_uri_to_path(const char *uri, char *out, size_t n, char *err, size_t en);
+
+#endif

@@ -1,0 +1,138 @@
+/* A plain native FMI 2.0 co-simulation host for the tests: dlopen, instantiate, step, read one
+ * Real output, terminate, free, exit.  Built against the standard FMI 2.0 headers (fmpy's copy),
+ * not against anything of the FMU.
+ *
+ *   fmu_native_host SO URI GUID [type=1] [steps=10000] [h=1e-3] [out=VR] [logging=0] [threads=1]
+ *
+ * threads=N runs N instances at once, each in its own thread, from instantiation to the end.
+ * stdout: "log <status> <category> <message>" per logger call, "value <%.17g>" per instance.
+ * Exit codes: 0 ok, 2 dlopen, 3 missing symbol, 10 fmi2Instantiate returned NULL, 11 a call
+ * failed. */
+#include <dlfcn.h>
+#include <pthread.h>
+#include <stdarg.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "fmi2FunctionTypes.h"
+
+static void logger(fmi2ComponentEnvironment env, fmi2String name, fmi2Status status,
+                   fmi2String category, fmi2String message, ...) {
+    (void)env, (void)name;
+    va_list ap;
+    va_start(ap, message);
+    printf("log %d %s ", (int)status, category ? category : "-");
+    vprintf(message, ap);
+    printf("\n");
+    va_end(ap);
+    fflush(stdout);
+}
+
+static const char *opt(int argc, char **argv, const char *key, const char *dflt) {
+    size_t n = strlen(key);
+    for (int i = 4; i < argc; i++)
+        if (strncmp(argv[i], key, n) == 0 && argv[i][n] == '=') return argv[i] + n + 1;
+    return dflt;
+}
+
+static struct {
+    fmi2InstantiateTYPE *instantiate;
+    fmi2SetupExperimentTYPE *setup;
+    fmi2EnterInitializationModeTYPE *enter;
+    fmi2ExitInitializationModeTYPE *exit_init;
+    fmi2DoStepTYPE *do_step;
+    fmi2GetRealTYPE *get_real;
+    fmi2TerminateTYPE *terminate;
+    fmi2FreeInstanceTYPE *free_instance;
+} F;
+
+static int g_argc;
+static char **g_argv;
+static pthread_mutex_t g_out = PTHREAD_MUTEX_INITIALIZER;
+
+#define CHECK(call)                                                    \
+    do {                                                               \
+        fmi2Status s_ = (call);                                        \
+        if (s_ > fmi2Warning) {                                        \
+            printf("failed %s -> %d\n", #call, (int)s_);               \
+            return 11;                                                 \
+        }                                                              \
+    } while (0)
+
+/* one instance from fmi2Instantiate to fmi2FreeInstance; the exit code */
+static int run(const char *name) {
+    fmi2CallbackFunctions cb = {logger, calloc, free, NULL, NULL};
+    int type = atoi(opt(g_argc, g_argv, "type", "1"));
+    int logging = atoi(opt(g_argc, g_argv, "logging", "0"));
+    fmi2Component c = F.instantiate(name, (fmi2Type)type, g_argv[3], g_argv[2], &cb, fmi2False,
+                                    logging ? fmi2True : fmi2False);
+    if (!c) {
+        printf("instantiate NULL\n");
+        return 10;
+    }
+    long steps = atol(opt(g_argc, g_argv, "steps", "10000"));
+    double hstep = atof(opt(g_argc, g_argv, "h", "1e-3"));
+    fmi2ValueReference vr = (fmi2ValueReference)atol(opt(g_argc, g_argv, "out", "0"));
+    CHECK(F.setup(c, fmi2False, 0.0, 0.0, fmi2False, 0.0));
+    CHECK(F.enter(c));
+    CHECK(F.exit_init(c));
+    for (long i = 0; i < steps; i++) CHECK(F.do_step(c, (double)i * hstep, hstep, fmi2True));
+    double value = 0.0;
+    CHECK(F.get_real(c, &vr, 1, &value));
+    pthread_mutex_lock(&g_out);
+    printf("value %.17g\n", value);
+    fflush(stdout);
+    pthread_mutex_unlock(&g_out);
+    CHECK(F.terminate(c));
+    F.free_instance(c);
+    return 0;
+}
+
+static void *run_thread(void *arg) {
+    char name[32];
+    snprintf(name, sizeof name, "host%ld", (long)(intptr_t)arg);
+    return (void *)(intptr_t)run(name);
+}
+
+#define LOAD(T, var)                                                   \
+    F.var = (fmi2##T##TYPE *)dlsym(h, "fmi2" #T);                      \
+    if (!F.var) {                                                      \
+        printf("missing fmi2%s\n", #T);                                \
+        return 3;                                                      \
+    }
+
+int main(int argc, char **argv) {
+    if (argc < 4) {
+        fprintf(stderr, "usage: %s SO URI GUID [key=value ...]\n", argv[0]);
+        return 1;
+    }
+    g_argc = argc;
+    g_argv = argv;
+    void *h = dlopen(argv[1], RTLD_NOW | RTLD_LOCAL);
+    if (!h) {
+        printf("dlopen %s\n", dlerror());
+        return 2;
+    }
+    LOAD(Instantiate, instantiate)
+    LOAD(SetupExperiment, setup)
+    LOAD(EnterInitializationMode, enter)
+    LOAD(ExitInitializationMode, exit_init)
+    LOAD(DoStep, do_step)
+    LOAD(GetReal, get_real)
+    LOAD(Terminate, terminate)
+    LOAD(FreeInstance, free_instance)
+    int threads = atoi(opt(argc, argv, "threads", "1"));
+    if (threads <= 1) return run("host");
+    pthread_t t[16];
+    if (threads > 16) threads = 16;
+    for (long i = 0; i < threads; i++) pthread_create(&t[i], NULL, run_thread, (void *)(intptr_t)i);
+    int rc = 0;
+    for (int i = 0; i < threads; i++) {
+        void *r;
+        pthread_join(t[i], &r);
+        if ((intptr_t)r) rc = (int)(intptr_t)r;
+    }
+    return rc;
+}
