@@ -43,7 +43,7 @@ def run(quick: bool = False) -> dict:
                             "examples/paper_figures.py", f"{timings['paper']:.1f} s", command=cmd))
 
     t0 = time.perf_counter()
-    _load(ROOT / "docs" / "make_string_figures.py").main()
+    _load(ROOT / "docs" / "make_string_figures.py").main(["--out", str(FIG)])
     timings["string"] = time.perf_counter() - t0
     rows.append(summary_row("drillstring check figures: docs/make_string_figures.py",
                             f"{timings['string']:.1f} s", command=cmd))

@@ -1,28 +1,28 @@
 """``hammerbit modes`` and ``hammerbit check`` sub-commands.
 
-Wire them into the main parser with::
-
-    sub = parser.add_subparsers(dest="command")
-    cli_string.register(sub)
-    args = parser.parse_args(argv)
-    return args.func(args)
-
-Both handlers return an exit code: 0 on success (``check`` also returns 0
-for a ``fail`` verdict unless ``--strict`` is given, then 1), 2 on bad input
-(the message, naming file, section, key, value and range, goes to stderr).
+Both are registered by :func:`hammerbit.cli.build_parser`; errors are
+exceptions that :func:`hammerbit.cli_common.run_command` turns into a one-line
+message and an exit code: 2 for bad input (the message names the option or
+the file, section, key, value and allowed range), 4 for ``check --strict``
+when the verdict is FAIL.
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
 import json
+import math
 import sys
+from pathlib import Path
 from typing import Any
 
+from .cli_common import EXIT_CHECK_FAILED, EXIT_OK, UsageError
 from .drillstring import (
-    DrillStringError,
-    MASS_SCHEMES,
     DEFAULT_MASS,
+    DEFAULT_RTOL,
+    MASS_SCHEMES,
+    DrillStringError,
     example_names,
     exact_frequencies,
     load_string,
@@ -30,11 +30,21 @@ from .drillstring import (
     parse_boundary,
 )
 from .modal_check import CheckConfig, check, plot_check
+from hammerbit.model.validation import ParameterError
 
 __all__ = ["register", "cmd_modes", "cmd_check"]
 
 _BOUNDARY_HELP = ("fixed | free[:MASS] | spring:K[:C[:MASS]] | hammer:K[:C]  "
-                  "(K [N/m], C [N s/m], MASS [kg])")
+                  "(K [N/m], C [N s/m], MASS [kg]; a bottom without MASS carries the file's bit mass)")
+
+#: CheckConfig field -> the option a user typed.
+_OPTION = {"excitation_hz": "--frequency", "rpm": "--rpm", "factor": "--factor", "margin": "--margin",
+           "resonance_limit": "--resonance-limit", "rtol": "--rtol", "damping_range": "--damping-range",
+           "damping_range low": "--damping-range LO", "damping_range high": "--damping-range HI",
+           "frequency_range_hz": "--range", "frequency_range_hz low": "--range LO",
+           "frequency_range_hz high": "--range HI", "rpm_range": "--rpm-range",
+           "rpm_range low": "--rpm-range LO", "rpm_range high": "--rpm-range HI",
+           "min_window": "--min-window"}
 
 
 def register(subparsers: "argparse._SubParsersAction") -> tuple[argparse.ArgumentParser, argparse.ArgumentParser]:
@@ -44,7 +54,8 @@ def register(subparsers: "argparse._SubParsersAction") -> tuple[argparse.Argumen
 
     pm = subparsers.add_parser(
         "modes", help="axial natural frequencies of a drillstring",
-        description="Lowest axial natural frequencies of the lumped drillstring model.")
+        description="Lowest axial natural frequencies of the drillstring (finite elements meshed for "
+                    "the target accuracy --rtol, with an error estimate per mode).")
     pm.add_argument("--string", required=True, metavar="FILE", help=string_help)
     pm.add_argument("--top", default=None, metavar="SPEC", help=f"top boundary (default from file): {_BOUNDARY_HELP}")
     pm.add_argument("--bottom", default=None, metavar="SPEC",
@@ -52,39 +63,54 @@ def register(subparsers: "argparse._SubParsersAction") -> tuple[argparse.Argumen
     pm.add_argument("--count", type=int, default=None, metavar="N", help="number of modes (default 6)")
     pm.add_argument("--fmax", type=float, default=None, metavar="HZ", help="only modes up to HZ")
     pm.add_argument("--mass", choices=MASS_SCHEMES, default=DEFAULT_MASS, help="mass matrix (default mixed)")
+    pm.add_argument("--rtol", type=float, default=DEFAULT_RTOL, metavar="TOL",
+                    help=f"target relative accuracy of every frequency (default {DEFAULT_RTOL:g}); "
+                         "the mesh is refined until the error estimate meets it")
     pm.add_argument("--exact", action="store_true",
                     help="also give the exact (transfer-matrix) frequencies and relative errors")
     pm.add_argument("--hammer-on-bottom", action="store_true",
                     help="bit on bottom with the field hammer (hammerbit.cosim.field_hammer, default "
                          "interface of the co-simulation) as the bottom boundary; the frequencies the "
                          "co-simulation sweep resonates at")
+    pm.add_argument("--csv", default=None, metavar="FILE", help="also write the table as CSV to FILE")
     pm.add_argument("--json", action="store_true", help="JSON on stdout")
     pm.set_defaults(func=cmd_modes)
 
     pc = subparsers.add_parser(
         "check", help="hammer/bit excitation frequency avoidance check",
         description="Check an excitation frequency (hammer, or rpm x factor) against the axial "
-                    "modes with the bit on and off bottom; report verdict, rule, modes and safe windows.")
+                    "modes with the bit on and off bottom, over a damping range; report the verdict "
+                    "(robust pass, pass at nominal damping only, fail), the rule, the modes and the "
+                    "safe windows with the rule that cleared each.")
     pc.add_argument("--string", required=True, metavar="FILE", help=string_help)
     exc = pc.add_mutually_exclusive_group(required=True)
-    exc.add_argument("--frequency", type=float, metavar="HZ", help="excitation frequency [Hz]")
-    exc.add_argument("--rpm", type=float, metavar="RPM", help="rotary speed [rev/min]")
+    exc.add_argument("--frequency", type=float, metavar="HZ", help="excitation frequency [Hz], > 0")
+    exc.add_argument("--rpm", type=float, metavar="RPM", help="rotary speed [rev/min], > 0")
     pc.add_argument("--factor", type=float, default=None, metavar="K",
                     help="excitation per revolution with --rpm: 3 tricone, blade count PDC (default 1)")
     pc.add_argument("--margin", type=float, default=0.15, help="band half-width (default 0.15 = +-15 %%)")
     pc.add_argument("--top", default=None, metavar="SPEC", help=f"top boundary (default from file): {_BOUNDARY_HELP}")
-    pc.add_argument("--on-bottom", default=None, metavar="SPEC", help="bit-on-bottom boundary (default from file)")
-    pc.add_argument("--off-bottom", default=None, metavar="SPEC", help="bit-off-bottom boundary (default from file)")
+    pc.add_argument("--on-bottom", default=None, metavar="SPEC",
+                    help="bit-on-bottom boundary (default from file, else fixed)")
+    pc.add_argument("--off-bottom", default=None, metavar="SPEC",
+                    help="bit-off-bottom boundary (default from file, else free with the bit mass)")
     pc.add_argument("--range", type=float, nargs=2, default=None, metavar=("LO", "HI"),
                     help="frequency range for safe windows [Hz] (default 0 .. 2x excitation)")
     pc.add_argument("--rpm-range", type=float, nargs=2, default=None, metavar=("LO", "HI"),
                     help="rotary-speed range for safe windows [rpm] (with --rpm)")
     pc.add_argument("--resonance-limit", type=float, default=2 ** 0.5, metavar="R",
-                    help="largest resonance factor accepted where modes crowd (default sqrt 2)")
+                    help="largest resonance factor accepted where only crowded modes are in band "
+                         "(default sqrt 2)")
+    pc.add_argument("--damping-range", type=float, nargs=2, default=(0.5, 2.0), metavar=("LO", "HI"),
+                    help="factors on the file's damping at which the receptance rule must pass "
+                         "(default 0.5 2)")
+    pc.add_argument("--rtol", type=float, default=DEFAULT_RTOL, metavar="TOL",
+                    help=f"target relative accuracy of the natural frequencies (default {DEFAULT_RTOL:g})")
     pc.add_argument("--mass", choices=MASS_SCHEMES, default=DEFAULT_MASS, help="mass matrix (default mixed)")
     pc.add_argument("--json", action="store_true", help="JSON on stdout")
     pc.add_argument("--plot", default=None, metavar="FILE", help="save Campbell + receptance figure (PNG/PDF/SVG)")
-    pc.add_argument("--strict", action="store_true", help="exit code 1 when the verdict is fail")
+    pc.add_argument("--strict", action="store_true",
+                    help=f"exit code {EXIT_CHECK_FAILED} when the verdict is FAIL")
     pc.set_defaults(func=cmd_check)
     return pm, pc
 
@@ -94,93 +120,148 @@ def _error(msg: str) -> int:
     return 2
 
 
+def _boundary(spec: str | None, option: str):
+    return parse_boundary(spec, where=option) if spec else None
+
+
+def _positive(value: float | None, option: str) -> None:
+    if value is not None and not (math.isfinite(value) and value > 0):
+        raise ParameterError(option, value, "a finite number > 0")
+
+
+def _writable(path: str | None, option: str, suffixes: tuple[str, ...] | None = None) -> None:
+    if path is None:
+        return
+    p = Path(path)
+    if not p.parent.resolve().is_dir():
+        raise UsageError(f"{option} {path}: directory {p.parent} does not exist")
+    if suffixes is not None and p.suffix.lower() not in suffixes:
+        raise UsageError(f"{option} {path}: allowed formats {', '.join(suffixes)}")
+
+
 def cmd_modes(args: argparse.Namespace) -> int:
     """Handler of ``hammerbit modes``."""
     if getattr(args, "hammer_on_bottom", False):
         return _cmd_hammer_modes(args)
-    try:
-        string = load_string(args.string)
-        top = parse_boundary(args.top, where="--top") if args.top else None
-        bottom = parse_boundary(args.bottom, where="--bottom") if args.bottom else None
-        count = args.count if (args.count is not None or args.fmax is not None) else 6
-        if count is not None and count < 1:
-            raise ValueError(f"--count {count}: must be >= 1")
-        res = modes(string, top, bottom, f_max=args.fmax, count=count, mass=args.mass)
-        exact = None
-        if args.exact:
-            exact = exact_frequencies(string, res.top, res.bottom, count=len(res))
-    except (DrillStringError, ValueError) as err:
-        return _error(str(err))
+    _positive(args.fmax, "--fmax")
+    if args.count is not None and args.count < 1:
+        raise UsageError(f"--count {args.count}: must be >= 1")
+    if not (math.isfinite(args.rtol) and 1e-12 <= args.rtol <= 0.1):
+        raise ParameterError("--rtol", args.rtol, "[1e-12, 0.1]")
+    _writable(args.csv, "--csv")
+    string = load_string(args.string)
+    top = _boundary(args.top, "--top")
+    bottom = _boundary(args.bottom, "--bottom")
+    count = args.count if (args.count is not None or args.fmax is not None) else 6
+    res = modes(string, top, bottom, f_max=args.fmax, count=count, mass=args.mass, rtol=args.rtol)
+    exact = exact_frequencies(string, res.top, res.bottom, count=len(res)) if args.exact else None
+    rows = []
+    for i, f in enumerate(res.frequencies_hz):
+        row: dict[str, Any] = {"mode": i + 1, "frequency_hz": float(f),
+                               "period_s": (1.0 / f) if f > 0 else None,
+                               "error_estimate": None if res.error_estimate is None else float(res.error_estimate[i])}
+        if exact is not None:
+            e = float(exact[i])
+            row["exact_hz"] = e
+            row["relative_error"] = (float(f) / e - 1.0) if e > 0 else 0.0
+        rows.append(row)
+    if args.csv:
+        with open(args.csv, "w", newline="", encoding="utf-8") as fh:
+            w = csv.DictWriter(fh, fieldnames=list(rows[0]) if rows else ["mode", "frequency_hz"])
+            w.writeheader()
+            for r in rows:
+                w.writerow({k: ("" if v is None else v) for k, v in r.items()})
     out: dict[str, Any] = {"string": string.name, **res.to_dict()}
     if exact is not None:
-        out["exact_hz"] = [float(x) for x in exact]
-        out["relative_error"] = [None if e == 0 else float(f / e - 1.0)
-                                 for f, e in zip(res.frequencies_hz, exact)]
+        out["exact_hz"] = [r["exact_hz"] for r in rows]
+        out["relative_error"] = [r["relative_error"] for r in rows]
+    if args.csv:
+        out["csv"] = str(args.csv)
     if args.json:
         print(json.dumps(out, indent=2))
-        return 0
-    print(f"{string.name}: {string.length:g} m, {res.n_elements} elements, {res.mass} mass; "
-          f"top {res.top.spec()}, bottom {res.bottom.spec()}")
-    head = f"{'mode':>4} {'f [Hz]':>12} {'period [s]':>11}"
+        return EXIT_OK
+    est = "" if res.error_estimate is None else f", estimated error <= {float(res.error_estimate.max(initial=0)):.1e}"
+    print(f"{string.name}: {string.length:g} m, {res.n_elements} elements {res.elements_per_section}, "
+          f"{res.mass} mass, target {res.rtol:g}{est}; top {res.top.spec()}, bottom {res.bottom.spec()}")
+    head = f"{'mode':>4} {'f [Hz]':>12} {'period [s]':>11} {'est. error':>10}"
     if exact is not None:
         head += f" {'exact [Hz]':>12} {'rel. error':>11}"
     print(head)
-    for i, f in enumerate(res.frequencies_hz, start=1):
-        line = f"{i:>4} {f:>12.6g} {(1.0 / f if f > 0 else float('inf')):>11.4g}"
+    for r in rows:
+        per = r["period_s"]
+        est_s = "" if r["error_estimate"] is None else f"{r['error_estimate']:.1e}"
+        line = f"{r['mode']:>4} {r['frequency_hz']:>12.7g} {(per if per else float('inf')):>11.4g} {est_s:>10}"
         if exact is not None:
-            e = exact[i - 1]
-            line += f" {e:>12.6g} {(f / e - 1.0 if e > 0 else 0.0):>11.2e}"
+            line += f" {r['exact_hz']:>12.7g} {r['relative_error']:>11.2e}"
         print(line)
-    return 0
+    if args.csv:
+        print(f"csv: {args.csv}")
+    return EXIT_OK
+
+
+def _check_config(args: argparse.Namespace) -> CheckConfig:
+    if args.factor is not None and args.rpm is None:
+        raise UsageError("--factor needs --rpm")
+    if args.rpm_range is not None and args.rpm is None:
+        raise UsageError("--rpm-range needs --rpm")
+    _positive(args.frequency, "--frequency")
+    _positive(args.rpm, "--rpm")
+    try:
+        return CheckConfig(
+            excitation_hz=args.frequency, rpm=args.rpm,
+            factor=1.0 if args.factor is None else args.factor, margin=args.margin,
+            top=_boundary(args.top, "--top"), on_bottom=_boundary(args.on_bottom, "--on-bottom"),
+            off_bottom=_boundary(args.off_bottom, "--off-bottom"),
+            frequency_range_hz=tuple(args.range) if args.range else None,
+            rpm_range=tuple(args.rpm_range) if args.rpm_range else None,
+            resonance_limit=args.resonance_limit, damping_range=tuple(args.damping_range),
+            rtol=args.rtol, mass=args.mass)
+    except ParameterError as err:
+        raise err.renamed(_OPTION.get(err.name, err.name)) from None
 
 
 def cmd_check(args: argparse.Namespace) -> int:
     """Handler of ``hammerbit check``."""
-    try:
-        if args.factor is not None and args.rpm is None:
-            raise ValueError("--factor needs --rpm")
-        if args.rpm_range is not None and args.rpm is None:
-            raise ValueError("--rpm-range needs --rpm")
-        string = load_string(args.string)
-        cfg = CheckConfig(
-            excitation_hz=args.frequency, rpm=args.rpm,
-            factor=1.0 if args.factor is None else args.factor, margin=args.margin,
-            top=parse_boundary(args.top, where="--top") if args.top else None,
-            on_bottom=parse_boundary(args.on_bottom, where="--on-bottom") if args.on_bottom else None,
-            off_bottom=parse_boundary(args.off_bottom, where="--off-bottom") if args.off_bottom else None,
-            frequency_range_hz=tuple(args.range) if args.range else None,
-            rpm_range=tuple(args.rpm_range) if args.rpm_range else None,
-            resonance_limit=args.resonance_limit, mass=args.mass)
-        res = check(string, cfg)
-        if args.plot:
-            plot_check(res, args.plot)
-    except (DrillStringError, ValueError) as err:
-        return _error(str(err))
-    code = 1 if (args.strict and res.verdict == "fail") else 0
+    cfg = _check_config(args)
+    _writable(args.plot, "--plot", (".png", ".pdf", ".svg"))
+    string = load_string(args.string)
+    res = check(string, cfg)
+    if args.plot:
+        plot_check(res, args.plot)
+    code = EXIT_CHECK_FAILED if (args.strict and res.verdict == "fail") else EXIT_OK
     if args.json:
         d = res.to_dict()
         if args.plot:
             d["plot"] = str(args.plot)
         print(json.dumps(d, indent=2))
         return code
-    exc = (f"{res.excitation_hz:.4g} Hz" if cfg.rpm is None else
-           f"{cfg.rpm:g} rpm x {cfg.factor:g} = {res.excitation_hz:.4g} Hz")
-    print(f"{string.name}: excitation {exc}, margin +-{100 * cfg.margin:.0f} %")
-    print(f"VERDICT: {res.verdict.upper()} ({res.rule} rule)")
+    exc = (f"{res.excitation_hz:.6g} Hz" if cfg.rpm is None else
+           f"{cfg.rpm:g} rpm x {cfg.factor:g} = {res.excitation_hz:.6g} Hz")
+    z = res.damping_ratio_range
+    print(f"{string.name}: excitation {exc}, margin +-{100 * cfg.margin:.0f} %, damping ratio "
+          f"{z[1]:.3g} (range {z[0]:.3g} .. {z[2]:.3g})")
+    print(f"VERDICT: {res.verdict_label.upper()} ({res.rule} rule)")
     for c in res.configurations:
-        print(f"\n[{c.name}] top {c.top.spec()}, bottom {c.bottom.spec()}: {c.verdict} -- {c.reason}")
+        print(f"\n[{c.name}] top {c.top.spec()}, bottom {c.bottom.spec()}: {c.verdict}"
+              f"{'' if c.verdict == 'fail' or c.robust else ' (nominal damping only)'} -- {c.reason}")
         print(f"  bit receptance {abs(c.receptance):.3e} m/N, dynamic amplification "
-              f"{c.dynamic_amplification:.3g}, resonance factor {c.resonance_factor:.3g}")
-        print(f"  {'mode':>4} {'f [Hz]':>10} {'sep [%]':>9} {'band':>5} {'share':>7} {'rank':>5}")
+              f"{c.dynamic_amplification:.3g}, resonance factor {c.resonance_factor:.3g}; "
+              f"{c.n_elements} elements, frequencies to {c.max_error_estimate or 0:.1e}")
+        print(f"  {'mode':>4} {'f [Hz]':>10} {'sep [%]':>9} {'band':>5} {'kind':>8} {'share':>7} {'rank':>5}")
         for m in c.modes:
-            sep = "" if m.index == 0 else f"{m.separation_pct:+9.1f}"
-            print(f"  {m.index:>4} {m.frequency_hz:>10.4g} {sep:>9} {'IN' if m.in_band else '':>5} "
+            sep = "" if m.index == 0 else f"{m.separation_pct:+9.2f}"
+            kind = "" if m.index == 0 else ("isolated" if m.isolated else "crowded")
+            print(f"  {m.index:>4} {m.frequency_hz:>10.5g} {sep:>9} {'IN' if m.in_band else '':>5} {kind:>8} "
                   f"{100 * m.share:>6.1f}% {m.rank:>5}")
-    wins = ", ".join(f"{lo:.3g}-{hi:.3g}" for lo, hi in res.safe_windows_hz) or "none"
-    print(f"\nsafe windows [Hz] in {res.range_hz[0]:.3g}-{res.range_hz[1]:.3g}: {wins}")
-    if res.safe_windows_rpm is not None:
-        print("safe windows [rpm]: " + (", ".join(f"{lo:.0f}-{hi:.0f}" for lo, hi in res.safe_windows_rpm)
-                                         or "none"))
+    print(f"\nsafe windows [Hz] in {res.range_hz[0]:.4g}-{res.range_hz[1]:.4g}:")
+    if not res.windows:
+        print("  none")
+    k = None if cfg.rpm is None else 60.0 / cfg.factor
+    for w in res.windows:
+        rng = "" if w.damping_ratio_range is None else \
+            f", damping ratio {w.damping_ratio_range[0]:.3g}..{w.damping_ratio_range[1]:.3g}"
+        rpm = "" if k is None else f"  ({w.lo_hz * k:.0f}-{w.hi_hz * k:.0f} rpm)"
+        print(f"  {w.lo_hz:8.4g} - {w.hi_hz:<8.4g}{rpm}  {w.label}{rng}")
     if args.plot:
         print(f"figure: {args.plot}")
     return code

@@ -1,595 +1,226 @@
 """Hammer / bit excitation frequency avoidance check for the axial string modes.
 
 The check answers: *is it safe to run the hammer (or the bit) at this
-excitation frequency, with the bit on bottom and off bottom?*
+excitation frequency, with the bit on bottom and off bottom, for any damping
+in the assumed range?*
 
 Excitation
     A hammer frequency ``f`` [Hz], or a rotary speed ``N`` [rpm] with an
     excitation multiplier ``K`` (3 for a tricone bit, the blade count for a
     PDC bit): ``f = K N / 60``.
 
-Two rules, and the result says which one decided
-    1. **Margin rule** (classic, where modes are *separated*): fail when a
-       natural frequency lies within ``+-margin`` of the excitation,
-       ``|f/f_n - 1| <= margin`` (default 15 %).
-    2. **Receptance rule** (where modes are *crowded*): the modes ``f_a <=
-       f <= f_b`` around the excitation are crowded when their bands touch,
-       ``f_a (1 + margin) >= f_b (1 - margin)``; then every frequency between
-       them is inside some band and the margin rule fails whatever the
-       speed.  There the verdict comes from the damped driving-point
-       receptance at the bit ``H = x_bit/F_bit``, compared with the same bit
-       on a *reflection-free* string (bottom section continued to infinity,
-       same bottom boundary): ``H_inf = 1/(i w Z + Z_bc)``, ``Z`` the axial
-       impedance ``sqrt(EA m')`` of the bottom section and ``Z_bc = k + i w c
-       - w^2 m`` the bottom boundary.  The *resonance factor*
+Each mode is classified by its own band
+    Every elastic mode ``f_n`` has the band ``|f/f_n - 1| <= margin`` (default
+    15 %).  A mode is **isolated** when its band touches neither neighbour's
+    band, **crowded** when it touches one: ``f_n (1 + m) >= f_{n+1} (1 - m)``.
+    The classification belongs to the mode, not to the excitation.
 
-           R = max(R_motion, R_force),
-           R_motion = |H / H_inf|                    (bit motion),
-           R_force  = |1 - Z_bc H| / |1 - Z_bc H_inf|  (force passed into the string),
+The rule at an excitation ``f``, per end configuration
+    1. ``f`` inside the band of an isolated mode -> **fail** (margin rule, the
+       classic avoidance band);
+    2. ``f`` inside the bands of crowded modes only -> the damped response
+       decides (receptance rule): pass when the resonance factor ``R <=
+       resonance_limit`` (default ``sqrt 2``, 3 dB) at every damping of the
+       range;
+    3. ``f`` outside every band -> **pass** (margin rule).
 
-       is above 1 where standing waves amplify the response and below 1 at
-       anti-resonances.  Both parts are needed: off bottom (free bit) the
-       force entering the string is the applied force and only the motion
-       can resonate; on a stiff rock the bit hardly moves and the resonance
-       shows in the force the string carries.  Pass when ``R <=
-       resonance_limit`` (default ``sqrt(2)``, within 3 dB of the
-       reflection-free response).  Modes are ranked by their contribution
-       ``|phi_b^2 / (w_n^2 - w^2 + i w c_n)|`` to the bit receptance at the
-       excitation; the dominant one is named in the reason.
+    The verdict changes only where ``f`` crosses a band edge or where ``R``
+    crosses the limit: it is continuous in ``f`` everywhere else, also at the
+    natural frequencies themselves.
 
-    ``R`` is only used where modes are crowded: below the first few modes
-    the string is shorter than a wavelength, responds quasi-statically and
-    ``R`` (relative to a wave-carrying reference) is not a resonance
-    measure.  The static dynamic amplification ``|H(f)|/H(0)`` is reported
-    too but cannot rank high-frequency behaviour either: the receptance falls
-    like ``1/(w Z)`` above the first modes, so a static criterion passes
-    everything there, just as the pure margin criterion fails everything.
+Resonance factor
+    The damped driving-point receptance at the bit ``H = x_bit/F_bit``
+    compared with the same bit on a reflection-free string (bottom section
+    continued to infinity): ``H_inf = 1/(i w Z* + Z_bc)``,
+    ``R = max(|H/H_inf|, |1 - Z_bc H| / |1 - Z_bc H_inf|)`` with ``Z_bc = k + i
+    w c - w^2 m`` of the bit boundary (bit motion and force passed into the
+    string).  A fixed bit is displacement-driven: ``R = |D/(i w Z*)|`` with
+    ``D`` the dynamic stiffness at the bit.  ``H`` and ``D`` are those of the
+    continuous string (:func:`hammerbit.drillstring.exact_dynamic_stiffness`:
+    transfer matrices, exact for piecewise-uniform sections, the same damping
+    model as the finite elements, whose receptance converges to it).
 
-Bit on bottom / off bottom
-    Both configurations are checked; the verdict is ``fail`` if either
-    fails.  With a ``spring`` (bit-rock contact) or ``free`` bit the
-    excitation is a force at the bit.  With a ``fixed`` bit the bit cannot
-    move under a force, so the excitation is a prescribed bit displacement
-    and ``R = |D(f)| / (w Z)`` with ``D`` the dynamic stiffness of the
-    string at the bit (the limit of ``R_force`` for a very stiff rock).  A
-    ``hammer`` bottom is treated as free (the hammer model is not part of
-    this check).
+Damping range
+    The string's damping (hysteretic loss factor ``eta = 2 zeta`` of the
+    file's ``modal_damping_ratio``, viscous damping per unit length) is
+    uncertain.  The receptance rule is evaluated at the low end, the nominal
+    value and the high end of a range of factors (default x0.5 .. x2).  A
+    **robust pass** holds at all three; a **pass at nominal damping only**
+    fails at one end and is labelled so (text and JSON).  The margin rule does
+    not depend on damping.
 
 Safe windows
-    The rule above applied on a frequency grid over the requested range
-    (edges refined by bisection), intersected over both configurations and
-    reported in Hz (and rpm when a factor is given).  Windows narrower than
-    ``min_window`` times their centre frequency are dropped.
+    Maximal frequency intervals with the same label (``margin``, ``receptance``
+    robust, ``receptance`` at nominal damping only), edges refined by
+    bisection, intersected over both configurations.  Each window carries the
+    rule that cleared it and the damping range assumed.  Safe runs narrower
+    than ``min_window`` times their centre frequency are dropped.
 
-Plots: :func:`plot_campbell`, :func:`plot_receptance`, :func:`plot_check`
-(matplotlib, Agg backend, imported lazily).
+Inputs and results: :mod:`hammerbit.check_results`; plots:
+:mod:`hammerbit.check_plots` (both re-exported here).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
-import scipy.linalg as sla
 
+from .check_results import (
+    FAIL,
+    LABELS,
+    MARGIN,
+    NOMINAL_ONLY,
+    RECEPTANCE,
+    CheckConfig,
+    CheckResult,
+    ConfigurationResult,
+    ModeRow,
+    Window,
+)
 from .drillstring import (
-    DEFAULT_MASS,
-    DrillStringError,
-    _check_number,
-    Assembly,
     Boundary,
+    DampingModel,
     DrillString,
-    _eigen,
-    assemble,
-    parse_boundary,
+    _check_number,
+    exact_dynamic_stiffness,
+    modes,
+    reference_impedance,
+    resolve_ends,
     static_compliance,
 )
+from .drillstring.damping import boundary_impedance
+from .drillstring.modes import _has_rigid_mode, _solve
 
 __all__ = [
-    "CheckConfig",
-    "ModeRow",
-    "ConfigurationResult",
-    "CheckResult",
-    "bit_receptance",
-    "bit_dynamic_stiffness",
-    "resonance_factor",
-    "check",
-    "plot_campbell",
-    "plot_receptance",
-    "plot_check",
+    "CheckConfig", "ModeRow", "ConfigurationResult", "Window", "CheckResult", "resonance_factor", "check",
+    "plot_campbell", "plot_receptance", "plot_check", "bit_receptance", "bit_dynamic_stiffness",
+    "hammer_on_bottom_frequencies", "LABELS", "FAIL", "MARGIN", "RECEPTANCE", "NOMINAL_ONLY",
 ]
 
-_CHUNK = 2048
-
 
 # --------------------------------------------------------------------------
-# receptance
+# damped response of the continuous string
 # --------------------------------------------------------------------------
-def _receptance_evaluator(asm: Assembly, eig: tuple[np.ndarray, np.ndarray] | None = None):
-    """Return ``H(omega)``: damped driving-point receptance of the last DOF
-    (F,) -> (F,) complex [m/N], with the expensive part pre-computed.
-
-    * no modal damping: LDL^T pivots of the tridiagonal dynamic stiffness
-      ``K - w^2 M + i w C`` (exact, O(n) per frequency, vectorised over w);
-    * modal damping only: modal sum over all modes (exact);
-    * modal + viscous damping: complex eigen-decomposition of the
-      first-order system in modal coordinates (exact, non-proportional).
-
-    ``eig`` optionally passes the complete ``(omega^2, Phi)`` of ``asm``.
-    """
-    if asm.modal_damping_ratio == 0.0:
-        kd, ke = asm.tridiagonal("K")
-        md, me = asm.tridiagonal("M")
-        cd, ce = asm.tridiagonal("C")
-
-        def pivots(w: np.ndarray) -> np.ndarray:
-            w2 = w * w
-            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-                piv = kd[0] - w2 * md[0] + 1j * w * cd[0]
-                for i in range(1, kd.size):  # recursion along the chain (sequential by nature)
-                    off = ke[i - 1] - w2 * me[i - 1] + 1j * w * ce[i - 1]
-                    piv = (kd[i] - w2 * md[i] + 1j * w * cd[i]) - off * off / piv
-                return 1.0 / piv
-        return pivots
-    lam, phi = _eigen(asm, None, None, all_modes=True) if eig is None else eig
-    pb = phi[-1]
-    zeta = asm.modal_damping_ratio
-    if not asm.has_viscous:
-        poles_c = 2.0 * zeta * np.sqrt(lam)
-        num = pb * pb
-
-        def modal_sum(w: np.ndarray) -> np.ndarray:
-            out = np.empty(w.size, dtype=complex)
-            for s in range(0, w.size, _CHUNK):
-                ww = w[s:s + _CHUNK, None]
-                out[s:s + _CHUNK] = np.sum(num / (lam - ww * ww + 1j * ww * poles_c), axis=1)
-            return out
-        return modal_sum
-    n = lam.size
-    chat = phi.T @ asm.C_viscous @ phi + np.diag(2.0 * zeta * np.sqrt(lam))
-    A = np.block([[np.zeros((n, n)), np.eye(n)], [-np.diag(lam), -chat]])
-    ev, V = sla.eig(A)
-    res = (np.concatenate((pb, np.zeros(n))) @ V) * sla.solve(V, np.concatenate((np.zeros(n), pb)))
-
-    def pole_sum(w: np.ndarray) -> np.ndarray:
-        out = np.empty(w.size, dtype=complex)
-        for s in range(0, w.size, _CHUNK):
-            ww = w[s:s + _CHUNK, None]
-            out[s:s + _CHUNK] = np.sum(res / (1j * ww - ev), axis=1)
-        return out
-    return pole_sum
-
-
-def _dynamic_stiffness_evaluator(asm_fixed: Assembly, eig: tuple[np.ndarray, np.ndarray] | None = None):
-    """Return ``D(omega)`` [N/m] of the bit node of a fixed-bit assembly."""
-    h_adj = _receptance_evaluator(asm_fixed, eig)
-
-    def dyn(w: np.ndarray) -> np.ndarray:
-        a_bb = asm_fixed.kd_full[-1] - w * w * asm_fixed.md_full[-1] + 1j * w * asm_fixed.cd_full[-1]
-        b = asm_fixed.ke_full[-1] - w * w * asm_fixed.me_full[-1] + 1j * w * asm_fixed.ce_full[-1]
-        return a_bb - b * b * h_adj(w)
-    return dyn
-
-
-def _last_dof_receptance(asm: Assembly, omega: np.ndarray) -> np.ndarray:
-    """Receptance of the last DOF at ``omega`` (F,) [rad/s] -> (F,) [m/N]."""
-    return _receptance_evaluator(asm)(np.asarray(omega, dtype=float))
-
-
-def _as_omega(freqs_hz: Any) -> np.ndarray:
-    return 2.0 * math.pi * np.atleast_1d(np.asarray(freqs_hz, dtype=float))
-
-
-def bit_receptance(string: DrillString, freqs_hz: Any, top: "Boundary | str | None" = None,
-                   bottom: "Boundary | str | None" = None, *, mass: str = DEFAULT_MASS) -> np.ndarray:
-    """Damped driving-point receptance at the bit ``x_bit/F_bit`` [m/N].
-
-    Parameters
-    ----------
-    string : DrillString
-    freqs_hz : array_like (F,)
-        Frequencies [Hz].
-    top, bottom : Boundary or str, optional
-        Ends (defaults from ``string``); the bottom spring/dashpot/mass act
-        at the bit, ``hammer`` counts as free.  A fixed bit gives zeros.
-    mass : {"mixed", "lumped", "consistent"}
-
-    Returns
-    -------
-    ndarray (F,) complex
-        Receptance [m/N]; ``|H|`` is the dynamic compliance, ``angle(H)`` the
-        phase of displacement relative to force.
-    """
-    w = _as_omega(freqs_hz)
-    asm = assemble(string, top, bottom, mass=mass)
-    if asm.bottom.is_fixed:
-        return np.zeros(w.size, dtype=complex)
-    return _last_dof_receptance(asm, w)
-
-
-def bit_dynamic_stiffness(string: DrillString, freqs_hz: Any, top: "Boundary | str | None" = None,
-                          *, mass: str = DEFAULT_MASS) -> np.ndarray:
-    """Reaction force at a bit whose displacement is prescribed, per metre
-    ``D(f) = F_bit/x_bit`` [N/m] (F,) complex.
-
-    Computed as ``a_bb - b^2 H_adj`` where ``a_bb``, ``b`` are the bit
-    diagonal and coupling entries of ``K - w^2 M + i w C`` and ``H_adj`` the
-    receptance of the node above the bit with the bit fixed; the modal
-    damping is that of the fixed-bit modes.  ``D(0)`` is the static axial
-    stiffness of the string at the bit.
-    """
-    asm = assemble(string, top, Boundary.fixed(), mass=mass)
-    return _dynamic_stiffness_evaluator(asm)(_as_omega(freqs_hz))
-
-
-def _boundary_impedance(bottom: Boundary, w: np.ndarray) -> np.ndarray:
-    """Dynamic stiffness of the bottom boundary ``k + i w c - w^2 m`` [N/m]."""
-    return bottom.ground_stiffness + 1j * w * bottom.ground_damping - w * w * bottom.mass
-
-
-def _reference(bottom: Boundary, z_bottom: float, w: np.ndarray) -> np.ndarray:
-    """Reflection-free response: ``H_inf = 1/(i w Z + k + i w c - w^2 m)``
-    for a force-driven bit, ``D_inf = i w Z`` for a displacement-driven bit."""
+def _response(string, top, bottom, bit_mass, damping, f):
+    """H [m/N] (force-driven bit) or D [N/m] (fixed bit) of the continuous string (F,)."""
+    d = exact_dynamic_stiffness(string, f, top, damping)
     if bottom.is_fixed:
-        return 1j * w * z_bottom
-    return 1.0 / (1j * w * z_bottom + _boundary_impedance(bottom, w))
-
-
-def _factors(bottom: Boundary, z_bottom: float, w: np.ndarray,
-             resp: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(R, R_motion, R_force)`` from the bit response ``resp`` (H or D).
-
-    Force-driven bit: ``R_motion = |H/H_inf|`` (bit motion) and
-    ``R_force = |1 - Z_bc H| / |1 - Z_bc H_inf|`` (force passed into the
-    string, ``F_s/F = D H = 1 - Z_bc H``); fixed bit: both ``|D/D_inf|``.
-    ``R = max(R_motion, R_force)``.
-    """
-    ref = _reference(bottom, z_bottom, w)
+        return d
+    w = 2.0 * math.pi * f
     with np.errstate(divide="ignore", invalid="ignore"):
+        return 1.0 / (d + boundary_impedance(bottom, w, bit_mass))
+
+
+def _reference(string, bottom, bit_mass, damping, f):
+    """Reflection-free response: ``1/(i w Z* + Z_bc)`` (force) or ``i w Z*`` (fixed bit)."""
+    dinf = reference_impedance(string, f, damping)
+    if bottom.is_fixed:
+        return dinf
+    w = 2.0 * math.pi * f
+    return 1.0 / (dinf + boundary_impedance(bottom, w, bit_mass))
+
+
+def _factors(string, top, bottom, bit_mass, damping, f, resp=None):
+    """``(R, R_motion, R_force)`` (F,) each."""
+    resp = _response(string, top, bottom, bit_mass, damping, f) if resp is None else resp
+    ref = _reference(string, bottom, bit_mass, damping, f)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         if bottom.is_fixed:
             r = np.abs(resp / ref)
             return r, r, r
-        zbc = _boundary_impedance(bottom, w)
+        zbc = boundary_impedance(bottom, 2.0 * math.pi * f, bit_mass)
         rm = np.abs(resp / ref)
         rf = np.abs((1.0 - zbc * resp) / (1.0 - zbc * ref))
         return np.maximum(rm, rf), rm, rf
 
 
-def resonance_factor(string: DrillString, freqs_hz: Any, top: "Boundary | str | None" = None,
-                     bottom: "Boundary | str | None" = None, *, mass: str = DEFAULT_MASS) -> np.ndarray:
-    """Resonance factor ``R(f)`` (F,) [-] at the bit (see module docstring).
-
-    Force-driven bit (free, spring, hammer = free): the larger of the bit
-    motion ratio ``|H/H_inf|`` and the string-force ratio
-    ``|1 - Z_bc H| / |1 - Z_bc H_inf|``; fixed (displacement-driven) bit:
-    ``|D/D_inf|``.  ``H_inf``, ``D_inf``: same bit on a reflection-free
-    (semi-infinite) bottom section; ``Z_bc = k + i w c - w^2 m`` of the
-    bottom boundary.
-    """
-    w = _as_omega(freqs_hz)
-    bot = parse_boundary(string.bottom if bottom is None else bottom)
-    if bot.kind == "hammer":
-        bot = Boundary.free()
-    z = string.sections[-1].impedance
-    if bot.is_fixed:
-        resp = bit_dynamic_stiffness(string, freqs_hz, top, mass=mass)
-    else:
-        resp = bit_receptance(string, freqs_hz, top, bot, mass=mass)
-    return _factors(bot, z, w, resp)[0]
-
-
 # --------------------------------------------------------------------------
-# configuration and results
-# --------------------------------------------------------------------------
-@dataclass(frozen=True)
-class CheckConfig:
-    """Inputs of the avoidance check (all frequencies in Hz, speeds in rpm)."""
-
-    excitation_hz: float | None = None
-    """Hammer (or any) excitation frequency [Hz]; exclusive with ``rpm``."""
-    rpm: float | None = None
-    """Rotary speed [rev/min]; the excitation is ``factor * rpm / 60`` Hz."""
-    factor: float = 1.0
-    """Excitation multiplier [-]: 3 for a tricone bit, the blade count for a PDC bit."""
-    margin: float = 0.15
-    """Half-width of the avoidance band around each natural frequency [-] (0.15 = +-15 %)."""
-    top: Boundary | str | None = None
-    """Top boundary (default ``string.top``, normally the fixed hook)."""
-    on_bottom: Boundary | str | None = None
-    """Bit-on-bottom boundary (default ``string.on_bottom``)."""
-    off_bottom: Boundary | str | None = None
-    """Bit-off-bottom boundary (default ``string.off_bottom``)."""
-    frequency_range_hz: tuple[float, float] | None = None
-    """Range [Hz] for the safe windows and plots (default 0 .. 2 f)."""
-    rpm_range: tuple[float, float] | None = None
-    """Range [rpm] for the safe windows (with ``rpm``; overrides the Hz range)."""
-    resonance_limit: float = math.sqrt(2.0)
-    """Largest acceptable resonance factor R [-] in the crowded regime."""
-    min_window: float = 0.02
-    """Drop safe windows narrower than this fraction of their centre frequency [-]."""
-    mass: str = DEFAULT_MASS
-    """Mass-matrix scheme."""
-    rel_tol: float = 1e-3
-    """Target discretisation error at the top of the range [-]; the mesh is refined to meet it."""
-    n_grid: int = 8001
-    """Frequency points of the sweep over the range (edges then refined by bisection)."""
-
-    def __post_init__(self) -> None:
-        if (self.excitation_hz is None) == (self.rpm is None):
-            raise ValueError("give exactly one of excitation_hz or rpm")
-        if self.excitation_hz is not None and not self.excitation_hz > 0:
-            raise ValueError(f"excitation_hz = {self.excitation_hz!r}: must be > 0 Hz")
-        if self.rpm is not None and not self.rpm > 0:
-            raise ValueError(f"rpm = {self.rpm!r}: must be > 0 rpm")
-        if not self.factor > 0:
-            raise ValueError(f"factor = {self.factor!r}: must be > 0")
-        if not 0.0 < self.margin < 1.0:
-            raise ValueError(f"margin = {self.margin!r}: allowed range 0 < margin < 1")
-        if not self.resonance_limit > 0:
-            raise ValueError(f"resonance_limit = {self.resonance_limit!r}: must be > 0")
-        for name in ("frequency_range_hz", "rpm_range"):
-            r = getattr(self, name)
-            if r is not None and not (len(r) == 2 and 0 <= r[0] < r[1]):
-                raise ValueError(f"{name} = {r!r}: need 0 <= low < high")
-
-    @property
-    def frequency_hz(self) -> float:
-        """Excitation frequency [Hz]."""
-        if self.excitation_hz is not None:
-            return float(self.excitation_hz)
-        return self.factor * float(self.rpm) / 60.0
-
-    @property
-    def range_hz(self) -> tuple[float, float]:
-        """Frequency range of the sweep [Hz]."""
-        if self.rpm is not None and self.rpm_range is not None:
-            return (self.factor * self.rpm_range[0] / 60.0, self.factor * self.rpm_range[1] / 60.0)
-        if self.frequency_range_hz is not None:
-            return (float(self.frequency_range_hz[0]), float(self.frequency_range_hz[1]))
-        return (0.0, 2.0 * self.frequency_hz)
-
-
-@dataclass(frozen=True)
-class ModeRow:
-    """One natural frequency seen from the excitation."""
-
-    configuration: str
-    """``on_bottom`` or ``off_bottom``."""
-    index: int
-    """Mode number (1 = lowest elastic mode; 0 = rigid-body mode)."""
-    frequency_hz: float
-    """Natural frequency [Hz]."""
-    separation_pct: float
-    """``100 (f_exc - f_n)/f_n`` [%] (positive: excitation above the mode)."""
-    in_band: bool
-    """``|separation| <= 100 margin``."""
-    bit_receptance: float
-    """Modulus of the mode's contribution to the bit response at the
-    excitation [m/N] (force-driven bit) or [N/m] (fixed, displacement-driven)."""
-    share: float
-    """Contribution / sum of contributions [-]."""
-    rank: int
-    """Rank by contribution (1 = largest)."""
-
-    def to_dict(self) -> dict:
-        return {"configuration": self.configuration, "index": self.index,
-                "frequency_hz": self.frequency_hz, "separation_pct": _finite(self.separation_pct),
-                "in_band": self.in_band, "bit_receptance": self.bit_receptance,
-                "share": self.share, "rank": self.rank}
-
-
-@dataclass(frozen=True)
-class ConfigurationResult:
-    """Check of one end configuration (bit on bottom or off bottom)."""
-
-    name: str
-    top: Boundary
-    bottom: Boundary
-    excitation: str
-    """``force`` (bit free/spring) or ``displacement`` (bit fixed)."""
-    modes: tuple[ModeRow, ...]
-    frequencies_hz: np.ndarray
-    """All computed natural frequencies (n,) [Hz] (up to the top of the range)."""
-    regime: str
-    """``separated`` or ``crowded`` at the excitation."""
-    rule: str
-    """Rule that decided: ``margin`` or ``receptance``."""
-    verdict: str
-    """``pass`` or ``fail``."""
-    reason: str
-    receptance: complex
-    """Bit receptance H at the excitation [m/N] (0 for a fixed bit)."""
-    dynamic_stiffness: complex | None
-    """Bit dynamic stiffness D at the excitation [N/m] (fixed bit only)."""
-    static_compliance: float
-    """Static bit compliance H(0) [m/N] (fixed bit: static stiffness inverse of the string)."""
-    dynamic_amplification: float
-    """``|H(f)|/H(0)`` (force) or ``|D(f)|/D(0)`` (displacement) [-]."""
-    resonance_factor: float
-    """R = max(R_motion, R_force) at the excitation [-]."""
-    motion_factor: float
-    """Bit-motion ratio ``|H/H_inf|`` at the excitation [-] (fixed bit: ``|D/D_inf|``)."""
-    force_factor: float
-    """String-force ratio ``|D H| / |D_inf H_inf|`` at the excitation [-] (fixed bit: ``|D/D_inf|``)."""
-    nearest: ModeRow | None
-    """Mode with the smallest |separation|."""
-    dominant: ModeRow | None
-    """Mode with the largest contribution at the excitation."""
-
-    def to_dict(self) -> dict:
-        return {
-            "name": self.name, "top": self.top.spec(), "bottom": self.bottom.spec(),
-            "excitation": self.excitation, "regime": self.regime, "rule": self.rule,
-            "verdict": self.verdict, "reason": self.reason,
-            "receptance_m_per_n": _finite(abs(self.receptance)),
-            "receptance_phase_deg": _finite(math.degrees(np.angle(self.receptance)))
-            if self.receptance != 0 else None,
-            "dynamic_stiffness_n_per_m": None if self.dynamic_stiffness is None
-            else _finite(abs(self.dynamic_stiffness)),
-            "static_compliance_m_per_n": _finite(self.static_compliance),
-            "dynamic_amplification": _finite(self.dynamic_amplification),
-            "resonance_factor": _finite(self.resonance_factor),
-            "motion_factor": _finite(self.motion_factor),
-            "force_factor": _finite(self.force_factor),
-            "nearest_mode": None if self.nearest is None else self.nearest.to_dict(),
-            "dominant_mode": None if self.dominant is None else self.dominant.to_dict(),
-        }
-
-
-@dataclass(frozen=True)
-class CheckResult:
-    """Outcome of :func:`check`; :meth:`to_dict` gives the JSON form."""
-
-    string_name: str
-    config: CheckConfig
-    excitation_hz: float
-    verdict: str
-    """``pass`` or ``fail`` (fail if any configuration fails)."""
-    rule: str
-    """Rule(s) that decided: ``margin``, ``receptance`` or ``margin+receptance``
-    (for a fail, the rules of the failing configurations only)."""
-    reason: str
-    configurations: tuple[ConfigurationResult, ...]
-    safe_windows_hz: tuple[tuple[float, float], ...]
-    """Safe excitation frequency intervals within the range [Hz]."""
-    range_hz: tuple[float, float]
-    n_elements: int
-    sweep_hz: np.ndarray
-    """Sweep frequencies (n_grid,) [Hz] (plots)."""
-    sweep_receptance: dict[str, np.ndarray]
-    """Per configuration: |H| [m/N] (force) or |D| [N/m] (displacement) on the sweep."""
-    sweep_reference: dict[str, np.ndarray]
-    """Per configuration: reflection-free |H_inf| or |D_inf| on the sweep."""
-    sweep_factor: dict[str, np.ndarray]
-    """Per configuration: resonance factor R on the sweep."""
-    sweep_crowded: dict[str, np.ndarray]
-    """Per configuration: True where modes are crowded (receptance rule applies)."""
-    sweep_safe: np.ndarray
-    """Combined safe flag on the sweep (n_grid,) bool."""
-
-    @property
-    def modes(self) -> list[ModeRow]:
-        return [m for c in self.configurations for m in c.modes]
-
-    @property
-    def safe_windows_rpm(self) -> tuple[tuple[float, float], ...] | None:
-        """Safe windows as rotary speeds [rpm] (when the excitation is rpm based)."""
-        if self.config.rpm is None:
-            return None
-        k = 60.0 / self.config.factor
-        return tuple((lo * k, hi * k) for lo, hi in self.safe_windows_hz)
-
-    def to_dict(self) -> dict:
-        c = self.config
-        return {
-            "string": self.string_name,
-            "verdict": self.verdict,
-            "rule": self.rule,
-            "reason": self.reason,
-            "excitation_hz": self.excitation_hz,
-            "rpm": c.rpm,
-            "factor": c.factor if c.rpm is not None else None,
-            "margin": c.margin,
-            "resonance_limit": c.resonance_limit,
-            "mass": c.mass,
-            "elements": self.n_elements,
-            "configurations": [x.to_dict() for x in self.configurations],
-            "modes": [m.to_dict() for m in self.modes],
-            "frequency_range_hz": list(self.range_hz),
-            "safe_windows_hz": [[lo, hi] for lo, hi in self.safe_windows_hz],
-            "safe_windows_rpm": None if self.safe_windows_rpm is None
-            else [[lo, hi] for lo, hi in self.safe_windows_rpm],
-        }
-
-
-def _finite(x: float) -> float | None:
-    x = float(x)
-    return x if math.isfinite(x) else None
-
-
-# --------------------------------------------------------------------------
-# the check
+# one end configuration
 # --------------------------------------------------------------------------
 class _Config:
-    """Pre-computed data of one end configuration (internal)."""
+    """Modes, classification and damped response of one end configuration."""
 
-    def __init__(self, name: str, string: DrillString, top: Boundary, bottom: Boundary, mass: str,
-                 f_top: float):
+    def __init__(self, name: str, string: DrillString, top: Boundary, bottom: Boundary, config: CheckConfig,
+                 f_band: float):
         self.name = name
         self.string = string
         self.top = top
-        self.bottom = Boundary.free() if bottom.kind == "hammer" else bottom
-        self.mass = mass
-        self.asm = assemble(string, top, self.bottom, mass=mass)
-        eig_all = None
-        if string.modal_damping_ratio > 0.0:  # the receptance needs every mode anyway
-            eig_all = _eigen(self.asm, None, None, all_modes=True)
-            lam, phi = eig_all
-            keep = min(lam.size, int(np.searchsorted(lam, (2.0 * math.pi * f_top) ** 2, side="right")) + 1)
-            lam, phi = lam[:keep], phi[:, :keep]
-        else:
-            lam, phi = _eigen(self.asm, f_top, None)
-            if lam.size < self.asm.n_dof:  # one mode beyond the range closes the last interval
-                lam, phi = _eigen(self.asm, None, lam.size + 1)
-        self.lam, self.phi = lam, phi
-        self.freqs = np.sqrt(lam) / (2.0 * math.pi)
-        self.elastic = self.freqs > 1e-9 * max(1.0, float(self.freqs.max(initial=1.0)))
-        self.zb = string.sections[-1].impedance
-        self.displacement = self.bottom.is_fixed
-        cv = self.asm.C_viscous
-        self.cdiag = np.einsum("ij,ij->j", phi, cv @ phi) + \
-            2.0 * string.modal_damping_ratio * np.sqrt(lam)
-        self._resp = (_dynamic_stiffness_evaluator(self.asm, eig_all) if self.displacement
-                      else _receptance_evaluator(self.asm, eig_all))
+        self.bottom = bottom
+        self.margin = config.margin
+        m = modes(string, top, bottom, f_max=f_band, rtol=config.rtol, mass=config.mass)
+        fine = string.with_elements(m.elements_per_section)
+        # one mode above the band range classifies the last one
+        asm, _, lam_x, phi_x = _solve(fine, top, bottom, None, len(m) + 1, config.mass, True, first=len(m))
+        phi = m.shapes[asm.start:asm.stop]
+        lam_c = (2.0 * math.pi * m.frequencies_hz) ** 2
+        self.asm = asm
+        self.lam = np.concatenate((lam_c, lam_x))
+        self.phi = np.concatenate((phi, phi_x), axis=1)
+        self.freqs = np.sqrt(self.lam) / (2.0 * math.pi)
+        self.error_estimate = np.full(self.freqs.size, np.nan)
+        if m.error_estimate is not None:
+            self.error_estimate[:len(m)] = m.error_estimate
+        self.n_elements = fine.n_elements
+        self.rigid = _has_rigid_mode(asm.top, asm.bottom)
+        self.elastic = self.freqs > 0.0
+        if self.rigid:
+            self.elastic[0] = False
+        fe = self.freqs[self.elastic]
+        mm = self.margin
+        touch = fe[:-1] * (1.0 + mm) >= fe[1:] * (1.0 - mm)      # band j touches band j+1
+        crowded = np.zeros(fe.size, dtype=bool)
+        crowded[:-1] |= touch
+        crowded[1:] |= touch
+        crowded[-1] = True  # its upper neighbour is not computed; it never reaches the range
+        self.fe, self.crowded_modes = fe, crowded
+        self.displacement = bottom.is_fixed
+        self.bit_mass = 0.0 if bottom.is_fixed else (string.bit_mass if bottom.kind == "hammer" else bottom.mass)
+        self.factors = config.damping_factors
+        self.dampings = [DampingModel.of(string, s) for s in self.factors]
 
-    def response(self, f: np.ndarray) -> np.ndarray:
-        """H [m/N] (force) or D [N/m] (displacement) on frequencies f [Hz]."""
-        return self._resp(2.0 * math.pi * np.atleast_1d(np.asarray(f, dtype=float)))
+    # frequency response ---------------------------------------------------
+    def response(self, f: np.ndarray, level: int = 1) -> np.ndarray:
+        """H [m/N] (force) or D [N/m] (displacement) of the continuous string."""
+        return _response(self.string, self.top, self.bottom, self.bit_mass, self.dampings[level], f)
 
-    def reference(self, f: np.ndarray) -> np.ndarray:
-        return _reference(self.bottom, self.zb, 2.0 * math.pi * np.atleast_1d(np.asarray(f, dtype=float)))
+    def reference(self, f: np.ndarray, level: int = 1) -> np.ndarray:
+        return _reference(self.string, self.bottom, self.bit_mass, self.dampings[level], f)
 
-    def factors(self, f: np.ndarray, resp: np.ndarray | None = None):
-        """``(R, R_motion, R_force)`` on frequencies f [Hz]."""
+    def factors_at(self, f: np.ndarray, level: int = 1, resp: np.ndarray | None = None):
+        """``(R, R_motion, R_force)`` (F,) each."""
         f = np.atleast_1d(np.asarray(f, dtype=float))
-        resp = self.response(f) if resp is None else resp
-        return _factors(self.bottom, self.zb, 2.0 * math.pi * f, resp)
+        return _factors(self.string, self.top, self.bottom, self.bit_mass, self.dampings[level], f, resp)
 
-    def factor(self, f: np.ndarray) -> np.ndarray:
-        return self.factors(f)[0]
+    # classification --------------------------------------------------------
+    def bands(self, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(in an isolated band, in a crowded band)`` (F,) bool each."""
+        inb = np.abs(f[:, None] / self.fe[None, :] - 1.0) <= self.margin
+        return np.any(inb & ~self.crowded_modes, axis=1), np.any(inb & self.crowded_modes, axis=1)
 
-    def crowded(self, f: np.ndarray, margin: float) -> np.ndarray:
-        """True where the modes bracketing f have overlapping bands."""
-        fe = self.freqs[self.elastic]
-        f = np.asarray(f, dtype=float)
-        i = np.searchsorted(fe, f)
-        has_both = (i > 0) & (i < fe.size)
-        lo = fe[np.clip(i - 1, 0, fe.size - 1)]
-        hi = fe[np.clip(i, 0, fe.size - 1)]
-        return has_both & (lo * (1.0 + margin) >= hi * (1.0 - margin))
-
-    def in_band(self, f: np.ndarray, margin: float) -> np.ndarray:
-        fe = self.freqs[self.elastic]
-        f = np.asarray(f, dtype=float)
-        return np.any(np.abs(f[..., None] / fe - 1.0) <= margin, axis=-1)
-
-    def safe(self, f: np.ndarray, margin: float, limit: float) -> np.ndarray:
-        f = np.asarray(f, dtype=float)
-        crowd = self.crowded(f, margin)
-        ok = ~self.in_band(f, margin)
-        if np.any(crowd):
-            ok[crowd] = self.factor(f[crowd]) <= limit
-        return ok
+    def label(self, f: np.ndarray, limit: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(label (F,), crowded (F,), R (3, F))`` of this configuration."""
+        iso, crowd = self.bands(f)
+        only = crowd & ~iso
+        r = np.full((3, f.size), np.nan)
+        if np.any(only):
+            for lev in range(3):
+                r[lev, only] = self.factors_at(f[only], lev)[0]
+        lab = np.full(f.size, MARGIN)
+        lab[iso] = FAIL
+        ok = r <= limit
+        lab[only] = np.where(~ok[1, only], FAIL, np.where(ok[0, only] & ok[2, only], RECEPTANCE, NOMINAL_ONLY))
+        return lab, only, r
 
     def contributions(self, f: float) -> np.ndarray:
-        """|modal contribution| to the bit response at f (n,)."""
+        """|modal contribution| to the bit response at f (n,) (ranking only)."""
         w = 2.0 * math.pi * f
-        den = self.lam - w * w + 1j * w * self.cdiag
+        eta = self.dampings[1].loss_factor
+        den = self.lam * (1.0 + 1j * eta) - w * w
         if self.displacement:
-            b = self.asm.ke_full[-1] - w * w * self.asm.me_full[-1] + 1j * w * self.asm.ce_full[-1]
+            a = self.asm
+            b = a.ke_full[-1] - w * w * a.me_full[-1]
             num = (b * self.phi[-1]) ** 2
         else:
             num = self.phi[-1] ** 2
@@ -597,8 +228,37 @@ class _Config:
             return np.abs(num / den)
 
 
+def _combine(labels: list[np.ndarray]) -> np.ndarray:
+    """Combined label over configurations: fail if any fails; margin if all
+    margin; nominal-only if any needs nominal damping; else receptance."""
+    stack = np.vstack(labels)
+    out = np.full(stack.shape[1], RECEPTANCE)
+    out[np.all(stack == MARGIN, axis=0)] = MARGIN
+    out[np.any(stack == NOMINAL_ONLY, axis=0)] = NOMINAL_ONLY
+    out[np.any(stack == FAIL, axis=0)] = FAIL
+    return out
+
+
+class _Evaluator:
+    """Combined label at any frequency (used for the verdict, the sweep and the window edges)."""
+
+    def __init__(self, cfgs: list[_Config], limit: float):
+        self.cfgs, self.limit = cfgs, limit
+
+    def label(self, f: np.ndarray):
+        parts = [c.label(f, self.limit) for c in self.cfgs]
+        return _combine([p[0] for p in parts]), parts
+
+
+# --------------------------------------------------------------------------
+# the check
+# --------------------------------------------------------------------------
+def _mean_spacing_hz(string: DrillString) -> float:
+    return 1.0 / (2.0 * sum(s.length / s.wave_speed for s in string.sections))
+
+
 def check(string: DrillString, config: CheckConfig) -> CheckResult:
-    """Run the hammer/bit frequency avoidance check.
+    """Run the hammer/bit frequency avoidance check (see the module docstring).
 
     Parameters
     ----------
@@ -614,75 +274,83 @@ def check(string: DrillString, config: CheckConfig) -> CheckResult:
     f_lo, f_hi = config.range_hz
     f_hi = max(f_hi, fx)
     f_lo = min(f_lo, fx)
-    f_top = f_hi / (1.0 - m) * 1.05
-    fine = string.refined(f_top, config.rel_tol, config.mass)
-    top = parse_boundary(fine.top if config.top is None else config.top, where="top")
-    ends = {"on_bottom": parse_boundary(fine.on_bottom if config.on_bottom is None else config.on_bottom,
-                                        where="on_bottom"),
-            "off_bottom": parse_boundary(fine.off_bottom if config.off_bottom is None else config.off_bottom,
-                                         where="off_bottom")}
-    cfgs = [_Config(name, fine, top, b, config.mass, f_top) for name, b in ends.items()]
+    f_band = f_hi / (1.0 - m)               # every mode whose band reaches the range
+    top, _ = resolve_ends(string, config.top, "free")
+    ends = {"on_bottom": string.resolve_bottom(string.on_bottom if config.on_bottom is None
+                                               else config.on_bottom, where="on_bottom"),
+            "off_bottom": string.resolve_bottom(string.off_bottom if config.off_bottom is None
+                                                else config.off_bottom, where="off_bottom")}
+    for name, b in ends.items():
+        if b.kind == "hammer":
+            ends[name] = Boundary.free(string.bit_mass)   # the hammer is not part of this check
+    cfgs = [_Config(name, string, top, b, config, f_band) for name, b in ends.items()]
+    ev = _Evaluator(cfgs, config.resonance_limit)
+    zeta = string.modal_damping_ratio
+    zetas = tuple(zeta * s for s in config.damping_factors)
 
-    results = [_evaluate(c, fx, config) for c in cfgs]
+    results = [_evaluate(c, fx, config, zetas) for c in cfgs]
     failing = [r for r in results if r.verdict == "fail"]
     verdict = "fail" if failing else "pass"
-    decisive = failing if failing else results  # a fail is decided by the failing configuration(s)
+    robust = not failing and all(r.robust for r in results)
+    decisive = failing if failing else results
     rule = "+".join(sorted({r.rule for r in decisive}))
-    reason = f"{verdict}: " + "; ".join(f"{r.name}: {r.reason}" for r in decisive)
+    label = "fail" if failing else ("robust pass" if robust else "pass at nominal damping only")
+    reason = f"{label}: " + "; ".join(f"{r.name}: {r.reason}" for r in decisive)
 
-    # sweep and safe windows
-    start = f_lo if f_lo > 0 else f_hi / config.n_grid
-    grid = np.linspace(start, f_hi, config.n_grid)
-    safe = np.ones(grid.size, dtype=bool)
-    for c in cfgs:
-        safe &= c.safe(grid, m, config.resonance_limit)
-
-    def safe_at(f: np.ndarray) -> np.ndarray:
-        ok = np.ones(np.shape(f), dtype=bool)
-        for c in cfgs:
-            ok &= c.safe(f, m, config.resonance_limit)
-        return ok
-
-    windows = _windows(grid, safe, safe_at, config.min_window, f_lo)
+    # sweep and windows
+    n_grid = config.n_grid or max(2001, int(40 * (f_hi - f_lo) / _mean_spacing_hz(string)) + 1)
+    start = f_lo if f_lo > 0 else f_hi / n_grid
+    grid = np.linspace(start, f_hi, int(n_grid))
+    labels, parts = ev.label(grid)
+    windows = _windows(grid, labels, ev, config, f_lo, zetas)
     sweep_h, sweep_ref, sweep_r, sweep_c = {}, {}, {}, {}
-    for c in cfgs:
+    for c, (lab, only, r) in zip(cfgs, parts):
         resp = c.response(grid)
         sweep_h[c.name] = np.abs(resp)
         sweep_ref[c.name] = np.abs(c.reference(grid))
-        sweep_r[c.name] = c.factors(grid, resp)[0]
-        sweep_c[c.name] = c.crowded(grid, m)
-    return CheckResult(string.name, config, fx, verdict, rule, reason, tuple(results), windows,
-                       (f_lo, f_hi), fine.n_elements, grid, sweep_h, sweep_ref, sweep_r, sweep_c, safe)
+        full = np.vstack([c.factors_at(grid, lev)[0] for lev in range(3)])
+        sweep_r[c.name] = full
+        sweep_c[c.name] = only
+    n_el = max(c.n_elements for c in cfgs)
+    return CheckResult(string.name, config, fx, verdict, robust, rule, reason, tuple(results), windows,
+                       (f_lo, f_hi), n_el, zetas, grid, sweep_h, sweep_ref, sweep_r, sweep_c, labels, ev)
 
 
-def _evaluate(c: _Config, fx: float, config: CheckConfig) -> ConfigurationResult:
+def _evaluate(c: _Config, fx: float, config: CheckConfig, zetas) -> ConfigurationResult:
     m = config.margin
     limit = config.resonance_limit
-    fe_mask = c.elastic
+    f = np.array([fx])
     contrib = c.contributions(fx)
     total = float(np.sum(contrib[np.isfinite(contrib)])) or 1.0
     order = np.argsort(-np.where(np.isfinite(contrib), contrib, np.inf))
     rank = np.empty(order.size, dtype=int)
     rank[order] = np.arange(1, order.size + 1)
     rows = []
-    n_rigid = int(np.sum(~fe_mask))
+    n_rigid = int(np.sum(~c.elastic))
+    iso_of = np.zeros(c.freqs.size, dtype=bool)
+    iso_of[c.elastic] = ~c.crowded_modes
     list_up_to = max(fx / (1.0 - m), c.freqs[min(3 + n_rigid, c.freqs.size - 1)])
     for j, fn in enumerate(c.freqs):
         if fn > list_up_to * (1 + 1e-12):
             continue
-        sep = 100.0 * (fx - fn) / fn if fe_mask[j] else math.inf
-        rows.append(ModeRow(c.name, j - n_rigid + 1 if fe_mask[j] else 0, float(fn), sep,
-                            bool(fe_mask[j] and abs(sep) <= 100.0 * m), float(contrib[j]),
-                            float(contrib[j] / total), int(rank[j])))
+        el = bool(c.elastic[j])
+        sep = 100.0 * (fx - fn) / fn if el else math.inf
+        est = c.error_estimate[j]
+        rows.append(ModeRow(c.name, j - n_rigid + 1 if el else 0, float(fn), sep,
+                            bool(el and abs(sep) <= 100.0 * m), bool(iso_of[j]), float(contrib[j]),
+                            float(contrib[j] / total), int(rank[j]), None if not np.isfinite(est) else float(est)))
     elastic_rows = [r for r in rows if r.index > 0]
     nearest = min(elastic_rows, key=lambda r: abs(r.separation_pct)) if elastic_rows else None
     dominant = min(rows, key=lambda r: r.rank) if rows else None
 
-    resp_arr = c.response(np.array([fx]))
+    lab, only, r_lev = c.label(f, limit)
+    lab, only = int(lab[0]), bool(only[0])
+    resp_arr = c.response(f)
     resp = complex(resp_arr[0])
-    rf, r_motion, r_force = (float(x[0]) for x in c.factors(np.array([fx]), resp_arr))
+    rf, r_motion, r_force = (float(x[0]) for x in c.factors_at(f, 1, resp_arr))
+    r_by = tuple(float(c.factors_at(f, lev)[0][0]) for lev in range(3))
     if c.displacement:
-        d0 = abs(complex(c.response(np.array([0.0]))[0]))
+        d0 = abs(complex(c.response(np.array([1e-6]))[0]))
         amp = abs(resp) / d0 if d0 > 0 else math.inf
         comp = 1.0 / d0 if d0 > 0 else math.inf
         h, dyn = 0j, resp
@@ -691,198 +359,103 @@ def _evaluate(c: _Config, fx: float, config: CheckConfig) -> ConfigurationResult
         amp = abs(resp) / comp if 0 < comp < math.inf else math.inf
         h, dyn = resp, None
 
-    crowded = bool(c.crowded(np.array([fx]), m)[0])
     inband = [r for r in elastic_rows if r.in_band]
-    if not crowded:
-        rule, regime = "margin", "separated"
-        if inband:
-            worst = min(inband, key=lambda r: abs(r.separation_pct))
-            verdict = "fail"
-            reason = (f"margin rule (modes separated): mode {worst.index} at {worst.frequency_hz:.4g} Hz is "
-                      f"{worst.separation_pct:+.1f} % from the excitation, inside +-{100 * m:.0f} %")
-        else:
-            verdict = "pass"
-            sep = f"nearest mode {nearest.index} at {nearest.frequency_hz:.4g} Hz is " \
-                  f"{nearest.separation_pct:+.1f} % away" if nearest else "no elastic mode"
-            reason = f"margin rule (modes separated): {sep}, outside +-{100 * m:.0f} %"
-    else:
-        rule, regime = "receptance", "crowded"
-        verdict = "pass" if rf <= limit else "fail"
+    iso_in = [r for r in inband if r.isolated]
+    fac = config.damping_factors
+    if iso_in:
+        worst = min(iso_in, key=lambda r: abs(r.separation_pct))
+        regime, rule, verdict, robust = "isolated", "margin", "fail", False
+        by = ("fail",) * 3
+        reason = (f"margin rule: mode {worst.index} at {worst.frequency_hz:.4g} Hz (isolated band) is "
+                  f"{worst.separation_pct:+.2f} % from the excitation, inside +-{100 * m:.0f} %")
+    elif only:
+        regime, rule = "crowded", "receptance"
+        by = tuple("pass" if x <= limit else "fail" for x in r_by)
+        verdict = by[1]
+        robust = all(v == "pass" for v in by)
+        names = ", ".join(str(r.index) for r in inband)
         dom = f"; dominant mode {dominant.index} at {dominant.frequency_hz:.4g} Hz " \
               f"({100 * dominant.share:.0f} % of the bit response)" if dominant else ""
-        reason = (f"receptance rule ({len(inband)} modes within +-{100 * m:.0f} %, bands overlap): "
-                  f"resonance factor {rf:.3g} {'<=' if verdict == 'pass' else '>'} {limit:.3g}{dom}")
-    return ConfigurationResult(c.name, c.top, c.bottom, "displacement" if c.displacement else "force",
-                               tuple(rows), c.freqs, regime, rule, verdict, reason, h, dyn, comp, amp, rf,
-                               r_motion, r_force, nearest, dominant)
-
-
-def _windows(grid: np.ndarray, safe: np.ndarray, safe_at, min_window: float,
-             f_lo: float) -> tuple[tuple[float, float], ...]:
-    """Intervals where ``safe`` holds, edges refined by bisection."""
-    change = np.nonzero(safe[1:] != safe[:-1])[0]
-    a, b = grid[change].copy(), grid[change + 1].copy()
-    left_safe = safe[change]
-    for _ in range(40):
-        mid = 0.5 * (a + b)
-        s = safe_at(mid)
-        same = s == left_safe
-        a = np.where(same, mid, a)
-        b = np.where(same, b, mid)
-    edges = 0.5 * (a + b)
-    out = []
-    lo = f_lo if safe[0] else None
-    for e, ls in zip(edges, left_safe):
-        if ls:
-            out.append((lo, float(e)))
-            lo = None
+        rs = " / ".join(f"{x:.3g}" for x in r_by)
+        if verdict == "fail":
+            tail = f"R = {rf:.3g} > {limit:.3g} at nominal damping"
+        elif robust:
+            tail = f"R <= {limit:.3g} at damping x{fac[0]:g} .. x{fac[2]:g}"
         else:
-            lo = float(e)
-    if lo is not None:
-        out.append((lo, float(grid[-1])))
-    return tuple((float(x), float(y)) for x, y in out
-                 if y - x >= min_window * 0.5 * (x + y) and y > x)
-
-
-# --------------------------------------------------------------------------
-# plots
-# --------------------------------------------------------------------------
-_COLORS = {"on_bottom": "tab:blue", "off_bottom": "tab:orange"}
-_LABELS = {"on_bottom": "bit on bottom", "off_bottom": "bit off bottom"}
-
-
-def _pyplot():
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt
-
-
-def plot_campbell(result: CheckResult, ax=None, path: "str | Path | None" = None,
-                  rpm_max: float | None = None):
-    """Campbell-type diagram: natural frequencies with their +-margin bands
-    (horizontal) against rotary speed, the excitation line(s) ``f = K N/60``
-    (or the hammer frequency, with 1x and 3x rotary lines for reference), the
-    operating point, and the safe windows.
-
-    Returns the matplotlib Axes.
-    """
-    plt = _pyplot()
-    own = ax is None
-    if own:
-        fig, ax = plt.subplots(figsize=(7, 5))
-    c = result.config
-    f_lo, f_hi = result.range_hz
-    if rpm_max is None:
-        rpm_max = (c.rpm_range[1] if (c.rpm is not None and c.rpm_range) else
-                   2.0 * c.rpm if c.rpm is not None else 200.0)
-    rpm = np.array([0.0, rpm_max])
-    for cfg in result.configurations:
-        col = _COLORS.get(cfg.name, "k")
-        ls = "-" if cfg.name == "on_bottom" else "--"
-        for j, fn in enumerate(cfg.frequencies_hz):
-            if fn <= 0 or fn * (1 - c.margin) > f_hi:
-                continue
-            ax.axhspan(fn * (1 - c.margin), fn * (1 + c.margin), color=col, alpha=0.07, lw=0)
-            ax.axhline(fn, color=col, ls=ls, lw=0.8,
-                       label=f"{_LABELS.get(cfg.name, cfg.name)} modes (+-{100 * c.margin:.0f} %)"
-                       if j == int(np.argmax(cfg.frequencies_hz > 0)) else None)
-    if c.rpm is not None:
-        ax.plot(rpm, rpm / 60.0, color="0.4", lw=1, ls=":", label="1x rpm")
-        ax.plot(rpm, c.factor * rpm / 60.0, color="k", lw=1.5, label=f"{c.factor:g}x rpm (excitation)")
-        for lo, hi in result.safe_windows_rpm or ():
-            ax.plot([lo, min(hi, rpm_max)], [c.factor * lo / 60.0, c.factor * min(hi, rpm_max) / 60.0],
-                    color="tab:green", lw=5, alpha=0.6, solid_capstyle="butt")
-        ax.plot([c.rpm], [result.excitation_hz], "o", ms=8,
-                color="tab:red" if result.verdict == "fail" else "tab:green",
-                label=f"operating point: {result.verdict}")
-        ax.plot([], [], color="tab:green", lw=5, alpha=0.6, label="safe speed windows")
+            bad = " and ".join(f"x{fac[i]:g}" for i in (0, 2) if by[i] == "fail")
+            tail = f"pass at nominal damping only (R > {limit:.3g} at damping {bad})"
+        reason = (f"receptance rule (only crowded modes {names} within +-{100 * m:.0f} %): "
+                  f"{tail}; R at damping x{fac[0]:g}/x1/x{fac[2]:g} = {rs}{dom}")
     else:
-        for k, ls in ((1.0, ":"), (3.0, "-.")):
-            ax.plot(rpm, k * rpm / 60.0, color="0.5", lw=0.8, ls=ls, label=f"{k:g}x rpm (bit, reference)")
-        ax.axhline(result.excitation_hz, color="tab:red" if result.verdict == "fail" else "k", lw=1.8,
-                   label=f"hammer {result.excitation_hz:g} Hz: {result.verdict}")
-        for lo, hi in result.safe_windows_hz:
-            ax.axhspan(lo, hi, xmin=0.96, xmax=1.0, color="tab:green", alpha=0.8, lw=0)
-        ax.plot([], [], color="tab:green", lw=5, label="safe frequency windows (right edge)")
-    ax.set_xlim(0, rpm_max)
-    ax.set_ylim(0, f_hi)
-    ax.set_xlabel("rotary speed [rpm]")
-    ax.set_ylabel("frequency [Hz]")
-    ax.set_title(f"{result.string_name}: axial modes vs excitation")
-    ax.legend(loc="upper left", fontsize=7, framealpha=0.9)
-    if own and path is not None:
-        ax.figure.tight_layout()
-        ax.figure.savefig(path, dpi=120)
-        plt.close(ax.figure)
-    return ax
+        regime, rule, verdict, robust = "clear", "margin", "pass", True
+        by = ("pass",) * 3
+        sep = f"nearest mode {nearest.index} at {nearest.frequency_hz:.4g} Hz is " \
+              f"{nearest.separation_pct:+.1f} % away" if nearest else "no elastic mode"
+        reason = f"margin rule: {sep}, outside +-{100 * m:.0f} %"
+    assert (lab == FAIL) == (verdict == "fail")
+    est = c.error_estimate[np.isfinite(c.error_estimate)]
+    return ConfigurationResult(c.name, c.top, c.bottom, "displacement" if c.displacement else "force",
+                               tuple(rows), c.freqs, regime, rule, verdict, robust, reason, h, dyn, comp, amp, rf,
+                               r_motion, r_force, r_by, by, nearest, dominant, c.n_elements,
+                               float(est.max()) if est.size else None)
 
 
-def plot_receptance(result: CheckResult, axes: Sequence | None = None, path: "str | Path | None" = None):
-    """Bit receptance ``|H(f)|`` (log scale, with the reflection-free
-    reference) and the resonance factor ``R(f)`` with its limit (bold where
-    modes are crowded and the receptance rule applies, faint where the margin
-    rule decides); excitation marked, safe windows shaded.  Returns the two
-    Axes."""
-    plt = _pyplot()
-    own = axes is None
-    if own:
-        fig, axes = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
-    ax1, ax2 = axes
-    f = result.sweep_hz
-    c = result.config
-    for cfg in result.configurations:
-        col = _COLORS.get(cfg.name, "k")
-        h = result.sweep_receptance[cfg.name]
-        ref = result.sweep_reference[cfg.name]
-        lab = _LABELS.get(cfg.name, cfg.name)
-        if cfg.excitation == "force":
-            ax1.semilogy(f, h, color=col, lw=1, label=f"|H| {lab}")
-            ax1.semilogy(f, ref, color=col, lw=0.8, ls=":", label=f"reflection-free {lab}")
-        else:
-            ax1.semilogy(f, 1.0 / h, color=col, lw=1, label=f"1/|D| {lab} (fixed bit)")
-        r = result.sweep_factor[cfg.name]
-        crowd = result.sweep_crowded[cfg.name]
-        ax2.semilogy(f, r, color=col, lw=0.6, alpha=0.35,
-                     label=f"{lab} (faint: modes separated, margin rule decides)")
-        if np.any(crowd):
-            ax2.semilogy(f, np.where(crowd, r, np.nan), color=col, lw=1.2,
-                         label=f"{lab} (bold: modes crowded, receptance rule)")
-    ax2.axhline(c.resonance_limit, color="tab:red", lw=1, ls="--", label=f"limit {c.resonance_limit:.3g}")
-    for ax in (ax1, ax2):
-        for lo, hi in result.safe_windows_hz:
-            ax.axvspan(lo, hi, color="tab:green", alpha=0.12, lw=0)
-        ax.axvline(result.excitation_hz, color="k", lw=1.2)
-    ax1.set_ylabel("bit receptance [m/N]")
-    ax2.set_ylabel("resonance factor R [-]")
-    ax2.set_xlabel("excitation frequency [Hz]")
-    ax1.set_title(f"{result.string_name}: excitation {result.excitation_hz:.4g} Hz -> {result.verdict} "
-                  f"({result.rule} rule); green = safe windows")
-    ax1.legend(fontsize=7, loc="upper right")
-    ax2.legend(fontsize=7, loc="upper right")
-    ax2.set_xlim(f[0], f[-1])
-    if own and path is not None:
-        fig.tight_layout()
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
-    return axes
+def _windows(grid: np.ndarray, labels: np.ndarray, ev: _Evaluator, config: CheckConfig, f_lo: float,
+             zetas) -> tuple[Window, ...]:
+    """Runs of equal non-fail label, edges refined by bisection on the label."""
+    change = np.nonzero(labels[1:] != labels[:-1])[0]
+    a, b = grid[change].copy(), grid[change + 1].copy()
+    la, lb = labels[change].copy(), labels[change + 1].copy()
+    for _ in range(44):
+        if a.size == 0:
+            break
+        mid = 0.5 * (a + b)
+        lm = ev.label(mid)[0]
+        left = lm == la
+        a = np.where(left, mid, a)
+        b = np.where(left, b, mid)
+    edges = 0.5 * (a + b)
+    bounds = np.concatenate(([f_lo if f_lo < grid[0] else grid[0]], edges, [grid[-1]]))
+    seg_labels = np.concatenate(([labels[0]], labels[change + 1]))
+    pieces = [(float(bounds[i]), float(bounds[i + 1]), int(seg_labels[i])) for i in range(seg_labels.size)]
+    # drop safe runs (consecutive non-fail pieces) narrower than min_window x centre
+    out: list[Window] = []
+    i = 0
+    while i < len(pieces):
+        if pieces[i][2] == FAIL:
+            i += 1
+            continue
+        j = i
+        while j + 1 < len(pieces) and pieces[j + 1][2] != FAIL:
+            j += 1
+        lo, hi = pieces[i][0], pieces[j][1]
+        if hi > lo and hi - lo >= config.min_window * 0.5 * (lo + hi):
+            for p in pieces[i:j + 1]:
+                if p[1] <= p[0]:
+                    continue
+                rule = "margin" if p[2] == MARGIN else "receptance"
+                robust = p[2] != NOMINAL_ONLY
+                rng = None if rule == "margin" else ((zetas[0], zetas[2]) if robust else (zetas[1], zetas[1]))
+                out.append(Window(p[0], p[1], rule, robust, rng))
+        i = j + 1
+    return tuple(out)
 
 
-def plot_check(result: CheckResult, path: "str | Path", rpm_max: float | None = None) -> Path:
-    """Campbell diagram and receptance plots side by side, saved to ``path`` (PNG/PDF/SVG)."""
-    plt = _pyplot()
-    fig = plt.figure(figsize=(13, 5.5))
-    gs = fig.add_gridspec(2, 2, width_ratios=(1, 1.15))
-    ax_c = fig.add_subplot(gs[:, 0])
-    ax_h = fig.add_subplot(gs[0, 1])
-    ax_r = fig.add_subplot(gs[1, 1], sharex=ax_h)
-    plot_campbell(result, ax=ax_c, rpm_max=rpm_max)
-    plot_receptance(result, axes=(ax_h, ax_r))
-    fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+def resonance_factor(string: DrillString, freqs_hz: Any, top: "Boundary | str | None" = None,
+                     bottom: "Boundary | str | None" = None, *, damping_scale: float = 1.0) -> np.ndarray:
+    """Resonance factor ``R(f)`` (F,) [-] at the bit (see the module docstring),
+    from the continuous string with its own damping times ``damping_scale``;
+    the bit mass applies, a ``hammer`` bottom counts as free."""
+    t, b = resolve_ends(string, top, bottom)
+    bit_mass = 0.0 if b.is_fixed else (string.bit_mass if b.kind == "hammer" else b.mass)
+    if b.kind == "hammer":
+        b = Boundary.free(bit_mass)
+    f = np.atleast_1d(np.asarray(freqs_hz, dtype=float))
+    return _factors(string, t, b, bit_mass, DampingModel.of(string, damping_scale), f)[0]
+
+
+from .drillstring import bit_dynamic_stiffness, bit_receptance  # noqa: E402  (re-exported)
+from .check_plots import plot_campbell, plot_check, plot_receptance  # noqa: E402  (re-exported)
 
 
 # --------------------------------------------------------------------------

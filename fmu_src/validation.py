@@ -105,8 +105,9 @@ def check(key: str, value, *, label: str | None = None) -> float:
 _INF = math.inf
 
 #: key -> Range.  Keys are RigParameters fields (SI), the nondimensional
-#: groups (prefixed ``group.``), solver options (``solver.``) and the FMU's own
-#: parameters and inputs (``fmu.``).
+#: groups (prefixed ``group.``), solver options (``solver.``), the options of
+#: the hammer-frequency check (``check.``) and the FMU's own parameters and
+#: inputs (``fmu.``).
 RANGES: dict[str, Range] = {
     # -- SI parameters of the rig (RigParameters fields) --------------------
     "hammer_mass": Range(1e-6, 1e9, unit="kg"),
@@ -151,6 +152,17 @@ RANGES: dict[str, Range] = {
     # -- a scene (simulate) --------------------------------------------------
     "simulate.periods": Range(0.0, 1e9, lo_open=True),
     "simulate.sample_dt": Range(0.0, 1e9, lo_open=True, unit="s"),
+    # -- the hammer-frequency check (hammerbit.modal_check) ---------------------
+    "check.frequency": Range(0.0, 1e6, lo_open=True, unit="Hz"),
+    "check.rpm": Range(0.0, 1e6, lo_open=True, unit="rev/min"),
+    "check.factor": Range(0.0, 1e3, lo_open=True),
+    "check.margin": Range(0.0, 1.0, lo_open=True, hi_open=True),
+    "check.range": Range(0.0, 1e6, unit="Hz"),
+    "check.resonance_limit": Range(0.0, 1e6, lo_open=True),
+    "check.min_window": Range(0.0, 1.0),
+    "check.rtol": Range(1e-10, 1e-2),
+    "check.damping_factor": Range(0.0, 100.0, lo_open=True),
+    "check.n_grid": Range(11, 1e7),
     # -- the FMU's own parameters and its inputs --------------------------------
     "fmu.tolerance": Range(1e-14, 1e-2, unit="1"),
     "fmu.initial_hammer_position": Range(-1e6, 1e6, unit="m"),
