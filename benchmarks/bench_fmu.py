@@ -74,7 +74,7 @@ _LOAD_PROBE = textwrap.dedent('''
     fmu.doStep(0.0, 1e-3)
     t4 = time.perf_counter()
     K = sys.modules["hammerbit_fmu_runtime.kernels"]
-    ds = (K.advance_hammer, K.drive_on_bit, K.friction_kinetic, K.contact_force)
+    ds = (K.advance_hammer, K.force_on_bit, K.kinetic_friction, K.contact_force)
     out = {"import_fmpy_s": t0 - t_start, "extract_s": t1 - t0, "instantiate_s": t2 - t1,
            "initialise_s": t3 - t2, "load_s": t3 - t0, "first_step_s": t4 - t3,
            "numba_cache_hits": sum(sum(x.stats.cache_hits.values()) for x in ds),

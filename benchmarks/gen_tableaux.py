@@ -1,4 +1,13 @@
-"""Generator of fmu_src/tableaux.py (kept for the record; run from the repo root)."""
+"""Generator of ``fmu_src/tableaux.py`` from SciPy's coefficients.
+
+``python -m benchmarks.gen_tableaux`` checks that the tracked file is exactly
+what this script generates (exit status 1 and a diff if not);
+``--update`` rewrites the file.
+"""
+import difflib
+import os
+import sys
+
 import numpy as np
 from numpy.polynomial import polynomial as Pn
 from scipy.integrate._ivp import dop853_coefficients as d
@@ -77,13 +86,35 @@ ERR_DOP853 = 2    # Hairer's combined estimate: E (5th order) and E3 (3rd order)
 
 '''
 out += "# ---- DOP853: order 8, error estimator 7, dense output 7 ----\n"
-out += "DOP853_N_STAGES = 12\nDOP853_ORDER = 8\n"
+out += "DOP853_N_STAGES = 12\n"
 out += fmt("DOP853_A", d.A) + fmt("DOP853_B", d.B) + fmt("DOP853_C", d.C)
 out += fmt("DOP853_E", d.E5) + fmt("DOP853_E3", d.E3) + fmt("DOP853_W", W853)
 out += "\n# ---- Dormand–Prince 5(4): order 5, estimator 4, dense output 4 ----\n"
-out += "DP54_N_STAGES = 6\nDP54_ORDER = 5\n"
+out += "DP54_N_STAGES = 6\n"
 out += fmt("DP54_A", A7) + fmt("DP54_B", r.B) + fmt("DP54_C", C7) + fmt("DP54_E", r.E) + fmt("DP54_W", W54)
 out += "\n# ---- classic RK4: order 4, fixed step, cubic Hermite dense output ----\n"
-out += "RK4_N_STAGES = 4\nRK4_ORDER = 4\n"
+out += "RK4_N_STAGES = 4\n"
 out += fmt("RK4_A", A5) + fmt("RK4_B", B4) + fmt("RK4_C", C5) + fmt("RK4_W", W4)
-open('fmu_src/tableaux.py', 'w').write(out)
+
+TARGET = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "fmu_src", "tableaux.py")
+
+
+def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if "--update" in argv:
+        with open(TARGET, "w") as fh:
+            fh.write(out)
+        print(f"wrote {TARGET}")
+        return 0
+    with open(TARGET) as fh:
+        tracked = fh.read()
+    if tracked == out:
+        print(f"{TARGET} is up to date")
+        return 0
+    sys.stdout.writelines(difflib.unified_diff(tracked.splitlines(True), out.splitlines(True),
+                                               "tracked", "generated"))
+    return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -18,8 +18,8 @@ import numpy as np
 
 from hammerbit.model import kernels as K
 from hammerbit.model.params import Groups, ParameterError
+from hammerbit.model.stepping import EVENT_NAMES, SolverOptions, Stepper
 from hammerbit.model.validation import RANGES, check
-from hammerbit.model.stepping import EVENT_NAMES, MaxStepsError, SolverOptions, Stepper
 
 __all__ = ["Record", "SimResult", "simulate", "BounceWarning", "POINCARE_DTYPE",
            "SAMPLE_DTYPE", "EVENT_DTYPE", "SI_SAMPLE_COLUMNS", "samples_si", "write_samples_csv"]
@@ -227,9 +227,6 @@ def simulate(groups: Groups, periods: float, *, record: Record = Record(),
     t0 = _time.perf_counter()
     while True:
         status = st.advance(tau_end, poincare=poin, sample_times=samp_t, samples=samp, log=log)
-        if status == "max_steps":
-            raise MaxStepsError(f"more than max_steps={solver.max_steps} steps in one call; stopped at "
-                                f"tau = {st.time:.9g} of {tau_end:.9g}", time=st.time, status=K.ST_MAX_STEPS)
         if status != "log_full":
             break
         log = np.concatenate([log, np.zeros_like(log)])

@@ -23,8 +23,9 @@ State layout (nondimensional, see ``model.md``)::
 ``x1, x2`` hammer position and velocity, ``x3, x4`` bit position
 (penetration) and velocity; ``z`` the states of an optional linear subsystem
 (the drillstring of the monolithic reference) that obeys
-``z' = A z + H[:, 0] x1 + H[:, 1] x2`` and pushes on the hammer with
-``f_link = G . z + g[0] x1 + g[1] x2``; ``e`` four optional energy
+``z' = A z + H[:, 0] x1 + H[:, 1] x2`` (``A`` in CSR form ``Ap, Ai, Ax``;
+``H`` is ``sub_in``) and pushes on the hammer with
+``f_link = G . z + g[0] x1 + g[1] x2`` (``sub_out``, ``link_x``); ``e`` four optional energy
 accumulators (external work, damper, contact and friction dissipation).
 
 Each watched indicator ``w`` is signed so that its event happens when ``w``
@@ -37,10 +38,18 @@ from numba import njit
 
 from . import _numba_cache  # noqa: F401  (registers the content-hash cache locator)
 
+from .params import (P_A, P_B, P_CONTACT, P_ETA, P_FEXT, P_GAMMA, P_KC, P_LAM, P_MU,  # noqa: F401
+                     P_N, P_PHI, P_R, P_RHO, P_XI)
+
 # ---------------------------------------------------------------------------
-# Layouts (kept in sync with params.P_*)
+# Layouts
 # ---------------------------------------------------------------------------
-P_RHO, P_XI, P_ETA, P_A, P_B, P_R, P_MU, P_GAMMA, P_KC, P_N, P_LAM, P_PHI, P_FEXT, P_CONTACT = range(14)
+# state offsets: y = [x1, x2, x3, x4, z[0:nz], e[0:ne]]
+X_HAMMER = 0      # x1, hammer position
+V_HAMMER = 1      # x2, hammer velocity
+X_BIT = 2         # x3, bit position (penetration)
+V_BIT = 3         # x4, bit velocity
+Z0 = 4            # first state of the linear subsystem (then the energy block)
 
 # hybrid modes
 STICK = 0
@@ -114,6 +123,7 @@ ST_STEP_TOO_SMALL = 3
 ST_NONFINITE = 4
 ST_MAX_STEPS = 5
 ST_STEP_STORM = 6
+ST_BAD_INPUT = 7      # t_end not finite or before the current time (the Stepper checks first)
 
 # event log columns
 L_T, L_KIND, L_X1, L_X2, L_X3, L_X4, L_VREL, L_PEAK = range(8)
@@ -134,23 +144,25 @@ LAYER_TARGET = 0.3   # friction-layer error norm a proposed step may reach (fric
 # Forces and vector field
 # ---------------------------------------------------------------------------
 @njit(cache=True, inline="always", _nrt=False)
-def contact_force(d, dd, p, mode_c):
-    """Hunt–Crossley force kc d^n (1 + lam d') in the active contact mode, else 0.
+def contact_force(d, d_rate, p, contact_mode):
+    """Hunt–Crossley force / F0, kc d^n (1 + lam d'), in the CONTACT mode, else 0.
+
+    ``d`` is the overlap (``overlap``) [x0], ``d_rate`` its rate d' [x0 Omega].
 
     The power is extended oddly to d < 0 so the force is smooth across the
     event inside a step (the event itself is located, never skipped).
     """
-    if mode_c != CONTACT:
+    if contact_mode != CONTACT:
         return 0.0
     ad = abs(d)
     dn = ad ** p[P_N] if ad > 0.0 else 0.0
     if d < 0.0:
         dn = -dn
-    return p[P_KC] * dn * (1.0 + p[P_LAM] * dd)
+    return p[P_KC] * dn * (1.0 + p[P_LAM] * d_rate)
 
 
 @njit(cache=True, inline="always", _nrt=False)
-def friction_kinetic(v, p):
+def kinetic_friction(v, p):
     """Kinetic friction over F0: mu + (1 - mu) exp(-gamma_hat v) for v >= 0.
 
     Trial stages of a step that crosses the slip -> stick event see v < 0.
@@ -169,15 +181,52 @@ def friction_kinetic(v, p):
 
 
 @njit(cache=True, inline="always", _nrt=False)
-def link_force(y, nz, Gz, g12):
-    """Force of the linear subsystem on the hammer, G . z + g1 x1 + g2 x2."""
-    f = g12[0] * y[0] + g12[1] * y[1]
-    for i in range(nz):
-        f += Gz[i] * y[4 + i]
-    return f
+def contact_mode_at_impact(y, p):
+    """Contact mode that a closed gap starts in: CLAMPED if the Hunt–Crossley
+    damping term 1 + lam d' is not positive (the force would pull), else CONTACT."""
+    return CONTACT if 1.0 + p[P_LAM] * (y[V_HAMMER] - y[V_BIT]) > 0.0 else CLAMPED
 
 
 @njit(cache=True, inline="always", _nrt=False)
+def force_on_bit(y, p, contact_mode):
+    """F_d / F0 = spring + damper + contact force on the bit (the drive the friction resists)."""
+    return spring_damper_force(y, p) + contact_force_at(y, p, contact_mode)
+
+
+@njit(cache=True, inline="always", _nrt=False)
+def overlap(y, p):
+    """Contact overlap d = x1 - x3 - r (> 0: the gap is closed) [x0]."""
+    return y[X_HAMMER] - y[X_BIT] - p[P_R]
+
+
+@njit(cache=True, inline="always", _nrt=False)
+def spring_damper_force(y, p):
+    """F_k / F0 = (x1 - x3) + 2 xi (x2 - x4): spring and damper between hammer and bit."""
+    return (y[X_HAMMER] - y[X_BIT]) + 2.0 * p[P_XI] * (y[V_HAMMER] - y[V_BIT])
+
+
+@njit(cache=True, inline="always", _nrt=False)
+def relative_velocity(y):
+    """d' = x2 - x4, hammer velocity relative to the bit [x0 Omega]."""
+    return y[V_HAMMER] - y[V_BIT]
+
+
+@njit(cache=True, inline="always", _nrt=False)
+def contact_force_at(y, p, contact_mode):
+    """F_c / F0 at the state ``y`` in ``contact_mode`` (``contact_force``)."""
+    return contact_force(overlap(y, p), relative_velocity(y), p, contact_mode)
+
+
+@njit(cache=True, inline="always", _nrt=False, no_cpython_wrapper=True)
+def link_force(y, nz, sub_out, link_x):
+    """Force of the linear subsystem on the hammer, G . z + g1 x1 + g2 x2."""
+    f = link_x[0] * y[X_HAMMER] + link_x[1] * y[V_HAMMER]
+    for i in range(nz):
+        f += sub_out[i] * y[Z0 + i]
+    return f
+
+
+@njit(cache=True, inline="always", _nrt=False, no_cpython_wrapper=True)
 def sincos_small(d):
     """(sin d, cos d) for |d| <= 0.5 by their Taylor polynomials (error < 1e-19)."""
     d2 = d * d
@@ -190,13 +239,13 @@ def sincos_small(d):
     return sn, cs
 
 
-@njit(cache=True, inline="always", _nrt=False)
+@njit(cache=True, inline="always", _nrt=False, no_cpython_wrapper=True)
 def harmonic(t, p):
     """Harmonic force / F0 at time t: a sin(eta t + phi)."""
     return p[P_A] * math.sin(p[P_ETA] * t + p[P_PHI])
 
 
-@njit(cache=True, inline="always", _nrt=False)
+@njit(cache=True, inline="always", _nrt=False, no_cpython_wrapper=True)
 def harmonic_shifted(t, dt, s0, c0, p):
     """a sin(eta (t + dt) + phi) from s0, c0 = sin, cos(eta t + phi).
 
@@ -211,14 +260,14 @@ def harmonic_shifted(t, dt, s0, c0, p):
     return p[P_A] * math.sin(p[P_ETA] * (t + dt) + p[P_PHI])
 
 
-@njit(cache=True, inline="always", _nrt=False)
-def rhs(t, y, p, mode_s, mode_c, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, out):
+@njit(cache=True, inline="always", _nrt=False, no_cpython_wrapper=True)
+def rhs(t, y, p, mode_s, mode_c, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, out):
     """Vector field of one hybrid mode at time t (see ``rhs_forced``)."""
-    rhs_forced(harmonic(t, p), y, p, mode_s, mode_c, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, out)
+    rhs_forced(harmonic(t, p), y, p, mode_s, mode_c, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, out)
 
 
-@njit(cache=True, inline="always", _nrt=False)
-def rhs_forced(fh, y, p, mode_s, mode_c, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, out):
+@njit(cache=True, inline="always", _nrt=False, no_cpython_wrapper=True)
+def rhs_forced(fh, y, p, mode_s, mode_c, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, out):
     """Vector field of one hybrid mode; writes dy/dtau into ``out``.
 
     Parameters
@@ -226,7 +275,7 @@ def rhs_forced(fh, y, p, mode_s, mode_c, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, out):
     fh : float
         Harmonic force / F0 at the evaluation time, a sin(eta tau + phi)
         (``harmonic``); the field depends on time only through it.
-    y : ndarray, shape (4 + nz + ne,)
+    y : ndarray, shape (Z0 + nz + ne,)
         State.
     p : ndarray, shape (N_P,)
         Kernel parameters (``params.P_*`` layout).
@@ -236,80 +285,54 @@ def rhs_forced(fh, y, p, mode_s, mode_c, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, out):
         Sizes of the linear subsystem and of the energy block (0 or 4).
     Ap, Ai, Ax : ndarray
         The subsystem matrix A in CSR form (indptr, indices, data).
-    Hz : ndarray, shape (nz, 2)
-        Input matrix of (x1, x2) into the subsystem.
-    Gz : ndarray, shape (nz,), g12 : ndarray, shape (2,)
-        Output row of the link force on the hammer.
+    sub_in : ndarray, shape (nz, 2)
+        Input matrix of (x1, x2) into the subsystem (H in ``LinearSubsystem``).
+    sub_out : ndarray, shape (nz,), link_x : ndarray, shape (2,)
+        The link force on the hammer, sub_out . z + link_x . (x1, x2)
+        (G and g in ``LinearSubsystem``).
     out : ndarray, shape like y
         Derivative (written).
     """
-    x1 = y[0]
-    x2 = y[1]
-    x3 = y[2]
-    x4 = y[3]
-    d = x1 - x3 - p[P_R]
-    dd = x2 - x4
-    fk = (x1 - x3) + 2.0 * p[P_XI] * dd
-    fc = contact_force(d, dd, p, mode_c)
-    drive = p[P_B] + p[P_FEXT] + fh
+    x2 = y[V_HAMMER]
+    x4 = y[V_BIT]
+    d = overlap(y, p)
+    dd = relative_velocity(y)
+    f_spring = spring_damper_force(y, p)
+    f_contact = contact_force(d, dd, p, mode_c)
+    hammer_drive = p[P_B] + p[P_FEXT] + fh
     if nz > 0:
-        drive += link_force(y, nz, Gz, g12)
-    out[0] = x2
-    out[1] = drive - fk - fc
-    ff = 0.0
+        hammer_drive += link_force(y, nz, sub_out, link_x)
+    out[X_HAMMER] = x2
+    out[V_HAMMER] = hammer_drive - f_spring - f_contact
+    f_friction = 0.0
     if mode_s == SLIP:
-        ff = friction_kinetic(x4, p)
-        out[2] = x4
-        out[3] = (fk + fc - ff) / p[P_RHO]
+        f_friction = kinetic_friction(x4, p)
+        out[X_BIT] = x4
+        out[V_BIT] = (f_spring + f_contact - f_friction) / p[P_RHO]
     else:
-        out[2] = 0.0
-        out[3] = 0.0
+        out[X_BIT] = 0.0
+        out[V_BIT] = 0.0
     for i in range(nz):
-        acc = Hz[i, 0] * x1 + Hz[i, 1] * x2
+        acc = sub_in[i, 0] * y[X_HAMMER] + sub_in[i, 1] * x2
         for k in range(Ap[i], Ap[i + 1]):
-            acc += Ax[k] * y[4 + Ai[k]]
-        out[4 + i] = acc
+            acc += Ax[k] * y[Z0 + Ai[k]]
+        out[Z0 + i] = acc
     if ne > 0:
-        j = 4 + nz
-        out[j] = drive * x2
+        j = Z0 + nz
+        out[j] = hammer_drive * x2
         out[j + 1] = 2.0 * p[P_XI] * dd * dd
         if mode_c != FREE and d > 0.0:
             # dissipated contact power: actual contact power minus elastic power
-            out[j + 2] = (fc - p[P_KC] * d ** p[P_N]) * dd
+            out[j + 2] = (f_contact - p[P_KC] * d ** p[P_N]) * dd
         else:
             out[j + 2] = 0.0
-        out[j + 3] = ff * x4
-
-
-@njit(cache=True, inline="always", _nrt=False)
-def drive_on_bit(y, p, mode_c):
-    """F_d / F0 = spring + damper + contact force on the bit."""
-    d = y[0] - y[2] - p[P_R]
-    dd = y[1] - y[3]
-    return (y[0] - y[2]) + 2.0 * p[P_XI] * dd + contact_force(d, dd, p, mode_c)
-
-
-@njit(cache=True, inline="always", _nrt=False)
-def overlap(y, p):
-    """Contact overlap d = x1 - x3 - r (> 0: the gap is closed) [x0]."""
-    return y[0] - y[2] - p[P_R]
-
-
-@njit(cache=True, inline="always", _nrt=False)
-def spring_damper_force(y, p):
-    """F_k / F0 = (x1 - x3) + 2 xi (x2 - x4): spring and damper between hammer and bit."""
-    return (y[0] - y[2]) + 2.0 * p[P_XI] * (y[1] - y[3])
-
-
-# public names of the force formulas, shared by the slave, simulate and the master
-force_on_bit = drive_on_bit
-kinetic_friction = friction_kinetic
+        out[j + 3] = f_friction * x4
 
 
 # ---------------------------------------------------------------------------
 # Event indicators
 # ---------------------------------------------------------------------------
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
 def watched(istate, p, out):
     """Event kinds watched in the current mode; returns how many (<= 3) in ``out``."""
     n = 0
@@ -339,29 +362,29 @@ def watched(istate, p, out):
     return n
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
 def watch_value(kind, y, p, mode_c):
     """Signed indicator of ``kind``: the event happens when it becomes > 0."""
     if kind == EV_SLIP_START:
-        return drive_on_bit(y, p, mode_c) - 1.0
+        return force_on_bit(y, p, mode_c) - 1.0
     if kind == EV_BOUNCE:
-        return -(drive_on_bit(y, p, mode_c) + 1.0)
+        return -(force_on_bit(y, p, mode_c) + 1.0)
     if kind == EV_BOUNCE_END:
-        return drive_on_bit(y, p, mode_c) + 1.0
+        return force_on_bit(y, p, mode_c) + 1.0
     if kind == EV_STICK:
-        return -y[3]
+        return -y[V_BIT]
     if kind == EV_IMPACT:
-        return y[0] - y[2] - p[P_R]
+        return overlap(y, p)
     if kind == EV_SEPARATION:
-        return -(y[0] - y[2] - p[P_R])
+        return -overlap(y, p)
     if kind == EV_CLAMP:
-        return -(1.0 + p[P_LAM] * (y[1] - y[3]))
+        return -(1.0 + p[P_LAM] * (y[V_HAMMER] - y[V_BIT]))
     if kind == EV_UNCLAMP:
-        return 1.0 + p[P_LAM] * (y[1] - y[3])
+        return 1.0 + p[P_LAM] * (y[V_HAMMER] - y[V_BIT])
     return -1.0
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
 def watch_tol(kind, y, p):
     """Round-off level of ``watch_value``: an indicator counts as crossed only above it.
 
@@ -373,21 +396,20 @@ def watch_tol(kind, y, p):
     if kind == EV_STICK:
         return 0.0
     if kind == EV_CLAMP or kind == EV_UNCLAMP:
-        return 8.0 * EPS * (1.0 + p[P_LAM] * (abs(y[1]) + abs(y[3])))
+        return 8.0 * EPS * (1.0 + p[P_LAM] * (abs(y[V_HAMMER]) + abs(y[V_BIT])))
     r = p[P_R] if (kind == EV_IMPACT or kind == EV_SEPARATION) else 1.0
-    return 8.0 * EPS * (abs(y[0]) + abs(y[2]) + abs(r))
+    return 8.0 * EPS * (abs(y[X_HAMMER]) + abs(y[X_BIT]) + abs(r))
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
 def watch_slope(kind, y, f, p, mode_c):
     """Time derivative of ``watch_value`` from the state ``y`` and its derivative ``f``."""
-    dd = y[1] - y[3]
-    ddd = f[1] - f[3]
+    dd = y[V_HAMMER] - y[V_BIT]
+    ddd = f[V_HAMMER] - f[V_BIT]
     if kind == EV_SLIP_START or kind == EV_BOUNCE or kind == EV_BOUNCE_END:
-        s = (f[0] - f[2]) + 2.0 * p[P_XI] * ddd
+        s = (f[X_HAMMER] - f[X_BIT]) + 2.0 * p[P_XI] * ddd
         if mode_c == CONTACT:
-            d = y[0] - y[2] - p[P_R]
-            ad = abs(d)
+            ad = abs(overlap(y, p))
             if ad > 0.0:
                 n = p[P_N]
                 dn = ad ** n
@@ -395,7 +417,7 @@ def watch_slope(kind, y, f, p, mode_c):
                 s += p[P_KC] * (dn1 * dd * (1.0 + p[P_LAM] * dd) + dn * p[P_LAM] * ddd)
         return -s if kind == EV_BOUNCE else s
     if kind == EV_STICK:
-        return -f[3]
+        return -f[V_BIT]
     if kind == EV_IMPACT:
         return dd
     if kind == EV_SEPARATION:
@@ -410,10 +432,10 @@ def watch_slope(kind, y, f, p, mode_c):
 # ---------------------------------------------------------------------------
 # Runge–Kutta step and dense output (one routine for every tableau)
 # ---------------------------------------------------------------------------
-@njit(cache=True, _nrt=False)
-def rk_stages(t, y, h, A, C, s_from, s_to, K, ytmp, act, n_act,
-              p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12):
-    """Stages ``s_from <= s < s_to`` of an explicit RK method into ``K[s]``.
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
+def rk_stages(t, y, h, rk_a, rk_c, s_from, s_to, stages, ytmp, act, n_act,
+              p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x):
+    """Stages ``s_from <= s < s_to`` of an explicit RK method into ``stages[s]``.
 
     Returns sin and cos of the forcing phase at ``t`` (for the caller's FSAL stage).
     """
@@ -429,41 +451,41 @@ def rk_stages(t, y, h, A, C, s_from, s_to, K, ytmp, act, n_act,
             for i in range(n):
                 acc = 0.0
                 for j in range(s):
-                    acc += A[s, j] * K[j, i]
+                    acc += rk_a[s, j] * stages[j, i]
                 ytmp[i] = y[i] + h * acc
         else:
             for q in range(n_act):
                 i = act[q]
                 acc = 0.0
                 for j in range(s):
-                    acc += A[s, j] * K[j, i]
+                    acc += rk_a[s, j] * stages[j, i]
                 ytmp[i] = y[i] + h * acc
-        rhs_forced(harmonic_shifted(t, C[s] * h, s0, c0, p), ytmp, p, ms, mc, nz, ne,
-                   Ap, Ai, Ax, Hz, Gz, g12, K[s])
+        rhs_forced(harmonic_shifted(t, rk_c[s] * h, s0, c0, p), ytmp, p, ms, mc, nz, ne,
+                   Ap, Ai, Ax, sub_in, sub_out, link_x, stages[s])
     return s0, c0
 
 
-@njit(cache=True, _nrt=False)
-def rk_step(t, y, h, A, B, C, ns, K, ynew, ytmp, act, n_act,
-            p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12):
-    """One step of any explicit tableau; K[0] must hold f(t, y).
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
+def rk_step(t, y, h, rk_a, rk_b, rk_c, ns, stages, ynew, ytmp, act, n_act,
+            p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x):
+    """One step of any explicit tableau; ``stages[0]`` must hold f(t, y).
 
-    Writes the solution ``ynew`` and the FSAL stage ``K[ns] = f(t + h, ynew)``.
+    Writes the solution ``ynew`` and the FSAL stage ``stages[ns] = f(t + h, ynew)``.
     """
-    s0, c0 = rk_stages(t, y, h, A, C, 1, ns, K, ytmp, act, n_act, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+    s0, c0 = rk_stages(t, y, h, rk_a, rk_c, 1, ns, stages, ytmp, act, n_act, p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
     for i in range(y.shape[0]):
         ynew[i] = y[i]
     for q in range(n_act):
         i = act[q]
         acc = 0.0
         for j in range(ns):
-            acc += B[j] * K[j, i]
+            acc += rk_b[j] * stages[j, i]
         ynew[i] = y[i] + h * acc
-    rhs_forced(harmonic_shifted(t, h, s0, c0, p), ynew, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, K[ns])
+    rhs_forced(harmonic_shifted(t, h, s0, c0, p), ynew, p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, stages[ns])
 
 
-@njit(cache=True, _nrt=False)
-def error_norm(y, ynew, h, K, E, E3, err_kind, ns, act, n_act, rtol, atol, v4_peak):
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
+def error_norm(y, ynew, h, stages, err_w, err_w3, err_kind, ns, act, n_act, rtol, atol, v4_peak):
     """RMS norm of the embedded error estimate, scaled by atol + rtol |y|.
 
     The bit velocity x4 is scaled by its peak in the current slip instead of
@@ -472,7 +494,7 @@ def error_norm(y, ynew, h, K, E, E3, err_kind, ns, act, n_act, rtol, atol, v4_pe
     accuracy of the stop time (which depends on the absolute error of x4).
 
     ``err_kind`` 1: single estimate with weights E over ns + 1 stages;
-    2: Hairer's DOP853 combination of the 5th (E) and 3rd (E3) order estimates.
+    2: Hairer's DOP853 combination of the 5th (err_w) and 3rd (err_w3) order estimates.
     Returns inf when the estimate is not finite (the step is then rejected).
     """
     e5 = 0.0
@@ -482,7 +504,7 @@ def error_norm(y, ynew, h, K, E, E3, err_kind, ns, act, n_act, rtol, atol, v4_pe
         if i == 0:
             # the hammer position matters relative to the bit (the dynamics is invariant
             # to a common shift): scale it by the relative displacement, not the drift
-            sc = atol + rtol * max(abs(y[0] - y[2]), abs(ynew[0] - ynew[2]))
+            sc = atol + rtol * max(abs(y[X_HAMMER] - y[X_BIT]), abs(ynew[X_HAMMER] - ynew[X_BIT]))
         else:
             sc = atol + rtol * max(abs(y[i]), abs(ynew[i]))
         if i == 3:
@@ -490,9 +512,9 @@ def error_norm(y, ynew, h, K, E, E3, err_kind, ns, act, n_act, rtol, atol, v4_pe
         a5 = 0.0
         a3 = 0.0
         for j in range(ns + 1):
-            a5 += E[j] * K[j, i]
+            a5 += err_w[j] * stages[j, i]
             if err_kind == 2:
-                a3 += E3[j] * K[j, i]
+                a3 += err_w3[j] * stages[j, i]
         a5 /= sc
         a3 /= sc
         e5 += a5 * a5
@@ -509,8 +531,8 @@ def error_norm(y, ynew, h, K, E, E3, err_kind, ns, act, n_act, rtol, atol, v4_pe
     return r
 
 
-@njit(cache=True, _nrt=False)
-def friction_layer_err(h, x4, f4, p, C, E, E3, e_abs, ns, err_kind, n_act, sc):
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
+def friction_layer_err(h, x4, f4, p, rk_c, err_w, err_w3, e_abs, ns, err_kind, n_act, sc):
     """Error norm a step of size h would get from the kinetic friction alone.
 
     As the bit decelerates to a stop, the friction term (1 - mu) exp(-gamma_hat x4)
@@ -526,7 +548,7 @@ def friction_layer_err(h, x4, f4, p, C, E, E3, e_abs, ns, err_kind, n_act, sc):
         Candidate step.
     x4, f4 : float
         Bit velocity and acceleration at the step start (f4 < 0).
-    C, E, E3 : ndarray
+    rk_c, err_w, err_w3 : ndarray
         Nodes and error weights of the tableau (``advance``).
     e_abs : float
         sum(|E|), for a cheap upper bound.
@@ -554,14 +576,14 @@ def friction_layer_err(h, x4, f4, p, C, E, E3, e_abs, ns, err_kind, n_act, sc):
     d5 = 0.0
     d3 = 0.0
     for j in range(ns + 1):
-        if E[j] == 0.0 and E3[j] == 0.0:
+        if err_w[j] == 0.0 and err_w3[j] == 0.0:
             continue
-        c = C[j] if j < ns else 1.0
+        c = rk_c[j] if j < ns else 1.0
         e = math.exp(sig * c)
-        a5 += E[j] * e
-        a3 += E3[j] * e
-        d5 += E[j] * sig * c * e
-        d3 += E3[j] * sig * c * e
+        a5 += err_w[j] * e
+        a3 += err_w3[j] * e
+        d5 += err_w[j] * sig * c * e
+        d3 += err_w3[j] * sig * c * e
     if err_kind == 2:
         den = a5 * a5 + 0.01 * a3 * a3
         if den == 0.0 or a5 == 0.0:
@@ -573,57 +595,57 @@ def friction_layer_err(h, x4, f4, p, C, E, E3, e_abs, ns, err_kind, n_act, sc):
     return abs(h) * amp * abs(a5) / math.sqrt(n_act), 1.0 + d5 / a5
 
 
-@njit(cache=True, _nrt=False)
-def dense_prepare(t, y, ynew, h, A, C, W, ns, n_ext, K, F, ytmp, act, n_act,
-                  p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12):
-    """Extra stages (if the method has them) and nested coefficients F of the dense output."""
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
+def dense_prepare(t, y, ynew, h, rk_a, rk_c, dense_w, ns, n_ext, stages, interp, ytmp, act, n_act,
+                  p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x):
+    """Extra stages (if the method has them) and nested coefficients ``interp`` of the dense output."""
     if n_ext > ns + 1:
-        rk_stages(t, y, h, A, C, ns + 1, n_ext, K, ytmp, act, n_act, p, ms, mc, nz, ne,
-                  Ap, Ai, Ax, Hz, Gz, g12)
-    nF = W.shape[0]
+        rk_stages(t, y, h, rk_a, rk_c, ns + 1, n_ext, stages, ytmp, act, n_act, p, ms, mc, nz, ne,
+                  Ap, Ai, Ax, sub_in, sub_out, link_x)
+    nF = dense_w.shape[0]
     for q in range(n_act):
         i = act[q]
-        F[0, i] = ynew[i] - y[i]
+        interp[0, i] = ynew[i] - y[i]
         for k in range(1, nF):
             acc = 0.0
             for s in range(n_ext):
-                w = W[k, s]
+                w = dense_w[k, s]
                 if w != 0.0:
-                    acc += w * K[s, i]
-            F[k, i] = h * acc
+                    acc += w * stages[s, i]
+            interp[k, i] = h * acc
 
 
-@njit(cache=True, _nrt=False)
-def interpolant(ready, fixed, t, y, ynew, h, A, C, W, ns, n_ext, K, K2, F, ytmp, act, n_act, istate,
-                p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12):
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
+def interpolant(ready, fixed, t, y, ynew, h, rk_a, rk_c, dense_w, ns, n_ext, stages, stages2, interp, ytmp, act, n_act, istate,
+                p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x):
     """Make the step's interpolant usable, once per step; returns True.
 
     Adaptive methods: the dense-output coefficients (and their extra stages).
-    The fixed-step method re-steps instead, which needs f(t0, y0) in K2[0].
+    The fixed-step method re-steps instead, which needs f(t0, y0) in ``stages2[0]``.
     """
     if ready:
         return True
     if fixed:
         for i in range(y.shape[0]):
-            K2[0, i] = K[0, i]
+            stages2[0, i] = stages[0, i]
     else:
-        dense_prepare(t, y, ynew, h, A, C, W, ns, n_ext, K, F, ytmp, act, n_act,
-                      p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+        dense_prepare(t, y, ynew, h, rk_a, rk_c, dense_w, ns, n_ext, stages, interp, ytmp, act, n_act,
+                      p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
         istate[I_RHS] += n_ext - ns - 1
     return True
 
 
-@njit(cache=True, _nrt=False)
-def dense_eval(x, y, F, act, n_act, out):
-    """State at fraction ``x`` of the step from the nested dense coefficients F."""
-    nF = F.shape[0]
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
+def dense_eval(x, y, interp, act, n_act, out):
+    """State at fraction ``x`` of the step from the nested dense coefficients ``interp``."""
+    nF = interp.shape[0]
     for i in range(y.shape[0]):
         out[i] = y[i]
     for q in range(n_act):
         i = act[q]
         acc = 0.0
         for k in range(nF - 1, -1, -1):
-            acc += F[k, i]
+            acc += interp[k, i]
             if k % 2 == 0:
                 acc *= x
             else:
@@ -631,10 +653,10 @@ def dense_eval(x, y, F, act, n_act, out):
         out[i] = y[i] + acc
 
 
-@njit(cache=True, _nrt=False)
-def dense_eval_rate(x, y, F, act, n_act, h, out, dout):
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
+def dense_eval_rate(x, y, interp, act, n_act, h, out, dout):
     """``dense_eval`` and the time derivative of the interpolant (into ``dout``)."""
-    nF = F.shape[0]
+    nF = interp.shape[0]
     for i in range(y.shape[0]):
         out[i] = y[i]
         dout[i] = 0.0
@@ -643,7 +665,7 @@ def dense_eval_rate(x, y, F, act, n_act, h, out, dout):
         acc = 0.0
         dacc = 0.0
         for k in range(nF - 1, -1, -1):
-            acc += F[k, i]
+            acc += interp[k, i]
             if k % 2 == 0:
                 dacc = dacc * x + acc
                 acc *= x
@@ -657,10 +679,10 @@ def dense_eval_rate(x, y, F, act, n_act, h, out, dout):
 # how a state inside the current step is evaluated
 HOW_DENSE = 0     # the adaptive method's dense output
 HOW_RESTEP = 1    # a fresh step of the fixed-step method (the paper's RK4 with bisection)
-HOW_STICK = 2     # the closed-form stick solution (constants in F, see stick_prepare)
+HOW_STICK = 2     # the closed-form stick solution (constants in ``interp``, see stick_prepare)
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
 def stick_closed_form_ok(p):
     """The stuck hammer is an underdamped forced linear oscillator off resonance."""
     eta = p[P_ETA]
@@ -669,9 +691,9 @@ def stick_closed_form_ok(p):
     return xi < 0.99 and den > 1e-12
 
 
-@njit(cache=True, _nrt=False)
-def stick_prepare(t0, y0, p, F):
-    """Constants of the exact stick solution from (t0, y0) into F[0:3, 0:4].
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
+def stick_prepare(t0, y0, p, interp):
+    """Constants of the exact stick solution from (t0, y0) into ``interp[0:3, 0:4]``.
 
     While the bit sticks and the gap is open, the hammer obeys
     x1'' + 2 xi x1' + x1 = x3 + b + f_ext + a sin(eta t + phi): a forced damped
@@ -679,11 +701,11 @@ def stick_prepare(t0, y0, p, F):
     homogeneous part.
     """
     th = p[P_ETA] * t0 + p[P_PHI]
-    stick_prepare_phase(t0, y0, p, F, math.sin(th), math.cos(th))
+    stick_prepare_phase(t0, y0, p, interp, math.sin(th), math.cos(th))
 
 
-@njit(cache=True, _nrt=False)
-def stick_prepare_phase(t0, y0, p, F, sn, cs):
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
+def stick_prepare_phase(t0, y0, p, interp, sn, cs):
     """``stick_prepare`` given sn, cs = sin, cos(eta t0 + phi)."""
     xi = p[P_XI]
     eta = p[P_ETA]
@@ -691,124 +713,124 @@ def stick_prepare_phase(t0, y0, p, F, sn, cs):
     den = (1.0 - eta * eta) ** 2 + (2.0 * xi * eta) ** 2
     P = a * (1.0 - eta * eta) / den
     Q = -a * 2.0 * xi * eta / den
-    c = y0[2] + p[P_B] + p[P_FEXT]
-    u0 = y0[0] - c - (P * sn + Q * cs)
-    v0 = y0[1] - eta * (P * cs - Q * sn)
+    c = y0[X_BIT] + p[P_B] + p[P_FEXT]
+    u0 = y0[X_HAMMER] - c - (P * sn + Q * cs)
+    v0 = y0[V_HAMMER] - eta * (P * cs - Q * sn)
     wd = math.sqrt(1.0 - xi * xi)
-    F[2, 0] = sn
-    F[2, 1] = cs
-    F[0, 0] = t0
-    F[0, 1] = c
-    F[0, 2] = P
-    F[0, 3] = Q
-    F[1, 0] = u0
-    F[1, 1] = (v0 + xi * u0) / wd
-    F[1, 2] = v0
-    F[1, 3] = wd
+    interp[2, 0] = sn
+    interp[2, 1] = cs
+    interp[0, 0] = t0
+    interp[0, 1] = c
+    interp[0, 2] = P
+    interp[0, 3] = Q
+    interp[1, 0] = u0
+    interp[1, 1] = (v0 + xi * u0) / wd
+    interp[1, 2] = v0
+    interp[1, 3] = wd
 
 
-@njit(cache=True, _nrt=False)
-def stick_state(tq, y0, F, p, out):
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
+def stick_state(tq, y0, interp, p, out):
     """Exact stick state at time tq from the constants of ``stick_prepare``.
 
     Returns sin(eta tq + phi), from which ``stick_rate`` gives the derivative.
     """
-    s = tq - F[0, 0]
+    s = tq - interp[0, 0]
     th = p[P_ETA] * tq + p[P_PHI]
     sn = math.sin(th)
-    wd = F[1, 3]
-    stick_combine(y0, F, p, sn, math.cos(th), math.exp(-p[P_XI] * s), math.cos(wd * s), math.sin(wd * s), out)
+    wd = interp[1, 3]
+    stick_combine(y0, interp, p, sn, math.cos(th), math.exp(-p[P_XI] * s), math.cos(wd * s), math.sin(wd * s), out)
     return sn
 
 
-@njit(cache=True, inline="always", _nrt=False)
-def stick_combine(y0, F, p, sn, cs, e, cw, sw, out):
-    """Stick state from the constants in F, the forcing phase (sn, cs) at the target
+@njit(cache=True, inline="always", _nrt=False, no_cpython_wrapper=True)
+def stick_combine(y0, interp, p, sn, cs, e, cw, sw, out):
+    """Stick state from the constants in ``interp``, the forcing phase (sn, cs) at the target
     time and the homogeneous factors e = exp(-xi s), cw, sw = cos, sin(w_d s)."""
     xi = p[P_XI]
-    P = F[0, 2]
-    Q = F[0, 3]
-    u0 = F[1, 0]
-    Bc = F[1, 1]
-    wd = F[1, 3]
+    P = interp[0, 2]
+    Q = interp[0, 3]
+    u0 = interp[1, 0]
+    Bc = interp[1, 1]
+    wd = interp[1, 3]
     for i in range(y0.shape[0]):
         out[i] = y0[i]
-    out[0] = F[0, 1] + P * sn + Q * cs + e * (u0 * cw + Bc * sw)
-    out[1] = p[P_ETA] * (P * cs - Q * sn) + e * (F[1, 2] * cw - (xi * Bc + wd * u0) * sw)
-    out[3] = 0.0
+    out[X_HAMMER] = interp[0, 1] + P * sn + Q * cs + e * (u0 * cw + Bc * sw)
+    out[V_HAMMER] = p[P_ETA] * (P * cs - Q * sn) + e * (interp[1, 2] * cw - (xi * Bc + wd * u0) * sw)
+    out[V_BIT] = 0.0
 
 
-@njit(cache=True, _nrt=False)
-def stick_chunk_consts(H, p, out):
-    """Constants of a stick chunk of length H: exp(-xi H), cos and sin(w_d H), sin and cos(eta H)."""
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
+def stick_chunk_consts(h_chunk, p, out):
+    """Constants of a stick chunk of length h_chunk: exp(-xi h_chunk), cos and sin(w_d h_chunk), sin and cos(eta h_chunk)."""
     xi = p[P_XI]
     wd = math.sqrt(1.0 - xi * xi)
-    out[0] = math.exp(-xi * H)
-    out[1] = math.cos(wd * H)
-    out[2] = math.sin(wd * H)
-    out[3] = math.sin(p[P_ETA] * H)
-    out[4] = math.cos(p[P_ETA] * H)
-    out[5] = H
+    out[0] = math.exp(-xi * h_chunk)
+    out[1] = math.cos(wd * h_chunk)
+    out[2] = math.sin(wd * h_chunk)
+    out[3] = math.sin(p[P_ETA] * h_chunk)
+    out[4] = math.cos(p[P_ETA] * h_chunk)
+    out[5] = h_chunk
 
 
-@njit(cache=True, _nrt=False)
-def stick_state_chunk(t1, y0, F, p, cH, out):
-    """``stick_state`` at t1 = t0 + H for the chunk length H of ``stick_chunk_consts``.
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
+def stick_state_chunk(t1, y0, interp, p, chunk_c, out):
+    """``stick_state`` at t1 = t0 + h_chunk for the chunk length h_chunk of ``stick_chunk_consts``.
 
     The transcendentals of a full chunk are the same every time; only the
-    rounding of t1 - t0 against H (a few ulp of t) is corrected, to first
+    rounding of t1 - t0 against h_chunk (a few ulp of t) is corrected, to first
     order, so the state belongs to the clock's t1 exactly.  Returns
     sin and cos of eta t1 + phi (the next chunk starts from them).
     """
     xi = p[P_XI]
     eta = p[P_ETA]
-    dlt = (t1 - F[0, 0]) - cH[5]
-    wd = F[1, 3]
-    e = cH[0] * (1.0 - xi * dlt)
-    cw = cH[1] - cH[2] * (wd * dlt)
-    sw = cH[2] + cH[1] * (wd * dlt)
-    snH = cH[3] + cH[4] * (eta * dlt)
-    csH = cH[4] - cH[3] * (eta * dlt)
-    s0 = F[2, 0]
-    c0 = F[2, 1]
+    dlt = (t1 - interp[0, 0]) - chunk_c[5]
+    wd = interp[1, 3]
+    e = chunk_c[0] * (1.0 - xi * dlt)
+    cw = chunk_c[1] - chunk_c[2] * (wd * dlt)
+    sw = chunk_c[2] + chunk_c[1] * (wd * dlt)
+    snH = chunk_c[3] + chunk_c[4] * (eta * dlt)
+    csH = chunk_c[4] - chunk_c[3] * (eta * dlt)
+    s0 = interp[2, 0]
+    c0 = interp[2, 1]
     sn = s0 * csH + c0 * snH
     cs = c0 * csH - s0 * snH
-    stick_combine(y0, F, p, sn, cs, e, cw, sw, out)
+    stick_combine(y0, interp, p, sn, cs, e, cw, sw, out)
     return sn, cs
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
 def stick_rate(y, sn, p, out):
     """Derivative of a stick state ``y`` (free gap) whose forcing phase has sine ``sn``."""
     for i in range(y.shape[0]):
         out[i] = 0.0
-    out[0] = y[1]
-    out[1] = p[P_B] + p[P_FEXT] + p[P_A] * sn - (y[0] - y[2]) - 2.0 * p[P_XI] * y[1]
+    out[X_HAMMER] = y[V_HAMMER]
+    out[V_HAMMER] = p[P_B] + p[P_FEXT] + p[P_A] * sn - spring_damper_force(y, p)  # x4 = 0 in stick
 
 
-@njit(cache=True, _nrt=False)
-def state_at(tq, t0, y0, h, how, F, act, n_act, A, B, C, ns, K2, ytmp, out,
-             p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12):
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
+def state_at(tq, t0, y0, h, how, interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, out,
+             p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x):
     """State at time ``tq`` inside the current step (``how``: HOW_*).
 
     Adaptive methods evaluate their dense output.  The fixed-step method (the
     paper's RK4 with bisection) re-integrates one step of length tq - t0
-    (K2[0] must hold f(t0, y0)).  A stick chunk evaluates the exact solution.
+    (``stages2[0]`` must hold f(t0, y0)).  A stick chunk evaluates the exact solution.
     """
     if how == HOW_RESTEP:
-        rk_step(t0, y0, tq - t0, A, B, C, ns, K2, out, ytmp, act, n_act,
-                p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+        rk_step(t0, y0, tq - t0, rk_a, rk_b, rk_c, ns, stages2, out, ytmp, act, n_act,
+                p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
     elif how == HOW_STICK:
-        stick_state(tq, y0, F, p, out)
+        stick_state(tq, y0, interp, p, out)
     else:
         x = (tq - t0) / h
-        dense_eval(x, y0, F, act, n_act, out)
+        dense_eval(x, y0, interp, act, n_act, out)
 
 
 # ---------------------------------------------------------------------------
 # Reset map
 # ---------------------------------------------------------------------------
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
 def apply_event(kind, y, istate, fstate, p):
     """Apply the reset map of ``kind`` at the event state ``y`` (modified in place).
 
@@ -818,24 +840,24 @@ def apply_event(kind, y, istate, fstate, p):
     mc = istate[I_CONTACT]
     if kind == EV_SLIP_START:
         istate[I_STICK] = SLIP
-        y[3] = 0.0
+        y[V_BIT] = 0.0
         fstate[F_V4_PEAK] = 0.0
-        fstate[F_X3_SLIP] = y[2]
+        fstate[F_X3_SLIP] = y[X_BIT]
     elif kind == EV_STICK:
-        y[3] = 0.0
+        y[V_BIT] = 0.0
         # the drift only moves forward: no round-off step backwards
-        if y[2] < fstate[F_X3_SLIP]:
-            y[2] = fstate[F_X3_SLIP]
-        if drive_on_bit(y, p, mc) <= 1.0:
+        if y[X_BIT] < fstate[F_X3_SLIP]:
+            y[X_BIT] = fstate[F_X3_SLIP]
+        if force_on_bit(y, p, mc) <= 1.0:
             istate[I_STICK] = STICK
-            if drive_on_bit(y, p, mc) < -1.0:
+            if force_on_bit(y, p, mc) < -1.0:
                 istate[I_BOUNCE] = 1
                 istate[I_COUNT0 + EV_BOUNCE] += 1
         else:
             kind = EV_SLIP_ON
     elif kind == EV_IMPACT:
-        istate[I_CONTACT] = CONTACT if 1.0 + p[P_LAM] * (y[1] - y[3]) > 0.0 else CLAMPED
-        fstate[F_IMPACT_V] = y[1] - y[3]
+        istate[I_CONTACT] = contact_mode_at_impact(y, p)
+        fstate[F_IMPACT_V] = y[V_HAMMER] - y[V_BIT]
         fstate[F_PEAK] = 0.0
     elif kind == EV_SEPARATION:
         istate[I_CONTACT] = FREE
@@ -851,7 +873,18 @@ def apply_event(kind, y, istate, fstate, p):
     return kind
 
 
-@njit(cache=True, inline="always", _nrt=False)
+@njit(cache=True, inline="always", _nrt=False, no_cpython_wrapper=True)
+def plain(k, n):
+    """The integer constant ``k`` as a plain int64 (``n``: any integer variable).
+
+    numba compiles a callee once per literal value of an argument; a constant
+    passed through ``plain`` lets every caller share one compiled callee
+    (fewer specialisations to compile, the same results).
+    """
+    return k + 0 * n
+
+
+@njit(cache=True, inline="always", _nrt=False, no_cpython_wrapper=True)
 def err_root(x, e):
     """x ** e for the controller; DOP853's e = 1/8 as three square roots (cheaper than pow)."""
     if e == 0.125:
@@ -859,7 +892,7 @@ def err_root(x, e):
     return x ** e
 
 
-@njit(cache=True, inline="always", _nrt=False)
+@njit(cache=True, inline="always", _nrt=False, no_cpython_wrapper=True)
 def count_step(t1, period, istate, cap):
     """Count an accepted step in its forcing period; True when the cap is exceeded."""
     w = int(math.floor(t1 / period))
@@ -870,7 +903,7 @@ def count_step(t1, period, istate, cap):
     return cap > 0.0 and istate[I_SWIN_STEPS] > cap
 
 
-@njit(cache=True, inline="always", _nrt=False)
+@njit(cache=True, inline="always", _nrt=False, no_cpython_wrapper=True)
 def step_slot(ms, mc):
     """Regime whose last step size is remembered: 0 stick, 1 slip, 2 contact."""
     if mc != FREE:
@@ -878,8 +911,8 @@ def step_slot(ms, mc):
     return ms
 
 
-@njit(cache=True, _nrt=False)
-def set_active(istate, n, nz, ne, act):
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
+def set_active(istate, n, act):
     """Indices of the integrated components: m2 is not integrated while it sticks."""
     k = 0
     for i in range(n):
@@ -893,12 +926,12 @@ def set_active(istate, n, nz, ne, act):
 # ---------------------------------------------------------------------------
 # Event detection and localisation
 # ---------------------------------------------------------------------------
-@njit(cache=True, _nrt=False)
-def localise_bisect(kind, ta, tb, t0, y0, tol, wtol, A, B, C, ns, K2, ytmp, ys, act, n_act,
-                    p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12):
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
+def localise_bisect(kind, ta, tb, t0, y0, tol, wtol, rk_a, rk_b, rk_c, ns, stages2, ytmp, ys, act, n_act,
+                    p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x):
     """The paper's localisation for the fixed-step method: bisection down to ``tol``.
 
-    Each trial state is a fresh step of the method from (t0, y0) (K2[0] must
+    Each trial state is a fresh step of the method from (t0, y0) (``stages2[0]`` must
     hold f(t0, y0)).  Returns the end of the final bracket, where w > 0: after
     the reset the event cannot re-trigger.  (Adaptive methods use
     ``localise_newton``.)
@@ -907,8 +940,8 @@ def localise_bisect(kind, ta, tb, t0, y0, tol, wtol, A, B, C, ns, K2, ytmp, ys, 
         if tb - ta <= tol:
             break
         tm = 0.5 * (ta + tb)
-        rk_step(t0, y0, tm - t0, A, B, C, ns, K2, ys, ytmp, act, n_act,
-                p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+        rk_step(t0, y0, tm - t0, rk_a, rk_b, rk_c, ns, stages2, ys, ytmp, act, n_act,
+                p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
         if watch_value(kind, ys, p, mc) - wtol > 0.0:
             tb = tm
         else:
@@ -916,18 +949,18 @@ def localise_bisect(kind, ta, tb, t0, y0, tol, wtol, A, B, C, ns, K2, ytmp, ys, 
     return tb
 
 
-@njit(cache=True, _nrt=False)
-def state_rate_at(tq, t0, y0, h, how, F, act, n_act, ys, fs, p):
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
+def state_rate_at(tq, t0, y0, h, how, interp, act, n_act, ys, fs, p):
     """State and its rate at ``tq``: exact stick solution or the dense output."""
     if how == HOW_STICK:
-        sn = stick_state(tq, y0, F, p, ys)
+        sn = stick_state(tq, y0, interp, p, ys)
         stick_rate(ys, sn, p, fs)
     else:
-        dense_eval_rate((tq - t0) / h, y0, F, act, n_act, h, ys, fs)
+        dense_eval_rate((tq - t0) / h, y0, interp, act, n_act, h, ys, fs)
 
 
-@njit(cache=True, _nrt=False)
-def localise_newton(kind, ta, tb, t0, y0, h, how, wtol, F, act, n_act, ys, fs, p, mc):
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
+def localise_newton(kind, ta, tb, t0, y0, h, how, wtol, interp, act, n_act, ys, fs, p, mc):
     """Event time in (ta, tb] where w(ta) <= wtol < w(tb), by safeguarded Newton.
 
     Works on the exact stick solution or on the dense output; both give the
@@ -937,10 +970,10 @@ def localise_newton(kind, ta, tb, t0, y0, h, how, wtol, F, act, n_act, ys, fs, p
     about twenty.  Returns the end of the final bracket, where w > 0, once
     the bracket is a few ulp wide.
     """
-    state_rate_at(tb, t0, y0, h, how, F, act, n_act, ys, fs, p)
+    state_rate_at(tb, t0, y0, h, how, interp, act, n_act, ys, fs, p)
     wb = watch_value(kind, ys, p, mc) - wtol
     sb = watch_slope(kind, ys, fs, p, mc)
-    state_rate_at(ta, t0, y0, h, how, F, act, n_act, ys, fs, p)
+    state_rate_at(ta, t0, y0, h, how, interp, act, n_act, ys, fs, p)
     wa = watch_value(kind, ys, p, mc) - wtol
     # start from the end whose Newton step stays inside the bracket, else the secant
     t = ta - wa * (tb - ta) / (wb - wa) if wb > wa else 0.5 * (ta + tb)
@@ -953,7 +986,7 @@ def localise_newton(kind, ta, tb, t0, y0, h, how, wtol, F, act, n_act, ys, fs, p
     for it in range(100):
         if tb - ta <= 4.0 * EPS * max(abs(tb), 1.0):
             break
-        state_rate_at(t, t0, y0, h, how, F, act, n_act, ys, fs, p)
+        state_rate_at(t, t0, y0, h, how, interp, act, n_act, ys, fs, p)
         w = watch_value(kind, ys, p, mc) - wtol
         if w > 0.0:
             tb = t
@@ -974,19 +1007,19 @@ def localise_newton(kind, ta, tb, t0, y0, h, how, wtol, F, act, n_act, ys, fs, p
     return tb
 
 
-@njit(cache=True, _nrt=False)
-def find_extremum(kind, t0, t1, y0, h, how, F, act, n_act, ys, fs,
-                  p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12):
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
+def find_extremum(kind, t0, t1, y0, h, how, interp, act, n_act, ys, fs,
+                  p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x):
     """Time in (t0, t1) where the slope of w changes from + to - (a local max of w)."""
     ta = t0
     tb = t1
     for it in range(60):
         tm = 0.5 * (ta + tb)
         if how == HOW_STICK:
-            stick_state(tm, y0, F, p, ys)
+            stick_state(tm, y0, interp, p, ys)
         else:
-            dense_eval((tm - t0) / h, y0, F, act, n_act, ys)
-        rhs(tm, ys, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, fs)
+            dense_eval((tm - t0) / h, y0, interp, act, n_act, ys)
+        rhs(tm, ys, p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, fs)
         if watch_slope(kind, ys, fs, p, mc) > 0.0:
             ta = tm
         else:
@@ -996,7 +1029,7 @@ def find_extremum(kind, t0, t1, y0, h, how, F, act, n_act, ys, fs,
     return 0.5 * (ta + tb)
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
 def sign_change(kind, y, ynew, f0, f1, p, mc, w0, wtol, h, graze_ok):
     """Sign-change detection of one indicator over a step.
 
@@ -1018,9 +1051,9 @@ def sign_change(kind, y, ynew, f0, f1, p, mc, w0, wtol, h, graze_ok):
     return 0
 
 
-@njit(cache=True, _nrt=False)
-def locate_event(kind, code, t0, t1, y0, h, how, bisect_tol, graze, wtol, F, act, n_act, A, B, C, ns,
-                 K2, ytmp, ys, fscr, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12):
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
+def locate_event(kind, code, t0, t1, y0, h, how, bisect_tol, graze, wtol, interp, act, n_act, rk_a, rk_b, rk_c, ns,
+                 stages2, ytmp, ys, fscr, p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x):
     """Event time of one indicator in (t0, t1] for a ``sign_change`` code, or -1.
 
     A grazing candidate (code 2) counts only if the indicator's maximum inside
@@ -1029,31 +1062,31 @@ def locate_event(kind, code, t0, t1, y0, h, how, bisect_tol, graze, wtol, F, act
     """
     tb = t1
     if code == 2:
-        tm = find_extremum(kind, t0, t1, y0, h, how, F, act, n_act, ys, fscr,
-                           p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
-        state_at(tm, t0, y0, h, how, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
-                 p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+        tm = find_extremum(kind, t0, t1, y0, h, how, interp, act, n_act, ys, fscr,
+                           p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
+        state_at(tm, t0, y0, h, how, interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ys,
+                 p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
         if watch_value(kind, ys, p, mc) <= max(graze, wtol):
             return -1.0
         tb = tm
     if how == HOW_STICK or how == HOW_DENSE:
-        return localise_newton(kind, t0, tb, t0, y0, h, how, wtol, F, act, n_act, ys, fscr, p, mc)
-    return localise_bisect(kind, t0, tb, t0, y0, bisect_tol, wtol, A, B, C, ns, K2, ytmp, ys, act, n_act,
-                           p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+        return localise_newton(kind, t0, tb, t0, y0, h, how, wtol, interp, act, n_act, ys, fscr, p, mc)
+    return localise_bisect(kind, t0, tb, t0, y0, bisect_tol, wtol, rk_a, rk_b, rk_c, ns, stages2, ytmp, ys, act, n_act,
+                           p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
 
 
-@njit(cache=True, _nrt=False)
-def peak_in_step(t0, t1, y0, h, F, act, n_act, ys, fs, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, fstate):
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
+def peak_in_step(t0, t1, y0, h, interp, act, n_act, ys, fs, p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, fstate):
     """Contact force at the deepest penetration inside a step (d' changes sign)."""
-    tm = find_extremum(EV_IMPACT, t0, t1, y0, h, HOW_DENSE, F, act, n_act, ys, fs,
-                       p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
-    dense_eval((tm - t0) / h, y0, F, act, n_act, ys)
-    fc = contact_force(ys[0] - ys[2] - p[P_R], ys[1] - ys[3], p, mc)
-    if fc > fstate[F_PEAK]:
-        fstate[F_PEAK] = fc
+    tm = find_extremum(plain(EV_IMPACT, n_act), t0, t1, y0, h, plain(HOW_DENSE, n_act), interp, act, n_act, ys, fs,
+                       p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
+    dense_eval((tm - t0) / h, y0, interp, act, n_act, ys)
+    f_contact = contact_force_at(ys, p, mc)
+    if f_contact > fstate[F_PEAK]:
+        fstate[F_PEAK] = f_contact
 
 
-@njit(cache=True, inline="always", _nrt=False)
+@njit(cache=True, inline="always", _nrt=False, no_cpython_wrapper=True)
 def hermite_peak(w0, w1, m0, m1):
     """Maximum over [0, 1] of the cubic Hermite interpolant of (w0, m0), (w1, m1).
 
@@ -1088,24 +1121,24 @@ def hermite_peak(w0, w1, m0, m1):
 # ---------------------------------------------------------------------------
 # Recording
 # ---------------------------------------------------------------------------
-@njit(cache=True, _nrt=False)
-def write_sample(row, t, y, p, istate, nz, Gz, g12):
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
+def write_sample(row, y, p, istate, nz, sub_out, link_x):
     """One sample row: x1..x4, contact force, link force, stick/slip, contact mode."""
-    row[0] = y[0]
-    row[1] = y[1]
-    row[2] = y[2]
-    row[3] = y[3]
-    d = y[0] - y[2] - p[P_R]
+    row[0] = y[X_HAMMER]
+    row[1] = y[V_HAMMER]
+    row[2] = y[X_BIT]
+    row[3] = y[V_BIT]
+    d = overlap(y, p)
     # the physical force: zero out of contact and never tensile
-    row[4] = max(contact_force(d, y[1] - y[3], p, istate[I_CONTACT]), 0.0) if d > 0.0 else 0.0
-    row[5] = link_force(y, nz, Gz, g12) if nz > 0 else 0.0
+    row[4] = max(contact_force(d, relative_velocity(y), p, istate[I_CONTACT]), 0.0) if d > 0.0 else 0.0
+    row[5] = link_force(y, nz, sub_out, link_x) if nz > 0 else 0.0
     row[6] = istate[I_STICK]
     row[7] = istate[I_CONTACT]
 
 
-@njit(cache=True, _nrt=False)
-def record_until(t_stop, y_stop, t0, y0, h, how, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
-                 p, istate, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, opts, poin, samp_t, samp):
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
+def record_until(t_stop, y_stop, t0, y0, h, how, interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ys,
+                 p, istate, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, opts, poin, samp_t, samp):
     """Record Poincaré samples and requested samples with times in (t0, t_stop]."""
     tol = 8.0 * EPS * max(abs(t_stop), 1.0)
     ms = istate[I_STICK]
@@ -1120,15 +1153,15 @@ def record_until(t_stop, y_stop, t0, y0, h, how, F, act, n_act, A, B, C, ns, K2,
             for i in range(ys.shape[0]):
                 ys[i] = y_stop[i]
         else:
-            state_at(tk, t0, y0, h, how, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
-                     p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+            state_at(tk, t0, y0, h, how, interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ys,
+                     p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
         poin[k, 0] = tk
-        poin[k, 1] = ys[0]
-        poin[k, 2] = ys[1]
+        poin[k, 1] = ys[X_HAMMER]
+        poin[k, 2] = ys[V_HAMMER]
         # the drift only moves forward: a sample from the dense output (exact within the
         # tolerance) never reads below the previous one where the bit barely moves
-        poin[k, 3] = max(ys[2], poin[k - 1, 3]) if k > 0 else ys[2]
-        poin[k, 4] = ys[3]
+        poin[k, 3] = max(ys[X_BIT], poin[k - 1, 3]) if k > 0 else ys[X_BIT]
+        poin[k, 4] = ys[V_BIT]
         k += 1
     istate[I_POIN_NEXT] = k
     j = istate[I_SAMP_NEXT]
@@ -1141,16 +1174,16 @@ def record_until(t_stop, y_stop, t0, y0, h, how, F, act, n_act, A, B, C, ns, K2,
             for i in range(ys.shape[0]):
                 ys[i] = y_stop[i]
         else:
-            state_at(max(tj, t0), t0, y0, h, how, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
-                     p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
-        if j > 0 and ys[2] < samp[j - 1, 2]:
-            ys[2] = samp[j - 1, 2]  # monotone drift, as for the Poincaré samples
-        write_sample(samp[j], tj, ys, p, istate, nz, Gz, g12)
+            state_at(max(tj, t0), t0, y0, h, how, interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ys,
+                     p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
+        if j > 0 and ys[X_BIT] < samp[j - 1, 2]:
+            ys[X_BIT] = samp[j - 1, 2]  # monotone drift, as for the Poincaré samples
+        write_sample(samp[j], ys, p, istate, nz, sub_out, link_x)
         j += 1
     istate[I_SAMP_NEXT] = j
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
 def needs_record(t_stop, istate, opts, poin, samp_t):
     """True if a Poincaré or requested sample falls in the step ending at t_stop."""
     tol = 8.0 * EPS * max(abs(t_stop), 1.0)
@@ -1168,8 +1201,8 @@ def needs_record(t_stop, istate, opts, poin, samp_t):
 # ---------------------------------------------------------------------------
 @njit(cache=True, nogil=True, inline="always")
 def advance(y, istate, fstate, t_end, p, opts,
-            A, B, C, E, E3, W, ns, err_kind, err_exp,
-            Ap, Ai, Ax, Hz, Gz, g12, ne,
+            rk_a, rk_b, rk_c, err_w, err_w3, dense_w, ns, err_kind, err_exp,
+            Ap, Ai, Ax, sub_in, sub_out, link_x, ne,
             poin, samp_t, samp, log):
     """Advance the hybrid system from ``fstate[F_T]`` to ``t_end``.
 
@@ -1179,7 +1212,7 @@ def advance(y, istate, fstate, t_end, p, opts,
 
     Parameters
     ----------
-    y : ndarray, shape (4 + nz + ne,)
+    y : ndarray, shape (Z0 + nz + ne,)
         State, advanced in place.
     istate : ndarray of int64, shape (N_ISTATE,)
         Modes, counters and record cursors (``I_*``).
@@ -1191,15 +1224,16 @@ def advance(y, istate, fstate, t_end, p, opts,
         Kernel parameters.
     opts : ndarray, shape (N_OPTS,)
         Solver options (``O_*``).
-    A, B, C, E, E3, W : ndarray
-        Tableau (``tableaux``): A (n_ext, n_ext), B (ns,), C (n_ext,),
-        error weights E and E3 (ns + 1,), nested dense weights W (nF, n_ext).
+    rk_a, rk_b, rk_c, err_w, err_w3, dense_w : ndarray
+        Tableau (``tableaux``: A, B, C, E, E3, W): stage coefficients (n_ext, n_ext),
+        weights (ns,), nodes (n_ext,), error weights (ns + 1,) of the 5th- and
+        3rd-order estimates, nested dense-output weights (nF, n_ext).
     ns, err_kind : int
         Number of stages of the step; error-estimate kind (0 = fixed step).
     err_exp : float
         Controller exponent 1 / (error order + 1).
-    Ap, Ai, Ax, Hz, Gz, g12 : ndarray
-        Linear subsystem (see ``rhs``); nz = Hz.shape[0] may be 0.
+    Ap, Ai, Ax, sub_in, sub_out, link_x : ndarray
+        Linear subsystem (see ``rhs_forced``); nz = sub_in.shape[0] may be 0.
     ne : int
         4 to accumulate energies, else 0.
     poin : ndarray, shape (n_poin, 5)
@@ -1217,20 +1251,25 @@ def advance(y, istate, fstate, t_end, p, opts,
         ``ST_*`` code.
     """
     n = y.shape[0]
-    nz = Hz.shape[0]
-    n_ext = A.shape[0]
+    nz = sub_in.shape[0]
+    n_ext = rk_a.shape[0]
     fixed = err_kind == 0
     how_rk = HOW_RESTEP if fixed else HOW_DENSE
+    # evaluation kinds and flags as plain integers, so each callee is compiled once (see ``plain``)
+    how_stick = plain(HOW_STICK, n)
+    how_dense = plain(HOW_DENSE, n)
+    no_act = plain(0, n)
+    graze_stick = plain(1, n) > 0
     # exact stick stepping (adaptive methods, hammer-only systems): see stick_prepare
-    cf_ok = (not fixed) and nz == 0 and ne == 0 and W.shape[0] >= 3 and stick_closed_form_ok(p)
+    cf_ok = (not fixed) and nz == 0 and ne == 0 and dense_w.shape[0] >= 3 and stick_closed_form_ok(p)
     cf_chunk = min(2.0 * math.pi / p[P_ETA], 2.0 * math.pi / math.sqrt(max(1.0 - p[P_XI] * p[P_XI], 1e-300))) / 8.0
     cf_chunk = min(cf_chunk, opts[O_HMAX])
-    cH = np.empty(6)
+    chunk_c = np.empty(6)
     e_abs = 0.0
     for j in range(ns + 1):
-        e_abs += abs(E[j])
+        e_abs += abs(err_w[j])
     if cf_ok:
-        stick_chunk_consts(cf_chunk, p, cH)
+        stick_chunk_consts(cf_chunk, p, chunk_c)
     rtol = opts[O_RTOL]
     atol = opts[O_ATOL]
     hmax = opts[O_HMAX]
@@ -1241,9 +1280,9 @@ def advance(y, istate, fstate, t_end, p, opts,
     period = 2.0 * math.pi / p[P_ETA]
     log_cap = log.shape[0]
 
-    K = np.empty((n_ext, n))
-    K2 = np.empty((n_ext, n))
-    F = np.empty((W.shape[0], n))
+    stages = np.empty((n_ext, n))
+    stages2 = np.empty((n_ext, n))
+    interp = np.empty((dense_w.shape[0], n))
     ynew = np.empty(n)
     ytmp = np.empty(n)
     ys = np.empty(n)
@@ -1255,10 +1294,15 @@ def advance(y, istate, fstate, t_end, p, opts,
 
     t = fstate[F_T]
     h = fstate[F_H]
-    n_act = set_active(istate, n, nz, ne, act)
+    if not (math.isfinite(t_end) and math.isfinite(t) and t <= t_end):
+        return ST_BAD_INPUT
+    for i in range(n):
+        if not math.isfinite(y[i]):
+            return ST_NONFINITE
+    n_act = set_active(istate, n, act)
     ms = istate[I_STICK]
     mc = istate[I_CONTACT]
-    rhs(t, y, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, K[0])
+    rhs(t, y, p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, stages[0])
     istate[I_RHS] += 1
     steps_here = 0
     refine = 0
@@ -1296,23 +1340,26 @@ def advance(y, istate, fstate, t_end, p, opts,
         h_next = h
         if immediate < 0 and cf_ok and ms == STICK and mc == FREE:
             # -- one chunk of the exact stick solution -------------------------
-            H = cf_chunk
-            t1 = t + H
+            h_chunk = cf_chunk
+            t1 = t + h_chunk
             full = True
-            if H >= remaining or remaining - H < 1e4 * EPS * max(abs(t), 1.0):
-                H = remaining
+            if h_chunk >= remaining or remaining - h_chunk < 1e4 * EPS * max(abs(t), 1.0):
+                h_chunk = remaining
                 t1 = t_end
                 full = False
             if t == sc_t:
-                stick_prepare_phase(t, y, p, F, sc_s, sc_c)  # phase carried from the last chunk
+                stick_prepare_phase(t, y, p, interp, sc_s, sc_c)  # phase carried from the last chunk
             else:
-                stick_prepare(t, y, p, F)
+                stick_prepare(t, y, p, interp)
             sc_t = math.nan
             if full:
-                sn1, cs1 = stick_state_chunk(t1, y, F, p, cH, ynew)
+                sn1, cs1 = stick_state_chunk(t1, y, interp, p, chunk_c, ynew)
             else:
-                sn1 = stick_state(t1, y, F, p, ynew)
+                sn1 = stick_state(t1, y, interp, p, ynew)
                 cs1 = 0.0
+            if not (math.isfinite(ynew[X_HAMMER]) and math.isfinite(ynew[V_HAMMER])):
+                fstate[F_T] = t
+                return ST_NONFINITE
             stick_rate(ynew, sn1, p, fs)  # = rhs(t1, ynew) in stick with the gap open
             istate[I_RHS] += 1
             istate[I_STEPS] += 1
@@ -1325,32 +1372,32 @@ def advance(y, istate, fstate, t_end, p, opts,
             # by both paths measured 5-7 % slower, the per-path constants no longer fold)
             for q in range(nw):
                 kd = kinds[q]
-                code = sign_change(kd, y, ynew, K[0], fs, p, mc, w0s[q], wtols[q], H, True)
+                code = sign_change(kd, y, ynew, stages[0], fs, p, mc, w0s[q], wtols[q], h_chunk, graze_stick)
                 if code == 0:
                     continue
-                te = locate_event(kd, code, t, t1, y, H, HOW_STICK, opts[O_BISECT], graze, wtols[q],
-                                  F, act, n_act, A, B, C, ns, K2, ytmp, ys, ytmp,
-                                  p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+                te = locate_event(kd, code, t, t1, y, h_chunk, how_stick, opts[O_BISECT], graze, wtols[q],
+                                  interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ys, ytmp,
+                                  p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
                 if te > 0.0 and (hit_kind < 0 or te < t_hit):
                     hit_kind = kd
                     t_hit = te
             if hit_kind < 0:
                 if needs_record(t1, istate, opts, poin, samp_t):
-                    record_until(t1, ynew, t, y, H, HOW_STICK, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
-                                 p, istate, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, opts, poin, samp_t, samp)
+                    record_until(t1, ynew, t, y, h_chunk, how_stick, interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ys,
+                                 p, istate, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, opts, poin, samp_t, samp)
                 for i in range(n):
                     y[i] = ynew[i]
-                    K[0, i] = fs[i]
+                    stages[0, i] = fs[i]
                 t = t1
                 if full:
                     sc_t = t1
                     sc_s = sn1
                     sc_c = cs1
                 continue
-            stick_state(t_hit, y, F, p, ys)
+            stick_state(t_hit, y, interp, p, ys)
             if needs_record(t_hit, istate, opts, poin, samp_t):
-                record_until(t_hit, ys, t, y, H, HOW_STICK, F, act, n_act, A, B, C, ns, K2, ytmp, ynew,
-                             p, istate, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, opts, poin, samp_t, samp)
+                record_until(t_hit, ys, t, y, h_chunk, how_stick, interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ynew,
+                             p, istate, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, opts, poin, samp_t, samp)
             for i in range(n):
                 y[i] = ys[i]
             t = t_hit
@@ -1358,8 +1405,8 @@ def advance(y, istate, fstate, t_end, p, opts,
             # -- one accepted step -------------------------------------------
             if fixed:
                 h = min(opts[O_HFIXED], remaining)
-                rk_step(t, y, h, A, B, C, ns, K, ynew, ytmp, act, n_act,
-                        p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+                rk_step(t, y, h, rk_a, rk_b, rk_c, ns, stages, ynew, ytmp, act, n_act,
+                        p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
                 istate[I_RHS] += ns
                 for i in range(n):
                     if not math.isfinite(ynew[i]):
@@ -1371,19 +1418,19 @@ def advance(y, istate, fstate, t_end, p, opts,
                 if mc != FREE:
                     # stiff contact: keep h within the explicit method's
                     # stability region, h omega_c <= 1.5, omega_c^2 = dF_c/dd / m_eff
-                    dpen = y[0] - y[2] - p[P_R]
+                    dpen = overlap(y, p)
                     if dpen > 0.0:
                         kcl = p[P_KC] * p[P_N] * dpen ** (p[P_N] - 1.0)
                         if mc == CONTACT:
-                            kcl *= 1.0 + p[P_LAM] * max(y[1] - y[3], 0.0)
+                            kcl *= 1.0 + p[P_LAM] * max(y[V_HAMMER] - y[V_BIT], 0.0)
                         minv = 1.0 + (1.0 / p[P_RHO] if ms == SLIP else 0.0)
                         hcap = 1.5 / math.sqrt(kcl * minv + 1e-300)
                         if h > hcap:
                             h = hcap
-                if ms == SLIP and K[0, 3] < 0.0 and y[3] > 0.0:
+                if ms == SLIP and stages[0, V_BIT] < 0.0 and y[V_BIT] > 0.0:
                     # the bit decelerates to a stop: do not step far past the
                     # predicted stop, where the friction law is extrapolated
-                    t_stop = -y[3] / K[0, 3]
+                    t_stop = -y[V_BIT] / stages[0, V_BIT]
                     if h > 1.3 * t_stop:
                         h = max(1.3 * t_stop, 1e-3 * h)
                 while True:
@@ -1395,10 +1442,10 @@ def advance(y, istate, fstate, t_end, p, opts,
                         fstate[F_T] = t
                         fstate[F_H] = h
                         return ST_STEP_TOO_SMALL
-                    rk_step(t, y, h, A, B, C, ns, K, ynew, ytmp, act, n_act,
-                            p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+                    rk_step(t, y, h, rk_a, rk_b, rk_c, ns, stages, ynew, ytmp, act, n_act,
+                            p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
                     istate[I_RHS] += ns
-                    err = error_norm(y, ynew, h, K, E, E3, err_kind, ns, act, n_act, rtol, atol,
+                    err = error_norm(y, ynew, h, stages, err_w, err_w3, err_kind, ns, act, n_act, rtol, atol,
                                      fstate[F_V4_PEAK])
                     finite = math.isfinite(err)
                     if finite:
@@ -1434,14 +1481,14 @@ def advance(y, istate, fstate, t_end, p, opts,
                 fstate[F_HACC] = h
                 fstate[F_ERRACC] = max(err, ERRACC_FLOOR)
                 h_next = h * fac
-                if ms == SLIP and K[ns, 3] < 0.0 and ynew[3] > 0.0 and p[P_MU] < 1.0:
+                if ms == SLIP and stages[ns, V_BIT] < 0.0 and ynew[V_BIT] > 0.0 and p[P_MU] < 1.0:
                     # the bit decelerates: keep the next step out of the friction layer
-                    sc4 = atol + rtol * max(ynew[3], fstate[F_V4_PEAK])
+                    sc4 = atol + rtol * max(ynew[V_BIT], fstate[F_V4_PEAK])
                     # a step whose friction error stays below the target: Newton steps on
                     # ln h aimed a little below it (ln ef is convex in ln h, so they approach
                     # from above and stop as soon as the target is met)
                     for _ in range(8):
-                        ef, dlog = friction_layer_err(h_next, ynew[3], K[ns, 3], p, C, E, E3, e_abs, ns,
+                        ef, dlog = friction_layer_err(h_next, ynew[V_BIT], stages[ns, V_BIT], p, rk_c, err_w, err_w3, e_abs, ns,
                                                       err_kind, n_act, sc4)
                         if ef <= LAYER_TARGET:
                             break
@@ -1457,17 +1504,17 @@ def advance(y, istate, fstate, t_end, p, opts,
                 return ST_STEP_STORM
 
             # -- detection over [t, t1] ------------------------------------
-            dense_ok = False
+            dense_ok = no_act > 0  # False, as a plain bool (see ``plain``)
             for q in range(nw):
                 kd = kinds[q]
-                code = sign_change(kd, y, ynew, K[0], K[ns], p, mc, w0s[q], wtols[q], h, not fixed)
+                code = sign_change(kd, y, ynew, stages[0], stages[ns], p, mc, w0s[q], wtols[q], h, not fixed)
                 if code == 0:
                     continue
-                dense_ok = interpolant(dense_ok, fixed, t, y, ynew, h, A, C, W, ns, n_ext, K, K2, F, ytmp, act, n_act,
-                                       istate, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+                dense_ok = interpolant(dense_ok, fixed, t, y, ynew, h, rk_a, rk_c, dense_w, ns, n_ext, stages, stages2, interp, ytmp, act, n_act,
+                                       istate, p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
                 te = locate_event(kd, code, t, t1, y, h, how_rk, opts[O_BISECT], graze, wtols[q],
-                                  F, act, n_act, A, B, C, ns, K2, ytmp, ys, fs,
-                                  p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+                                  interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ys, fs,
+                                  p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
                 if te > 0.0 and (hit_kind < 0 or te < t_hit):
                     hit_kind = kd
                     t_hit = te
@@ -1476,24 +1523,24 @@ def advance(y, istate, fstate, t_end, p, opts,
             if hit_kind < 0:
                 # -- no event: record and accept ----------------------------
                 if needs_record(t1, istate, opts, poin, samp_t):
-                    dense_ok = interpolant(dense_ok, fixed, t, y, ynew, h, A, C, W, ns, n_ext, K, K2, F, ytmp, act, n_act,
-                                       istate, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
-                    record_until(t1, ynew, t, y, h, how_rk, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
-                                 p, istate, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, opts, poin, samp_t, samp)
+                    dense_ok = interpolant(dense_ok, fixed, t, y, ynew, h, rk_a, rk_c, dense_w, ns, n_ext, stages, stages2, interp, ytmp, act, n_act,
+                                       istate, p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
+                    record_until(t1, ynew, t, y, h, how_rk, interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ys,
+                                 p, istate, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, opts, poin, samp_t, samp)
                 if mc == CONTACT:
-                    if not fixed and y[1] - y[3] > 0.0 and ynew[1] - ynew[3] <= 0.0:
-                        dense_ok = interpolant(dense_ok, fixed, t, y, ynew, h, A, C, W, ns, n_ext, K, K2, F, ytmp, act, n_act,
-                                       istate, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
-                        peak_in_step(t, t1, y, h, F, act, n_act, ys, fs, p, ms, mc, nz, ne,
-                                     Ap, Ai, Ax, Hz, Gz, g12, fstate)
-                    fc1 = contact_force(ynew[0] - ynew[2] - p[P_R], ynew[1] - ynew[3], p, mc)
-                    if fc1 > fstate[F_PEAK]:
-                        fstate[F_PEAK] = fc1
+                    if not fixed and y[V_HAMMER] - y[V_BIT] > 0.0 and ynew[V_HAMMER] - ynew[V_BIT] <= 0.0:
+                        dense_ok = interpolant(dense_ok, fixed, t, y, ynew, h, rk_a, rk_c, dense_w, ns, n_ext, stages, stages2, interp, ytmp, act, n_act,
+                                       istate, p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
+                        peak_in_step(t, t1, y, h, interp, act, n_act, ys, fs, p, ms, mc, nz, ne,
+                                     Ap, Ai, Ax, sub_in, sub_out, link_x, fstate)
+                    f_contact1 = contact_force_at(ynew, p, mc)
+                    if f_contact1 > fstate[F_PEAK]:
+                        fstate[F_PEAK] = f_contact1
                 for i in range(n):
                     y[i] = ynew[i]
-                    K[0, i] = K[ns, i]
-                if y[3] > fstate[F_V4_PEAK]:
-                    fstate[F_V4_PEAK] = y[3]
+                    stages[0, i] = stages[ns, i]
+                if y[V_BIT] > fstate[F_V4_PEAK]:
+                    fstate[F_V4_PEAK] = y[V_BIT]
                 t = t1
                 if not fixed:
                     h = h_next
@@ -1505,15 +1552,15 @@ def advance(y, istate, fstate, t_end, p, opts,
             # than a step that ends on it).  If that state has not crossed
             # yet, move there and locate again from nearer (at most twice).
             for i in range(n):
-                K2[0, i] = K[0, i]
-            rk_step(t, y, t_hit - t, A, B, C, ns, K2, ys, ytmp, act, n_act,
-                    p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+                stages2[0, i] = stages[0, i]
+            rk_step(t, y, t_hit - t, rk_a, rk_b, rk_c, ns, stages2, ys, ytmp, act, n_act,
+                    p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
             istate[I_RHS] += ns
             confirmed = fixed or watch_value(hit_kind, ys, p, mc) > wtol_hit
             if not confirmed and refine >= 2:
                 # give up refining: take the dense-output state, crossed by construction
-                state_at(t_hit, t, y, h, HOW_DENSE, F, act, n_act, A, B, C, ns, K2, ytmp, ys,
-                         p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12)
+                state_at(t_hit, t, y, h, how_dense, interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ys,
+                         p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
                 confirmed = True
             if not confirmed:
                 refine += 1
@@ -1522,15 +1569,15 @@ def advance(y, istate, fstate, t_end, p, opts,
             if hit_kind == EV_STICK and not fixed:
                 # samples of this step came from the dense output: the drift must not step
                 # back from them to the re-stepped state (they differ within tolerance)
-                dense_eval((t_hit - t) / h, y, F, act, n_act, ynew)
-                if ynew[2] > ys[2]:
-                    ys[2] = ynew[2]
-            if mc == CONTACT and not fixed and y[1] - y[3] > 0.0 and ys[1] - ys[3] <= 0.0 and dense_ok:
-                peak_in_step(t, t_hit, y, h, F, act, n_act, ynew, fs, p, ms, mc, nz, ne,
-                             Ap, Ai, Ax, Hz, Gz, g12, fstate)
+                dense_eval((t_hit - t) / h, y, interp, act, n_act, ynew)
+                if ynew[X_BIT] > ys[X_BIT]:
+                    ys[X_BIT] = ynew[X_BIT]
+            if mc == CONTACT and not fixed and y[V_HAMMER] - y[V_BIT] > 0.0 and ys[V_HAMMER] - ys[V_BIT] <= 0.0 and dense_ok:
+                peak_in_step(t, t_hit, y, h, interp, act, n_act, ynew, fs, p, ms, mc, nz, ne,
+                             Ap, Ai, Ax, sub_in, sub_out, link_x, fstate)
             if needs_record(t_hit, istate, opts, poin, samp_t):
-                record_until(t_hit, ys, t, y, h, how_rk, F, act, n_act, A, B, C, ns, K2, ytmp, ynew,
-                             p, istate, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, opts, poin, samp_t, samp)
+                record_until(t_hit, ys, t, y, h, how_rk, interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ynew,
+                             p, istate, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, opts, poin, samp_t, samp)
             for i in range(n):
                 y[i] = ys[i]
             t = t_hit
@@ -1538,17 +1585,17 @@ def advance(y, istate, fstate, t_end, p, opts,
                 h = h_next
             if not confirmed:
                 for i in range(n):
-                    K[0, i] = K2[ns, i]
+                    stages[0, i] = stages2[ns, i]
                 continue
         else:
             hit_kind = immediate
 
         # -- reset map, bookkeeping ------------------------------------------
         if mc == CONTACT:
-            fc1 = contact_force(y[0] - y[2] - p[P_R], y[1] - y[3], p, mc)
-            if fc1 > fstate[F_PEAK]:
-                fstate[F_PEAK] = fc1
-        vrel = y[1] - y[3]
+            f_contact1 = contact_force_at(y, p, mc)
+            if f_contact1 > fstate[F_PEAK]:
+                fstate[F_PEAK] = f_contact1
+        vrel = y[V_HAMMER] - y[V_BIT]
         if step_slot(ms, mc) != SLIP:
             fstate[F_H_MODE + step_slot(ms, mc)] = h
         taken = apply_event(hit_kind, y, istate, fstate, p)
@@ -1557,10 +1604,10 @@ def advance(y, istate, fstate, t_end, p, opts,
             r = istate[I_NLOG]
             log[r, L_T] = t
             log[r, L_KIND] = taken
-            log[r, L_X1] = y[0]
-            log[r, L_X2] = y[1]
-            log[r, L_X3] = y[2]
-            log[r, L_X4] = y[3]
+            log[r, L_X1] = y[X_HAMMER]
+            log[r, L_X2] = y[V_HAMMER]
+            log[r, L_X3] = y[X_BIT]
+            log[r, L_X4] = y[V_BIT]
             log[r, L_VREL] = vrel
             log[r, L_PEAK] = fstate[F_PEAK] if taken == EV_SEPARATION else 0.0
             istate[I_NLOG] = r + 1
@@ -1577,8 +1624,8 @@ def advance(y, istate, fstate, t_end, p, opts,
         mc = istate[I_CONTACT]
         if not fixed and fstate[F_H_MODE + step_slot(ms, mc)] > 0.0:
             h = fstate[F_H_MODE + step_slot(ms, mc)]
-        n_act = set_active(istate, n, nz, ne, act)
-        rhs(t, y, p, ms, mc, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, K[0])
+        n_act = set_active(istate, n, act)
+        rhs(t, y, p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, stages[0])
         istate[I_RHS] += 1
 
     # final: samples that sit exactly on t_end
@@ -1588,15 +1635,24 @@ def advance(y, istate, fstate, t_end, p, opts,
     if needs_record(t, istate, opts, poin, samp_t):
         for i in range(n):
             ynew[i] = y[i]
-        record_until(t, ynew, t, y, 1.0, HOW_DENSE, F, act, 0, A, B, C, ns, K2, ytmp, ys,
-                     p, istate, nz, ne, Ap, Ai, Ax, Hz, Gz, g12, opts, poin, samp_t, samp)
+        record_until(t, ynew, t, y, 1.0, how_dense, interp, act, no_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ys,
+                     p, istate, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, opts, poin, samp_t, samp)
     return ST_DONE
 
 
 # ---------------------------------------------------------------------------
-# Entry points with the tableau and an empty subsystem bound as constants.
-# Fewer arguments make a call from Python cheaper (the FMU calls once per
-# communication step).
+# Entry points.  numba compiles each on its first call (or loads it from the
+# on-disk cache), so a scene compiles only the specialisation it uses:
+#
+# * ``advance_hammer``: DOP853, no linear subsystem, no energy block -- the
+#   tableau and the empty subsystem are constants, folded into the code (a
+#   plain ``simulate``, the FMU, the sweeps);
+# * ``advance``: every other combination (DP54, RK4, the energy block, the
+#   linear subsystem of the monolithic reference), compiled once for all of
+#   them, the first time one is used.
+#
+# Fewer arguments also make a call from Python cheaper (the FMU calls once
+# per communication step).
 # ---------------------------------------------------------------------------
 from . import tableaux as _T  # noqa: E402
 

@@ -465,9 +465,9 @@ class HammerBitRock(Fmi2Slave):
             st.advance(st.time)
             st.set_state(saved)
             mc = st.istate[K.I_CONTACT]
-            K.drive_on_bit(st.y, st.p, mc)
+            K.force_on_bit(st.y, st.p, mc)
             K.contact_force(st.y[0], st.y[1], st.p, mc)
-            K.friction_kinetic(st.y[3], st.p)
+            K.kinetic_friction(st.y[3], st.p)
 
     def _apply_parameter_changes(self) -> bool:
         """A parameter was set after initialisation: apply tunables, refuse fixed ones."""
@@ -597,11 +597,11 @@ class HammerBitRock(Fmi2Slave):
         return K.contact_force(y[0] - y[2] - p[K.P_R], y[1] - y[3], p, mc) * self._F0
 
     def _drive(self) -> float:
-        return K.drive_on_bit(self._y, self._p, self._ist[K.I_CONTACT]) * self._F0
+        return K.force_on_bit(self._y, self._p, self._ist[K.I_CONTACT]) * self._F0
 
     def _friction(self) -> float:
         if self._ist[K.I_STICK] == K.SLIP:
-            return K.friction_kinetic(self._y[3], self._p) * self._F0
+            return K.kinetic_friction(self._y[3], self._p) * self._F0
         return self._drive()
 
     def _rop(self) -> float:

@@ -9,15 +9,17 @@ linear subsystem differ.
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
 
+from . import _numba_cache
 from . import kernels as K
 from . import tableaux as T
 from .params import Groups, ParameterError
-from .validation import check
+from .validation import RANGES, check
 
 __all__ = [
     "SolverOptions", "LinearSubsystem", "Stepper", "SolverError", "EventStormError",
@@ -172,6 +174,48 @@ class LinearSubsystem:
         return int(np.asarray(self.G).shape[0])
 
 
+#: RANGES keys and names of the four states of the hammer and the bit
+STATE_KEYS = (("state.hammer_position", "hammer position x1"),
+              ("state.hammer_velocity", "hammer velocity x2"),
+              ("state.bit_position", "bit position x3"),
+              ("state.bit_velocity", "bit velocity x4"))
+
+
+def check_initial_state(y0, *, label: str = "y0") -> np.ndarray:
+    """``y0`` as a float array of shape (4,), each state finite and in its range.
+
+    Raises
+    ------
+    ParameterError
+        Naming ``label[i]`` and the state, its value and the allowed range
+        (positions and velocities in x0 and x0 Omega, the bit velocity >= 0).
+    """
+    try:
+        arr = np.array(y0, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ParameterError(label, y0, "4 real numbers (x1, x2, x3, x4)") from None
+    if arr.shape != (4,):
+        raise ParameterError(label, y0, f"4 real numbers (x1, x2, x3, x4), not an array of shape {arr.shape}")
+    for i, (key, what) in enumerate(STATE_KEYS):
+        check(key, arr[i], label=f"{label}[{i}] ({what})")
+    return arr
+
+
+def _check_finite_vector(label: str, values, n: int) -> np.ndarray:
+    """A float vector of length ``n`` with finite entries (``state.subsystem``)."""
+    try:
+        arr = np.array(values, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        raise ParameterError(label, values, f"{n} real numbers") from None
+    if arr.shape != (n,):
+        raise ParameterError(label, values, f"{n} real numbers, not {arr.shape[0]}")
+    for i in range(n):
+        check("state.subsystem", arr[i], label=f"{label}[{i}]")
+    return arr
+
+
+_T_MAX = RANGES["state.time"].hi
+
 _EMPTY_I = np.zeros(1, dtype=np.int64)
 _EMPTY_F = np.zeros(0)
 _EMPTY_H = np.zeros((0, 2))
@@ -192,9 +236,16 @@ class Stepper:
     energy : bool
         Accumulate external work and dissipations as four extra states.
     y0 : array_like, shape (4,), optional
-        Initial (x1, x2, x3, x4); zero by default (the paper's start).
+        Initial (x1, x2, x3, x4) [x0, x0 Omega]; zero by default (the
+        paper's start).  Finite, within ``RANGES["state.*"]``, x4 >= 0.
     extra_force : float
         Constant extra force on the hammer / F0 (the FMU's ``harmonic_force`` input).
+
+    Raises
+    ------
+    ParameterError
+        A non-finite or out-of-range ``y0`` (or subsystem state), naming the
+        component, its value and the allowed range.
 
     Notes
     -----
@@ -205,6 +256,9 @@ class Stepper:
     def __init__(self, groups: Groups, *, solver: SolverOptions = SolverOptions(),
                  linear: Optional[LinearSubsystem] = None, energy: bool = False,
                  y0=None, extra_force: float = 0.0):
+        y0 = None if y0 is None else check_initial_state(y0)
+        z0 = None if linear is None else _check_finite_vector("linear.z0", linear.z0, linear.size)
+        extra_force = check("state.extra_force", extra_force, label="extra_force")
         self.groups = groups
         self.solver = solver
         self.p = groups.to_kernel(extra_force=extra_force)
@@ -221,13 +275,13 @@ class Stepper:
         self.nz = nz
         self.ne = 4 if energy else 0
         self._fast = solver.method == "adaptive" and nz == 0 and self.ne == 0
+        self._entry = "advance_hammer" if self._fast else "advance"
         n = 4 + nz + self.ne
         self.y = np.zeros(n)
         if y0 is not None:
-            y0 = np.asarray(y0, dtype=float)
-            self.y[: y0.shape[0]] = y0
-        if linear is not None:
-            self.y[4:4 + nz] = np.asarray(linear.z0, dtype=float)
+            self.y[:4] = y0
+        if z0 is not None:
+            self.y[4:4 + nz] = z0
         self.istate = np.zeros(K.N_ISTATE, dtype=np.int64)
         self.fstate = np.zeros(K.N_FSTATE)
         period = groups.period
@@ -253,9 +307,9 @@ class Stepper:
     def _init_modes(self):
         """Modes consistent with the initial state (at rest: stick, free)."""
         ist, y, p = self.istate, self.y, self.p
-        ist[K.I_STICK] = K.SLIP if y[3] > 0.0 else K.STICK
-        if p[K.P_CONTACT] > 0.0 and y[0] - y[2] - p[K.P_R] > 0.0:
-            ist[K.I_CONTACT] = K.CONTACT if 1.0 + p[K.P_LAM] * (y[1] - y[3]) > 0.0 else K.CLAMPED
+        ist[K.I_STICK] = K.SLIP if y[K.V_BIT] > 0.0 else K.STICK
+        if p[K.P_CONTACT] > 0.0 and K.overlap(y, p) > 0.0:
+            ist[K.I_CONTACT] = K.contact_mode_at_impact(y, p)
         else:
             ist[K.I_CONTACT] = K.FREE
         ist[K.I_WIN] = -1
@@ -290,14 +344,32 @@ class Stepper:
         Returns
         -------
         str
-            ``'done'``, ``'log_full'`` or ``'max_steps'``.
+            ``'done'``, or ``'log_full'`` (a later call continues).
+
+        Raises
+        ------
+        ParameterError
+            ``t_end`` not a finite number, before the current time or beyond
+            ``RANGES["state.time"]``.
+        MaxStepsError, EventStormError, StepSizeError, StepStormError, NonFiniteStateError
+            The integration could not continue (the state stays where it stopped).
         """
+        try:
+            t_end = float(t_end)
+        except (TypeError, ValueError):
+            raise ParameterError("t_end", t_end, "a finite time tau") from None
+        now = self.fstate[K.F_T]
+        if not (now <= t_end <= _T_MAX):  # also refuses NaN
+            raise ParameterError("t_end", t_end, f"a finite time tau in [{now!r}, {_T_MAX:g}] "
+                                                 f"(not before the current time)")
         poin = poincare if poincare is not None else _NO_POIN
         st = sample_times if sample_times is not None else _EMPTY_F
         sa = samples if samples is not None else _NO_SAMP
         lg = log if log is not None else _NO_LOG
+        if self._entry not in _NOTICE_CHECKED:
+            compile_notice(self._entry)
         if self._fast:
-            status = K.advance_hammer(self.y, self.istate, self.fstate, float(t_end), self.p, self.opts,
+            status = K.advance_hammer(self.y, self.istate, self.fstate, t_end, self.p, self.opts,
                                       poin, st, sa, lg)
         else:
             status = self._advance_general(t_end, poin, st, sa, lg)
@@ -306,7 +378,7 @@ class Stepper:
     def _advance_general(self, t_end, poin, st, sa, lg):
         A, B, C, E, E3, W, ns, ek, ee = self._tab
         Ap, Ai, Ax, Hz, Gz, g12 = self._lin
-        return K.advance(self.y, self.istate, self.fstate, float(t_end), self.p, self.opts,
+        return K.advance(self.y, self.istate, self.fstate, t_end, self.p, self.opts,
                          A, B, C, E, E3, W, ns, ek, ee, Ap, Ai, Ax, Hz, Gz, g12, self.ne,
                          poin, st, sa, lg)
 
@@ -317,7 +389,8 @@ class Stepper:
             return "log_full"
         t = self.time
         if status == K.ST_MAX_STEPS:
-            return "max_steps"
+            raise MaxStepsError(f"more than max_steps={self.solver.max_steps} steps in one call; stopped "
+                                f"at tau = {t:.9g}", time=t, status=status)
         if status == K.ST_EVENT_STORM:
             raise EventStormError(
                 f"event storm: more than {self.solver.max_events_per_period} events in the forcing "
@@ -335,6 +408,9 @@ class Stepper:
                 f"stiff for these tolerances, or raise max_steps_per_period", time=t, status=status)
         if status == K.ST_NONFINITE:
             raise NonFiniteStateError(f"state became non-finite at tau = {t:.9g}", time=t, status=status)
+        if status == K.ST_BAD_INPUT:
+            raise SolverError(f"the kernel refused its input at tau = {t:.9g}: a non-finite state or "
+                              f"end time, or an end time before the current time", time=t, status=status)
         raise SolverError(f"solver stopped with status {status} at tau = {t:.9g}", time=t, status=status)
 
     # ------------------------------------------------------------------
@@ -343,16 +419,69 @@ class Stepper:
         return np.concatenate([self.y, self.istate.astype(np.float64), self.fstate, self.p])
 
     def set_state(self, s: np.ndarray) -> None:
-        """Restore a state returned by :meth:`get_state` (same configuration)."""
+        """Restore a state returned by :meth:`get_state` (same configuration).
+
+        Raises
+        ------
+        ParameterError
+            The array does not fit this stepper, or its state or time is not finite
+            (nothing is changed then).
+        """
         s = np.asarray(s, dtype=np.float64)
         n, ni, nf = self.y.shape[0], self.istate.shape[0], self.fstate.shape[0]
-        if s.shape != (n + ni + nf + self.p.shape[0],):
-            raise ValueError(f"state of length {s.shape} does not fit this stepper "
-                             f"(expected {n + ni + nf + self.p.shape[0]})")
+        size = n + ni + nf + self.p.shape[0]
+        if s.shape != (size,):
+            raise ParameterError("state", f"array of shape {s.shape}", f"a flat array of {size} numbers "
+                                 f"from get_state() of the same configuration")
+        if not (np.all(np.isfinite(s[:n])) and math.isfinite(s[n + ni + K.F_T])):
+            raise ParameterError("state", "non-finite entries", "finite states and time")
         self.y[:] = s[:n]
         self.istate[:] = s[n:n + ni].astype(np.int64)
         self.fstate[:] = s[n + ni:n + ni + nf]
         self.p[:] = s[n + ni + nf:]
+
+
+#: CPU time to compile each entry point with an empty cache [s] on a 2-core
+#: machine (``benchmarks/bench_throughput.py``, CLI cold start), for the notice.
+COMPILE_SECONDS = {"advance_hammer": 50, "advance": 50}
+_NOTICE_CHECKED = set()
+
+
+def kernels_cached(entry: str) -> bool:
+    """True if numba will load the kernel entry point ``entry`` from its cache.
+
+    Reads numba's cache index of the entry point (a small pickle; numba itself
+    reads it on the first call): an entry for this machine's code generator
+    and the current source means no compile.  Unknown (numba internals changed):
+    True, so no notice is shown rather than a wrong one.
+    """
+    disp = getattr(K, entry)
+    try:
+        if disp.signatures:
+            return True
+        cache = disp._cache
+        index = cache._cache_file._load_index()
+        magic = disp.targetctx.codegen().magic_tuple()
+        return any(key[1] == magic for key in index)
+    except Exception:  # pragma: no cover - numba internals
+        return True
+
+
+def compile_notice(entry: str, stream=None) -> bool:
+    """Say once per process on stderr that ``entry`` is about to compile (a cache miss).
+
+    Returns True if the notice was printed.
+    """
+    if entry in _NOTICE_CHECKED:
+        return False
+    _NOTICE_CHECKED.add(entry)
+    if kernels_cached(entry):
+        return False
+    stream = sys.stderr if stream is None else stream
+    print(f"hammerbit: compiling the solver kernels for this machine (about "
+          f"{COMPILE_SECONDS.get(entry, 60)} s, once; cached in {_numba_cache.cache_root()})",
+          file=stream, flush=True)
+    return True
 
 
 _NO_POIN = np.zeros((0, 5))

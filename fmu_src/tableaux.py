@@ -23,7 +23,6 @@ ERR_DOP853 = 2    # Hairer's combined estimate: E (5th order) and E3 (3rd order)
 
 # ---- DOP853: order 8, error estimator 7, dense output 7 ----
 DOP853_N_STAGES = 12
-DOP853_ORDER = 8
 DOP853_A = np.array([[ 0.0000000000000000e+00,  0.0000000000000000e+00,  0.0000000000000000e+00,
    0.0000000000000000e+00,  0.0000000000000000e+00,  0.0000000000000000e+00,
    0.0000000000000000e+00,  0.0000000000000000e+00,  0.0000000000000000e+00,
@@ -180,7 +179,6 @@ DOP853_W = np.array([[ 5.4293734116568765e-02,  0.0000000000000000e+00,  0.00000
 
 # ---- Dormand–Prince 5(4): order 5, estimator 4, dense output 4 ----
 DP54_N_STAGES = 6
-DP54_ORDER = 5
 DP54_A = np.array([[  0.                 ,   0.                 ,   0.                 ,   0.                 ,
     0.                 ,   0.                 ,   0.                 ],
  [  0.2                ,   0.                 ,   0.                 ,   0.                 ,
@@ -212,7 +210,6 @@ DP54_W = np.array([[ 0.09114583333333405,  0.                 ,  0.4492362982929
 
 # ---- classic RK4: order 4, fixed step, cubic Hermite dense output ----
 RK4_N_STAGES = 4
-RK4_ORDER = 4
 RK4_A = np.array([[0.                 , 0.                 , 0.                 , 0.                 ,
   0.                 ],
  [0.5                , 0.                 , 0.                 , 0.                 ,

@@ -152,6 +152,14 @@ RANGES: dict[str, Range] = {
     # -- a scene (simulate) --------------------------------------------------
     "simulate.periods": Range(0.0, 1e9, lo_open=True),
     "simulate.sample_dt": Range(0.0, 1e9, lo_open=True, unit="s"),
+    # -- the stepper's state and clock (nondimensional: x0, x0 Omega, 1/Omega) --
+    "state.hammer_position": Range(-1e12, 1e12),
+    "state.hammer_velocity": Range(-1e12, 1e12),
+    "state.bit_position": Range(-1e12, 1e12),
+    "state.bit_velocity": Range(0.0, 1e12),        # the bit never moves backwards
+    "state.subsystem": Range(-1e300, 1e300),       # linear subsystem and energy states: finite
+    "state.time": Range(-1e12, 1e12),
+    "state.extra_force": Range(-1e12, 1e12),       # constant extra force on the hammer / F0
     # -- the hammer-frequency check (hammerbit.modal_check) ---------------------
     "check.frequency": Range(0.0, 1e6, lo_open=True, unit="Hz"),
     "check.rpm": Range(0.0, 1e6, lo_open=True, unit="rev/min"),

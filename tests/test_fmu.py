@@ -577,9 +577,9 @@ _PROBE = textwrap.dedent("""
     K = sys.modules["hammerbit_fmu_runtime.kernels"]
     S = sys.modules["hammerbit_fmu_runtime.slave"]
     out["cache_misses"] = sum(sum(d.stats.cache_misses.values()) for d in
-                              (K.advance_hammer, K.drive_on_bit, K.friction_kinetic, K.contact_force))
+                              (K.advance_hammer, K.force_on_bit, K.kinetic_friction, K.contact_force))
     out["cache_hits"] = sum(sum(d.stats.cache_hits.values()) for d in
-                            (K.advance_hammer, K.drive_on_bit, K.friction_kinetic, K.contact_force))
+                            (K.advance_hammer, K.force_on_bit, K.kinetic_friction, K.contact_force))
     out["exit_guard"] = len(S._PINNED_WRAPPERS)
     print(json.dumps(out), flush=True)
 """)

@@ -218,7 +218,7 @@ def test_events_are_located_to_machine_precision():
         mode_c = K.CONTACT if row[0] - row[2] - g.r > 0 else K.FREE
         # as above: crossed, and within the dense output's accuracy at rtol 1e-8 (in
         # contact F_d rises steeply, ~1e2-1e3 per unit tau, so 1e-10 in tau ~ 1e-7 in F_d)
-        fd = K.drive_on_bit(row, p, mode_c) - 1.0
+        fd = K.force_on_bit(row, p, mode_c) - 1.0
         assert -1e-12 < fd < 1e-6
 
 
