@@ -66,8 +66,8 @@ def plot_scene(groups, periods, path, *, solver: SolverOptions = SolverOptions()
     rel_v = (s["hammer_velocity"] - s["bit_velocity"]) * sc.velocity
     fig, ax = plt.subplots(2, 2, figsize=(12, 8))
     a0, a1, a2, a3 = ax.ravel()
-    a0.plot(t_s, s["hammer_position"] * mm, label="hammer $x_b$", lw=0.9)
-    a0.plot(t_s, s["bit_position"] * mm, label="bit $x_s$ (penetration)", lw=1.4)
+    a0.plot(t_s, s["hammer_position"] * mm, label="hammer x_b", lw=0.9)
+    a0.plot(t_s, s["bit_position"] * mm, label="bit x_s (penetration)", lw=1.4)
     a0.set_xlabel("time [s]")
     a0.set_ylabel("displacement [mm]")
     a0.set_title(f"last {last} forcing periods ({last * groups.period_s:.3g} s)")
@@ -75,10 +75,12 @@ def plot_scene(groups, periods, path, *, solver: SolverOptions = SolverOptions()
     a0.grid(alpha=0.3)
     a1.plot(t_s, rel_mm, lw=0.9)
     if groups.has_gap:
-        a1.axhline(groups.length_m(groups.r) * 1e3, color="r", ls="--", lw=0.8, label="gap R (contact above)")
-        a1.legend(loc="lower right")
+        gap_mm = groups.length_m(groups.r) * 1e3
+        a1.axhline(gap_mm, color="r", ls="--", lw=0.8)
+        a1.annotate("gap R: contact above", xy=(1.0, gap_mm), xycoords=("axes fraction", "data"),
+                    xytext=(-4, 3), textcoords="offset points", ha="right", va="bottom", color="r", fontsize=8)
     a1.set_xlabel("time [s]")
-    a1.set_ylabel("relative displacement $x_b - x_s$ [mm]")
+    a1.set_ylabel("relative displacement x_b − x_s [mm]")
     a1.set_title("relative motion")
     a1.grid(alpha=0.3)
     in_win = p["time"] >= t0 - 1e-9 * T
@@ -86,23 +88,24 @@ def plot_scene(groups, periods, path, *, solver: SolverOptions = SolverOptions()
     a2.plot(rel_mm, rel_v, lw=0.8)
     a2.plot((pw["hammer_position"] - pw["bit_position"]) * mm,
             (pw["hammer_velocity"] - pw["bit_velocity"]) * sc.velocity, "r.", ms=8, label="Poincaré points")
-    a2.set_xlabel("relative displacement $x_b - x_s$ [mm]")
-    a2.set_ylabel("relative velocity $v_b - v_s$ [m/s]")
+    a2.set_xlabel("relative displacement x_b − x_s [mm]")
+    a2.set_ylabel("relative velocity v_b − v_s [m/s]")
     a2.set_title("phase portrait of the relative motion")
     a2.legend(loc="best")
     a2.grid(alpha=0.3)
     half = p[len(p) // 2:]
     a3.plot((half["hammer_position"] - half["bit_position"]) * mm, half["hammer_velocity"] * sc.velocity,
             "k.", ms=4)
-    a3.set_xlabel("relative displacement $x_b - x_s$ [mm]")
-    a3.set_ylabel("hammer velocity $v_b$ [m/s]")
+    a3.set_xlabel("relative displacement x_b − x_s [mm]")
+    a3.set_ylabel("hammer velocity v_b [m/s]")
     a3.set_title(f"Poincaré section ({len(half)} periods of the second half)")
     a3.grid(alpha=0.3)
     name = preset or "scene"
     pn = f"period {period}" if period else "no period up to 32"
     fig.suptitle(f"{name}: {pn}; a={groups.a:g}, b={groups.b:g}, eta={groups.eta:g}, r={groups.r:g}, "
                  f"mu={groups.mu:g}; forcing {1.0 / groups.period_s:.4g} Hz, x0 = {sc.length * 1e3:.4g} mm")
-    fig.tight_layout()
+    # fixed margins: tight_layout would draw the figure once more (a second of the command's time)
+    fig.subplots_adjust(left=0.065, right=0.985, bottom=0.07, top=0.9, wspace=0.2, hspace=0.3)
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
@@ -137,7 +140,7 @@ def plot_bifurcation(res, path, *, scales=None):
     for i, v in enumerate(res.values):
         P = res.points[i]
         ax[0].plot(np.full(P.shape[0], v), (P[:, 1] - P[:, 3]) * mm, "k.", ms=1.5)
-    ax[0].set_ylabel("$x_b - x_s$ at the Poincaré section [mm]")
+    ax[0].set_ylabel("x_b − x_s at the Poincaré section [mm]")
     ax[0].set_title(f"bifurcation diagram over {res.param} (x0 = {mm:.4g} mm)")
     _si_top_axis(ax[0], res.param, sc)
     ax[1].plot(res.values, np.asarray(res.drift) * mm, "b.-", ms=3)
@@ -184,8 +187,8 @@ def plot_attractor(poincare, path, *, title="", scales=None):
     fig, ax = plt.subplots(figsize=(6, 5))
     ax.plot((poincare["hammer_position"] - poincare["bit_position"]) * sc.length * 1e3,
             (poincare["hammer_velocity"] - poincare["bit_velocity"]) * sc.velocity, "k.", ms=1)
-    ax.set_xlabel("relative displacement $x_b - x_s$ [mm]")
-    ax.set_ylabel("relative velocity $v_b - v_s$ [m/s]")
+    ax.set_xlabel("relative displacement x_b − x_s [mm]")
+    ax.set_ylabel("relative velocity v_b − v_s [m/s]")
     ax.set_title(title, fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
