@@ -24,8 +24,8 @@ SLOW_TESTS = {
         "tests/test_cosim_adaptive.py::test_adaptive_through_the_fmu_rolls_back_and_matches_in_process",
     "tests/test_hammer_boundary.py::test_frf_peak_sits_on_a_modal_check_frequency":
         "tests/test_hammer_boundary.py::test_modal_check_matches_coupled_system",
-    "tests/test_cosim.py::test_schemes_and_extrapolation_orders[gauss-seidel]":
-        "tests/test_cosim.py::test_schemes_and_extrapolation_orders[jacobi]",
+    "tests/test_cosim.py::test_schemes_and_extrapolation_orders":
+        "tests/test_cosim.py::test_matches_monolithic_wob_amplitude",
     "tests/test_cosim_adaptive.py::test_adaptive_converges_to_the_monolithic_reference":
         "tests/test_cosim_adaptive.py::test_adaptive_through_the_fmu_rolls_back_and_matches_in_process",
     "tests/test_cosim.py::test_instability_detected_stiff_interface":
