@@ -1,7 +1,16 @@
-"""Co-simulation benchmark (issue 5): coupling error, its order, and cost against the FMI floor.
+"""Co-simulation benchmark: coupling error, its estimate, its order, and cost against the FMI floor.
 
 Measures, on the example string ``field-2200m`` (220 elements, 440 states)
 coupled to the field hammer (:func:`hammerbit.cosim.field_hammer`):
+
+0. **The coupling-error estimate against the true error** (the monolithic
+   reference) on a stuck case (A = 5 kN at 22.5 Hz: the bit never slips) and
+   a drilling case (A = 15 kN at 22.5 Hz: a slip every cycle), fixed steps
+   H = 0.25 ... 10 ms: WOB amplitude and penetration, estimate / true.
+   On the drilling case also the measured orders over H = 1, 0.5, 0.25 ms and
+   the default (adaptive, tol 1e-3) run: its errors and wall time against the
+   fixed H = 1 ms run without the estimate.  ``docs/cosim.md`` shows these
+   tables (``python -m benchmarks.cosim_tables`` writes them from the JSON).
 
 1. **Coupling error against the macro step** for each scheme (Jacobi,
    Gauss–Seidel) and extrapolation order (0, 1, 2): maximum WOB error over the
@@ -47,8 +56,97 @@ def fmi_floor(fmu_path, n_steps: int, H: float) -> float:
 
 def _config(quick: bool) -> dict:
     if quick:
-        return {"stop": 1.5, "steps": [0.5e-3, 1e-3, 2e-3], "long_stop": 10.0}
-    return {"stop": 3.0, "steps": [0.25e-3, 0.5e-3, 1e-3, 2e-3], "long_stop": 60.0}
+        return {"stop": 1.5, "steps": [0.5e-3, 1e-3, 2e-3], "long_stop": 10.0,
+                "est_stop": 1.0, "est_steps": [0.5e-3, 1e-3, 2e-3, 5e-3]}
+    return {"stop": 3.0, "steps": [0.25e-3, 0.5e-3, 1e-3, 2e-3], "long_stop": 60.0,
+            "est_stop": 2.0, "est_steps": [0.25e-3, 0.5e-3, 1e-3, 2e-3, 5e-3, 10e-3]}
+
+
+#: The two cases of the estimate check: (name, amplitude [N], frequency [Hz]).
+ESTIMATE_CASES = (("stuck", 5e3, 22.5), ("drilling", 15e3, 22.5))
+
+
+def _rel(a, b):
+    return abs(a / b - 1.0) if b != 0 else (0.0 if a == 0 else math.inf)
+
+
+def measure_estimate(cfg: dict, log) -> dict:
+    """Estimate vs true error on the stuck and the drilling case; accuracy of the default run."""
+    from hammerbit.cosim import CosimConfig, cosimulate, field_hammer, monolithic
+    from hammerbit.drillstring import load_string
+    string = load_string("field-2200m")
+    Hmin = min(cfg["est_steps"])
+    out = {"cases": {}, "rows": []}
+    for name, amp, freq in ESTIMATE_CASES:
+        rig = field_hammer().replace(amplitude=amp, frequency=freq)
+        base = CosimConfig(stop=cfg["est_stop"], step=Hmin, rig=rig, record=("wob", "bit_position"),
+                           check_step=False)
+        log(f"estimate, {name} case: monolithic reference ...")
+        ref = monolithic(string, base)
+        out["cases"][name] = {"amplitude_n": amp, "frequency_hz": freq, "stop_s": cfg["est_stop"],
+                              "reference_wob_amplitude_n": ref.wob_amplitude(),
+                              "reference_penetration_m": ref.penetration_m, "reference_counts": ref.counts,
+                              "reference_wall_time_s": ref.wall_time_s}
+        for H in cfg["est_steps"]:
+            r = cosimulate(string, base.replace(step=H))
+            rw = ref.data[::int(round(H / Hmin))]
+            assert np.allclose(rw["time"], r.data["time"], rtol=0, atol=1e-9)
+            t_st = 0.5 * cfg["est_stop"]
+            ref_amp = 0.5 * float(np.ptp(rw["wob"][rw["time"] >= t_st - 1e-12]))
+            e = r.estimate
+            row = {"case": name, "step_s": H, "slips": r.counts["slips"],
+                   "wob_amplitude_error_rel": _rel(r.wob_amplitude(), ref_amp),
+                   "wob_amplitude_estimate_rel": e.wob_amplitude_rel,
+                   "penetration_m": r.penetration_m,
+                   "penetration_error_rel": (_rel(r.penetration_m, ref.penetration_m)
+                                             if ref.penetration_m != 0 else abs(r.penetration_m)),
+                   "penetration_estimate_rel": e.penetration_rel, "measured_order": e.order,
+                   "meets_tolerance": e.meets_tolerance, "wall_time_s": r.wall_time_s}
+            row["wob_amplitude_ratio"] = (row["wob_amplitude_estimate_rel"] / row["wob_amplitude_error_rel"]
+                                          if row["wob_amplitude_error_rel"] > 0 else None)
+            row["penetration_ratio"] = (row["penetration_estimate_rel"] / row["penetration_error_rel"]
+                                        if ref.penetration_m != 0 and row["penetration_error_rel"] > 0 else None)
+            out["rows"].append(row)
+            log(f"  {name:8s} H {H * 1e3:5.2f} ms: amplitude error {row['wob_amplitude_error_rel']:.2e} "
+                f"estimate {e.wob_amplitude_rel:.2e}; penetration error {row['penetration_error_rel']:.2e} "
+                f"estimate {e.penetration_rel:.2e}; slips {r.counts['slips']}")
+        if name == "drilling":
+            out["accuracy"] = _accuracy(string, base, ref, log)
+    return out
+
+
+def _accuracy(string, base, ref, log) -> dict:
+    """The drilling case at H = 1, 0.5, 0.25 ms (no estimate), the default adaptive run and
+    today's fixed H = 1 ms run (no estimate) for the wall time."""
+    from hammerbit.cosim import cosimulate
+    rows = []
+    for H in (1e-3, 0.5e-3, 0.25e-3):
+        r = min((cosimulate(string, base.replace(step=H, estimate=False)) for _ in range(2)),
+                key=lambda x: x.wall_time_s)
+        rw = ref.data[::int(round(H / base.step))]
+        t_st = 0.5 * base.stop
+        ref_amp = 0.5 * float(np.ptp(rw["wob"][rw["time"] >= t_st - 1e-12]))
+        rows.append({"step_s": H, "wob_amplitude_error_rel": _rel(r.wob_amplitude(), ref_amp),
+                     "penetration_error_rel": _rel(r.penetration_m, ref.penetration_m),
+                     "wall_time_s": r.wall_time_s, "macro_steps": r.macro_steps})
+    orders = {k: _order([r["step_s"] for r in rows], [r[k] for r in rows])
+              for k in ("wob_amplitude_error_rel", "penetration_error_rel")}
+    runs = [cosimulate(string, base.replace(step=1e-3, adaptive=True, check_step=True, record=("wob",)))
+            for _ in range(2)]
+    ad = min(runs, key=lambda x: x.wall_time_s)
+    ref_amp = ref.wob_amplitude()
+    default = {"tol": ad.config.tol, "wob_amplitude_error_rel": _rel(ad.wob_amplitude(), ref_amp),
+               "penetration_error_rel": _rel(ad.penetration_m, ref.penetration_m),
+               "wob_amplitude_estimate_rel": ad.estimate.wob_amplitude_rel,
+               "penetration_estimate_rel": ad.estimate.penetration_rel,
+               "meets_tolerance": ad.estimate.meets_tolerance, "wall_time_s": ad.wall_time_s,
+               "macro_steps": ad.macro_steps, "rejected": ad.stats["rejected"], "passes": ad.stats["passes"],
+               "h_min_used_s": ad.stats["h_min_used"], "h_max_used_s": ad.stats["h_max_used"]}
+    log(f"  default (adaptive, tol 1e-3): penetration error {default['penetration_error_rel']:.2e}, "
+        f"amplitude error {default['wob_amplitude_error_rel']:.2e}, wall {ad.wall_time_s:.3f} s; "
+        f"fixed 1 ms without estimate: {rows[0]['wall_time_s']:.3f} s")
+    return {"fixed": rows, "orders": orders, "default": default,
+            "fixed_1ms_wall_time_s": rows[0]["wall_time_s"]}
 
 
 def _order(H, err):
@@ -65,7 +163,7 @@ def measure_errors(cfg: dict, log) -> dict:
     string = load_string("field-2200m")
     # reference on the finest grid; coarser grids are sub-samples of it
     Hmin = min(cfg["steps"])
-    base = CosimConfig(stop=cfg["stop"], step=Hmin, record=("wob",))
+    base = CosimConfig(stop=cfg["stop"], step=Hmin, record=("wob",), estimate=False)
     log("monolithic reference ...")
     ref = monolithic(string, base)
     # the reference on each grid H and its dynamic WOB amplitude
@@ -114,7 +212,7 @@ def measure_long_run(cfg: dict, log) -> dict:
         out = {}
         for label, f_max in (("nodal", None), ("modal_f_max_100hz", 100.0)):
             c = CosimConfig(stop=cfg["long_stop"], step=H, record=("wob",), progress=False, f_max=f_max,
-                            rtol=1e-8)
+                            rtol=1e-8, estimate=False)
             log(f"{cfg['long_stop']:g} s at H = 1 ms through the FMU, string {label} ...")
             r = cosimulate(string, c, fmu=fmu)
             out[label] = {"wall_time_s": r.wall_time_s, "setup_time_s": r.setup_time_s,
@@ -142,8 +240,25 @@ def _plot(result):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(1, 2, figsize=(11, 4.2))
+    fig, ax = plt.subplots(1, 3, figsize=(16, 4.4))
     rows = result["errors"]["rows"]
+    est = result["estimate"]["rows"]
+    for case, mk in (("stuck", "o"), ("drilling", "s")):
+        for key, col, lab in (("wob_amplitude", "C0", "WOB amplitude"), ("penetration", "C3", "penetration")):
+            pts = [(r[f"{key}_error_rel"], r[f"{key}_estimate_rel"]) for r in est
+                   if r["case"] == case and r[f"{key}_ratio"] is not None]
+            if pts:
+                x, y = zip(*pts)
+                ax[2].loglog(x, y, mk, color=col, label=f"{case}: {lab}")
+    lim = [1e-6, 3.0]
+    ax[2].loglog(lim, lim, "k-", lw=0.8)
+    ax[2].loglog(lim, [3 * v for v in lim], "k:", lw=0.8)
+    ax[2].loglog(lim, [v / 3 for v in lim], "k:", lw=0.8)
+    ax[2].set_xlabel("true relative error (vs monolithic)")
+    ax[2].set_ylabel("estimated relative error")
+    ax[2].set_title("coupling-error estimate (dotted: factor 3)")
+    ax[2].grid(True, which="both", alpha=0.3)
+    ax[2].legend(fontsize=7)
     marks = {"jacobi": "o-", "gauss-seidel": "s--"}
     for scheme in ("jacobi", "gauss-seidel"):
         for order in (0, 1, 2):
@@ -174,10 +289,30 @@ def run(quick: bool = False, *, verbose: bool = True) -> dict:
 
     cfg = _config(quick)
     t0 = time.perf_counter()
+    estimate = measure_estimate(cfg, log)
     errors = measure_errors(cfg, log)
     long = measure_long_run(cfg, log)
     cmd = harness_command(NAME, quick)
     summary = []
+    ratios = [r[k] for r in estimate["rows"] for k in ("wob_amplitude_ratio", "penetration_ratio")
+              if r[k] is not None]
+    lo, hi = min(ratios), max(ratios)
+    summary.append(summary_row(
+        f"coupling-error estimate / true error (vs monolithic), WOB amplitude and penetration, stuck and "
+        f"drilling case, H = {min(cfg['est_steps']) * 1e3:g}..{max(cfg['est_steps']) * 1e3:g} ms",
+        f"{lo:.2f}..{hi:.2f}", goal="within a factor 3 (1/3..3)", met=bool(lo >= 1 / 3 and hi <= 3),
+        command=cmd))
+    acc = estimate["accuracy"]
+    d = acc["default"]
+    summary.append(summary_row(
+        "drilling case (22.5 Hz, 15 kN): default run (adaptive, tol 1e-3), penetration error vs monolithic; "
+        "peer = fixed H = 1 ms without estimate (wall time)",
+        f"{d['penetration_error_rel']:.2e} in {fmt_time(d['wall_time_s'])}",
+        peer=f"{acc['fixed'][0]['penetration_error_rel']:.2e} in {fmt_time(acc['fixed_1ms_wall_time_s'])}",
+        ratio=f"{d['wall_time_s'] / acc['fixed_1ms_wall_time_s']:.2f}x wall",
+        goal="error <= 1e-3 at <= 1x wall", met=bool(d["penetration_error_rel"] <= 1e-3
+                                                    and d["wall_time_s"] <= acc["fixed_1ms_wall_time_s"]),
+        command=cmd))
     for o in errors["orders"]:
         sel = [r for r in errors["rows"] if r["scheme"] == o["scheme"] and r["extrapolation"] == o["extrapolation"]
                and abs(r["step_s"] - 1e-3) < 1e-12]
@@ -206,7 +341,7 @@ def run(quick: bool = False, *, verbose: bool = True) -> dict:
         fmt_time(long["fmu_alone_s"]), peer=fmt_time(long["floor_s"]),
         ratio=f"{long['fmu_alone_s'] / long['floor_s']:.2f}x floor", command=cmd))
     result = {"benchmark": NAME, "quick": quick, "command": cmd, "argv": sys.argv, "machine": machine_info(),
-              "config": cfg, "errors": errors, "long_run": long, "summary": summary,
+              "config": cfg, "estimate": estimate, "errors": errors, "long_run": long, "summary": summary,
               "elapsed_s": time.perf_counter() - t0}
     save_result(NAME, result, _plot(result))
     return result

@@ -1,14 +1,23 @@
-"""``hammerbit cosim`` and ``hammerbit sweep``: the co-simulation from the command line.
+"""``hammerbit cosim`` (and ``sweep``): the co-simulation from the command line.
 
-``hammerbit cosim --string FILE --fmu dist/HammerBitRock.fmu --stop T --step H
-[--scheme jacobi|gauss-seidel] [--extrapolation 0|1|2] [--json] [--out results.csv]``
-
-``hammerbit sweep --string FILE --fmu ... --frequencies LO HI N [--plot FILE] [--csv FILE]``
+``hammerbit cosim --string FILE [--fmu dist/HammerBitRock.fmu] --stop T [--step H | --tol TOL]
+[--scheme jacobi|gauss-seidel] [--extrapolation 0|1|2] [--ramp S] [--monolithic] [--json] [--out results.csv]``
 
 ``--string`` takes a TOML file or a built-in example name (``field-2200m``).
 Without ``--fmu`` the hammer runs in process (the FMU's own kernels,
 :class:`hammerbit.cosim.StepperHammer`).  The hammer is the field hammer
 (:func:`hammerbit.cosim.field_hammer`) unless ``--set`` changes it.
+
+By default the macro step is adaptive (rollback through the FMU state) and
+the run's coupling-error estimate is held against ``--tol`` (1e-3, relative
+on the WOB amplitude and the penetration).  ``--step H`` gives a fixed step;
+a run whose estimate exceeds the tolerance prints the estimate and exits
+with code 5 (``EXIT_INACCURATE``).  A step that cannot resolve the forcing,
+the slip dynamics or the string modes in the exchange is refused (code 2).
+
+:func:`add_hammer_options` and :func:`config_from_args` are the one option
+set and the one config builder of every command that needs the hammer on the
+string (``cosim``, ``sweep``, ``modes --hammer-on-bottom``).
 """
 from __future__ import annotations
 
@@ -16,123 +25,240 @@ import json
 import sys
 import time
 
-__all__ = ["register", "cmd_cosim", "cmd_sweep"]
+from .cli_common import EXIT_INACCURATE, EXIT_OK, UsageError, add_set_argument, parse_settings
+
+__all__ = ["register", "cmd_cosim", "add_hammer_options", "add_cosim_options", "config_from_args",
+           "load_string_arg", "fmu_arg"]
 
 
-def _common(p):
-    p.add_argument("--string", required=True, help="drillstring TOML file or example name (field-2200m)")
-    p.add_argument("--fmu", default=None, help="HammerBitRock.fmu (default: the same model in process)")
-    p.add_argument("--step", type=float, default=1e-3, help="macro step H [s] (default 1e-3)")
-    p.add_argument("--scheme", default="jacobi", choices=["jacobi", "gauss-seidel"])
-    p.add_argument("--extrapolation", type=int, default=2, choices=[0, 1, 2],
-                   help="polynomial order of the exchanged signals (default 2)")
+def add_hammer_options(p) -> None:
+    """The hammer, interface and ``--set`` options (``cosim``, ``sweep``, ``modes --hammer-on-bottom``)."""
     p.add_argument("--wob", type=float, default=None, help="weight on bit of the static equilibrium [N] "
                                                             "(default: the hammer's preload, 55 kN)")
     p.add_argument("--interface-stiffness", type=float, default=None, help="k_i [N/m] (default 2e6)")
     p.add_argument("--interface-damping", type=float, default=None, help="c_i [N s/m] (default 2e3)")
+    add_set_argument(p)
+
+
+def add_cosim_options(p) -> None:
+    """``--string``, ``--fmu``, the exchange options and :func:`add_hammer_options`."""
+    p.add_argument("--string", required=True, help="drillstring TOML file or example name (field-2200m)")
+    p.add_argument("--fmu", default=None, help="HammerBitRock.fmu (default: the same model in process)")
+    p.add_argument("--step", type=float, default=None,
+                   help="fixed macro step H [s] (default: adaptive, see --tol)")
+    p.add_argument("--scheme", default="jacobi", choices=["jacobi", "gauss-seidel"])
+    p.add_argument("--extrapolation", type=int, default=2, choices=[0, 1, 2],
+                   help="polynomial order of the exchanged signals (default 2)")
     p.add_argument("--f-max", type=float, default=None, help="modal truncation of the string [Hz]")
+    p.add_argument("--ramp", type=float, default=0.0, metavar="SECONDS",
+                   help="raise the harmonic force linearly from 0 over SECONDS (default 0: full at once)")
     p.add_argument("--harmonic-source", default="fmu", choices=["fmu", "master"],
                    help="harmonic force from the FMU's internal source (default) or computed by the "
                         "master and fed to the FMU's harmonic_force input (step mean, zero-order hold)")
-    p.add_argument("--set", action="append", metavar="FIELD=VALUE",
-                   help="change a field of the hammer's RigParameters (SI), e.g. amplitude=5000")
+    add_hammer_options(p)
 
 
-def _config(args, **extra):
-    from .cosim import CosimConfig, field_hammer
-    from .cli import _parse_settings
+def rig_from_args(args):
+    """The field hammer with ``--set`` applied (groups, SI symbols, RigParameters/FMU names)."""
+    from hammerbit.model.params import apply_settings
+    from .cosim import field_hammer
     rig = field_hammer()
-    changes = _parse_settings(args.set)
-    if changes:
-        try:
-            rig = rig.replace(**changes)
-        except TypeError as e:
-            raise SystemExit(f"hammerbit: --set: {e}") from None
-    kw = dict(step=args.step, scheme=args.scheme, extrapolation=args.extrapolation, rig=rig,
-              wob=args.wob, f_max=args.f_max, harmonic_source=getattr(args, "harmonic_source", "fmu"))
-    if args.interface_stiffness is not None:
+    settings = parse_settings(getattr(args, "set", None))
+    if settings:
+        rig = apply_settings(rig.to_groups(), settings).to_rig()
+    return rig
+
+
+def config_from_args(args, **extra):
+    """The one :class:`~hammerbit.cosim.CosimConfig` builder of the CLI.
+
+    Bad values raise :class:`~hammerbit.model.validation.ParameterError` or
+    :class:`~hammerbit.cli_common.UsageError` (exit code 2)."""
+    from hammerbit.model.validation import ParameterError
+    from .cosim import CosimConfig
+    rig = rig_from_args(args)
+    kw = {"rig": rig, "wob": getattr(args, "wob", None)}
+    for name in ("scheme", "extrapolation", "f_max", "harmonic_source", "ramp"):
+        if getattr(args, name, None) is not None:
+            kw[name] = getattr(args, name)
+    step = getattr(args, "step", None)
+    if step is not None:
+        kw["step"] = step
+    if getattr(args, "interface_stiffness", None) is not None:
         kw["interface_stiffness"] = args.interface_stiffness
-    if args.interface_damping is not None:
+    if getattr(args, "interface_damping", None) is not None:
         kw["interface_damping"] = args.interface_damping
     kw.update(extra)
     try:
         return CosimConfig(**kw)
-    except ValueError as e:
-        raise SystemExit(f"hammerbit: {e}") from None
+    except ParameterError:
+        raise
+    except (ValueError, TypeError) as e:
+        raise UsageError(str(e)) from None
 
 
-def _string(args):
+def load_string_arg(args):
+    """The drillstring of ``--string`` (errors exit 2)."""
     from .drillstring import DrillStringError, load_string
     try:
         return load_string(args.string)
-    except (DrillStringError, FileNotFoundError, OSError, ValueError) as e:
-        raise SystemExit(f"hammerbit: --string {args.string}: {e}") from None
+    except DrillStringError:
+        raise
+    except (FileNotFoundError, OSError, ValueError) as e:
+        raise UsageError(f"--string {args.string}: {e}") from None
 
 
-def _fmu(args):
+def fmu_arg(args):
+    """The ``--fmu`` path after a check that it is an FMU (errors exit 2), or None."""
     if args.fmu is None:
         return None
-    from pathlib import Path
-    if not Path(args.fmu).is_file():
-        raise SystemExit(f"hammerbit: --fmu {args.fmu}: no such file (build it with python build_fmu.py)")
+    from .cosim import _check_fmu_file
+    try:
+        _check_fmu_file(args.fmu)
+    except (OSError, ValueError) as e:
+        raise UsageError(f"--fmu {args.fmu}: {e}") from None
     return args.fmu
 
 
+# names kept for callers of the old private helpers
+_common = add_cosim_options
+_config = config_from_args
+_string = load_string_arg
+_fmu = fmu_arg
+
+
+def _print_text(out: dict, res, cfg, string) -> None:
+    if res.method == "monolithic":
+        head = f"{string.name}: monolithic reference (rtol {cfg.rtol:g})"
+    elif cfg.adaptive:
+        st = res.stats
+        head = (f"{string.name}: {res.macro_steps} adaptive macro steps of {st['h_min_used'] * 1e3:.4g}"
+                f"..{st['h_max_used'] * 1e3:.4g} ms ({st['rejected']} rolled back; {cfg.scheme}, "
+                f"extrapolation order {cfg.extrapolation}, hammer {out['hammer']})")
+    else:
+        head = (f"{string.name}: {res.macro_steps} macro steps of {cfg.step * 1e3:g} ms ({cfg.scheme}, "
+                f"extrapolation order {cfg.extrapolation}, hammer {out['hammer']})")
+    print(head)
+    print(f"  to t = {out['stop_s']:g} s; WOB mean {out['wob_mean_n'] / 1e3:.4g} kN, dynamic amplitude "
+          f"{out['wob_amplitude_n'] / 1e3:.4g} kN (from t = {out['steady_window_start_s']:g} s)")
+    c = out["counts"]
+    print(f"  penetration {out['penetration_m'] * 1e3:.5g} mm; slips {c.get('slips', 0)}, impacts "
+          f"{c.get('impacts', 0)}, bounce violations {c.get('bounce_violations', 0)}")
+    if res.estimate is not None:
+        print(f"  {res.estimate.text()}")
+    print(f"  wall time {out['wall_time_s']:.3f} s (+ set-up {out['setup_time_s']:.3f} s)")
+    if out.get("csv"):
+        print(f"  wrote {out['csv']}")
+
+
 def cmd_cosim(args) -> int:
-    from .cosim import CouplingInstabilityError, cosimulate, cosimulate_adaptive
-    cfg = _config(args, stop=args.stop, record=("wob", "interface_force", "hammer_position",
-                                                "hammer_velocity", "bit_position", "bit_velocity",
-                                                "hook_load"),
-                  progress=None if not args.json else False)
-    string = _string(args)
+    from .cosim import cosimulate, monolithic
+    from .cosim_error import StepResolutionError
+    adaptive = args.step is None or args.adaptive
+    extra = {"stop": args.stop,
+             "record": ("wob", "interface_force", "hammer_position", "hammer_velocity", "bit_position",
+                        "bit_velocity", "stick", "contact", "hook_load"),
+             "progress": None if not args.json else False, "adaptive": adaptive and not args.monolithic,
+             "tol": args.tol}
+    if args.monolithic and args.step is None:
+        extra["step"] = 1e-3                        # the sampling interval of the reference
+    cfg = config_from_args(args, **extra)
+    string = load_string_arg(args)
+    fmu = fmu_arg(args)
     t0 = time.perf_counter()
     try:
-        if args.adaptive:
-            res = cosimulate_adaptive(string, cfg, fmu=_fmu(args), tol=args.tol)
+        if args.monolithic:
+            if fmu is not None:
+                raise UsageError("--monolithic runs the reference in process; it takes no --fmu")
+            res = monolithic(string, cfg)
         else:
-            res = cosimulate(string, cfg, fmu=_fmu(args))
-    except CouplingInstabilityError as e:
-        print(f"hammerbit cosim: {e}", file=sys.stderr)
-        return 3
-    except ValueError as e:
-        print(f"hammerbit cosim: error: {e}", file=sys.stderr)
-        return 2
+            res = cosimulate(string, cfg, fmu=fmu)
+    except StepResolutionError as e:
+        raise UsageError(str(e)) from None
     total = time.perf_counter() - t0
     out = res.summary()
     out["total_time_s"] = total
-    out["hammer"] = "fmu" if args.fmu else "in-process"
-    if args.adaptive:
-        out["scheme"] = "gauss-seidel (hammer first), adaptive step"
-        out["adaptive"] = res.stats
+    out["hammer"] = "fmu" if fmu else "in-process"
+    if cfg.adaptive:
+        out["adaptive"] = {k: v for k, v in res.stats.items()
+                           if k in ("accepted", "rejected", "at_min_step", "defect_tol", "passes",
+                                    "h_min_used", "h_max_used")}
     out["string"] = string.name
     out["wob_static_n"] = cfg.weight_on_bit
+    out["tol"] = cfg.tol
+    est = res.estimate
+    out["meets_tolerance"] = None if est is None else est.meets_tolerance
     if args.out:
         res.to_csv(args.out)
         out["csv"] = str(args.out)
     if args.json:
         print(json.dumps(out, indent=2, default=float))
     else:
-        print(f"{string.name}: {res.macro_steps} macro steps of {cfg.step:g} s ({cfg.scheme}, "
-              f"extrapolation order {cfg.extrapolation}, hammer {out['hammer']})")
-        print(f"  WOB mean {out['wob_mean_n']:.1f} N, dynamic amplitude {out['wob_amplitude_n']:.1f} N "
-              f"(second half of the run)")
-        print(f"  penetration {out['penetration_m']:.6g} m, wall time {out['wall_time_s']:.3f} s "
-              f"(+ set-up {out['setup_time_s']:.3f} s)")
-        if args.out:
-            print(f"  wrote {args.out}")
-    return 0
+        _print_text(out, res, cfg, string)
+    if est is not None and not est.meets_tolerance:
+        how = ("a smaller --step, or the adaptive step (omit --step)" if not cfg.adaptive else
+               "a tighter --tol or a smaller first --step")
+        print(f"hammerbit cosim: warning: the answer is not within the tolerance: {est.text()}; "
+              f"use {how}", file=sys.stderr)
+        return EXIT_INACCURATE
+    return EXIT_OK
+
+
+def register(subparsers) -> None:
+    """Add ``cosim`` to the ``hammerbit`` command."""
+    p = subparsers.add_parser("cosim", help="co-simulate the drillstring with the hammer FMU",
+                              description="Co-simulation: the drillstring stepped exactly by the master, "
+                                          "the hammer as an FMU, from static equilibrium; every run "
+                                          "estimates its own coupling error (exit code 5 when above --tol).")
+    add_cosim_options(p)
+    p.add_argument("--stop", type=float, required=True, help="simulated time [s]")
+    p.add_argument("--tol", type=float, default=1e-3,
+                   help="relative tolerance of the coupling error on the WOB amplitude and the "
+                        "penetration (default 1e-3); drives the adaptive step, checked for --step")
+    p.add_argument("--adaptive", action="store_true",
+                   help="adaptive macro step even with --step (then the first step); the default "
+                        "without --step")
+    p.add_argument("--monolithic", action="store_true",
+                   help="run the monolithic reference (string, interface and hammer as one hybrid "
+                        "system) instead; samples every --step (default 1 ms)")
+    p.add_argument("--json", action="store_true", help="print a JSON summary")
+    p.add_argument("--out", default=None, help="CSV of the recorded variables")
+    p.set_defaults(func=cmd_cosim)
+    _register_sweep(subparsers)
+
+
+def _register_sweep(subparsers) -> None:
+    """The ``sweep`` command while it lives here (it moves to the studies commands)."""
+    try:
+        from .cli_studies import register as _studies  # noqa: F401
+        return                                         # the studies module registers ``sweep``
+    except ImportError:
+        pass
+    p = subparsers.add_parser("sweep", help="frequency sweep of the hammer excitation",
+                              description="Steady dynamic WOB amplitude, bounce margin and rate of "
+                                          "penetration against the hammer's excitation frequency.")
+    add_cosim_options(p)
+    p.add_argument("--frequencies", nargs=3, type=float, required=True, metavar=("LO", "HI", "N"),
+                   help="LO HI [Hz] and the number of frequencies N")
+    p.add_argument("--duration", type=float, default=6.0,
+                   help="simulated time per frequency [s]; the last third is the steady window (default 6)")
+    p.add_argument("--plot", default=None, help="figure file (png, svg, pdf)")
+    p.add_argument("--csv", default=None, help="CSV of the sweep")
+    p.add_argument("--json", action="store_true", help="print a JSON summary")
+    p.set_defaults(func=cmd_sweep)
 
 
 def cmd_sweep(args) -> int:
     import numpy as np
-    from .cosim import CouplingInstabilityError, coupled_modes, plot_sweep, sweep, write_sweep_csv
+    from .cosim import coupled_modes, plot_sweep, sweep, write_sweep_csv
     lo, hi, n = args.frequencies
     n = int(n)
     if not (0 < lo < hi) or n < 1:
-        raise SystemExit("hammerbit sweep: --frequencies LO HI N needs 0 < LO < HI and N >= 1")
+        raise UsageError("--frequencies LO HI N needs 0 < LO < HI and N >= 1")
     freqs = np.linspace(lo, hi, n) if n > 1 else np.array([lo])
-    cfg = _config(args, stop=args.duration, progress=False)
-    string = _string(args)
+    cfg = config_from_args(args, stop=args.duration, progress=False, estimate=False,
+                           **({} if args.step is not None else {"step": 1e-3}))
+    string = load_string_arg(args)
 
     def prog(i, total, row):
         if not args.json:
@@ -141,11 +267,7 @@ def cmd_sweep(args) -> int:
                   file=sys.stderr)
 
     t0 = time.perf_counter()
-    try:
-        res = sweep(string, freqs, cfg, fmu=_fmu(args), progress=prog)
-    except CouplingInstabilityError as e:
-        print(f"hammerbit sweep: {e}", file=sys.stderr)
-        return 3
+    res = sweep(string, freqs, cfg, fmu=fmu_arg(args), progress=prog)
     modes = coupled_modes(string, cfg, f_max=hi * 1.2)
     in_band = [float(f) for f in modes if lo <= f <= hi]
     i_pk = int(np.argmax(res["wob_amplitude_n"]))
@@ -171,33 +293,3 @@ def cmd_sweep(args) -> int:
               f"{out['peak_frequency_hz']:.3f} Hz; coupled natural frequencies (bit on bottom) in band: "
               + ", ".join(f"{f:.2f}" for f in in_band))
     return 0
-
-
-def register(subparsers) -> None:
-    """Add ``cosim`` and ``sweep`` to the ``hammerbit`` command."""
-    p = subparsers.add_parser("cosim", help="co-simulate the drillstring with the hammer FMU",
-                              description="Co-simulation: the drillstring stepped exactly by the master, "
-                                          "the hammer as an FMU, from static equilibrium.")
-    _common(p)
-    p.add_argument("--stop", type=float, required=True, help="simulated time [s]")
-    p.add_argument("--json", action="store_true", help="print a JSON summary")
-    p.add_argument("--out", default=None, help="CSV of the recorded variables")
-    p.add_argument("--adaptive", action="store_true",
-                   help="adaptive macro step with rollback through the FMU state (Gauss-Seidel, "
-                        "hammer first); --step is the initial step")
-    p.add_argument("--tol", type=float, default=1e-3,
-                   help="--adaptive: allowed interface force defect relative to the WOB (default 1e-3)")
-    p.set_defaults(func=cmd_cosim)
-
-    p = subparsers.add_parser("sweep", help="frequency sweep of the hammer excitation",
-                              description="Steady dynamic WOB amplitude, bounce margin and rate of "
-                                          "penetration against the hammer's excitation frequency.")
-    _common(p)
-    p.add_argument("--frequencies", nargs=3, type=float, required=True, metavar=("LO", "HI", "N"),
-                   help="LO HI [Hz] and the number of frequencies N")
-    p.add_argument("--duration", type=float, default=6.0,
-                   help="simulated time per frequency [s]; the last third is the steady window (default 6)")
-    p.add_argument("--plot", default=None, help="figure file (png, svg, pdf)")
-    p.add_argument("--csv", default=None, help="CSV of the sweep")
-    p.add_argument("--json", action="store_true", help="print a JSON summary")
-    p.set_defaults(func=cmd_sweep)

@@ -69,11 +69,13 @@ def register(subparsers: "argparse._SubParsersAction") -> tuple[argparse.Argumen
     pm.add_argument("--exact", action="store_true",
                     help="also give the exact (transfer-matrix) frequencies and relative errors")
     pm.add_argument("--hammer-on-bottom", action="store_true",
-                    help="bit on bottom with the field hammer (hammerbit.cosim.field_hammer, default "
-                         "interface of the co-simulation) as the bottom boundary; the frequencies the "
-                         "co-simulation sweep resonates at")
+                    help="bit on bottom with the hammer of `hammerbit cosim` (the field hammer, "
+                         "changed by --set, --interface-stiffness) as the bottom boundary; the "
+                         "frequencies the co-simulation sweep resonates at")
     pm.add_argument("--csv", default=None, metavar="FILE", help="also write the table as CSV to FILE")
     pm.add_argument("--json", action="store_true", help="JSON on stdout")
+    from .cli_cosim import add_hammer_options
+    add_hammer_options(pm)          # --hammer-on-bottom: the hammer of ``cosim`` (--set, interface)
     pm.set_defaults(func=cmd_modes)
 
     pc = subparsers.add_parser(
@@ -268,29 +270,45 @@ def cmd_check(args: argparse.Namespace) -> int:
 
 
 def _cmd_hammer_modes(args: argparse.Namespace) -> int:
-    """``hammerbit modes --hammer-on-bottom``: the hammer as the bottom boundary."""
-    from .cosim import CosimConfig
+    """``hammerbit modes --hammer-on-bottom``: the hammer as the bottom boundary.
+
+    The hammer, interface and ``--set`` options and the config are those of
+    ``hammerbit cosim`` (:func:`hammerbit.cli_cosim.config_from_args`), so the
+    modes are those of the system a co-simulation or sweep with the same
+    options runs."""
+    from .cli_common import UsageError
+    from .cli_cosim import config_from_args
     from .modal_check import hammer_on_bottom_frequencies
-    try:
-        string = load_string(args.string)
-        top = parse_boundary(args.top, where="--top") if args.top else None
-        cfg = CosimConfig()
-        rig = cfg.rig          # CosimConfig() builds it with field_hammer()
-        f = hammer_on_bottom_frequencies(string, interface_stiffness=cfg.interface_stiffness,
-                                         hammer_mass=rig.hammer_mass, hammer_stiffness=rig.stiffness,
-                                         top=top, f_max=args.fmax or 100.0, mass=args.mass)
-        if args.count:
-            f = f[: args.count]
-    except (DrillStringError, ValueError) as err:
-        return _error(str(err))
+    if args.bottom:
+        raise UsageError("--bottom cannot be combined with --hammer-on-bottom: the hammer is the bottom "
+                         "boundary (change it with --set and --interface-stiffness)")
+    string = load_string(args.string)
+    top = parse_boundary(args.top, where="--top") if args.top else None
+    cfg = config_from_args(args, estimate=False)
+    rig = cfg.rig
+    f_max = args.fmax or 100.0
+    kw = dict(interface_stiffness=cfg.interface_stiffness, hammer_mass=rig.hammer_mass,
+              hammer_stiffness=rig.stiffness, top=top, f_max=f_max)
+    f = hammer_on_bottom_frequencies(string, mass=args.mass, **kw)
+    exact = hammer_on_bottom_frequencies(string, exact=True, **kw) if args.exact else None
+    if args.count:
+        f = f[: args.count]
     out = {"string": string.name, "bottom": "hammer-on-bottom", "hammer_mass_kg": rig.hammer_mass,
            "hammer_stiffness_n_per_m": rig.stiffness, "interface_stiffness_n_per_m": cfg.interface_stiffness,
-           "frequencies_hz": [float(x) for x in f]}
+           "interface_damping_n_s_per_m": cfg.interface_damping, "wob_n": cfg.weight_on_bit,
+           "mass": args.mass, "frequencies_hz": [float(x) for x in f]}
+    if exact is not None:
+        m = min(len(exact), len(f))
+        out["exact_hz"] = [float(x) for x in exact[:len(f)]]
+        out["relative_error"] = [float(f[i] / exact[i] - 1.0) for i in range(m)]
     if args.json:
         print(json.dumps(out, indent=2))
     else:
         print(f"{string.name}, hammer on bottom (m1 = {rig.hammer_mass:g} kg, K = {rig.stiffness:.3g} N/m, "
               f"k_i = {cfg.interface_stiffness:.3g} N/m):")
         for i, x in enumerate(f, start=1):
-            print(f"{i:>4} {x:>12.6g} Hz")
+            line = f"{i:>4} {x:>12.6g} Hz"
+            if exact is not None and i <= len(exact):
+                line += f"   exact {exact[i - 1]:>12.6g} Hz  ({x / exact[i - 1] - 1.0:+.2e})"
+            print(line)
     return 0

@@ -19,29 +19,39 @@ Causality
 
 Exact string step
 -----------------
-Over a macro step ``[t_n, t_n + H]`` the hammer motion seen by the string is
-a polynomial (degree 0, 1 or 2) given by its Taylor coefficients.  The string
-state ``xi`` (deviation from static equilibrium) obeys
-``xi' = A' xi + E w(s)``, ``A' = A - B (k_i C_u + c_i C_v)``, ``E = B [k_i, c_i]``.
-Appending the polynomial's coefficients as a nilpotent chain and the time
-integral of the interface force as one more state gives one linear
-autonomous system whose matrix exponential ``expm(Z H)`` (computed once per
-``H``, :func:`scipy.linalg.expm`) maps ``[xi_n, coefficients]`` exactly to
-``[xi_{n+1}, int F_i dt]``: one dense mat-vec per macro step, no loops over
-elements.  ``CosimConfig.f_max`` truncates to the modes below ``f_max``.
+Over a macro step the hammer motion seen by the string is a polynomial
+(degree 0, 1 or 2); the string and the interface are stepped exactly through
+the matrix exponential of the string augmented by the polynomial and the
+integral of the interface force (:mod:`hammerbit.cosim_string`), in modal
+coordinates when the eigenbasis reproduces the step, else dense; one numba
+kernel per step (:func:`_exchange`).  ``CosimConfig.f_max`` truncates to the
+modes below ``f_max``.
 
 Schemes
 -------
 * ``jacobi``: both sides step from the data at ``t_n``.  The hammer gets the
-  mean over the step of the force extrapolated (order 0, 1, 2) from
-  ``F(t_n), F(t_{n-1}), F(t_{n-2})`` (weights 1; 3/2, -1/2; 23/12, -16/12, 5/12);
-  the string gets the hammer motion extrapolated from ``t_n, t_{n-1}, t_{n-2}``.
+  mean over the step of the force extrapolated (order 0, 1, 2) through
+  ``F(t_n), F(t_{n-1}), F(t_{n-2})`` (uniform steps: weights 1; 3/2, -1/2;
+  23/12, -16/12, 5/12; any spacing: :func:`extrapolation_weights`); the
+  string gets the hammer motion extrapolated from ``t_n, t_{n-1}, t_{n-2}``.
 * ``gauss-seidel``: the hammer steps first (as above); the string then
   *interpolates* the hammer motion through the new value: order 0 holds the
   value at ``t_{n+1}``, order 1 is linear between ``t_n`` and ``t_{n+1}``,
   order 2 the parabola through ``t_{n-1}, t_n, t_{n+1}``.
 
-Communication times are ``t0 + n H`` (never accumulated).
+Communication times are ``t0 + n H`` (never accumulated); a stop time that is
+not a whole number of steps ends with one shorter step.  With
+``adaptive=True`` the step is chosen per step (powers of two of ``step``)
+from the interface force defect, with rollback of both sides (the FMU through
+``fmi2SetFMUstate``).
+
+Coupling error estimate
+-----------------------
+Every run (``estimate=True``) carries a companion co-simulation that takes two
+half steps per macro step; the difference, scaled by the measured order, is
+the a posteriori estimate of the run's error in WOB amplitude and penetration
+(:mod:`hammerbit.cosim_error`).  ``CosimResult.estimate.meets_tolerance``
+says whether it is within ``tol``.
 
 Coupling instability
 --------------------
@@ -67,452 +77,107 @@ from __future__ import annotations
 import math
 import sys
 import time as _time
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import fields
 from pathlib import Path
-from typing import Optional, Sequence
+from typing import Optional
 
 import numpy as np
-import scipy.linalg as sla
 
-from hammerbit.model.params import RigParameters, Scales, RIG
+from hammerbit.model.params import RigParameters
+
+from .cosim_config import (RECORDABLE, SCHEMES, CosimConfig, CosimResult, CouplingInstabilityError, _dtype,
+                           event_counts, field_hammer, steady_start)
+from .cosim_error import CouplingErrorEstimate, StepResolutionError, check_step, measured_order, richardson
+from .cosim_exchange import _exchange, _held_force, extrapolation_weights
+from .cosim_string import StringSide, _StringState
 
 __all__ = [
-    "CosimConfig", "CosimResult", "CouplingInstabilityError", "field_hammer", "StringSide",
-    "StepperHammer", "FMUHammer", "cosimulate", "monolithic", "RECORDABLE", "SCHEMES",
-    "extrapolation_weights", "coupled_modes", "sweep", "plot_sweep", "write_sweep_csv", "SWEEP_DTYPE", "wob_frf",
+    "CosimConfig", "CosimResult", "CouplingInstabilityError", "StepResolutionError", "CouplingErrorEstimate",
+    "field_hammer", "StringSide", "StepperHammer", "FMUHammer", "cosimulate", "cosimulate_adaptive",
+    "monolithic", "RECORDABLE", "SCHEMES", "extrapolation_weights", "coupled_modes",
+    "sweep", "plot_sweep", "write_sweep_csv", "SWEEP_DTYPE", "wob_frf",
 ]
-
-SCHEMES = ("jacobi", "gauss-seidel")
-
-#: Variables a run can record (all SI), in output order after ``time``.
-RECORDABLE = {
-    "wob": "weight on bit: drive of the hammer assembly on the bit K(x_h-x_b)+C(v_h-v_b)+F_c [N]",
-    "interface_force": "force of the string (interface spring-dashpot) on the hammer [N]",
-    "hammer_force": "force held on the hammer's preload input over the step [N]",
-    "hammer_position": "hammer position [m] (downward)",
-    "hammer_velocity": "hammer velocity [m/s]",
-    "bit_position": "bit position = penetration [m]",
-    "bit_velocity": "bit velocity [m/s]",
-    "string_bit_displacement": "displacement of the string's bottom node from equilibrium [m]",
-    "string_bit_velocity": "velocity of the string's bottom node [m/s]",
-    "hook_load": "hook load [N]: static hook load plus the dynamic tension of the top element",
-    "energy_residual": "coupling energy residual of the step (power-bond residual x H) [J]",
-}
-
-
-class CouplingInstabilityError(RuntimeError):
-    """The co-simulation coupling became unstable (energy growth at the interface).
-
-    Attributes
-    ----------
-    time : float
-        Communication time [s] where it was detected.
-    step : int
-        Macro-step index.
-    residual : float
-        Absolute energy residual of the last window [J].
-    reference : float
-        Reference energy [J] it was compared with.
-    """
-
-    def __init__(self, message: str, *, time: float, step: int, residual: float, reference: float):
-        self.time = time
-        self.step = step
-        self.residual = residual
-        self.reference = reference
-        super().__init__(message)
-
-
-# ---------------------------------------------------------------------------
-# field hammer
-# ---------------------------------------------------------------------------
-def field_hammer(*, hammer_mass: float = 400.0, natural_frequency: float = 20.0,
-                 friction_force: float = 100e3, groups=None) -> RigParameters:
-    """A field-size resonance hammer with the dimensionless groups of the rig.
-
-    The rig of Franca & Weber (``RigParameters()``: m1 = 25.3 kg,
-    K = 2170 N/m, F0 = 54 N, natural frequency 1.47 Hz) is scaled by choosing
-    the three scales the nondimensional form loses:
-
-    * hammer mass ``m1 = 400 kg`` -- a downhole hammer body of a few hundred
-      kilograms (an 8 in percussion hammer piston and housing);
-    * natural frequency ``Omega/2pi = 20 Hz`` -- the middle of the 10-30 Hz
-      band of downhole resonance/percussion tools, so ``K = m1 Omega^2 =
-      6.32e6 N/m``;
-    * friction force ``F0 = 100 kN`` -- so the rig's preload group
-      ``b = 0.55`` is a weight on bit of 55 kN (5.6 t), a usual WOB for an
-      8.5 in hard-rock bit, and ``a = 0.15`` is a 15 kN harmonic force.
-
-    Every group (rho, xi, eta, a, b, r, mu, gamma_hat, kc, n, lam_hat, phi)
-    is that of ``RigParameters().to_groups()`` (or ``groups`` if given), so
-    the nondimensional dynamics are the rig's; the length scale becomes
-    ``x0 = F0/K = 15.8 mm``.  ``preload`` is the WOB of the static
-    equilibrium, ``frequency`` = 20 Hz (eta = 1).
-    """
-    g = RIG.to_groups() if groups is None else groups
-    K = hammer_mass * (2.0 * math.pi * natural_frequency) ** 2
-    return g.to_rig(Scales(hammer_mass, K, friction_force), mu_static=RIG.mu_static)
-
-
-# ---------------------------------------------------------------------------
-# configuration
-# ---------------------------------------------------------------------------
-@dataclass(frozen=True, kw_only=True)
-class CosimConfig:
-    """Options of a co-simulation run (SI units; keyword-only).
-
-    Attributes
-    ----------
-    stop : float
-        End time [s] (start at ``start``).
-    step : float
-        Macro step H [s].
-    start : float
-        Start time t0 [s].
-    scheme : {'jacobi', 'gauss-seidel'}
-    extrapolation : {0, 1, 2}
-        Polynomial order of the exchanged signals over a step.
-    rig : RigParameters
-        Hammer; its ``preload`` is replaced by the interface force and its
-        amplitude/frequency/phase drive the internal harmonic source.
-    wob : float, optional
-        Weight on bit of the static equilibrium [N] (default ``rig.preload``).
-    interface_stiffness, interface_damping : float
-        k_i [N/m], c_i [N s/m] between the string's bottom node and the hammer.
-        Default 2e6 N/m and 2e3 N s/m: a shock sub.  With the 400 kg field
-        hammer it puts the hammer-on-interface mode at 11 Hz, below the
-        20 Hz drive, so the string is isolated and the hammer resonates and
-        drills.  A stiff interface (>= 1e7 N/m) clamps the hammer to the
-        collars (impedance ~ 7e5 N s/m against ``omega m1`` = 5e4 N s/m), the
-        hammer cannot resonate and the bit does not progress.
-    mass : str
-        Mass scheme of the string (``mixed``, ``lumped``, ``consistent``).
-    f_max : float, optional
-        Modal truncation of the string at f_max [Hz] (None: all nodal DOFs).
-    record : tuple of str
-        Variables to record (keys of :data:`RECORDABLE`); ``time`` is always first.
-    record_every : int
-        Record every n-th communication point.
-    check_stability : bool
-        Watch the power-bond residual (see module docstring).
-    energy_tol, growth, growth_windows, stability_window, blowup : float/int
-        Thresholds of the instability detector.
-    progress : bool, optional
-        Progress bar on stderr (None: only for runs above 20000 steps on a tty).
-    rtol : float
-        Tolerance of the in-process hammer / the monolithic reference.
-    """
-
-    stop: float = 1.0
-    step: float = 1e-3
-    start: float = 0.0
-    scheme: str = "jacobi"
-    extrapolation: int = 2
-    rig: RigParameters = field(default_factory=field_hammer)
-    wob: Optional[float] = None
-    interface_stiffness: float = 2.0e6
-    interface_damping: float = 2.0e3
-    mass: str = "mixed"
-    f_max: Optional[float] = None
-    record: tuple = ("wob", "interface_force", "hammer_position", "hammer_velocity",
-                     "bit_position", "bit_velocity")
-    record_every: int = 1
-    check_stability: bool = True
-    energy_tol: float = 0.05
-    growth: float = 1.2
-    growth_windows: int = 3
-    stability_window: int = 10
-    blowup: float = 50.0
-    progress: Optional[bool] = None
-    rtol: float = 1e-10
-    harmonic_source: str = "fmu"
-    """``fmu``: the FMU's internal harmonic source (continuous in time);
-    ``master``: the master computes the harmonic force and feeds its mean over
-    each macro step to the FMU's ``harmonic_force`` input (zero-order hold),
-    with the FMU's internal source switched off."""
-
-    def __post_init__(self):
-        if self.scheme not in SCHEMES:
-            raise ValueError(f"scheme = {self.scheme!r}: allowed {', '.join(SCHEMES)}")
-        if self.extrapolation not in (0, 1, 2):
-            raise ValueError(f"extrapolation = {self.extrapolation!r}: allowed 0, 1, 2")
-        if self.harmonic_source not in ("fmu", "master"):
-            raise ValueError(f"harmonic_source = {self.harmonic_source!r}: allowed 'fmu', 'master'")
-        if not (self.step > 0 and math.isfinite(self.step)):
-            raise ValueError(f"step = {self.step!r}: must be > 0 s")
-        if not self.stop > self.start:
-            raise ValueError(f"stop = {self.stop!r}: must be > start = {self.start!r}")
-        if self.interface_stiffness <= 0 or self.interface_damping < 0:
-            raise ValueError("interface_stiffness must be > 0 and interface_damping >= 0")
-        bad = [r for r in self.record if r not in RECORDABLE]
-        if bad:
-            raise ValueError(f"record: unknown variable(s) {bad}; allowed {', '.join(RECORDABLE)}")
-        if self.record_every < 1:
-            raise ValueError("record_every must be >= 1")
-        if self.wob is not None and self.wob < 0:
-            raise ValueError("wob must be >= 0 N")
-
-    @property
-    def weight_on_bit(self) -> float:
-        """WOB of the static equilibrium [N]."""
-        return float(self.rig.preload if self.wob is None else self.wob)
-
-    @property
-    def macro_steps(self) -> int:
-        """Number of macro steps ``round((stop - start)/step)``."""
-        return int(round((self.stop - self.start) / self.step))
-
-    def replace(self, **changes) -> "CosimConfig":
-        return replace(self, **changes)
-
-
-def _dtype(record: Sequence[str]) -> np.dtype:
-    return np.dtype([("time", "f8")] + [(r, "f8") for r in record])
-
-
-@dataclass
-class CosimResult:
-    """Result of :func:`cosimulate` or :func:`monolithic`.
-
-    Attributes
-    ----------
-    data : structured ndarray
-        ``time`` then the recorded variables (SI).
-    config : CosimConfig
-    macro_steps : int
-    wall_time_s : float
-        Time of the stepping loop (set-up excluded).
-    setup_time_s : float
-    penetration_m : float
-        Bit position at the end [m].
-    stats : dict
-        Maximum window energy residual, hammer calls, ...
-    method : str
-        ``cosim`` or ``monolithic``.
-    """
-
-    data: np.ndarray
-    config: CosimConfig
-    macro_steps: int
-    wall_time_s: float
-    setup_time_s: float
-    penetration_m: float
-    stats: dict
-    method: str = "cosim"
-
-    def window(self, t_from: Optional[float] = None) -> np.ndarray:
-        """Rows with time >= t_from (default: the second half of the run)."""
-        if t_from is None:
-            t_from = 0.5 * (self.config.start + self.config.stop)
-        return self.data[self.data["time"] >= t_from - 1e-12]
-
-    def wob_amplitude(self, t_from: Optional[float] = None) -> float:
-        """Dynamic WOB amplitude (max - min)/2 over the window [N]."""
-        w = self.window(t_from)["wob"]
-        return float(0.5 * (w.max() - w.min()))
-
-    def wob_mean(self, t_from: Optional[float] = None) -> float:
-        """Mean WOB over the window [N]."""
-        return float(np.mean(self.window(t_from)["wob"]))
-
-    def summary(self, t_from: Optional[float] = None) -> dict:
-        """JSON-ready figures."""
-        out = {"method": self.method, "scheme": self.config.scheme,
-               "extrapolation": self.config.extrapolation, "step_s": self.config.step,
-               "stop_s": self.config.stop, "macro_steps": self.macro_steps,
-               "wall_time_s": self.wall_time_s, "setup_time_s": self.setup_time_s,
-               "penetration_m": self.penetration_m}
-        if "wob" in self.data.dtype.names:
-            out["wob_mean_n"] = self.wob_mean(t_from)
-            out["wob_amplitude_n"] = self.wob_amplitude(t_from)
-        out.update({k: v for k, v in self.stats.items() if isinstance(v, (int, float, str))})
-        return out
-
-    def to_csv(self, path) -> Path:
-        """Write the recorded array as CSV (header = field names)."""
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        names = self.data.dtype.names
-        arr = np.column_stack([self.data[n] for n in names]) if len(self.data) else np.zeros((0, len(names)))
-        np.savetxt(path, arr, delimiter=",", header=",".join(names), comments="", fmt="%.17g")
-        return path
-
-
-# ---------------------------------------------------------------------------
-# extrapolation
-# ---------------------------------------------------------------------------
-def extrapolation_weights(order: int) -> np.ndarray:
-    """Weights on (F_n, F_{n-1}, F_{n-2}) of the mean over [t_n, t_n+H] of the
-    extrapolation polynomial of the given order (Adams–Bashforth weights)."""
-    return {0: np.array([1.0, 0.0, 0.0]), 1: np.array([1.5, -0.5, 0.0]),
-            2: np.array([23.0, -16.0, 5.0]) / 12.0}[order]
-
-
-# ---------------------------------------------------------------------------
-# string side
-# ---------------------------------------------------------------------------
-class StringSide:
-    """The drillstring plus interface spring, stepped exactly over a macro step.
-
-    Parameters
-    ----------
-    string : DrillString
-    config : CosimConfig
-
-    Attributes
-    ----------
-    ss : StateSpace
-        Exported model (``hammerbit.drillstring.state_space``) at the WOB.
-    A1, E : ndarray
-        Closed-interface state matrix and the input matrix of ``(x_h, v_h)``.
-    Cu, Cv, Ct : ndarray
-        Output rows: bit displacement, bit velocity, top tension.
-    """
-
-    def __init__(self, string, config: CosimConfig):
-        from hammerbit.drillstring import Boundary, state_space
-        self.config = config
-        ki, ci = config.interface_stiffness, config.interface_damping
-        self.ki, self.ci = ki, ci
-        self.wob = config.weight_on_bit
-        ss = state_space(string, None, Boundary.hammer(ki, ci), mass=config.mass,
-                         wob=self.wob, f_max=config.f_max)
-        if ss.x0 is None:
-            raise ValueError("the string has a rigid-body mode: the top must hold it (fixed or spring hook)")
-        self.ss = ss
-        B = ss.B[:, 0]
-        self.Cu, self.Cv, self.Ct = ss.C[0].copy(), ss.C[1].copy(), ss.C[2].copy()
-        self.A1 = ss.A - np.outer(B, ki * self.Cu + ci * self.Cv)
-        self.E = np.column_stack((B * ki, B * ci))
-        self.n = ss.A.shape[0]
-        self.frow = ki * self.Cu + ci * self.Cv   # F_i - W = frow.xi - ki x_dev - ci v
-        self.hook_eq = float(ss.hook_load)
-        self.xi = np.zeros(self.n)
-        self._H = None
-
-    def discretise(self, H: float, modal: bool = True) -> None:
-        """Precompute ``expm`` of the augmented system for the macro step H.
-
-        ``modal=False`` skips the modal form (:meth:`_modal`); ``self.modal``
-        is then False and only the dense ``P`` is set.
-        """
-        n = self.n
-        N = n + 6 + 1
-        Z = np.zeros((N, N))
-        Z[:n, :n] = self.A1
-        Z[:n, n:n + 2] = self.E
-        Z[n:n + 2, n + 2:n + 4] = np.eye(2)
-        Z[n + 2:n + 4, n + 4:n + 6] = np.eye(2)
-        Z[N - 1, :n] = self.frow
-        Z[N - 1, n:n + 2] = (-self.ki, -self.ci)
-        Phi = sla.expm(Z * H)
-        rows = np.r_[np.arange(n), N - 1]
-        self.P = np.ascontiguousarray(Phi[np.ix_(rows, np.arange(n + 6))])
-        self._H = H
-        self._buf = np.zeros(n + 6)
-        if modal:
-            self._modal(Phi, H)
-        else:
-            self.modal = False
-
-    def _modal(self, Phi: np.ndarray, H: float) -> None:
-        """Diagonal (modal) form of the exact step: O(n) per macro step instead of O(n^2).
-
-        With ``A1 = V diag(lam) V^-1`` the step is ``eta <- exp(lam H) * eta + G c``
-        in modal coordinates ``eta = V^-1 xi``, and the interface force row is
-        ``frow V``.  Used only when the eigenvector basis reproduces the dense
-        step to 1e-10 (otherwise the dense ``P`` is kept).
-        """
-        n = self.n
-        self.modal = False
-        if getattr(self, "_eig", None) is None:
-            try:
-                lam, V = np.linalg.eig(self.A1)
-                self._eig = (lam, V, np.linalg.inv(V))
-            except np.linalg.LinAlgError:
-                self._eig = False
-        if self._eig is False:
-            return
-        lam, V, Vinv = self._eig
-        d = np.exp(lam * H)
-        recon = (V * d[None, :]) @ Vinv
-        scale = max(np.max(np.abs(Phi[:n, :n])), 1.0)
-        if not np.all(np.isfinite(recon)) or np.max(np.abs(recon - Phi[:n, :n])) > 1e-10 * scale:
-            return
-        # A1 is real: its complex modes come in conjugate pairs, whose two halves
-        # carry conjugate states.  Keep one of each pair with weight 2 on every
-        # real output (and the real modes with weight 1): half the work.
-        tol = 1e-12 * max(np.max(np.abs(lam)), 1.0)
-        keep = np.flatnonzero((lam.imag > tol) | (np.abs(lam.imag) <= tol))
-        if np.count_nonzero(lam.imag > tol) != np.count_nonzero(lam.imag < -tol):
-            return
-        wgt = np.where(lam[keep].imag > tol, 2.0, 1.0)
-        Vk = V[:, keep]
-        self.m_d = np.ascontiguousarray(d[keep])
-        self.m_G = np.ascontiguousarray((Vinv @ Phi[:n, n:n + 6])[keep])
-        self.m_frow = np.ascontiguousarray((self.frow @ Vk) * wgt)
-        self.m_rows = ((self.Cu @ Vk) * wgt, (self.Cv @ Vk) * wgt, (self.Ct @ Vk) * wgt)
-        self._V = Vk * wgt[None, :]          # xi = Re(_V @ eta)
-        self._Vinv = Vinv[keep]               # eta = _Vinv @ xi
-        self.modal = True
-
-    def step(self, coeffs: np.ndarray) -> float:
-        """Advance xi over one step with hammer-motion Taylor coefficients
-        (6,) = (x, v, x', v', x'', v''); x as deviation from equilibrium.
-        Returns the integral of (F_i - W) over the step [N s]."""
-        b = self._buf
-        b[:self.n] = self.xi
-        b[self.n:] = coeffs
-        out = self.P @ b
-        self.xi = out[:self.n]
-        return float(out[self.n])
-
-    eta = None
-    """Modal state while the master steps in modal coordinates (else None)."""
-
-    def force(self, x_dev: float, v: float) -> float:
-        """Interface force on the hammer [N] for hammer deviation x_dev and velocity v."""
-        f = float((self.m_frow @ self.eta).real) if self.eta is not None else float(self.frow @ self.xi)
-        return self.wob + f - self.ki * x_dev - self.ci * v
-
-    def bit(self) -> tuple:
-        """(displacement deviation [m], velocity [m/s]) of the string's bottom node."""
-        if self.eta is not None:
-            return float((self.m_rows[0] @ self.eta).real), float((self.m_rows[1] @ self.eta).real)
-        return float(self.Cu @ self.xi), float(self.Cv @ self.xi)
-
-    def hook_load(self) -> float:
-        if self.eta is not None:
-            return self.hook_eq + float((self.m_rows[2] @ self.eta).real)
-        return self.hook_eq + float(self.Ct @ self.xi)
-
 
 # ---------------------------------------------------------------------------
 # hammer sides
 # ---------------------------------------------------------------------------
 class _MasterHarmonic:
-    """The harmonic force A sin(2 pi f t + phi) computed by the master and held
-    over each macro step at its mean (the exact impulse of the step)."""
+    """The harmonic force r(t) A sin(2 pi f t + phi) computed by the master and held
+    over each macro step at its mean (the exact impulse of the step; the ramp
+    factor r at the step's midpoint)."""
 
-    def __init__(self, rig: RigParameters):
+    def __init__(self, rig: RigParameters, config: Optional[CosimConfig] = None):
         self.A = rig.amplitude
         self.w = 2.0 * math.pi * rig.frequency
         self.phi = rig.phase
+        self.config = config
 
     def mean(self, t: float, H: float) -> float:
         w, phi = self.w, self.phi
-        return self.A * (math.cos(w * t + phi) - math.cos(w * (t + H) + phi)) / (w * H)
+        r = 1.0 if self.config is None else self.config.ramp_factor(t + 0.5 * H)
+        return r * self.A * (math.cos(w * t + phi) - math.cos(w * (t + H) + phi)) / (w * H)
 
 
-def _hammer_side(fmu, rig: RigParameters, W: float, c) -> object:
-    """The hammer side of a run: the FMU (fmpy) or the same kernels in process."""
-    master = _MasterHarmonic(rig) if c.harmonic_source == "master" else None
+def _hammer_side(fmu, rig: RigParameters, W: float, c, instance: str = "hammer") -> object:
+    """The hammer side of a run: the FMU (fmpy) or the same kernels in process.
+
+    With a ramp the FMU's fixed amplitude cannot follow it: the master feeds the
+    (ramped) harmonic force; in process the amplitude is set per step."""
+    use_master = c.harmonic_source == "master" or (c.ramp > 0.0 and fmu is not None)
+    master = _MasterHarmonic(rig, c) if use_master else None
     if master is not None:
         rig = rig.replace(amplitude=0.0)       # the FMU's internal source off
-    h = FMUHammer(fmu, rig, W, t0=c.start, rtol=c.rtol) if fmu is not None else \
-        StepperHammer(rig, W, rtol=c.rtol, t0=c.start)
+    if fmu is not None:
+        _check_fmu_file(fmu)
+        h = FMUHammer(fmu, rig, W, t0=c.start, rtol=c.rtol, instance=instance)
+    else:
+        h = StepperHammer(rig, W, rtol=c.rtol, t0=c.start, ramp=c if (c.ramp > 0.0 and master is None) else None)
     h.master_harmonic = master
     return h
+
+
+def _check_fmu_file(path) -> None:
+    """A clear error for a path that is not an FMU (before fmpy's own)."""
+    import zipfile
+    p = Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(f"fmu {str(path)!r}: no such file (build it with `hammerbit fmu build` "
+                                f"or python build_fmu.py)")
+    if not zipfile.is_zipfile(p):
+        raise ValueError(f"fmu {str(path)!r}: not an FMU (an FMU is a zip archive with a "
+                         f"modelDescription.xml)")
+    with zipfile.ZipFile(p) as z:
+        if "modelDescription.xml" not in z.namelist():
+            raise ValueError(f"fmu {str(path)!r}: the archive has no modelDescription.xml: not an FMU")
+
+
+def _hammer_flags(h) -> tuple:
+    """(stick, contact) flags of a hammer side (1.0/0.0)."""
+    if isinstance(h, StepperHammer):
+        return h.flags()
+    vr = getattr(h, "_flag_vrs", None)
+    if vr is None:
+        names = h.vr
+        vr = h._flag_vrs = (names.get("stick_slip"), names.get("in_contact"))
+    s = 0.0
+    if vr[0] is not None:
+        s = 1.0 if h.fmu.getInteger([vr[0]])[0] == 0 else 0.0
+    ct = 0.0
+    if vr[1] is not None:
+        ct = 1.0 if h.fmu.getBoolean([vr[1]])[0] else 0.0
+    return s, ct
+
+
+def _hammer_counts(h) -> dict:
+    """Event counts of a hammer side (:func:`event_counts` names)."""
+    if isinstance(h, StepperHammer):
+        return event_counts(h.st.counts)
+    out = {}
+    for key, name in (("slips", "slip_count"), ("impacts", "impact_count"),
+                      ("bounce_violations", "bounce_count")):
+        if name in h.vr:
+            out[key] = int(h.fmu.getInteger([h.vr[name]])[0])
+    return out
 
 
 class StepperHammer:
@@ -521,9 +186,12 @@ class StepperHammer:
     Starts in static equilibrium under the WOB ``W``: hammer at ``x_h = W/K``
     (its spring compressed by ``W/K``), bit stuck at 0, both at rest.  The
     ``preload`` (interface force) is held over each step as in the FMU.
+    With ``ramp`` (a :class:`CosimConfig` with ``ramp > 0``) the harmonic
+    amplitude is set per step to its ramped value at the step's midpoint.
     """
 
-    def __init__(self, rig: RigParameters, wob: float, *, rtol: float = 1e-10, t0: float = 0.0):
+    def __init__(self, rig: RigParameters, wob: float, *, rtol: float = 1e-10, t0: float = 0.0,
+                 ramp: Optional[CosimConfig] = None):
         from hammerbit.model import kernels as K
         from hammerbit.model.stepping import SolverOptions, Stepper
         self.rig = rig
@@ -536,13 +204,18 @@ class StepperHammer:
                           y0=[wob / self.F0, 0.0, 0.0, 0.0])
         self.st.fstate[K.F_T] = self.Om * t0
         self.x_eq = wob / rig.stiffness
+        self._ramp = ramp
+        self._a = float(g.a)
 
     master_harmonic = None
 
     def step(self, t: float, H: float, force: float) -> None:
-        self.st.p[self._K.P_B] = force / self.F0
+        p = self.st.p
+        p[self._K.P_B] = force / self.F0
         if self.master_harmonic is not None:
-            self.st.p[self._K.P_FEXT] = self.master_harmonic.mean(t, H) / self.F0
+            p[self._K.P_FEXT] = self.master_harmonic.mean(t, H) / self.F0
+        elif self._ramp is not None:
+            p[self._K.P_A] = self._a * self._ramp.ramp_factor(t + 0.5 * H)
         self.st.advance(self.Om * (t + H))
 
     def get_state(self):
@@ -558,15 +231,16 @@ class StepperHammer:
 
     def read(self) -> np.ndarray:
         """(x_h [m], v_h [m/s], x_bit [m], v_bit [m/s], drive on bit [N])."""
-        y, g = self.st.y, self.groups
-        fk = (y[0] - y[2]) + 2.0 * g.xi * (y[1] - y[3])
-        fc = 0.0
-        if g.has_gap:
-            d = y[0] - y[2] - g.r
-            if d > 0:
-                fc = max(0.0, g.kc * d ** g.n * (1.0 + g.lam_hat * (y[1] - y[3])))
-        return np.array([y[0] * self.x0, y[1] * self.v0, y[2] * self.x0, y[3] * self.v0,
-                         (fk + fc) * self.F0])
+        K = self._K
+        y = self.st.y
+        fd = K.force_on_bit(y, self.st.p, self.st.istate[K.I_CONTACT])
+        return np.array([y[0] * self.x0, y[1] * self.v0, y[2] * self.x0, y[3] * self.v0, fd * self.F0])
+
+    def flags(self) -> tuple:
+        """(stick, contact): 1.0 while the bit sticks / while the gap is closed."""
+        K = self._K
+        ist = self.st.istate
+        return (1.0 if ist[K.I_STICK] == K.STICK else 0.0, 0.0 if ist[K.I_CONTACT] == K.FREE else 1.0)
 
     def close(self):
         pass
@@ -695,142 +369,202 @@ class FMUHammer:
             shutil.rmtree(self._unzip, ignore_errors=True)
 
 
+
+
 # ---------------------------------------------------------------------------
 # progress
 # ---------------------------------------------------------------------------
-class _Progress:
-    def __init__(self, total: int, enabled: bool):
-        self.total, self.enabled = total, enabled
-        self.t0 = _time.perf_counter()
-        self.next = 0
+def _progress_bar(total: float, enabled: Optional[bool], n_steps: int):
+    """A tqdm bar over simulated time [s] on stderr, or None.
 
-    def update(self, k: int):
-        if not self.enabled or k < self.next:
-            return
-        self.next = k + max(1, self.total // 100)
-        frac = k / self.total
-        el = _time.perf_counter() - self.t0
-        eta = el / frac - el if frac > 0 else 0.0
-        bar = "#" * int(30 * frac)
-        sys.stderr.write(f"\rcosim [{bar:<30}] {100 * frac:5.1f}%  {el:6.1f}s  eta {eta:6.1f}s")
-        sys.stderr.flush()
-
-    def close(self):
-        if self.enabled:
-            self.update(self.total)
-            sys.stderr.write("\n")
+    ``enabled=None``: only for runs above 20000 macro steps and when stderr is a terminal."""
+    if enabled is None:
+        enabled = n_steps > 20000 and sys.stderr.isatty()
+    if not enabled:
+        return None
+    from tqdm import tqdm
+    return tqdm(total=total, unit="s", desc="cosim", file=sys.stderr, leave=False,
+                bar_format="{desc}: {percentage:5.1f}% |{bar}| {n:.3g}/{total:.3g} s [{elapsed}<{remaining}]")
 
 
 # ---------------------------------------------------------------------------
-# per-step exchange kernel (numba): coefficients, exact string step, residual
+# one co-simulation lane: a hammer side and a string state
 # ---------------------------------------------------------------------------
-from numba import njit as _njit  # noqa: E402
+_NONE_C = np.zeros(0, dtype=np.complex128)
+_NONE_2 = np.zeros((0, 6), dtype=np.complex128)
+_NONE_F = np.zeros(0)
+_NONE_P = np.zeros((0, 0))
 
 
-@_njit(cache=True, fastmath=True)
-def _matvec(P, b, out):
-    """out[i] = sum_k P[i, k] b[k] for the first len(out) rows (SIMD reduction)."""
-    m = b.shape[0]
-    for i in range(out.shape[0]):
-        acc = 0.0
-        for k in range(m):
-            acc += P[i, k] * b[k]
-        out[i] = acc
+class _Lane:
+    """A run of the coupled system: its hammer side, its string state, its histories.
 
-
-@_njit(cache=True)
-def _coefficients(gs, order, H, wh, x_new, v_new, c):
-    """Taylor coefficients (x, v, x', v', x'', v'') of the hammer motion over the step:
-    Jacobi extrapolates from the history ``wh``, Gauss–Seidel interpolates through
-    the new value."""
-    for k in range(2):
-        w0 = wh[0, k]
-        w1 = wh[1, k]
-        w2 = wh[2, k]
-        wn = x_new if k == 0 else v_new
-        c[k] = 0.0
-        c[2 + k] = 0.0
-        c[4 + k] = 0.0
-        if not gs:
-            c[k] = w0
-            if order == 1:
-                c[2 + k] = (w0 - w1) / H
-            elif order == 2:
-                c[2 + k] = (3.0 * w0 - 4.0 * w1 + w2) / (2.0 * H)
-                c[4 + k] = (w0 - 2.0 * w1 + w2) / (H * H)
-        else:
-            if order == 0:
-                c[k] = wn
-            elif order == 1:
-                c[k] = w0
-                c[2 + k] = (wn - w0) / H
-            else:
-                c[k] = w0
-                c[2 + k] = (wn - w1) / (2.0 * H)
-                c[4 + k] = (wn - 2.0 * w0 + w1) / (H * H)
-
-
-@_njit(cache=True)
-def _exchange(gs, order, H, P, xi, buf, frow, ki, ci, W, wh, Fh, x_new, v_new, F_held, out):
-    """One macro step of the string side after the hammer's step (dense exact step).
-
-    ``wh`` (3, 2): hammer (x deviation, v) at t_n, t_{n-1}, t_{n-2}; ``Fh`` (3,):
-    interface forces at the same times.  Builds the Taylor coefficients of the
-    hammer motion, advances ``xi`` with the precomputed ``P``, shifts the
-    histories and writes ``out = [F(t_{n+1}), energy residual of the step,
-    frow.xi at t_{n+1}]``; ``out[2]`` on entry is ``frow.xi`` at ``t_n`` (the
-    previous call's, or the master's initial value).
+    The run and its half-step companion are two lanes on one :class:`StringSide`.
     """
-    n = xi.shape[0]
-    c = buf[n:]
-    _coefficients(gs, order, H, wh, x_new, v_new, c)
-    for i in range(n):
-        buf[i] = xi[i]
-    F_start = W + out[2] - ki * c[0] - ci * c[1]
-    # P @ buf by hand: no BLAS call (its thread pool costs more than this small mat-vec)
-    _matvec(P, buf, xi)
-    f_xi = 0.0
-    for i in range(n):
-        f_xi += frow[i] * xi[i]
-    _finish(H, c, f_xi, F_start, ki, ci, W, wh, Fh, x_new, v_new, F_held, out)
+
+    def __init__(self, side: StringSide, hammer, config: CosimConfig, H_hist: float):
+        c = config
+        self.side, self.hammer, self.c = side, hammer, c
+        self.gs = c.scheme == "gauss-seidel"
+        self.order = c.extrapolation
+        self.string = _StringState(side)
+        self.x_eq = hammer.x_eq
+        self.out = hammer.read()
+        self.th = np.array([c.start, c.start - H_hist, c.start - 2 * H_hist])
+        self.wh = np.zeros((3, 2))
+        self.wh[:] = (self.out[0] - self.x_eq, self.out[1])
+        self.sc = np.zeros(4)
+        self.sc[2] = self.string.f_xi()
+        F = side.wob + self.sc[2] - side.ki * self.wh[0, 0] - side.ci * self.wh[0, 1]
+        self.sc[0] = F
+        self.Fh = np.array([F, F, F])
+        self.F_held = F
+        self.w = np.zeros(3)
+        self.cbuf = np.zeros(6)
+        self.frow = side.m_frow if self.string.modal else side.frow.astype(np.float64)
+        self._h, self._d = None, None            # the last step length and its discretisation
+
+    @property
+    def F(self) -> float:
+        return float(self.sc[0])
+
+    def held_force(self, h: float) -> float:
+        return _held_force(self.order, self.th, self.Fh, h, self.w)
+
+    def step(self, t: float, h: float) -> None:
+        """One macro step [t, t + h]: hammer first, then the string (both schemes;
+        Jacobi's string input does not use the new hammer value)."""
+        F_held = self.held_force(h)
+        self.F_held = F_held
+        self.hammer.step(t, h, F_held)
+        out = self.out = self.hammer.read()
+        if h != self._h:
+            self._h, self._d = h, self.side.discretisation(h)
+        d = self._d
+        s = self.string
+        if s.modal:
+            _exchange(self.gs, self.order, h, True, _NONE_P, _NONE_F, _NONE_F, _NONE_F, d.m_d, d.m_G,
+                      d.m_irow, d.m_icol, s.v, self.frow, self.side.ki, self.side.ci, self.side.wob,
+                      self.th, self.wh, self.Fh, out[0] - self.x_eq, out[1], F_held, self.cbuf, self.sc)
+        else:
+            _exchange(self.gs, self.order, h, False, d.P, s.v, s.buf, s.tmp, _NONE_C, _NONE_2, _NONE_C,
+                      _NONE_F, _NONE_C, self.frow, self.side.ki, self.side.ci, self.side.wob,
+                      self.th, self.wh, self.Fh, out[0] - self.x_eq, out[1], F_held, self.cbuf, self.sc)
+
+    def snapshot(self):
+        return (self.hammer.get_state(), self.string.copy_state(), self.th.copy(), self.wh.copy(),
+                self.Fh.copy(), self.sc.copy(), self.out.copy())
+
+    def restore(self, snap) -> None:
+        hs, v, th, wh, Fh, sc, out = snap
+        self.hammer.set_state(hs)
+        self.string.restore(v)
+        self.th[:], self.wh[:], self.Fh[:], self.sc[:] = th, wh, Fh, sc
+        self.out = out.copy()
+
+    def free(self, snap) -> None:
+        self.hammer.free_state(snap[0])
 
 
-@_njit(cache=True)
-def _exchange_modal(gs, order, H, d, G, eta, c, frow_m, ki, ci, W, wh, Fh, x_new, v_new, F_held, out):
-    """As :func:`_exchange` in modal coordinates: ``eta <- d * eta + G c`` (O(n))."""
-    _coefficients(gs, order, H, wh, x_new, v_new, c)
-    f1 = 0.0
-    for i in range(eta.shape[0]):
-        e = d[i] * eta[i]
-        for k in range(6):
-            e += G[i, k] * c[k]
-        eta[i] = e
-        f1 += (frow_m[i] * e).real
-    F_start = W + out[2] - ki * c[0] - ci * c[1]
-    _finish(H, c, f1, F_start, ki, ci, W, wh, Fh, x_new, v_new, F_held, out)
+class _StabilityWatch:
+    """The power-bond residual watch (see the module docstring)."""
+
+    def __init__(self, c: CosimConfig, side: StringSide, t_steady: float):
+        rig = c.rig
+        W = side.wob
+        self.c, self.ki = c, side.ki
+        E_ref = W * W / (2 * side.ki) + W * W / (2 * rig.stiffness) + rig.amplitude ** 2 / rig.stiffness
+        self.E_ref = max(E_ref, 1e-12)
+        self.F_scale = c.blowup * (W + rig.amplitude + rig.scales.friction_force)
+        self.W = W
+        self.win_sum, self.win_prev, self.n_grow, self.k_in_win = 0.0, math.inf, 0, 0
+        self.max_win = self.max_steady = 0.0
+        self.total = 0.0
+        self.t_steady = t_steady
+
+    def hammer_failed(self, err, t, n, H, F_held):
+        # the hammer side gave up; if the interface was already growing, that is the cause
+        c = self.c
+        if c.check_stability and (self.n_grow > 0 or abs(F_held - self.W) > 0.2 * self.F_scale
+                                  or not math.isfinite(F_held)):
+            raise CouplingInstabilityError(
+                f"coupling unstable: the hammer side failed at t = {t:.6g} s (step {n + 1}, "
+                f"H = {H:g} s, k_i = {self.ki:g} N/m) under a growing interface force "
+                f"{F_held:.4g} N: {err}", time=t, step=n + 1, residual=math.nan,
+                reference=self.E_ref) from err
+
+    def update(self, t_end, n, H, F, out, r_step) -> None:
+        c = self.c
+        self.total += r_step
+        if not c.check_stability:
+            return
+        if not (math.isfinite(F) and math.isfinite(out[0]) and math.isfinite(out[1])):
+            raise CouplingInstabilityError(
+                f"coupling unstable: non-finite interface values at t = {t_end:.6g} s "
+                f"(step {n + 1}, H = {H:g} s, k_i = {self.ki:g} N/m)",
+                time=t_end, step=n + 1, residual=math.inf, reference=self.E_ref)
+        if abs(F - self.W) > self.F_scale:
+            raise CouplingInstabilityError(
+                f"coupling unstable: interface force {F:.4g} N left {c.blowup:g} x its scale "
+                f"at t = {t_end:.6g} s (step {n + 1}, H = {H:g} s, k_i = {self.ki:g} N/m); "
+                f"reduce H or the interface stiffness",
+                time=t_end, step=n + 1, residual=self.win_sum, reference=self.E_ref)
+        self.win_sum += abs(r_step)
+        self.k_in_win += 1
+        if self.k_in_win < c.stability_window:
+            return
+        w = self.win_sum
+        self.max_win = max(self.max_win, w)
+        if t_end >= self.t_steady + c.stability_window * H:
+            self.max_steady = max(self.max_steady, w)
+        self.n_grow = self.n_grow + 1 if w > c.growth * self.win_prev else 0
+        if w > c.energy_tol * self.E_ref and self.n_grow >= c.growth_windows:
+            raise CouplingInstabilityError(
+                f"coupling unstable: interface energy residual {w:.4g} J over "
+                f"{c.stability_window} steps (reference {self.E_ref:.4g} J) grew {self.n_grow} "
+                f"windows in a row, at t = {t_end:.6g} s (step {n + 1}, H = {H:g} s, "
+                f"k_i = {self.ki:g} N/m, scheme {c.scheme}, order {c.extrapolation}); "
+                f"reduce H or the interface stiffness",
+                time=t_end, step=n + 1, residual=w, reference=self.E_ref)
+        self.win_prev = w
+        self.win_sum, self.k_in_win = 0.0, 0
+
+    def stats(self) -> dict:
+        return {"max_window_energy_residual_j": self.max_win,
+                "steady_window_energy_residual_j": self.max_steady,
+                "energy_residual_total_j": self.total, "reference_energy_j": self.E_ref}
 
 
-@_njit(cache=True)
-def _finish(H, c, f_xi, F_start, ki, ci, W, wh, Fh, x_new, v_new, F_held, out):
-    """Interface force at the step end, energy residual, history shift."""
-    xe = c[0] + c[2] * H + 0.5 * c[4] * H * H
-    ve = c[1] + c[3] * H + 0.5 * c[5] * H * H
-    F_end = W + f_xi - ki * xe - ci * ve
-    e_string = 0.5 * H * (F_start * c[1] + F_end * ve)
-    e_hammer = F_held * (x_new - wh[0, 0])
-    F = W + f_xi - ki * x_new - ci * v_new
-    wh[2, 0] = wh[1, 0]
-    wh[2, 1] = wh[1, 1]
-    wh[1, 0] = wh[0, 0]
-    wh[1, 1] = wh[0, 1]
-    wh[0, 0] = x_new
-    wh[0, 1] = v_new
-    Fh[2] = Fh[1]
-    Fh[1] = Fh[0]
-    Fh[0] = F
-    out[0] = F
-    out[1] = e_string - e_hammer
-    out[2] = f_xi          # the next step's start value of the interface sum
+class _Recorder:
+    """The recorded series (grows as needed; adaptive runs do not know their length)."""
+
+    def __init__(self, c: CosimConfig, capacity: int, lane: _Lane):
+        self.names = tuple(c.record)
+        self.data = np.zeros(max(capacity, 2), dtype=_dtype(self.names))
+        self.j = 0
+        self.lane = lane
+        self.need_flags = "stick" in self.names or "contact" in self.names
+        self.need_string = bool({"string_bit_displacement", "string_bit_velocity", "hook_load"} & set(self.names))
+
+    def add(self, t, h, r_step, defect, wob_diff) -> None:
+        if self.j == len(self.data):
+            self.data = np.resize(self.data, 2 * len(self.data))
+        lane = self.lane
+        out = lane.out
+        v = {"wob": out[4], "interface_force": lane.sc[0], "hammer_force": lane.F_held,
+             "hammer_position": out[0], "hammer_velocity": out[1], "bit_position": out[2],
+             "bit_velocity": out[3], "energy_residual": r_step, "step_size": h, "force_defect": defect,
+             "wob_error_estimate": wob_diff}     # the difference now, the factor at the end
+        if self.need_flags:
+            v["stick"], v["contact"] = _hammer_flags(lane.hammer)
+        if self.need_string:
+            v["string_bit_displacement"], v["string_bit_velocity"] = lane.string.bit()
+            v["hook_load"] = lane.string.hook_load()
+        self.data[self.j] = (t, *[v[n] for n in self.names])
+        self.j += 1
+
+    def result(self) -> np.ndarray:
+        return self.data[:self.j]
 
 
 # ---------------------------------------------------------------------------
@@ -844,385 +578,253 @@ def cosimulate(string, config: CosimConfig = CosimConfig(), *, fmu=None, hammer=
     string : DrillString
         E.g. ``hammerbit.drillstring.load_string('field-2200m')``.
     config : CosimConfig
+        ``adaptive=False``: fixed macro step ``step`` (communication times
+        ``t0 + n H``, a shorter last step to reach ``stop``).  ``adaptive=True``:
+        Gauss–Seidel-or-Jacobi as configured with the step chosen per step: the
+        step's interface force defect ``|F_held - mean F_i|`` (the force the
+        hammer held against the force the string transmitted) is held below
+        ``tol / 4`` times the WOB; above it both sides roll back (the FMU
+        through ``fmi2SetFMUstate``) and the step halves, below ``tol / 16``
+        the next step doubles, within ``[h_min, h_max]`` (powers of two of
+        ``step``).  When the run's estimate still exceeds ``tol`` the run is
+        repeated with the defect tolerance scaled down by the estimate (at most
+        :data:`MAX_PASSES` passes); the result says whether the last one meets it.
     fmu : path, optional
-        ``HammerBitRock.fmu``; the hammer is then the FMU (fmpy ``FMU2Slave``).
+        ``HammerBitRock.fmu``; the hammer is then the FMU (fmpy ``FMU2Slave``);
+        the companion is a second instance.
     hammer : object, optional
-        A ready hammer side with ``step(t, H, force)``, ``read()``, ``close()``
-        and ``x_eq``; default: the FMU if ``fmu`` is given, else
-        :class:`StepperHammer` (the same kernels in process).
+        A ready hammer side with ``step(t, H, force)``, ``read()``, ``close()``,
+        ``get_state``/``set_state``/``free_state`` and ``x_eq``; default: the FMU
+        if ``fmu`` is given, else :class:`StepperHammer` (the same kernels in
+        process).  The companion is built from ``fmu`` (or in process).
+
+    Returns
+    -------
+    CosimResult
+        With ``estimate`` (:class:`~hammerbit.cosim_error.CouplingErrorEstimate`)
+        when ``config.estimate``; it does not raise when the estimate exceeds
+        ``tol`` (``result.estimate.meets_tolerance`` says so).
 
     Raises
     ------
+    StepResolutionError
+        ``check_step`` and a step that cannot resolve the forcing, the slip
+        dynamics or the string modes in the exchange (before the run).
     CouplingInstabilityError
         When the interface energy residual grows (see module docstring).
     """
     c = config
     ts = _time.perf_counter()
-    side = StringSide(string, c)
-    H = c.step
-    side.discretise(H)
+    side = StringSide(string, c)                 # shared by the run, its companion and every pass
+    t_side = _time.perf_counter() - ts
+    if not c.adaptive:
+        res = _run(side, c, fmu=fmu, hammer=hammer, defect_tol=None)
+        res.setup_time_s += t_side
+        return res
+    defect_tol = DEFECT_TOL_FACTOR * c.tol
+    res = _run(side, c, fmu=fmu, hammer=hammer, defect_tol=defect_tol)
+    setup = res.setup_time_s + t_side
+    passes, wall, rejected = 1, res.wall_time_s, res.stats["rejected"]
+    while (res.estimate is not None and not res.estimate.meets_tolerance and math.isfinite(res.estimate.worst)
+           and hammer is None and passes < MAX_PASSES):
+        # the global error grows at least linearly with the defect tolerance
+        defect_tol *= max(min(0.5 * c.tol / res.estimate.worst, 0.5), 1e-2)
+        res = _run(side, c, fmu=fmu, hammer=None, defect_tol=defect_tol)
+        setup += res.setup_time_s
+        passes += 1
+        wall += res.wall_time_s
+        rejected += res.stats["rejected"]
+    res.stats.update(passes=passes, rejected=rejected)
+    res.wall_time_s = wall
+    res.setup_time_s = setup
+    return res
+
+
+#: Per-step force-defect tolerance of the adaptive step, relative to the WOB, per unit of ``tol``
+#: (the first pass; a second pass tightens it when the run's estimate exceeds ``tol``).
+DEFECT_TOL_FACTOR = 1.0 / 40.0
+#: Passes of the adaptive run at most (each tightens the defect tolerance by the estimate).
+MAX_PASSES = 3
+
+
+def cosimulate_adaptive(string, config: CosimConfig = CosimConfig(), *, fmu=None, tol: Optional[float] = None,
+                        h_min: Optional[float] = None, h_max: Optional[float] = None) -> CosimResult:
+    """:func:`cosimulate` with ``adaptive=True`` (and ``tol``, ``h_min``, ``h_max`` if given)."""
+    ch = {"adaptive": True}
+    for k, v in (("tol", tol), ("h_min", h_min), ("h_max", h_max)):
+        if v is not None:
+            ch[k] = v
+    return cosimulate(string, config.replace(**ch), fmu=fmu)
+
+
+def _run(side: StringSide, c: CosimConfig, *, fmu, hammer, defect_tol) -> CosimResult:
+    ts = _time.perf_counter()
+    if c.check_step:
+        H_chk = c.step_range[1] if c.adaptive else min(c.step, c.stop - c.start)
+        if c.adaptive:
+            # the adaptive step never grows past what resolves the system
+            from .cosim_error import step_limits
+            H_chk = min(H_chk, min(lim.max_step_s for lim in step_limits(side, c)))
+            c = c.replace(h_max=max(min(c.step_range[1], H_chk), c.step_range[0]))
+            check_step(side, c, c.step)
+        else:
+            check_step(side, c, H_chk)
     W = side.wob
-    rig = c.rig
     own = hammer is None
     if hammer is None:
-        hammer = _hammer_side(fmu, rig, W, c)
-    setup = _time.perf_counter() - ts
-    n_steps = c.macro_steps
-    rec = tuple(c.record)
-    nrec = n_steps // c.record_every + 1
-    data = np.zeros(nrec, dtype=_dtype(rec))
-    cols = {r: data[r] for r in rec}
-    tcol = data["time"]
-    ext_w = extrapolation_weights(c.extrapolation)
-    order = c.extrapolation
-    gs = c.scheme == "gauss-seidel"
-    x_eq = hammer.x_eq
-    # histories (index 0 newest): hammer motion (x_dev, v), forces
-    out = hammer.read()
-    wh = np.zeros((3, 2))
-    wh[:] = (out[0] - x_eq, out[1])
-    F = side.force(wh[0, 0], wh[0, 1])
-    Fh = np.array([F, F, F])
-    E_ref = W * W / (2 * side.ki) + W * W / (2 * rig.stiffness) + rig.amplitude ** 2 / rig.stiffness
-    E_ref = max(E_ref, 1e-12)
-    F_scale = c.blowup * (W + rig.amplitude + rig.scales.friction_force)
-    win_sum, win_prev, n_grow, max_win, k_in_win = 0.0, math.inf, 0, 0.0, 0
-    res_total = 0.0
-    progress = _Progress(n_steps, c.progress if c.progress is not None
-                         else (n_steps > 20000 and sys.stderr.isatty()))
-    F_held = F
-    r_step = 0.0
-
-    def record(j, t, out, F, F_held, r_step):
-        tcol[j] = t
-        for name, col in cols.items():
-            if name == "wob":
-                col[j] = out[4]
-            elif name == "interface_force":
-                col[j] = F
-            elif name == "hammer_force":
-                col[j] = F_held
-            elif name == "hammer_position":
-                col[j] = out[0]
-            elif name == "hammer_velocity":
-                col[j] = out[1]
-            elif name == "bit_position":
-                col[j] = out[2]
-            elif name == "bit_velocity":
-                col[j] = out[3]
-            elif name == "string_bit_displacement":
-                col[j] = side.bit()[0]
-            elif name == "string_bit_velocity":
-                col[j] = side.bit()[1]
-            elif name == "hook_load":
-                col[j] = side.hook_load()
-            elif name == "energy_residual":
-                col[j] = r_step
-
-    def _hammer_step(hammer, t, H, F_held, n, n_grow):
-        try:
-            hammer.step(t, H, F_held)
-        except Exception as err:
-            # the hammer side gave up; if the interface was already growing, that is the cause
-            if c.check_stability and (n_grow > 0 or abs(F_held - W) > 0.2 * F_scale
-                                      or not math.isfinite(F_held)):
-                raise CouplingInstabilityError(
-                    f"coupling unstable: the hammer side failed at t = {t:.6g} s (step {n + 1}, "
-                    f"H = {H:g} s, k_i = {side.ki:g} N/m) under a growing interface force "
-                    f"{F_held:.4g} N: {err}", time=t, step=n + 1, residual=math.nan,
-                    reference=E_ref) from err
-            raise
-
-    record(0, c.start, out, F, F, 0.0)
-    j = 1
-    P, xi, frow = side.P, side.xi, side.frow
-    buf = np.zeros(P.shape[1])
-    modal = side.modal
-    if modal:
-        eta = (side._Vinv @ xi).astype(np.complex128)
-        side.eta = eta
-        m_d, m_G, m_frow = side.m_d, side.m_G, side.m_frow
-        cbuf = np.zeros(6)
-    scratch = np.zeros(4)
-    # interface sum at the first step's start; later steps take it from _finish
-    scratch[2] = float((m_frow @ eta).real) if modal else float(frow @ xi)
-    ki, ci = side.ki, side.ci
-    check = c.check_stability
-    t_loop = _time.perf_counter()
-    progress.t0 = t_loop
+        hammer = _hammer_side(fmu, c.rig, W, c, instance="hammer")
+    lanes = [hammer]
     try:
-        for n in range(n_steps):
-            t = c.start + n * H
-            F_held = ext_w[0] * Fh[0] + ext_w[1] * Fh[1] + ext_w[2] * Fh[2]
-            _hammer_step(hammer, t, H, F_held, n, n_grow)
-            out = hammer.read()
-            if modal:
-                _exchange_modal(gs, order, H, m_d, m_G, eta, cbuf, m_frow, ki, ci, W, wh, Fh,
-                                out[0] - x_eq, out[1], F_held, scratch)
-            else:
-                _exchange(gs, order, H, P, xi, buf, frow, ki, ci, W, wh, Fh, out[0] - x_eq, out[1],
-                          F_held, scratch)
-            F, r_step = scratch[0], scratch[1]
-            res_total += r_step
-            if check:
-                if not (math.isfinite(F) and math.isfinite(out[0]) and math.isfinite(out[1])):
-                    raise CouplingInstabilityError(
-                        f"coupling unstable: non-finite interface values at t = {t + H:.6g} s "
-                        f"(step {n + 1}, H = {H:g} s, k_i = {side.ki:g} N/m)",
-                        time=t + H, step=n + 1, residual=math.inf, reference=E_ref)
-                if abs(F - W) > F_scale:
-                    raise CouplingInstabilityError(
-                        f"coupling unstable: interface force {F:.4g} N left {c.blowup:g} x its scale "
-                        f"at t = {t + H:.6g} s (step {n + 1}, H = {H:g} s, k_i = {side.ki:g} N/m); "
-                        f"reduce H or the interface stiffness",
-                        time=t + H, step=n + 1, residual=win_sum, reference=E_ref)
-                win_sum += abs(r_step)
-                k_in_win += 1
-                if k_in_win == c.stability_window:
-                    max_win = max(max_win, win_sum)
-                    if win_sum > c.growth * win_prev:
-                        n_grow += 1
-                    else:
-                        n_grow = 0
-                    if win_sum > c.energy_tol * E_ref and n_grow >= c.growth_windows:
+        comp = _hammer_side(fmu, c.rig, W, c, instance="companion") if c.estimate else None
+        if comp is not None:
+            lanes.append(comp)
+        H = c.step
+        if comp is not None:
+            side.discretisation(0.5 * H)        # first: the run's step is then its square
+        side.discretisation(H)
+        main = _Lane(side, hammer, c, H)
+        fine = _Lane(side, comp, c, 0.5 * H) if comp is not None else None
+        n_full, rem = c.whole_steps
+        n_est = n_full + 1 if not c.adaptive else int((c.stop - c.start) / H) + 1
+        rec = _Recorder(c, n_est // c.record_every + 2, main)
+        watch = _StabilityWatch(c, side, steady_start(c))
+        setup = _time.perf_counter() - ts
+        t_loop = _time.perf_counter()
+        bar = _progress_bar(c.stop - c.start, c.progress, n_est)
+        wob_m, wob_f, t_all = [main.out[4]], [fine.out[4] if fine is not None else 0.0], [c.start]
+        rec.add(c.start, 0.0, 0.0, 0.0, 0.0)
+        d_main, d_fine = [], []
+        accepted = rejected = at_min = 0
+        h_used = (math.inf, 0.0)
+        h_lo, h_hi = c.step_range
+        t = c.start
+        n = 0
+        unit = h_lo / 2.0                   # adaptive times: t0 + k * unit (exact)
+        k_t = 0
+        try:
+            while True:
+                if c.adaptive:
+                    if t >= c.stop - 1e-12 * max(1.0, abs(c.stop)):
+                        break
+                    h, last = _adaptive_step(H, c.stop - t, unit)
+                else:
+                    if n >= n_full + (1 if rem > 0.0 else 0):
+                        break
+                    h = H if n < n_full else rem
+                    t = c.start + n * H
+                    last = True
+                snap = main.snapshot() if defect_tol is not None else None
+                try:
+                    main.step(t, h, )
+                except CouplingInstabilityError:
+                    raise
+                except Exception as err:
+                    watch.hammer_failed(err, t, n, h, main.F_held)
+                    raise
+                defect = float(main.sc[3])
+                if defect_tol is not None:
+                    rel = abs(defect) / max(W, 1.0)
+                    if not math.isfinite(rel):
+                        main.free(snap)
                         raise CouplingInstabilityError(
-                            f"coupling unstable: interface energy residual {win_sum:.4g} J over "
-                            f"{c.stability_window} steps (reference {E_ref:.4g} J) grew {n_grow} "
-                            f"windows in a row, at t = {t + H:.6g} s (step {n + 1}, H = {H:g} s, "
-                            f"k_i = {side.ki:g} N/m, scheme {c.scheme}, order {order}); "
-                            f"reduce H or the interface stiffness",
-                            time=t + H, step=n + 1, residual=win_sum, reference=E_ref)
-                    win_prev = win_sum
-                    win_sum, k_in_win = 0.0, 0
-            if (n + 1) % c.record_every == 0:
-                record(j, c.start + (n + 1) * H, out, F, F_held, r_step)
-                j += 1
-            if progress.enabled:
-                progress.update(n + 1)
+                            f"coupling unstable: non-finite interface values at t = {t + h:.6g} s "
+                            f"(H = {h:g} s)", time=t + h, step=n + 1, residual=math.inf, reference=W)
+                    if rel > defect_tol and h > h_lo * (1 + 1e-12) and not last:
+                        main.restore(snap)
+                        main.free(snap)
+                        rejected += 1
+                        H = max(H / 2, h_lo)
+                        continue
+                    main.free(snap)
+                    if rel > defect_tol:
+                        at_min += 1
+                t_end = c.stop if (c.adaptive and last) else (
+                    c.start + (k_t + int(round(h / unit))) * unit if c.adaptive else
+                    (c.start + (n + 1) * H if n < n_full else c.stop))
+                if c.adaptive:
+                    k_t += int(round(h / unit))
+                if fine is not None:
+                    fine.step(t, 0.5 * h)
+                    d_fine.append(float(fine.sc[3]))
+                    fine.step(t + 0.5 * h, t_end - (t + 0.5 * h))
+                    d_fine.append(float(fine.sc[3]))
+                    wob_f.append(fine.out[4])
+                d_main.append(defect)
+                wob_m.append(main.out[4])
+                t_all.append(t_end)
+                watch.update(t_end, n, h, main.F, main.out, float(main.sc[1]))
+                n += 1
+                accepted += 1
+                if (n % c.record_every == 0) or t_end >= c.stop - 1e-12 * max(1.0, abs(c.stop)):
+                    rec.add(t_end, h, float(main.sc[1]), defect,
+                            main.out[4] - fine.out[4] if fine is not None else math.nan)
+                if bar is not None:
+                    bar.update(t_end - t)
+                t = t_end
+                if c.adaptive:
+                    h_used = (min(h_used[0], h), max(h_used[1], h)) if not last or h == H else h_used
+                    if abs(defect) / max(W, 1.0) < 0.1 * defect_tol:
+                        H = min(2 * H, h_hi)
+        finally:
+            if bar is not None:
+                bar.close()
+        wall = _time.perf_counter() - t_loop
+        counts = _hammer_counts(hammer)
+        pen = float(main.out[2])
+        data = rec.result()
+        est = None
+        if fine is not None:
+            # both amplitudes on the run's communication points in the steady window
+            sel = np.asarray(t_all) >= steady_start(c) - 1e-12
+            amp = 0.5 * float(np.ptp(np.asarray(wob_m)[sel]))
+            amp_f = 0.5 * float(np.ptp(np.asarray(wob_f)[sel]))
+            p = measured_order(np.asarray(d_main), np.asarray(d_fine))
+            est = richardson(amplitude=amp, amplitude_fine=amp_f,
+                             penetration=pen, penetration_fine=float(fine.out[2]), order=p, tol=c.tol,
+                             length_scale=c.rig.scales.length)
+            if "wob_error_estimate" in data.dtype.names:
+                data["wob_error_estimate"] *= est.factor
+        stats = watch.stats()
+        stats["string_states"] = side.n
+        stats["modal"] = bool(side.modal)
+        if c.adaptive:
+            stats.update({"accepted": accepted, "rejected": rejected, "at_min_step": at_min,
+                          "defect_tol": defect_tol, "passes": 1, "tol": c.tol,
+                          "h_min_used": h_used[0], "h_max_used": h_used[1]})
+        return CosimResult(data, c, accepted, wall, setup, pen, stats,
+                           "cosim-adaptive" if c.adaptive else "cosim", counts=counts, estimate=est)
     finally:
-        progress.close()
         if own:
             hammer.close()
-        if modal:
-            side.xi[:] = (side._V @ eta).real
-            side.eta = None
-    wall = _time.perf_counter() - t_loop
-    stats = {"max_window_energy_residual_j": max_win, "energy_residual_total_j": res_total,
-             "reference_energy_j": E_ref, "string_states": side.n}
-    return CosimResult(data[:j], c, n_steps, wall, setup, float(out[2]), stats, "cosim")
+        if len(lanes) > 1:
+            lanes[1].close()
 
 
-# ---------------------------------------------------------------------------
-# monolithic reference
-# ---------------------------------------------------------------------------
+def _adaptive_step(H: float, remaining: float, unit: float) -> tuple:
+    """``(h, last)``: the adaptive step ``H``, or near the end the longest power of two of
+    ``unit`` within the remaining time (its exact step is a square of a cached one, no new
+    ``expm``), and the remaining time itself when less than one ``unit`` is left."""
+    if remaining >= H:
+        return H, abs(remaining - H) <= 1e-9 * unit
+    k = int(math.floor(remaining / unit * (1.0 + 1e-12)))
+    if k < 1:
+        return remaining, True
+    h = unit * 2.0 ** int(math.floor(math.log2(k)))
+    if abs(remaining - h) <= 1e-9 * unit:
+        return remaining, True
+    return h, False
+
+
 def monolithic(string, config: CosimConfig = CosimConfig()) -> CosimResult:
-    """The same coupled system as one hybrid system (reference solution).
-
-    The string with the interface spring is the linear subsystem of
-    :class:`hammerbit.model.stepping.Stepper` (nondimensional: lengths in
-    ``x0``, velocities in ``x0 Omega``, time ``tau = Omega t``, forces in
-    ``F0``), integrated by the same adaptive event-located solver as the
-    hammer at ``config.rtol``.  A constant state (``z_c = 1``) carries the
-    equilibrium offsets.  Samples at the communication times ``t0 + n H``;
-    string-side variables that the sampler does not return
-    (``string_bit_*``, ``hook_load``, ``energy_residual``, ``hammer_force``)
-    are NaN, except ``hammer_force`` = ``interface_force``.
-    """
-    from hammerbit.model.stepping import LinearSubsystem, SolverOptions, Stepper
-    c = config
-    ts = _time.perf_counter()
-    side = StringSide(string, c)
-    rig = c.rig
-    s = rig.scales
-    F0, x0, Om, v0 = s.friction_force, s.length, s.omega, s.velocity
-    W = side.wob
-    n = side.n
-    nq = n // 2
-    D = np.r_[np.full(nq, x0), np.full(n - nq, v0)]
-    x1eq = W / F0  # hammer position [x0] with the bit at 0: spring compressed by W/K
-    # z = [xi / D, 1]
-    A = np.zeros((n + 1, n + 1))
-    A[:n, :n] = (side.A1 * D[None, :]) / D[:, None] / Om
-    Hm = (side.E * np.array([x0, v0])[None, :]) / D[:, None] / Om
-    A[:n, n] = -Hm[:, 0] * x1eq
-    Hz = np.zeros((n + 1, 2))
-    Hz[:n] = Hm
-    G = np.zeros(n + 1)
-    G[:n] = side.frow * D / F0
-    G[n] = (W + side.ki * x0 * x1eq) / F0
-    g = np.array([-side.ki * x0 / F0, -side.ci * v0 / F0])
-    z0 = np.zeros(n + 1)
-    z0[n] = 1.0
-    lin = LinearSubsystem(A=A, H=Hz, G=G, g=g, z0=z0)
-    grp = rig.to_groups().replace(b=0.0)
-    st = Stepper(grp, solver=SolverOptions(rtol=c.rtol, atol=c.rtol * 1e-2), linear=lin,
-                 y0=[x1eq, 0.0, 0.0, 0.0])
-    from hammerbit.model import kernels as K
-    st.fstate[K.F_T] = Om * c.start
-    n_steps = c.macro_steps
-    idx = np.arange(0, n_steps + 1, c.record_every)
-    t_s = c.start + idx * c.step
-    samples = np.zeros((len(t_s), K.N_SAMPLE_COLS))
-    setup = _time.perf_counter() - ts
-    t_loop = _time.perf_counter()
-    st.advance(Om * (c.start + n_steps * c.step), sample_times=Om * t_s, samples=samples)
-    wall = _time.perf_counter() - t_loop
-    data = np.full(len(t_s), np.nan, dtype=_dtype(c.record))
-    data["time"] = t_s
-    x1, x2, x3, x4, fc, fl = (samples[:, i] for i in range(6))
-    wob = ((x1 - x3) + 2 * grp.xi * (x2 - x4) + fc) * F0
-    m = {"wob": wob, "interface_force": fl * F0, "hammer_force": fl * F0,
-         "hammer_position": x1 * x0, "hammer_velocity": x2 * v0, "bit_position": x3 * x0,
-         "bit_velocity": x4 * v0}
-    for r in c.record:
-        if r in m:
-            data[r] = m[r]
-    stats = {"string_states": n, "events": st.counts}
-    return CosimResult(data, c, n_steps, wall, setup, float(st.y[2] * x0), stats, "monolithic")
+    """The same coupled system as one hybrid system (reference); see
+    :func:`hammerbit.cosim_reference.monolithic`."""
+    from .cosim_reference import monolithic as _mono
+    return _mono(string, config)
 
 
 # ---------------------------------------------------------------------------
 # linear modes of the coupled system and frequency sweep
 # ---------------------------------------------------------------------------
-ADAPTIVE_DTYPE = np.dtype([("time", "f8"), ("step_size", "f8"), ("wob", "f8"), ("interface_force", "f8"),
-                           ("hammer_force", "f8"), ("hammer_position", "f8"), ("bit_position", "f8"),
-                           ("force_defect", "f8")])
-
-
-def _held_force(ts, Fs, t, H, order):
-    """Mean over [t, t + H] of the polynomial of degree ``order`` through the
-    last forces (non-uniform times): the force the hammer holds over the step."""
-    k = min(order, len(ts) - 1)
-    if k == 0:
-        return Fs[-1]
-    tt = np.asarray(ts[-(k + 1):]) - t
-    c = np.polynomial.polynomial.polyfit(tt, np.asarray(Fs[-(k + 1):]), k)
-    ci = np.polynomial.polynomial.polyint(c)
-    return float((np.polynomial.polynomial.polyval(H, ci) - np.polynomial.polynomial.polyval(0.0, ci)) / H)
-
-
-def cosimulate_adaptive(string, config: CosimConfig = CosimConfig(), *, fmu=None, tol: float = 1e-3,
-                        h_min: Optional[float] = None, h_max: Optional[float] = None) -> CosimResult:
-    """Co-simulation with an adaptive macro step and rollback through the FMU state.
-
-    Scheme: Gauss–Seidel with the hammer first.  The hammer holds the mean of
-    the interface force extrapolated (order ``config.extrapolation``, from the
-    last accepted communication points, non-uniform in time) over the step;
-    the string then follows the hammer motion interpolated linearly through
-    the new value, stepped exactly.  The step's error estimate is the
-    *interface force defect* ``|F_held - mean F_i|`` over the step -- the
-    force the hammer saw against the force the string actually transmitted
-    (its product with the hammer displacement is the power-bond energy
-    residual of ECCO).  When the defect exceeds ``tol`` times the force scale
-    (the WOB), both sides roll back (FMU: ``fmi2SetFMUstate``) and the step is
-    halved; below ``tol / 4`` the next step doubles, within ``[h_min, h_max]``
-    (powers of two of ``config.step``, so the exact string discretisations are
-    reused).
-
-    Parameters
-    ----------
-    string : DrillString
-    config : CosimConfig
-        ``step`` is the initial macro step [s].
-    fmu : path, optional
-        The hammer FMU (``canGetAndSetFMUstate`` is used); default the same
-        kernels in process.
-    tol : float
-        Allowed force defect relative to the WOB [-].
-    h_min, h_max : float, optional
-        Step limits [s]; default ``step / 64`` and ``step * 8``.
-
-    Returns
-    -------
-    CosimResult
-        ``data`` has ``ADAPTIVE_DTYPE`` (time first, with the step size used and
-        the force defect); ``stats`` counts accepted and rejected steps.
-    """
-    c = config
-    H0 = c.step
-    h_min = H0 / 64 if h_min is None else h_min
-    h_max = H0 * 8 if h_max is None else h_max
-    if not (0 < h_min <= H0 <= h_max) or not (0 < tol < 1):
-        raise ValueError(f"need 0 < h_min <= step <= h_max and 0 < tol < 1; got h_min={h_min!r}, "
-                         f"step={H0!r}, h_max={h_max!r}, tol={tol!r}")
-    ts0 = _time.perf_counter()
-    side = StringSide(string, c)
-    W = side.wob
-    rig = c.rig
-    hammer = _hammer_side(fmu, rig, W, c)
-    x_eq = hammer.x_eq
-    disc = {}
-
-    def discretisation(H):
-        key = round(H / H0 * 2 ** 20)
-        if key not in disc:
-            side.discretise(H, modal=False)
-            disc[key] = side.P
-        side.P = disc[key]   # side._buf (n + 6, any H) is fully overwritten by side.step
-
-    setup = _time.perf_counter() - ts0
-    out = hammer.read()
-    F = side.force(out[0] - x_eq, out[1])
-    hist_t, hist_F = [c.start], [F]
-    rows = [(c.start, 0.0, out[4], F, F, out[0], out[2], 0.0)]
-    t = c.start
-    H = H0
-    accepted = rejected = 0
-    at_min = 0
-    t_loop = _time.perf_counter()
-    try:
-        while t < c.stop - 1e-12 * max(1.0, abs(c.stop)):
-            H = min(H, c.stop - t)
-            F_held = _held_force(hist_t, hist_F, t, H, c.extrapolation)
-            snap = hammer.get_state()
-            xi0 = side.xi.copy()
-            x_old, v_old = out[0] - x_eq, out[1]
-            hammer.step(t, H, F_held)
-            new = hammer.read()
-            x_new, v_new = new[0] - x_eq, new[1]
-            discretisation(H)
-            coeffs = np.array([x_old, v_old, (x_new - x_old) / H, (v_new - v_old) / H, 0.0, 0.0])
-            impulse = side.step(coeffs)            # integral of (F_i - W) over the step
-            F_mean = W + impulse / H
-            defect = abs(F_held - F_mean) / max(W, 1.0)
-            if not math.isfinite(defect):
-                hammer.free_state(snap)
-                raise CouplingInstabilityError(
-                    f"coupling unstable: non-finite interface values at t = {t + H:.6g} s (H = {H:g} s)",
-                    time=t + H, step=accepted + 1, residual=math.inf, reference=W)
-            if defect > tol and H > h_min * (1 + 1e-12):
-                hammer.set_state(snap)            # roll back both sides and halve the step
-                hammer.free_state(snap)
-                side.xi[:] = xi0
-                rejected += 1
-                H = max(H / 2, h_min)
-                continue
-            hammer.free_state(snap)
-            if defect > tol:
-                at_min += 1
-            t = t + H
-            accepted += 1
-            out = new
-            F = side.force(x_new, v_new)
-            hist_t.append(t)
-            hist_F.append(F)
-            del hist_t[:-3], hist_F[:-3]
-            rows.append((t, H, out[4], F, F_held, out[0], out[2], defect))
-            if defect < 0.25 * tol:
-                H = min(2 * H, h_max)
-    finally:
-        hammer.close()
-    wall = _time.perf_counter() - t_loop
-    data = np.array(rows, dtype=ADAPTIVE_DTYPE)
-    steps = data["step_size"][1:]
-    return CosimResult(data=data, config=c, macro_steps=accepted, wall_time_s=wall, setup_time_s=setup,
-                       penetration_m=float(out[2]),
-                       stats={"accepted": accepted, "rejected": rejected, "at_min_step": at_min,
-                              "h_min_used": float(steps.min()) if steps.size else H0,
-                              "h_max_used": float(steps.max()) if steps.size else H0, "tol": tol},
-                       method="cosim-adaptive")
-
-
 def _coupled_system(string, config: CosimConfig):
     """State matrix of string + interface + hammer with the bit stuck (linear).
 

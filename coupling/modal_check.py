@@ -464,7 +464,7 @@ from .check_plots import plot_campbell, plot_check, plot_receptance  # noqa: E40
 def hammer_on_bottom_frequencies(string: DrillString, *, interface_stiffness: float,
                                  hammer_mass: float, hammer_stiffness: float,
                                  top: "Boundary | str | None" = None, f_max: float = 100.0,
-                                 mass: str = "mixed") -> np.ndarray:
+                                 mass: str = "mixed", exact: bool = False) -> np.ndarray:
     """Undamped natural frequencies [Hz] with the hammer as the string's bottom boundary.
 
     The string's bottom node carries the interface spring ``k_i`` to the hammer
@@ -486,6 +486,11 @@ def hammer_on_bottom_frequencies(string: DrillString, *, interface_stiffness: fl
     f_max : float
         Highest frequency returned [Hz].
     mass : {'mixed', 'lumped', 'consistent'}
+    exact : bool
+        The continuous bar instead of the finite elements: roots of the
+        transfer-matrix frequency function with the bottom's dynamic stiffness
+        ``k_i (K - m1 w^2) / (k_i + K - m1 w^2)`` (multiplied through by the
+        denominator, so the hammer's own resonance is no pole).
 
     Returns
     -------
@@ -497,6 +502,8 @@ def hammer_on_bottom_frequencies(string: DrillString, *, interface_stiffness: fl
     for name, v in (("interface_stiffness", interface_stiffness), ("hammer_mass", hammer_mass),
                     ("hammer_stiffness", hammer_stiffness)):
         _check_number("hammer boundary", name, v, 0.0, None, lo_open=True)
+    if exact:
+        return _hammer_on_bottom_exact(string, interface_stiffness, hammer_mass, hammer_stiffness, top, f_max)
     asm = assemble(string, top, "free", mass=mass)
     n = asm.n_dof
     K = np.zeros((n + 1, n + 1))
@@ -510,3 +517,32 @@ def hammer_on_bottom_frequencies(string: DrillString, *, interface_stiffness: fl
     hi = (2.0 * math.pi * f_max) ** 2
     lam = sla.eigh(K, M, eigvals_only=True, subset_by_value=(-1.0, hi))
     return np.sqrt(np.maximum(lam, 0.0)) / (2.0 * math.pi)
+
+
+def _hammer_on_bottom_exact(string, ki, m1, K, top, f_max, points: int = 4000) -> np.ndarray:
+    """Exact frequencies of the continuous string with the hammer at the bottom (see above)."""
+    from scipy.optimize import brentq
+    from .drillstring import parse_boundary
+    topb = parse_boundary(string.top if top is None else top)
+
+    def g(w):
+        w = np.atleast_1d(np.asarray(w, dtype=float))
+        if topb.is_fixed:
+            u, nn = np.zeros_like(w), np.ones_like(w)
+        else:
+            u, nn = np.ones_like(w), topb.ground_stiffness - topb.mass * w ** 2
+        for sec in string.sections:
+            a = w * sec.length / sec.wave_speed
+            zw = sec.impedance * w
+            ca, sa = np.cos(a), np.sin(a)
+            sz = np.where(zw > 0, sa / np.where(zw > 0, zw, 1.0), sec.length / sec.axial_stiffness)
+            u, nn = ca * u + sz * nn, -zw * sa * u + ca * nn
+        # bottom: N = -k_b(w) u with k_b the interface in series with the hammer on K
+        return ki * (K - m1 * w ** 2) * u + (ki + K - m1 * w ** 2) * nn
+
+    wmax = 2.0 * math.pi * f_max
+    grid = np.linspace(1e-6, wmax, points)
+    val = g(grid)
+    roots = [brentq(lambda x: float(g(x)[0]), grid[i], grid[i + 1], xtol=1e-12, rtol=1e-14)
+             for i in np.nonzero(np.sign(val[:-1]) * np.sign(val[1:]) < 0)[0]]
+    return np.array(roots) / (2.0 * math.pi)

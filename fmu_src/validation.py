@@ -152,6 +152,16 @@ RANGES: dict[str, Range] = {
     # -- a scene (simulate) --------------------------------------------------
     "simulate.periods": Range(0.0, 1e9, lo_open=True),
     "simulate.sample_dt": Range(0.0, 1e9, lo_open=True, unit="s"),
+    # -- co-simulation master (hammerbit.cosim.CosimConfig) ----------------------
+    "cosim.step": Range(0.0, 10.0, lo_open=True, unit="s"),
+    "cosim.start": Range(-1e9, 1e9, unit="s"),
+    "cosim.stop": Range(-1e9, 1e9, unit="s"),
+    "cosim.interface_stiffness": Range(0.0, 1e13, lo_open=True, unit="N/m"),
+    "cosim.interface_damping": Range(0.0, 1e10, unit="N s/m"),
+    "cosim.ramp": Range(0.0, 1e6, unit="s"),
+    "cosim.tol": Range(0.0, 1.0, lo_open=True, hi_open=True),
+    "cosim.f_max": Range(0.0, 1e6, lo_open=True, unit="Hz"),
+    "cosim.wob": Range(0.0, 1e9, unit="N"),
     # -- the stepper's state and clock (nondimensional: x0, x0 Omega, 1/Omega) --
     "state.hammer_position": Range(-1e12, 1e12),
     "state.hammer_velocity": Range(-1e12, 1e12),

@@ -1,4 +1,4 @@
-"""Co-simulation master (issue 5): string stepped exactly, hammer as FMU / in process."""
+"""Co-simulation master: string stepped exactly, hammer as FMU / in process."""
 from __future__ import annotations
 
 import math
@@ -24,7 +24,7 @@ def string():
 
 @pytest.fixture(scope="module")
 def base():
-    return CosimConfig(stop=STOP, step=1e-3)
+    return CosimConfig(stop=STOP, step=1e-3, estimate=False)
 
 
 @pytest.fixture(scope="module")
@@ -81,7 +81,12 @@ def test_schemes_and_extrapolation_orders(string, base, reference, scheme):
 
 
 def test_instability_detected_stiff_interface(string):
-    cfg = CosimConfig(stop=1.0, step=5e-3, interface_stiffness=1e10)
+    from hammerbit.cosim import StepResolutionError
+    cfg = CosimConfig(stop=1.0, step=5e-3, interface_stiffness=1e10, estimate=False)
+    with pytest.raises(StepResolutionError, match="string mode") as ei:   # refused before the run ...
+        cosimulate(string, cfg)
+    assert ei.value.limit.frequency_hz == pytest.approx(689.0, rel=1e-2)
+    cfg = cfg.replace(check_step=False)                             # ... or caught while it runs
     with pytest.raises(CouplingInstabilityError) as ei:
         cosimulate(string, cfg)
     assert ei.value.step < 50
@@ -89,7 +94,8 @@ def test_instability_detected_stiff_interface(string):
 
 def test_instability_detected_by_energy_residual(string):
     """With the force blow-up guard off, the power-bond residual alone catches it."""
-    cfg = CosimConfig(stop=1.0, step=2e-3, interface_stiffness=2e8, blowup=1e300)
+    cfg = CosimConfig(stop=1.0, step=2e-3, interface_stiffness=2e8, blowup=1e300, estimate=False,
+                      check_step=False)
     with pytest.raises(CouplingInstabilityError) as ei:
         cosimulate(string, cfg)
     assert "energy residual" in str(ei.value)
@@ -97,7 +103,7 @@ def test_instability_detected_by_energy_residual(string):
 
 
 def test_communication_times_not_accumulated(string):
-    cfg = CosimConfig(start=0.1, stop=0.4, step=1e-3, record=("wob",))
+    cfg = CosimConfig(start=0.1, stop=0.4, step=1e-3, record=("wob",), estimate=False)
     r = cosimulate(string, cfg)
     n = np.arange(len(r.data))
     assert np.array_equal(r.data["time"], 0.1 + n * 1e-3)
@@ -105,7 +111,7 @@ def test_communication_times_not_accumulated(string):
 
 
 def test_records_only_requested_and_csv(string, tmp_path):
-    cfg = CosimConfig(stop=0.2, step=1e-3, record=("wob", "energy_residual"), record_every=10)
+    cfg = CosimConfig(stop=0.2, step=1e-3, record=("wob", "energy_residual"), record_every=10, estimate=False)
     r = cosimulate(string, cfg)
     assert r.data.dtype.names == ("time", "wob", "energy_residual")
     assert len(r.data) == 21
@@ -135,18 +141,32 @@ def test_extrapolation_weights_exact_for_polynomials():
             assert w @ np.array([f(0.0), f(-1.0), f(-2.0)]) == pytest.approx(mean, abs=1e-14)
 
 
-def test_exact_string_step_against_ode(string):
-    """The expm step with a quadratic hammer motion equals a tight ODE solution."""
+def test_extrapolation_weights_non_uniform():
+    """Any spacing: the mean over [0, r] of the polynomial through t = 0, -1, -1 - q is exact for
+    polynomials of the order (a shorter last step, adaptive steps)."""
+    for order in (0, 1, 2):
+        for r, q in ((0.3, 1.0), (1.0, 2.0), (2.0, 0.5), (0.125, 4.0)):
+            w = extrapolation_weights(order, ratio=r, ratio_past=q)
+            for deg in range(order + 1):
+                mean = r ** deg / (deg + 1)
+                vals = np.array([0.0, -1.0, -1.0 - q]) ** deg
+                assert w @ vals == pytest.approx(mean, abs=1e-13), (order, r, q, deg)
+
+
+@pytest.mark.parametrize("form", ["auto", "dense"])
+def test_exact_string_step_against_ode(string, form):
+    """The exact step (modal and dense forms) with a quadratic hammer motion equals a tight
+    ODE solution, state and interface impulse."""
     from scipy.integrate import solve_ivp
     s = string.with_elements([20, 4])
-    side = StringSide(s, CosimConfig())
+    side = StringSide(s, CosimConfig(string_step=form))
     H = 2e-3
-    side.discretise(H)
     rng = np.random.default_rng(1)
     xi0 = rng.normal(size=side.n) * 1e-4
     coeffs = np.array([1e-3, 0.1, 5.0, -2.0, 300.0, 50.0])
     side.xi = xi0.copy()
-    integ = side.step(coeffs)
+    integ = side.step(coeffs, H)
+    assert side.modal is (form == "auto")
 
     def rhs(t, y):
         w = coeffs[0:2] + coeffs[2:4] * t + 0.5 * coeffs[4:6] * t * t
@@ -166,6 +186,8 @@ def test_with_the_fmu(string, built_fmu):
     a = cosimulate(string, cfg, fmu=fmu)
     b = cosimulate(string, cfg)
     assert np.max(np.abs(a.data["wob"] - b.data["wob"])) < 1e-6 * 55e3
+    assert a.counts == {k: b.counts[k] for k in a.counts}      # the FMU's counters = the kernels'
+    assert a.estimate.wob_amplitude_rel == pytest.approx(b.estimate.wob_amplitude_rel, rel=1e-3, abs=1e-9)
     # equilibrium start through the FMU's initial_hammer_position
     c = cosimulate(string, cfg.replace(rig=field_hammer().replace(amplitude=0.0), stop=0.1), fmu=fmu)
     assert np.max(np.abs(c.data["wob"] - 55e3)) < 1e-6 * 55e3
@@ -175,7 +197,7 @@ def test_linear_sweep_matches_frf_and_modes(string):
     """Small excitation (bit stays stuck): the swept WOB amplitude is A |FRF| and its peak
     sits at a natural frequency of the coupled system (bit on bottom, hammer as boundary)."""
     from hammerbit.cosim import coupled_modes, sweep, wob_frf
-    cfg = CosimConfig(stop=4.0, step=1e-3, rig=field_hammer().replace(amplitude=2e3))
+    cfg = CosimConfig(stop=4.0, step=1e-3, rig=field_hammer().replace(amplitude=2e3), estimate=False)
     freqs = np.array([22.0, 22.5, 23.0])
     res = sweep(string, freqs, cfg)
     assert np.all(res["rop_m_per_h"] == 0.0)           # linear regime: no slip
@@ -184,9 +206,6 @@ def test_linear_sweep_matches_frf_and_modes(string):
     f_peak = freqs[np.argmax(res["wob_amplitude_n"])]
     modes = coupled_modes(string, cfg, f_max=40.0)
     assert np.min(np.abs(modes - f_peak)) < 0.5       # grid spacing 0.5 Hz
-    fine = np.linspace(21.5, 24.0, 126)
-    f_frf = fine[np.argmax(np.abs(wob_frf(string, fine, cfg)))]
-    assert np.min(np.abs(modes - f_frf)) / f_frf < 0.01
 
 
 def test_cli_cosim_json(tmp_path, capsys):
@@ -195,12 +214,16 @@ def test_cli_cosim_json(tmp_path, capsys):
     out = tmp_path / "r.csv"
     rc = main(["cosim", "--string", "field-2200m", "--stop", "0.3", "--step", "1e-3", "--scheme",
                "gauss-seidel", "--extrapolation", "1", "--json", "--out", str(out)])
-    assert rc == 0
     d = json.loads(capsys.readouterr().out)
-    for key in ("wob_mean_n", "wob_amplitude_n", "penetration_m", "macro_steps", "wall_time_s"):
+    for key in ("wob_mean_n", "wob_amplitude_n", "penetration_m", "macro_steps", "wall_time_s", "counts",
+                "error_estimate", "meets_tolerance"):
         assert key in d
-    assert d["macro_steps"] == 300
+    assert rc == (0 if d["meets_tolerance"] else 5)
+    assert d["macro_steps"] == 300 and d["stop_s"] == pytest.approx(0.3, abs=1e-15)
+    assert set(d["counts"]) == {"slips", "sticks", "impacts", "bounce_violations"}
     assert out.exists()
+    head = out.read_text().splitlines()[0].split(",")
+    assert head[0] == "time" and "stick" in head and "contact" in head
 
 
 def test_cli_sweep(tmp_path, capsys):
@@ -211,3 +234,106 @@ def test_cli_sweep(tmp_path, capsys):
     assert rc == 0
     d = json.loads(capsys.readouterr().out)
     assert len(d["rows"]) == 3 and (tmp_path / "s.png").exists() and (tmp_path / "s.csv").exists()
+
+
+# ---------------------------------------------------------------------------
+# outputs: shorter last step, counts and flags, ramp, energy residual, dense exchange
+# ---------------------------------------------------------------------------
+DRILL = field_hammer().replace(frequency=22.5)      # sustained drilling: a slip every cycle
+
+
+def test_stop_not_a_whole_number_of_steps_ends_with_a_shorter_step(string):
+    cfg = CosimConfig(stop=0.0105, step=2e-3, record=("wob", "step_size"), estimate=False)
+    assert cfg.macro_steps == 6
+    r = cosimulate(string, cfg)
+    t = r.data["time"]
+    assert t[-1] == 0.0105 and r.summary()["stop_s"] == 0.0105
+    assert np.allclose(np.diff(t)[:-1], 2e-3, rtol=0, atol=1e-15)
+    assert r.data["step_size"][-1] == pytest.approx(0.5e-3, rel=1e-9)
+
+
+def test_counts_and_stick_flag_follow_the_bit(string):
+    """Drilling: the bit moves only while the stick flag is 0; slips counted = sticks (+1 if it
+    ends slipping); the monolithic reference counts the same slips."""
+    cfg = CosimConfig(stop=0.5, step=1e-3, rig=DRILL, estimate=False,
+                      record=("wob", "bit_position", "bit_velocity", "stick", "contact"))
+    r = cosimulate(string, cfg)
+    d = r.data
+    assert r.counts["slips"] >= 5
+    assert r.counts["slips"] - r.counts["sticks"] in (0, 1)
+    stuck = d["stick"] == 1.0
+    assert np.all(d["bit_velocity"][stuck] == 0.0) and np.all(d["bit_velocity"][~stuck] >= 0.0)
+    assert np.any(~stuck) and np.any(stuck)
+    assert np.all(d["contact"] == 0.0)                 # no impact device (gap = inf)
+    ref = monolithic(string, cfg)
+    assert abs(ref.counts["slips"] - r.counts["slips"]) <= 1
+    assert np.array_equal(ref.data["stick"][:50], d["stick"][:50])
+
+
+def test_ramp_rises_from_rest_and_reaches_the_same_steady_state(string):
+    cfg = CosimConfig(stop=3.0, step=1e-3, estimate=False, rig=field_hammer().replace(amplitude=2e3),
+                      record=("wob",))
+    full = cosimulate(string, cfg)
+    ramp = cosimulate(string, cfg.replace(ramp=1.0))
+    early = slice(1, 60)                               # first 60 ms
+    dev = lambda r: np.max(np.abs(r.data["wob"][early] - 55e3))  # noqa: E731
+    assert dev(ramp) < 0.1 * dev(full)
+    assert ramp.summary()["steady_window_start_s"] == 1.5
+    assert ramp.wob_amplitude(2.0) == pytest.approx(full.wob_amplitude(2.0), rel=0.02)
+
+
+def test_energy_residual_of_the_steady_window(string):
+    """The steady window's residual is reported beside the maximum over all windows, which the
+    start-up window sets."""
+    r = cosimulate(string, CosimConfig(stop=1.0, step=1e-3, estimate=False))
+    st = r.stats
+    assert 0.0 < st["steady_window_energy_residual_j"] <= st["max_window_energy_residual_j"]
+    assert st["steady_window_energy_residual_j"] < 0.5 * st["max_window_energy_residual_j"]
+
+
+def test_dense_exchange_equals_modal(string):
+    """The dense string step (no eigenbasis) gives the modal step's run."""
+    cfg = CosimConfig(stop=0.3, step=1e-3, rig=DRILL, estimate=False,
+                      record=("wob", "interface_force", "hook_load", "string_bit_displacement"))
+    a = cosimulate(string, cfg)
+    b = cosimulate(string, cfg.replace(string_step="dense"))
+    assert a.stats["modal"] and not b.stats["modal"]
+    for name in cfg.record:
+        scale = max(np.max(np.abs(a.data[name])), 1e-3)
+        assert np.max(np.abs(a.data[name] - b.data[name])) < 1e-8 * scale, name
+
+
+# ---------------------------------------------------------------------------
+# the coupling-error estimate
+# ---------------------------------------------------------------------------
+def test_step_that_cannot_resolve_is_refused(string):
+    from hammerbit.cosim import StepResolutionError
+    with pytest.raises(StepResolutionError, match="slip dynamics") as ei:
+        cosimulate(string, CosimConfig(stop=1.0, step=0.015, rig=DRILL))
+    assert ei.value.limit.name == "slip"
+    assert ei.value.limit.frequency_hz == pytest.approx(43.7, abs=0.05)      # sqrt(K (1/m1 + 1/m2)) / 2 pi
+    assert ei.value.limit.max_step_s == pytest.approx(0.01144, abs=1e-5)
+    with pytest.raises(StepResolutionError, match="forcing period"):
+        cosimulate(string, CosimConfig(stop=1.0, step=0.012, rig=field_hammer().replace(frequency=45.0)))
+    # the same step passes with the check off (the benchmark's coarse end)
+    cosimulate(string, CosimConfig(stop=0.05, step=0.015, rig=DRILL, check_step=False, estimate=False))
+
+
+@pytest.mark.parametrize("case, H", [("stuck", 5e-3), ("stuck", 10e-3), ("drilling", 2e-3), ("drilling", 5e-3)])
+def test_estimate_within_a_factor_3_of_the_true_error(string, case, H):
+    """Against the monolithic reference (independent: one hybrid system, no exchange)."""
+    rig = field_hammer().replace(amplitude=2e3) if case == "stuck" else DRILL
+    cfg = CosimConfig(stop=0.8, step=H, rig=rig, record=("wob",))
+    ref = monolithic(string, cfg)
+    r = cosimulate(string, cfg)
+    e = r.estimate
+    true_amp = abs(r.wob_amplitude() / ref.wob_amplitude() - 1.0)
+    assert true_amp > 1e-4                              # a real error to estimate
+    assert true_amp / 3 <= e.wob_amplitude_rel <= 3 * true_amp
+    if case == "drilling":
+        assert r.counts["slips"] >= 8
+        true_pen = abs(r.penetration_m / ref.penetration_m - 1.0)
+        assert true_pen / 3 <= e.penetration_rel <= 3 * true_pen
+    else:
+        assert r.penetration_m == 0.0 and e.penetration_m == 0.0
+    assert e.meets_tolerance is (e.worst <= 1e-3)

@@ -1,0 +1,375 @@
+"""Options and results of a co-simulation run: :class:`CosimConfig`, :class:`CosimResult`.
+
+Also the field hammer (:func:`field_hammer`), the recordable variables
+(:data:`RECORDABLE`) and :class:`CouplingInstabilityError`.  All re-exported by
+:mod:`hammerbit.cosim`.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Optional, Sequence
+
+import numpy as np
+
+from hammerbit.model.params import RIG, RigParameters, Scales
+from hammerbit.model.validation import check as _check
+
+from .cosim_error import CouplingErrorEstimate
+
+__all__ = ["SCHEMES", "RECORDABLE", "CouplingInstabilityError", "field_hammer", "CosimConfig", "CosimResult",
+           "steady_start", "event_counts"]
+
+SCHEMES = ("jacobi", "gauss-seidel")
+
+#: Variables a run can record (all SI), in output order after ``time``.
+RECORDABLE = {
+    "wob": "weight on bit: drive of the hammer assembly on the bit K(x_h-x_b)+C(v_h-v_b)+F_c [N]",
+    "interface_force": "force of the string (interface spring-dashpot) on the hammer [N]",
+    "hammer_force": "force held on the hammer's preload input over the step [N]",
+    "hammer_position": "hammer position [m] (downward)",
+    "hammer_velocity": "hammer velocity [m/s]",
+    "bit_position": "bit position = penetration [m]",
+    "bit_velocity": "bit velocity [m/s]",
+    "stick": "1 while the bit sticks to the rock, 0 while it slips [-]",
+    "contact": "1 while the hammer is in contact with the bit (gap closed), else 0 [-]",
+    "string_bit_displacement": "displacement of the string's bottom node from equilibrium [m]",
+    "string_bit_velocity": "velocity of the string's bottom node [m/s]",
+    "hook_load": "hook load [N]: static hook load plus the dynamic tension of the top element",
+    "energy_residual": "coupling energy residual of the step (power-bond residual x H) [J]",
+    "step_size": "macro step that ended at this time [s]",
+    "force_defect": "interface force defect of the step, F_held - mean F_i [N]",
+    "wob_error_estimate": "estimated coupling error of the WOB at this time, factor x (run - companion) [N]",
+}
+
+
+class CouplingInstabilityError(RuntimeError):
+    """The co-simulation coupling became unstable (energy growth at the interface).
+
+    Attributes
+    ----------
+    time : float
+        Communication time [s] where it was detected.
+    step : int
+        Macro-step index.
+    residual : float
+        Absolute energy residual of the last window [J].
+    reference : float
+        Reference energy [J] it was compared with.
+    """
+
+    def __init__(self, message: str, *, time: float, step: int, residual: float, reference: float):
+        self.time = time
+        self.step = step
+        self.residual = residual
+        self.reference = reference
+        super().__init__(message)
+
+
+# ---------------------------------------------------------------------------
+# field hammer
+# ---------------------------------------------------------------------------
+def field_hammer(*, hammer_mass: float = 400.0, natural_frequency: float = 20.0,
+                 friction_force: float = 100e3, groups=None) -> RigParameters:
+    """A field-size resonance hammer with the dimensionless groups of the rig.
+
+    The rig of Franca & Weber (``RigParameters()``: m1 = 25.3 kg,
+    K = 2170 N/m, F0 = 54 N, natural frequency 1.47 Hz) is scaled by choosing
+    the three scales the nondimensional form loses:
+
+    * hammer mass ``m1 = 400 kg`` -- a downhole hammer body of a few hundred
+      kilograms (an 8 in percussion hammer piston and housing);
+    * natural frequency ``Omega/2pi = 20 Hz`` -- the middle of the 10-30 Hz
+      band of downhole resonance/percussion tools, so ``K = m1 Omega^2 =
+      6.32e6 N/m``;
+    * friction force ``F0 = 100 kN`` -- so the rig's preload group
+      ``b = 0.55`` is a weight on bit of 55 kN (5.6 t), a usual WOB for an
+      8.5 in hard-rock bit, and ``a = 0.15`` is a 15 kN harmonic force.
+
+    Every group (rho, xi, eta, a, b, r, mu, gamma_hat, kc, n, lam_hat, phi)
+    is that of ``RigParameters().to_groups()`` (or ``groups`` if given), so
+    the nondimensional dynamics are the rig's; the length scale becomes
+    ``x0 = F0/K = 15.8 mm``.  ``preload`` is the WOB of the static
+    equilibrium, ``frequency`` = 20 Hz (eta = 1).
+    """
+    g = RIG.to_groups() if groups is None else groups
+    K = hammer_mass * (2.0 * math.pi * natural_frequency) ** 2
+    return g.to_rig(Scales(hammer_mass, K, friction_force), mu_static=RIG.mu_static)
+
+
+# ---------------------------------------------------------------------------
+# configuration
+# ---------------------------------------------------------------------------
+@dataclass(frozen=True, kw_only=True)
+class CosimConfig:
+    """Options of a co-simulation run (SI units; keyword-only).
+
+    Attributes
+    ----------
+    stop : float
+        End time [s] (start at ``start``); reached exactly (a shorter last step).
+    step : float
+        Macro step H [s]; with ``adaptive`` the first step.
+    start : float
+        Start time t0 [s].
+    scheme : {'jacobi', 'gauss-seidel'}
+    extrapolation : {0, 1, 2}
+        Polynomial order of the exchanged signals over a step.
+    rig : RigParameters
+        Hammer; its ``preload`` is replaced by the interface force and its
+        amplitude/frequency/phase drive the internal harmonic source.
+    wob : float, optional
+        Weight on bit of the static equilibrium [N] (default ``rig.preload``).
+    interface_stiffness, interface_damping : float
+        k_i [N/m], c_i [N s/m] between the string's bottom node and the hammer.
+        Default 2e6 N/m and 2e3 N s/m: a shock sub.  With the 400 kg field
+        hammer it puts the hammer-on-interface mode at 11 Hz, below the
+        20 Hz drive, so the string is isolated and the hammer resonates and
+        drills.  A stiff interface (>= 1e7 N/m) clamps the hammer to the
+        collars (impedance ~ 7e5 N s/m against ``omega m1`` = 5e4 N s/m), the
+        hammer cannot resonate and the bit does not progress.
+    mass : str
+        Mass scheme of the string (``mixed``, ``lumped``, ``consistent``).
+    f_max : float, optional
+        Modal truncation of the string at f_max [Hz] (None: all nodal DOFs).
+    ramp : float
+        Duration [s] over which the harmonic force rises linearly from 0 to its
+        amplitude (0: on at full amplitude).  The ramp factor is held per macro
+        step at its value at the step's midpoint; with the FMU the master then
+        feeds the harmonic force (``harmonic_source='master'``).
+    adaptive : bool
+        Adaptive macro step with rollback (see :func:`cosimulate`).
+    tol : float
+        Relative tolerance [-] of the coupling error on the WOB amplitude and
+        the penetration: the estimate is held against it; with ``adaptive`` it
+        also drives the step.
+    estimate : bool
+        Run the half-step companion and estimate the coupling error
+        (:mod:`hammerbit.cosim_error`); costs about twice the run itself.
+    check_step : bool
+        Refuse a step that cannot resolve the forcing, the slip dynamics or the
+        string modes in the exchange (:func:`hammerbit.cosim_error.check_step`).
+    h_min, h_max : float, optional
+        Adaptive step limits [s] (default ``step / 64`` and ``step * 8``).
+    record : tuple of str
+        Variables to record (keys of :data:`RECORDABLE`); ``time`` is always first.
+    record_every : int
+        Record every n-th communication point.
+    check_stability : bool
+        Watch the power-bond residual (see module docstring).
+    energy_tol, growth, growth_windows, stability_window, blowup : float/int
+        Thresholds of the instability detector.
+    progress : bool, optional
+        Progress bar on stderr (tqdm; None: only for runs above 20000 steps on a terminal).
+    rtol : float
+        Tolerance of the in-process hammer / the monolithic reference.
+    """
+
+    stop: float = 1.0
+    step: float = 1e-3
+    start: float = 0.0
+    scheme: str = "jacobi"
+    extrapolation: int = 2
+    rig: RigParameters = field(default_factory=field_hammer)
+    wob: Optional[float] = None
+    interface_stiffness: float = 2.0e6
+    interface_damping: float = 2.0e3
+    mass: str = "mixed"
+    f_max: Optional[float] = None
+    ramp: float = 0.0
+    adaptive: bool = False
+    tol: float = 1e-3
+    estimate: bool = True
+    check_step: bool = True
+    h_min: Optional[float] = None
+    h_max: Optional[float] = None
+    string_step: str = "auto"
+    """``auto``: the modal form of the exact string step when the eigenbasis
+    reproduces it, else dense; ``dense``: always the dense mat-vec."""
+    record: tuple = ("wob", "interface_force", "hammer_position", "hammer_velocity",
+                     "bit_position", "bit_velocity")
+    record_every: int = 1
+    check_stability: bool = True
+    energy_tol: float = 0.05
+    growth: float = 1.2
+    growth_windows: int = 3
+    stability_window: int = 10
+    blowup: float = 50.0
+    progress: Optional[bool] = None
+    rtol: float = 1e-10
+    harmonic_source: str = "fmu"
+    """``fmu``: the FMU's internal harmonic source (continuous in time);
+    ``master``: the master computes the harmonic force and feeds its mean over
+    each macro step to the FMU's ``harmonic_force`` input (zero-order hold),
+    with the FMU's internal source switched off."""
+
+    def __post_init__(self):
+        if self.scheme not in SCHEMES:
+            raise ValueError(f"scheme = {self.scheme!r}: allowed {', '.join(SCHEMES)}")
+        if self.extrapolation not in (0, 1, 2):
+            raise ValueError(f"extrapolation = {self.extrapolation!r}: allowed 0, 1, 2")
+        if self.string_step not in ("auto", "dense"):
+            raise ValueError(f"string_step = {self.string_step!r}: allowed 'auto', 'dense'")
+        if self.harmonic_source not in ("fmu", "master"):
+            raise ValueError(f"harmonic_source = {self.harmonic_source!r}: allowed 'fmu', 'master'")
+        for key, name in (("cosim.step", "step"), ("cosim.start", "start"), ("cosim.stop", "stop"),
+                          ("cosim.interface_stiffness", "interface_stiffness"),
+                          ("cosim.interface_damping", "interface_damping"), ("cosim.ramp", "ramp"),
+                          ("cosim.tol", "tol")):
+            _check(key, getattr(self, name), label=name)
+        if not self.stop > self.start:
+            raise ValueError(f"stop = {self.stop!r}: must be > start = {self.start!r}")
+        if self.step > self.stop - self.start:
+            raise ValueError(f"step = {self.step!r} s is longer than the run ({self.stop - self.start:g} s "
+                             f"from start = {self.start!r} to stop = {self.stop!r})")
+        if self.f_max is not None:
+            _check("cosim.f_max", self.f_max, label="f_max")
+        if self.wob is not None:
+            _check("cosim.wob", self.wob, label="wob")
+        bad = [r for r in self.record if r not in RECORDABLE]
+        if bad:
+            raise ValueError(f"record: unknown variable(s) {bad}; allowed {', '.join(RECORDABLE)}")
+        if self.record_every < 1:
+            raise ValueError("record_every must be >= 1")
+        if self.adaptive:
+            lo, hi = self.step_range
+            if not (0 < lo <= self.step <= hi):
+                raise ValueError(f"need 0 < h_min <= step <= h_max; got h_min={lo!r}, step={self.step!r}, "
+                                 f"h_max={hi!r}")
+
+    @property
+    def weight_on_bit(self) -> float:
+        """WOB of the static equilibrium [N]."""
+        return float(self.rig.preload if self.wob is None else self.wob)
+
+    @property
+    def macro_steps(self) -> int:
+        """Number of fixed macro steps: whole steps, plus one shorter last step if needed."""
+        n, rem = self.whole_steps
+        return n + (1 if rem > 0.0 else 0)
+
+    @property
+    def whole_steps(self) -> tuple:
+        """``(n, rem)``: whole steps of ``step`` in the run and the remaining time [s] (0 if none)."""
+        span = self.stop - self.start
+        n = int(math.floor(span / self.step * (1.0 + 1e-12)))
+        rem = span - n * self.step
+        if rem <= 1e-9 * self.step:
+            rem = 0.0
+        return n, rem
+
+    @property
+    def step_range(self) -> tuple:
+        """``(h_min, h_max)`` of the adaptive step [s]."""
+        return (self.step / 64 if self.h_min is None else self.h_min,
+                self.step * 8 if self.h_max is None else self.h_max)
+
+    def ramp_factor(self, t: float) -> float:
+        """Factor of the harmonic amplitude at time t [s] (1 after the ramp)."""
+        if self.ramp <= 0.0:
+            return 1.0
+        return min(1.0, max(0.0, (t - self.start) / self.ramp))
+
+    def replace(self, **changes) -> "CosimConfig":
+        return replace(self, **changes)
+
+
+def _dtype(record: Sequence[str]) -> np.dtype:
+    return np.dtype([("time", "f8")] + [(r, "f8") for r in record])
+
+
+@dataclass
+class CosimResult:
+    """Result of :func:`cosimulate` or :func:`monolithic`.
+
+    Attributes
+    ----------
+    data : structured ndarray
+        ``time`` then the recorded variables (SI).
+    config : CosimConfig
+    macro_steps : int
+    wall_time_s : float
+        Time of the stepping loop (set-up excluded; with the companion).
+    setup_time_s : float
+    penetration_m : float
+        Bit position at the end [m].
+    stats : dict
+        Energy residuals, rejected steps, ...
+    method : str
+        ``cosim``, ``cosim-adaptive`` or ``monolithic``.
+    counts : dict
+        Events of the hammer side by kind: ``slips``, ``sticks``, ``impacts``,
+        ``bounce_violations``.
+    estimate : CouplingErrorEstimate, optional
+        A posteriori coupling-error estimate (None without the companion or for
+        the monolithic reference).
+    """
+
+    data: np.ndarray
+    config: CosimConfig
+    macro_steps: int
+    wall_time_s: float
+    setup_time_s: float
+    penetration_m: float
+    stats: dict
+    method: str = "cosim"
+    counts: dict = field(default_factory=dict)
+    estimate: Optional[CouplingErrorEstimate] = None
+
+    @property
+    def stop_s(self) -> float:
+        """Time of the last communication point [s]."""
+        return float(self.data["time"][-1]) if len(self.data) else self.config.start
+
+    def window(self, t_from: Optional[float] = None) -> np.ndarray:
+        """Rows with time >= t_from (default: the second half of the run, the steady window)."""
+        if t_from is None:
+            t_from = steady_start(self.config)
+        return self.data[self.data["time"] >= t_from - 1e-12]
+
+    def wob_amplitude(self, t_from: Optional[float] = None) -> float:
+        """Dynamic WOB amplitude (max - min)/2 over the window [N]."""
+        w = self.window(t_from)["wob"]
+        return float(0.5 * (w.max() - w.min()))
+
+    def wob_mean(self, t_from: Optional[float] = None) -> float:
+        """Mean WOB over the window [N]."""
+        return float(np.mean(self.window(t_from)["wob"]))
+
+    def summary(self, t_from: Optional[float] = None) -> dict:
+        """JSON-ready figures."""
+        out = {"method": self.method, "scheme": self.config.scheme,
+               "extrapolation": self.config.extrapolation, "step_s": self.config.step,
+               "stop_s": self.stop_s, "macro_steps": self.macro_steps,
+               "wall_time_s": self.wall_time_s, "setup_time_s": self.setup_time_s,
+               "penetration_m": self.penetration_m, "ramp_s": self.config.ramp,
+               "steady_window_start_s": steady_start(self.config) if t_from is None else t_from}
+        if "wob" in self.data.dtype.names:
+            out["wob_mean_n"] = self.wob_mean(t_from)
+            out["wob_amplitude_n"] = self.wob_amplitude(t_from)
+        out["counts"] = dict(self.counts)
+        if self.estimate is not None:
+            out["error_estimate"] = self.estimate.to_dict()
+        out.update({k: v for k, v in self.stats.items() if isinstance(v, (int, float, str))})
+        return out
+
+    def to_csv(self, path) -> Path:
+        """Write the recorded array as CSV (header = field names)."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        names = self.data.dtype.names
+        arr = np.column_stack([self.data[n] for n in names]) if len(self.data) else np.zeros((0, len(names)))
+        np.savetxt(path, arr, delimiter=",", header=",".join(names), comments="", fmt="%.17g")
+        return path
+
+
+def steady_start(config: CosimConfig) -> float:
+    """Start of the steady window [s]: the later of the run's midpoint and the end of the ramp."""
+    return max(0.5 * (config.start + config.stop), min(config.start + config.ramp, config.stop))
+
+
+def event_counts(raw: dict) -> dict:
+    """The hammer's event counts under the names the results use."""
+    return {"slips": int(raw.get("slip_start", 0)), "sticks": int(raw.get("stick", 0)),
+            "impacts": int(raw.get("impact", 0)), "bounce_violations": int(raw.get("bounce", 0))}
