@@ -230,7 +230,7 @@ BAD = [
     (["modes", "--string", "no-such-file.toml"], ["no-such-file.toml"]),
     (["check", "--string", "field-2200m", "--frequency", "nan"], ["nan"]),
     (["cosim", "--string", "field-2200m", "--fmu", "notazip.fmu", "--stop", "0.01"], ["notazip.fmu"]),
-    (["cosim", "--string", "field-2200m", "--stop", "0.01", "--step", "1"], ["--step"]),
+    (["cosim", "--string", "field-2200m", "--stop", "0.01", "--step", "1"], ["step", "1"]),
     (["cosim", "--string", "field-2200m", "--stop", "0.01", "--set", "nonsense=1"], ["'nonsense'"]),
 ]
 
