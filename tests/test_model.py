@@ -90,13 +90,26 @@ def test_si_overrides_carry_their_scales(settings, x0, omega):
 
 
 def test_si_override_reported_in_si_with_the_scene_scale():
-    """The issue's case: K doubled halves x0, so the SI penetration is the x0 value times 54/4340."""
+    """K doubled halves x0 = F0 / K: the SI penetration is the x0 value times 54 N / 4340 N/m."""
     out = subprocess.run([sys.executable, "-m", "hammerbit.cli", "simulate", "--preset", "paper-fig9",
                           "--set", "a=0.11", "--set", "K=4340", "--periods", "100", "--json"],
                          capture_output=True, text=True, check=True)
     d = json.loads(out.stdout)
     assert d["penetration_m"] == pytest.approx(d["penetration_x0"] * 54.0 / 4340.0, rel=1e-12)
     assert d["penetration_m"] == pytest.approx(0.00516, abs=5e-6)
+
+
+@pytest.mark.parametrize("settings, x0", [
+    # x0 = F0 / K = mu_e F_N / K by hand (paper rig: mu_e = 0.62, F_N = 87.1 N, K = 2170 N/m)
+    ({"m1": 50.6}, 54.0 / 2170.0),
+    ({"F_N": 100.0}, 0.62 * 100.0 / 2170.0),
+    ({"K": 4340.0, "m1": 12.65}, 54.0 / 4340.0),
+])
+def test_simulation_result_in_si_uses_the_scene_scale(settings, x0):
+    g = apply_settings(preset("paper-fig9"), settings).replace(a=0.3, eta=1.0)   # a drilling scene
+    r = simulate(g, 20)
+    assert r.penetration > 0.0
+    assert r.penetration_m == pytest.approx(r.penetration * x0, rel=1e-13)
 
 
 def test_set_errors_use_the_typed_name():
@@ -108,31 +121,130 @@ def test_set_errors_use_the_typed_name():
     assert ei.value.name == "K"
 
 
+# --------------------------------------------------------------------------- force formulas
+def test_force_formulas_against_hand_values():
+    """The public force formulas of the kernels at hand-computed points (model.md)."""
+    g = preset("paper-fig12").replace(xi=0.1, mu=0.8, gamma_hat=5.0, kc=1e4, n=1.5, lam_hat=0.3, r=0.5)
+    p = g.to_kernel()
+    # kinetic friction mu + (1 - mu) exp(-gamma_hat v): 1 at rest, mu at high speed
+    assert K.kinetic_friction(0.0, p) == pytest.approx(1.0, rel=1e-15)
+    assert K.kinetic_friction(0.2, p) == pytest.approx(0.8 + 0.2 * math.exp(-1.0), rel=1e-15)
+    assert K.kinetic_friction(100.0, p) == pytest.approx(0.8, rel=1e-15)
+    # Hunt-Crossley kc d^n (1 + lam d') in contact, 0 when free or clamped, odd in d
+    assert K.contact_force(0.01, 0.5, p, K.CONTACT) == pytest.approx(1e4 * 1e-3 * 1.15, rel=1e-14)
+    assert K.contact_force(0.04, -1.0, p, K.CONTACT) == pytest.approx(1e4 * 0.008 * 0.7, rel=1e-14)
+    assert K.contact_force(-0.01, 0.0, p, K.CONTACT) == pytest.approx(-10.0, rel=1e-14)
+    assert K.contact_force(0.01, 0.5, p, K.FREE) == 0.0
+    assert K.contact_force(0.01, 0.5, p, K.CLAMPED) == 0.0
+    y = np.array([1.5, 0.7, 0.96, 0.2])
+    assert K.overlap(y, p) == pytest.approx(1.5 - 0.96 - 0.5, rel=1e-14)
+    fk = (1.5 - 0.96) + 2 * 0.1 * (0.7 - 0.2)                       # 0.64
+    assert K.spring_damper_force(y, p) == pytest.approx(fk, rel=1e-15)
+    fc = 1e4 * 0.04 ** 1.5 * (1 + 0.3 * 0.5)                        # 92
+    assert K.force_on_bit(y, p, K.CONTACT) == pytest.approx(fk + fc, rel=1e-14)
+    assert K.force_on_bit(y, p, K.FREE) == pytest.approx(fk, rel=1e-15)
+
+
+@pytest.mark.parametrize("kw, flags", [
+    # bounce: a >= b; overload: a + b > 1; runaway: b above the kinetic floor (mu, or 1 if gamma_hat = 0)
+    (dict(a=0.1, b=0.55, mu=0.85, gamma_hat=92.0), (False, False, False)),
+    (dict(a=0.55, b=0.55, mu=0.85, gamma_hat=92.0), (True, True, False)),
+    (dict(a=0.45, b=0.55, mu=0.85, gamma_hat=92.0), (False, False, False)),   # a + b = 1 exactly
+    (dict(a=0.1, b=0.9, mu=0.85, gamma_hat=92.0), (False, False, True)),
+    (dict(a=0.1, b=0.9, mu=0.85, gamma_hat=0.0), (False, False, False)),      # floor 1 without decay
+    (dict(a=0.3, b=0.2, mu=0.85, gamma_hat=0.0), (True, False, False)),
+])
+def test_regime_flags(kw, flags):
+    from hammerbit.model.params import regime
+    r = regime(preset("paper-fig9").replace(**kw))
+    assert (r.bounce, r.overload, r.runaway) == flags
+
+
 # --------------------------------------------------------------------------- closed forms
-def forced_oscillator(t, b, a, eta, phi, xi):
-    """x'' + 2 xi x' + x = b + a sin(eta t + phi), x(0) = x'(0) = 0 (xi < 1)."""
-    D = (1 - eta ** 2) ** 2 + (2 * xi * eta) ** 2
-    P = a * (1 - eta ** 2) / D
-    Q = -a * 2 * xi * eta / D
-    # particular: b + P sin(eta t + phi) + Q cos(eta t + phi)
-    xp0 = b + P * math.sin(phi) + Q * math.cos(phi)
-    vp0 = eta * (P * math.cos(phi) - Q * math.sin(phi))
-    wd = math.sqrt(1 - xi ** 2)
-    c1 = -xp0
-    c2 = (-vp0 + xi * c1) / wd
-    e = np.exp(-xi * t)
-    return (b + P * np.sin(eta * t + phi) + Q * np.cos(eta * t + phi)
-            + e * (c1 * np.cos(wd * t) + c2 * np.sin(wd * t)))
+def stuck_hammer_exact(g, t0, x1, v1, x3, times):
+    """Exact (x1, x1') of the stuck system x1'' + 2 xi x1' + x1 = x3 + b + a sin(eta t + phi)
+    from (x1, v1) at t0, at each of ``times``.
+
+    Written as the autonomous linear system z' = M z, z = (x1, x1', sin, cos, 1) of the
+    forcing phase, so z(t) = expm(M (t - t0)) z(t0): no particular solution, no modes,
+    nothing shared with the kernels' closed form (and valid for any xi, also xi >= 1).
+    """
+    from scipy.linalg import expm
+    M = np.zeros((5, 5))
+    M[0, 1] = 1.0
+    M[1, 0], M[1, 1], M[1, 2], M[1, 4] = -1.0, -2.0 * g.xi, g.a, g.b + x3
+    M[2, 3], M[3, 2] = g.eta, -g.eta
+    th = g.eta * t0 + g.phi
+    z0 = np.array([x1, v1, math.sin(th), math.cos(th), 1.0])
+    z = np.array([expm(M * (t - t0)) @ z0 for t in np.asarray(times, dtype=float)])
+    return z[:, 0], z[:, 1]
 
 
-def test_stick_phase_matches_forced_damped_oscillator():
+def _closed_form_used(r):
+    """An exact stick chunk evaluates one right-hand side (for its events); a Runge-Kutta
+    step evaluates at least 4."""
+    return r.stats["rhs"] < 2 * r.stats["steps"]
+
+
+@pytest.mark.parametrize("label, xi, solver, energy, closed_form, tol", [
+    ("adaptive, exact stick chunks", None, TIGHT, False, True, 1e-11),
+    ("dp54, exact stick chunks", None, SolverOptions(method="dp54", rtol=1e-12, atol=1e-14), False, True,
+     1e-11),
+    # the energy block and the fixed-step method integrate the stick phase with Runge-Kutta
+    ("adaptive, Runge-Kutta (energy)", None, TIGHT, True, False, 2e-11),
+    ("dp54, Runge-Kutta (energy)", None, SolverOptions(method="dp54", rtol=1e-12, atol=1e-14), True, False,
+     2e-11),
+    ("rk4, 1000 steps per period", None, SolverOptions(method="rk4"), False, False, 2e-10),
+    # overdamped (xi >= 1): no closed form in the kernels, Runge-Kutta
+    ("adaptive, overdamped", 1.5, TIGHT, False, False, 2e-12),
+])
+def test_stick_phase_matches_exact_linear_solution(label, xi, solver, energy, closed_form, tol):
     g = preset("paper-fig9").replace(a=0.03)  # F_d stays below the static threshold
+    if xi is not None:
+        g = g.replace(xi=xi)
     times = np.linspace(0, 20 * g.period, 2001)
-    r = simulate(g, 20, record=Record(times=times), solver=TIGHT)
+    r = simulate(g, 20, record=Record(times=times, energy=energy), solver=solver)
     assert r.counts["slip_start"] == 0
-    exact = forced_oscillator(times, g.b, g.a, g.eta, g.phi, g.xi)
-    assert np.max(np.abs(r.samples["hammer_position"] - exact)) < 1e-10
-    assert np.all(r.samples["bit_position"] == 0.0)
+    assert _closed_form_used(r) == closed_form, (label, r.stats)
+    x1, v1 = stuck_hammer_exact(g, 0.0, 0.0, 0.0, 0.0, times)
+    assert np.max(np.abs(r.samples["hammer_position"] - x1)) < tol, label
+    assert np.max(np.abs(r.samples["hammer_velocity"] - v1)) < tol, label
+    assert np.all(r.samples["bit_position"] == 0.0) and np.all(r.samples["bit_velocity"] == 0.0)
+
+
+def test_rk4_stick_error_falls_with_the_fourth_power_of_the_step():
+    g = preset("paper-fig9").replace(a=0.03)
+    times = np.linspace(0, 10 * g.period, 501)
+    x1, _ = stuck_hammer_exact(g, 0.0, 0.0, 0.0, 0.0, times)
+    err = [np.max(np.abs(simulate(g, 10, record=Record(times=times),
+                                  solver=SolverOptions(method="rk4", steps_per_period=n)
+                                  ).samples["hammer_position"] - x1)) for n in (100, 200)]
+    assert err[0] / err[1] == pytest.approx(16.0, rel=0.15), err
+
+
+def test_slip_start_at_the_exact_threshold_crossing():
+    """paper-fig9 at a = 0.069: after the first stick, the exact stuck motion drives F_d over
+    the static threshold near tau = 70.50 by only 1.8e-4 for 0.06 in tau (a check of the sign
+    at step ends would miss it).  The slip must start at the root of the exact F_d - 1."""
+    from scipy.optimize import brentq
+    g = preset("paper-fig9").replace(a=0.069)
+    ev = simulate(g, 15, record=Record(events=True)).events
+    assert list(ev["kind"][:3]) == ["slip_start", "stick", "slip_start"]
+    s = ev[1]
+    t0, x1, v1, x3 = s["time"], s["hammer_position"], s["hammer_velocity"], s["bit_position"]
+
+    def fd_minus_1(t):
+        x, v = stuck_hammer_exact(g, t0, x1, v1, x3, [t])
+        return (x[0] - x3) + 2.0 * g.xi * v[0] - 1.0
+
+    grid = np.linspace(t0 + 0.1, ev["time"][2] + 1.0, 4001)
+    x, v = stuck_hammer_exact(g, t0, x1, v1, x3, grid)
+    above = np.nonzero((x - x3) + 2.0 * g.xi * v > 1.0)[0]
+    k = above[0]
+    t_exact = brentq(fd_minus_1, grid[k - 1], grid[k], xtol=1e-14, rtol=1e-15)
+    assert abs(ev["time"][2] - t_exact) < 1e-9
+    assert ev["hammer_position"][2] == pytest.approx(stuck_hammer_exact(g, t0, x1, v1, x3, [t_exact])[0][0],
+                                                     abs=1e-9)
 
 
 def test_hunt_crossley_restitution_small_lam_v():
@@ -222,6 +334,32 @@ def test_events_are_located_to_machine_precision():
         assert -1e-12 < fd < 1e-6
 
 
+@pytest.mark.parametrize("phase", [0.25, 0.7])
+def test_poincare_phase_samples_the_right_time(phase):
+    """Poincaré rows at tau = (k + phase) T equal dense samples requested at those times
+    (an impact scene: both come from the same steps) and, in a stuck scene, the exact
+    solution; a sample at phase 0 is a different point."""
+    g = preset("paper-fig12").replace(a=0.06)
+    P = 30
+    T = g.period
+    t_k = (np.arange(P) + phase) * T
+    r = simulate(g, P, record=Record(poincare=True, poincare_phase=phase, times=t_k))
+    pc = r.poincare
+    assert len(pc) == P                        # (k + phase) T <= P T for k = 0 .. P - 1
+    assert np.max(np.abs(pc["time"] - t_k)) <= 1e-12 * P * T
+    for name in ("hammer_position", "hammer_velocity", "bit_position", "bit_velocity"):
+        assert np.max(np.abs(pc[name] - r.samples[name])) < 1e-12, name
+    assert r.counts["impact"] > 10
+    zero = simulate(g, P, record=Record(poincare=True)).poincare
+    assert np.max(np.abs(zero["hammer_velocity"][1:P] - pc["hammer_velocity"][1:P])) > 1e-2
+    # stuck scene: the exact linear solution at the phase
+    g9 = preset("paper-fig9").replace(a=0.03)
+    pc9 = simulate(g9, 10, record=Record(poincare=True, poincare_phase=phase)).poincare
+    x1, v1 = stuck_hammer_exact(g9, 0.0, 0.0, 0.0, 0.0, pc9["time"])
+    assert np.max(np.abs(pc9["hammer_position"] - x1)) < 1e-9
+    assert np.max(np.abs(pc9["hammer_velocity"] - v1)) < 1e-9
+
+
 def test_deterministic():
     g = preset("paper-fig12")
     r1 = simulate(g, 30, record=Record(poincare=True))
@@ -261,8 +399,10 @@ def test_resumable_advance_equals_one_call():
 # --------------------------------------------------------------------------- solvers
 @pytest.mark.parametrize("name, a", [("paper-fig9", 0.11), ("paper-fig12", 0.06)])
 def test_rk4_and_adaptive_agree_within_rk4_error(name, a):
+    """Both methods against the independent solve_ivp reference (benchmarks.scipy_reference)."""
+    from benchmarks.scipy_reference import simulate_reference
     g = preset(name).replace(a=a)
-    ref = simulate(g, 30, solver=TIGHT).penetration
+    ref = simulate_reference(g, 30, rtol=1e-12, atol=1e-14).penetration
     ad = simulate(g, 30).penetration
     rk = simulate(g, 30, solver=SolverOptions(method="rk4")).penetration
     rk_err = abs(rk - ref)
@@ -282,8 +422,9 @@ def test_adaptive_converges_as_rtol_falls(name, a):
 
 
 def test_dp54_agrees():
+    from benchmarks.scipy_reference import simulate_reference
     g = preset("paper-fig12")
-    ref = simulate(g, 20, solver=TIGHT).penetration
+    ref = simulate_reference(g, 20, rtol=1e-12, atol=1e-14).penetration
     assert simulate(g, 20, solver=SolverOptions(method="dp54", rtol=1e-10, atol=1e-12)).penetration == \
         pytest.approx(ref, rel=1e-6)
 

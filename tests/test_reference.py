@@ -1,14 +1,20 @@
-"""Our solvers against an independent reference (issue 2).
+"""Our solvers against an independent reference.
 
 The reference is :mod:`benchmarks.scipy_reference`: ``solve_ivp`` (DOP853,
 rtol 1e-12, atol 1e-14) with terminal events and a Python hybrid-mode loop,
 written from ``model.md`` without code shared with the kernels.
 
-Done criterion of issue 2: at rtol 1e-10 our ``adaptive`` solver matches the
-independent tight-tolerance solution to 1e-8 relative in the penetration
-after 100 forcing periods, on the no-impact (paper-fig9, a = 0.11) and the
-impact (paper-fig12, a = 0.06) scenes.  The full 100 periods are used (the
-whole file runs in about 10 s).
+At rtol 1e-10 the ``adaptive`` solver matches the independent tight-tolerance
+solution to 1e-8 relative in the penetration after 100 forcing periods, on
+the no-impact (paper-fig9, a = 0.11) and the impact (paper-fig12, a = 0.06)
+scenes.
+
+The reference detects an event only where its indicator changes sign between
+two steps of ``solve_ivp``: a crossing that goes up and down inside one step
+is missed.  paper-fig9 at a = 0.069 has such a slip start (F_d exceeds the
+threshold by 1.8e-4 for 0.06 in tau, near tau = 70.5); there the reference is
+wrong, and ``test_model.py::test_slip_start_at_the_exact_threshold_crossing``
+checks that slip start against the exact linear solution instead.
 """
 import warnings
 
@@ -48,10 +54,10 @@ def groups(key):
 
 
 @pytest.mark.parametrize("key", list(SCENES))
-@pytest.mark.parametrize("rtol, bound", [(1e-10, 1e-8), (1e-13, 1e-10)], ids=["done-criterion", "tight"])
+@pytest.mark.parametrize("rtol, bound", [(1e-10, 1e-8), (1e-13, 1e-10)], ids=["rtol-1e-10", "tight"])
 def test_penetration_matches_independent_reference(key, rtol, bound):
-    """rtol 1e-10: the done criterion; rtol 1e-13 against solve_ivp at 1e-12: the error
-    floor of the work–precision diagram."""
+    """rtol 1e-10: 1e-8 relative; rtol 1e-13 against solve_ivp at 1e-12: the error floor of
+    the work–precision diagram."""
     ref = reference(key)
     ours = simulate(groups(key), PERIODS, solver=SolverOptions(rtol=rtol, atol=rtol * 1e-2))
     rel = abs(ours.penetration - ref.penetration) / abs(ref.penetration)
@@ -69,6 +75,18 @@ def test_event_sequence_matches_reference(key):
     assert kinds == [k for _, k in ref.events]
     t_ref = np.array([t for t, _ in ref.events])
     assert np.max(np.abs(ours.events["time"] - t_ref)) <= 1e-8
+
+
+@pytest.mark.parametrize("name, a", [("paper-fig9", 0.083), ("paper-fig9", 0.2), ("paper-fig12", 0.11)])
+def test_paper_scenes_at_default_tolerance_agree_with_reference(name, a):
+    """The default rtol 1e-8 against the independent reference over 30 periods (the other
+    paper scenes of the convergence tests): the same events, the penetration to 1e-7."""
+    g = preset(name).replace(a=a)
+    ref = simulate_reference(g, 30, rtol=1e-12, atol=1e-14)
+    ours = simulate(g, 30)
+    assert ours.counts == ref.counts
+    assert ours.counts["slip_start"] > 0
+    assert abs(ours.penetration - ref.penetration) <= 1e-7 * abs(ref.penetration)
 
 
 def test_clamp_scene_matches_reference():

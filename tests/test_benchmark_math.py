@@ -1,0 +1,185 @@
+"""The arithmetic behind the README's headline ratios, on small synthetic data.
+
+``pareto_front``, ``time_at_error`` and ``ratio_stats`` (work–precision
+analysis of ``benchmarks/bench_solvers.py``) and the README table rendering
+(``benchmarks/readme_table.py``).  Every expected value below is computed by
+hand in the comments, not by the code under test.
+"""
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from benchmarks import fmt_ratio, fmt_time
+from benchmarks.bench_solvers import NOMINAL_ERROR, pareto_front, ratio_stats, time_at_error
+from benchmarks.readme_table import END, START, load_results, render_table, update_readme
+
+
+# --------------------------------------------------------------------------- pareto_front
+def test_pareto_front_drops_dominated_and_invalid_points():
+    #        a      b      c      d      e(nan) f(err 0) g      h(same time as a, worse)  i
+    err = [1e-3, 1e-5, 1e-4, 1e-6, math.nan, 0.0, 1e-4, 1e-2, 1.5e-5]
+    t = [1.0, 3.0, 2.0, 10.0, 0.5, 0.5, 5.0, 1.0, 4.0]
+    fe, ft = pareto_front(err, t)
+    # by time: a(1, 1e-3) c(2, 1e-4) b(3, 1e-5) [i(4, 1.5e-5) dominated by b, only just]
+    # [g(5, 1e-4) dominated by c] d(10, 1e-6); h ties a in time with a larger error;
+    # e and f are not valid errors
+    assert fe.tolist() == [1e-3, 1e-4, 1e-5, 1e-6]
+    assert ft.tolist() == [1.0, 2.0, 3.0, 10.0]
+
+
+def test_pareto_front_of_nothing_valid_is_empty():
+    fe, ft = pareto_front([math.nan, -1.0], [1.0, math.inf])
+    assert fe.size == 0 and ft.size == 0
+
+
+# --------------------------------------------------------------------------- time_at_error
+FRONT = (np.array([1e-3, 1e-4, 1e-5, 1e-6]), np.array([1.0, 2.0, 3.0, 10.0]))
+
+
+@pytest.mark.parametrize("e, expected", [
+    (1e-3, 1.0),                     # a front point
+    (1e-6, 10.0),                    # the other end
+    (10 ** -3.5, math.sqrt(2.0)),    # halfway in log between (1e-3, 1) and (1e-4, 2): sqrt(1 * 2)
+    (10 ** -5.5, math.sqrt(30.0)),   # halfway between (1e-5, 3) and (1e-6, 10)
+    (10 ** -4.25, 2.0 ** 0.75 * 3.0 ** 0.25),  # a quarter of the way from (1e-4, 2) to (1e-5, 3)
+])
+def test_time_at_error_interpolates_in_log_log(e, expected):
+    assert time_at_error(FRONT, e) == pytest.approx(expected, rel=1e-12)
+
+
+@pytest.mark.parametrize("e", [1e-2, 1e-7])
+def test_time_at_error_outside_the_front_is_nan(e):
+    assert math.isnan(time_at_error(FRONT, e))
+
+
+def test_time_at_error_single_point_and_empty():
+    assert time_at_error((np.array([1e-4]), np.array([7.0])), 1e-4) == 7.0
+    assert math.isnan(time_at_error((np.array([1e-4]), np.array([7.0])), 1e-5))
+    assert math.isnan(time_at_error((np.array([]), np.array([])), 1e-4))
+
+
+# --------------------------------------------------------------------------- ratio_stats
+# ours: t = 1 at 1e-4, t = 10 at 1e-8  -> t_ours(e) = (e / 1e-4)^(-1/4)
+# peer: t = 100 at 1e-4, 1e4 at 1e-8   -> t_peer(e) = 100 (e / 1e-4)^(-1/2)
+# ratio(e) = 100 (e / 1e-4)^(-1/4): 100 at 1e-4, 1000 at 1e-8, log-linear in between
+OURS = (np.array([1e-4, 1e-8]), np.array([1.0, 10.0]))
+PEER = (np.array([1e-4, 1e-8]), np.array([100.0, 1e4]))
+
+
+def test_ratio_stats_on_power_law_fronts():
+    s = ratio_stats(OURS, PEER, floor=1e-10)
+    # grid: 4 points per decade from 1e-8 to 1e-4 -> 17 points
+    assert len(s["grid"]) == 17
+    assert s["grid"][0] == pytest.approx(1e-8) and s["grid"][-1] == pytest.approx(1e-4)
+    expected = [100.0 * (e / 1e-4) ** -0.25 for e in s["grid"]]
+    assert s["ratios"] == pytest.approx(expected, rel=1e-12)
+    assert s["min"] == pytest.approx(100.0, rel=1e-12)
+    assert s["max"] == pytest.approx(1000.0, rel=1e-12)
+    # log10 ratio runs linearly 2 .. 3 on an even grid: geometric mean 10^2.5
+    assert s["geomean"] == pytest.approx(10 ** 2.5, rel=1e-12)
+    assert NOMINAL_ERROR == 1e-8
+    assert s["at_nominal"] == pytest.approx(1000.0, rel=1e-12)
+    assert s["ours_time_at_nominal"] == pytest.approx(10.0, rel=1e-12)
+    assert s["peer_time_at_nominal"] == pytest.approx(1e4, rel=1e-12)
+    assert s["error_range"] == pytest.approx([1e-8, 1e-4])
+
+
+def test_ratio_stats_floor_cuts_the_grid():
+    # the grid starts at 10 * floor = 1e-5: 1e-5 .. 1e-4 is 5 points, ratios 100 .. 100 * 10^0.25
+    s = ratio_stats(OURS, PEER, floor=1e-6)
+    assert len(s["grid"]) == 5
+    assert s["min"] == pytest.approx(100.0, rel=1e-12)
+    assert s["max"] == pytest.approx(100.0 * 10 ** 0.25, rel=1e-12)
+    # the nominal ratio does not depend on the floor
+    assert s["at_nominal"] == pytest.approx(1000.0, rel=1e-12)
+
+
+def test_ratio_stats_without_overlap_or_with_an_empty_front():
+    ours = (np.array([1e-4, 1e-6]), np.array([1.0, 2.0]))
+    peer = (np.array([1e-7, 1e-9]), np.array([1.0, 2.0]))
+    s = ratio_stats(ours, peer, floor=1e-12)
+    assert s["grid"] == [] and s["ratios"] == []
+    assert s["min"] is None and s["geomean"] is None and s["max"] is None
+    assert s["at_nominal"] is None            # 1e-8 lies on neither front
+    empty = ratio_stats((np.array([]), np.array([])), PEER, floor=1e-12)
+    assert empty["ratios"] == [] and empty["at_nominal"] is None
+
+
+# --------------------------------------------------------------------------- formatting
+@pytest.mark.parametrize("s, text", [(5e-6, "5 µs"), (0.0123, "12.3 ms"), (2.5, "2.5 s"),
+                                     (None, "n/a"), (math.nan, "n/a")])
+def test_fmt_time(s, text):
+    assert fmt_time(s) == text
+
+
+@pytest.mark.parametrize("r, text", [(3.14159, "3.14x"), (312.4, "312x"), (None, "n/a"),
+                                     (math.inf, "n/a")])
+def test_fmt_ratio(r, text):
+    assert fmt_ratio(r) == text
+
+
+# --------------------------------------------------------------------------- README table
+def _result(name, rows, quick=False):
+    return {"benchmark": name, "quick": quick, "summary": rows,
+            "machine": {"timestamp": "2026-01-02T03:04:05", "cpu_count": 2, "cpu_model": "TestCPU",
+                        "load_average": 1.5, "python": "3.x", "numpy": "1", "numba": "2", "scipy": "3"}}
+
+
+def test_render_table_rows_cells_and_provenance():
+    rows = [
+        {"metric": "time at 1e-8 | no impact", "ours": "1.2 ms", "peer": "310 ms", "ratio": "258x",
+         "goal": ">= 100x", "met": True, "command": "python -m benchmarks --only solvers"},
+        {"metric": "start", "ours": 0.123456, "peer": None, "ratio": "", "goal": None, "met": False,
+         "command": ""},
+        "not a row",
+    ]
+    text = render_table([_result("solvers", rows), _result("fmu", [{"metric": "m"}], quick=True)])
+    lines = text.splitlines()
+    assert lines[0] == "| Benchmark | Metric | Ours | Peer | Ratio | Goal | Met | Command |"
+    assert lines[1] == "|---|---|---|---|---|---|---|---|"
+    # the pipe in the metric is escaped; the goal met shows a tick
+    assert lines[2] == ("| solvers | time at 1e-8 \\| no impact | 1.2 ms | 310 ms | 258x | >= 100x | ✅ | "
+                        "`python -m benchmarks --only solvers` |")
+    # floats to 3 significant digits, missing cells as a dash, a goal missed as a cross
+    assert lines[3] == "| solvers | start | 0.123 | – | – | – | ❌ | – |"
+    # a non-dict row is skipped; a quick run is tagged
+    assert lines[4] == "| fmu (quick) | m | – | – | – | – | – | – |"
+    assert "- `solvers`: 2026-01-02T03:04:05, 2 CPUs (TestCPU), load 1.5" in text
+    assert "- `fmu`:" in text and text.count("**quick run**") == 1
+
+
+def test_render_table_without_results_says_so():
+    text = render_table([])
+    assert "no results yet" in text.splitlines()[2]
+    assert "Measured on" not in text
+
+
+def test_update_readme_replaces_only_between_markers(tmp_path):
+    readme = tmp_path / "README.md"
+    before = f"# Title\n\nintro\n{START}\nold table\n{END}\n\ntail\n"
+    readme.write_text(before, encoding="utf-8")
+    assert update_readme("NEW", str(readme)) is True
+    assert readme.read_text(encoding="utf-8") == f"# Title\n\nintro\n{START}\nNEW\n{END}\n\ntail\n"
+    # idempotent
+    assert update_readme("NEW", str(readme)) is True
+    assert readme.read_text(encoding="utf-8").count("NEW") == 1
+    # no markers: nothing written
+    other = tmp_path / "OTHER.md"
+    other.write_text("no markers\n", encoding="utf-8")
+    assert update_readme("NEW", str(other)) is False
+    assert other.read_text(encoding="utf-8") == "no markers\n"
+    assert update_readme("NEW", str(tmp_path / "missing.md")) is False
+
+
+def test_load_results_skips_bad_files(tmp_path, capsys):
+    (tmp_path / "b_bench.json").write_text(json.dumps({"summary": [{"metric": "x"}]}))
+    (tmp_path / "a_bench.json").write_text(json.dumps({"benchmark": "named", "summary": []}))
+    (tmp_path / "c.json").write_text(json.dumps({"no_summary": 1}))
+    (tmp_path / "d.json").write_text("{not json")
+    res = load_results(str(tmp_path))
+    assert [r["benchmark"] for r in res] == ["named", "b_bench"]     # sorted by file name
+    assert "d.json" in capsys.readouterr().err
