@@ -18,16 +18,12 @@ def built_fmu(tmp_path_factory):
 # set (named beside it).
 SLOW_TESTS = {
     "tests/test_cosim.py::test_linear_sweep_matches_frf_and_modes":
-        "tests/test_hammer_boundary.py::test_modal_check_matches_coupled_system",
+        "tests/test_hammer_boundary.py::test_coupled_modes_match_the_continuous_oracle",
     "tests/test_cosim.py::test_cli_sweep": "tests/test_cli.py::test_documented_command_parses",
     "tests/test_cosim.py::test_with_the_fmu":
         "tests/test_cosim_adaptive.py::test_adaptive_through_the_fmu_rolls_back_and_matches_in_process",
-    "tests/test_hammer_boundary.py::test_frf_peak_sits_on_a_modal_check_frequency":
-        "tests/test_hammer_boundary.py::test_modal_check_matches_coupled_system",
     "tests/test_cosim.py::test_schemes_and_extrapolation_orders":
         "tests/test_cosim.py::test_matches_monolithic_wob_amplitude",
-    "tests/test_cosim_adaptive.py::test_adaptive_converges_to_the_monolithic_reference":
-        "tests/test_cosim_adaptive.py::test_adaptive_through_the_fmu_rolls_back_and_matches_in_process",
     "tests/test_cosim.py::test_instability_detected_stiff_interface":
         "tests/test_cosim.py::test_instability_detected_by_energy_residual",
 }
