@@ -1,7 +1,7 @@
 """Throughput of a bifurcation sweep and start-up time of the CLI (issue 6).
 
 1. **Sweep throughput**: forcing periods integrated per second of wall time by
-   :func:`hammerbit.analysis.bifurcation` over ``paper-fig9`` (no impact),
+   :func:`hammerbit.studies.bifurcation.bifurcation` over ``paper-fig9`` (no impact),
    a in [0, 0.25], rtol 1e-8 (atol 1e-10), with ``workers=2`` (the machine's
    two cores) and ``workers=1``.  The number is the sweep's own
    ``periods_per_second`` (compilation excluded: ``bifurcation`` warms up
@@ -100,8 +100,10 @@ def _timed_subprocess(cmd, env, timeout=600.0, cwd=REPO_ROOT) -> dict:
 
 
 def measure_sweep(cfg: dict, workers: int) -> dict:
-    """Best-of-``repeats`` periods/s of a bifurcation sweep with ``workers`` threads."""
-    from hammerbit.analysis import bifurcation
+    """Best-of-``repeats`` periods/s of a bifurcation sweep on ``workers`` executor workers
+    (1: in process; else local Dask worker processes, started before the clock)."""
+    from hammerbit.studies.bifurcation import bifurcation
+    from hammerbit.studies.executor import ExecutorOptions
     from hammerbit.model.params import preset
     from hammerbit.model.stepping import SolverOptions
     g = preset("paper-fig9")
@@ -112,7 +114,7 @@ def measure_sweep(cfg: dict, workers: int) -> dict:
     for _ in range(cfg["repeats"]):
         t0 = time.perf_counter()
         res = bifurcation(g, "a", values, periods=cfg["periods"], keep=cfg["keep"], solver=solver,
-                          workers=workers)
+                          options=ExecutorOptions(workers=workers))
         outer = time.perf_counter() - t0
         runs.append({"periods_per_second": res.periods_per_second, "sweep_wall_s": res.wall_time_s,
                      "call_wall_s": outer})

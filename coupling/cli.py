@@ -26,6 +26,7 @@ __all__ = ["main", "build_parser", "COMMAND_MODULES", "HelpFormatter", "version"
 COMMAND_MODULES = [
     "hammerbit.cli_string",
     "hammerbit.cli_cosim",
+    "hammerbit.cli_studies",
 ]
 
 #: Most samples ``simulate --csv`` writes (about 1 GB of text).
@@ -262,30 +263,6 @@ def cmd_simulate(args) -> int:
     return 0
 
 
-def cmd_bifurcation(args) -> int:
-    from .analysis import bifurcation
-    from .plots import plot_bifurcation
-    g = _groups_from_args(args)
-    solver = _solver_from_args(args)
-    lo, hi = args.range
-    values = np.linspace(lo, hi, args.num)
-    res = bifurcation(g, args.param, values, periods=args.periods, keep=args.keep, solver=solver,
-                      workers=args.workers, progress=not args.quiet)
-    plot_bifurcation(res, args.out)
-    if args.csv:
-        res.to_csv(args.csv)
-    summary = {"param": args.param, "num": args.num, "periods": args.periods,
-               "wall_time_s": res.wall_time_s, "periods_per_second": res.periods_per_second,
-               "out": args.out, "csv": args.csv,
-               "period_n": [p for p in res.periods]}
-    if args.json:
-        print(json.dumps(summary))
-    else:
-        print(f"{args.num} values x {args.periods} periods in {res.wall_time_s:.2f} s "
-              f"({res.periods_per_second:,.0f} periods/s); figure: {args.out}")
-    return 0
-
-
 def build_parser() -> argparse.ArgumentParser:
     """The ``hammerbit`` parser with every registered sub-command."""
     ap = _Parser(prog="hammerbit", description="Resonance-hammer drilling model "
@@ -309,20 +286,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--sample-dt", type=float, default=None, metavar="SECONDS",
                    help="spacing of the --csv samples [s] (default: 1/100 of the forcing period)")
     p.set_defaults(func=cmd_simulate)
-
-    p = sub.add_parser("bifurcation", help="bifurcation diagram over one group")
-    _add_scene_args(p)
-    p.add_argument("--param", default="a")
-    p.add_argument("--range", nargs=2, type=float, required=True, metavar=("LO", "HI"))
-    p.add_argument("--num", type=int, default=100)
-    p.add_argument("--periods", type=int, default=300)
-    p.add_argument("--keep", type=int, default=64, help="Poincaré points kept per value")
-    p.add_argument("--workers", type=int, default=None)
-    p.add_argument("--out", required=True, help="PNG file")
-    p.add_argument("--csv", default=None)
-    p.add_argument("--json", action="store_true")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
-    p.set_defaults(func=cmd_bifurcation)
 
     for modname in COMMAND_MODULES:
         try:

@@ -1,4 +1,4 @@
-"""``hammerbit cosim`` (and ``sweep``): the co-simulation from the command line.
+"""``hammerbit cosim``: the co-simulation from the command line (``sweep``: :mod:`hammerbit.cli_studies`).
 
 ``hammerbit cosim --string FILE [--fmu dist/HammerBitRock.fmu] --stop T [--step H | --tol TOL]
 [--scheme jacobi|gauss-seidel] [--extrapolation 0|1|2] [--ramp S] [--monolithic] [--json] [--out results.csv]``
@@ -226,72 +226,5 @@ def register(subparsers) -> None:
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     p.add_argument("--out", default=None, help="CSV of the recorded variables")
     p.set_defaults(func=cmd_cosim)
-    _register_sweep(subparsers)
 
 
-def _register_sweep(subparsers) -> None:
-    """The ``sweep`` command while it lives here (it moves to the studies commands)."""
-    try:
-        from .cli_studies import register as _studies  # noqa: F401
-        return                                         # the studies module registers ``sweep``
-    except ImportError:
-        pass
-    p = subparsers.add_parser("sweep", help="frequency sweep of the hammer excitation",
-                              description="Steady dynamic WOB amplitude, bounce margin and rate of "
-                                          "penetration against the hammer's excitation frequency.")
-    add_cosim_options(p)
-    p.add_argument("--frequencies", nargs=3, type=float, required=True, metavar=("LO", "HI", "N"),
-                   help="LO HI [Hz] and the number of frequencies N")
-    p.add_argument("--duration", type=float, default=6.0,
-                   help="simulated time per frequency [s]; the last third is the steady window (default 6)")
-    p.add_argument("--plot", default=None, help="figure file (png, svg, pdf)")
-    p.add_argument("--csv", default=None, help="CSV of the sweep")
-    p.add_argument("--json", action="store_true", help="print a JSON summary")
-    p.set_defaults(func=cmd_sweep)
-
-
-def cmd_sweep(args) -> int:
-    import numpy as np
-    from .cosim import coupled_modes, plot_sweep, sweep, write_sweep_csv
-    lo, hi, n = args.frequencies
-    n = int(n)
-    if not (0 < lo < hi) or n < 1:
-        raise UsageError("--frequencies LO HI N needs 0 < LO < HI and N >= 1")
-    freqs = np.linspace(lo, hi, n) if n > 1 else np.array([lo])
-    cfg = config_from_args(args, stop=args.duration, progress=False, estimate=False,
-                           **({} if args.step is not None else {"step": 1e-3}))
-    string = load_string_arg(args)
-
-    def prog(i, total, row):
-        if not args.json:
-            print(f"  {row['frequency_hz']:8.3f} Hz  WOB amplitude {row['wob_amplitude_n']:10.1f} N  "
-                  f"bounce margin {row['bounce_margin']:7.3f}  ROP {row['rop_m_per_h']:8.4f} m/h",
-                  file=sys.stderr)
-
-    t0 = time.perf_counter()
-    res = sweep(string, freqs, cfg, fmu=fmu_arg(args), progress=prog)
-    modes = coupled_modes(string, cfg, f_max=hi * 1.2)
-    in_band = [float(f) for f in modes if lo <= f <= hi]
-    i_pk = int(np.argmax(res["wob_amplitude_n"]))
-    out = {"string": string.name, "frequencies_hz": [float(f) for f in freqs],
-           "duration_s": args.duration, "wall_time_s": time.perf_counter() - t0,
-           "peak_frequency_hz": float(res["frequency_hz"][i_pk]),
-           "peak_wob_amplitude_n": float(res["wob_amplitude_n"][i_pk]),
-           "coupled_modes_hz": in_band,
-           "rows": [{k: float(r[k]) for k in res.dtype.names} for r in res]}
-    if in_band:
-        out["nearest_mode_to_peak_hz"] = min(in_band, key=lambda f: abs(f - out["peak_frequency_hz"]))
-    if args.csv:
-        write_sweep_csv(res, args.csv)
-        out["csv"] = str(args.csv)
-    if args.plot:
-        plot_sweep(res, args.plot, modes=np.array(in_band),
-                   title=f"{string.name}: hammer frequency sweep (A = {cfg.rig.amplitude:g} N)")
-        out["plot"] = str(args.plot)
-    if args.json:
-        print(json.dumps(out, indent=2))
-    else:
-        print(f"peak dynamic WOB amplitude {out['peak_wob_amplitude_n']:.1f} N at "
-              f"{out['peak_frequency_hz']:.3f} Hz; coupled natural frequencies (bit on bottom) in band: "
-              + ", ".join(f"{f:.2f}" for f in in_band))
-    return 0

@@ -95,7 +95,6 @@ __all__ = [
     "CosimConfig", "CosimResult", "CouplingInstabilityError", "StepResolutionError", "CouplingErrorEstimate",
     "field_hammer", "StringSide", "StepperHammer", "FMUHammer", "cosimulate", "cosimulate_adaptive",
     "monolithic", "RECORDABLE", "SCHEMES", "extrapolation_weights", "coupled_modes",
-    "sweep", "plot_sweep", "write_sweep_csv", "SWEEP_DTYPE", "wob_frf",
 ]
 
 # ---------------------------------------------------------------------------
@@ -570,7 +569,8 @@ class _Recorder:
 # ---------------------------------------------------------------------------
 # the master
 # ---------------------------------------------------------------------------
-def cosimulate(string, config: CosimConfig = CosimConfig(), *, fmu=None, hammer=None) -> CosimResult:
+def cosimulate(string, config: CosimConfig = CosimConfig(), *, fmu=None, hammer=None,
+               side: Optional[StringSide] = None) -> CosimResult:
     """Co-simulate the drillstring (stepped here) with the hammer.
 
     Parameters
@@ -597,6 +597,9 @@ def cosimulate(string, config: CosimConfig = CosimConfig(), *, fmu=None, hammer=
         ``get_state``/``set_state``/``free_state`` and ``x_eq``; default: the FMU
         if ``fmu`` is given, else :class:`StepperHammer` (the same kernels in
         process).  The companion is built from ``fmu`` (or in process).
+    side : StringSide, optional
+        The string side of this string and config, reused across runs (a
+        frequency sweep builds and discretises it once per worker).
 
     Returns
     -------
@@ -615,7 +618,8 @@ def cosimulate(string, config: CosimConfig = CosimConfig(), *, fmu=None, hammer=
     """
     c = config
     ts = _time.perf_counter()
-    side = StringSide(string, c)                 # shared by the run, its companion and every pass
+    if side is None:
+        side = StringSide(string, c)             # shared by the run, its companion and every pass
     t_side = _time.perf_counter() - ts
     if not c.adaptive:
         res = _run(side, c, fmu=fmu, hammer=hammer, defect_tol=None)
@@ -823,7 +827,7 @@ def monolithic(string, config: CosimConfig = CosimConfig()) -> CosimResult:
 
 
 # ---------------------------------------------------------------------------
-# linear modes of the coupled system and frequency sweep
+# linear modes of the coupled system (frequency sweeps: hammerbit.studies.sweep)
 # ---------------------------------------------------------------------------
 def _coupled_system(string, config: CosimConfig):
     """State matrix of string + interface + hammer with the bit stuck (linear).
@@ -861,101 +865,12 @@ def coupled_modes(string, config: CosimConfig = CosimConfig(), *, f_max: float =
     return f[f <= f_max]
 
 
-SWEEP_DTYPE = np.dtype([("frequency_hz", "f8"), ("wob_mean_n", "f8"), ("wob_amplitude_n", "f8"),
-                        ("wob_min_n", "f8"), ("bounce_margin", "f8"), ("rop_m_per_h", "f8"),
-                        ("penetration_m", "f8")])
+#: Frequency sweeps moved to :mod:`hammerbit.studies.sweep`; these names stay importable from here.
+_MOVED_TO_STUDIES = ("SWEEP_DTYPE", "sweep", "plot_sweep", "write_sweep_csv", "wob_frf")
 
 
-def sweep(string, frequencies, config: CosimConfig = CosimConfig(), *, fmu=None,
-          window: Optional[float] = None, progress=None) -> np.ndarray:
-    """Frequency sweep of the hammer excitation (one co-simulation per frequency).
-
-    For each frequency ``f`` the hammer's harmonic source runs at ``f`` from
-    the static equilibrium for ``config.stop - config.start`` seconds; the last
-    ``window`` seconds (default: the last third) give the steady figures:
-
-    * ``wob_amplitude_n``: dynamic WOB amplitude at the bit, (max - min)/2 [N];
-    * ``bounce_margin``: ``1 + min(WOB)/F_s`` with ``F_s = mu_e F_N`` the static
-      friction threshold; <= 0 means bit bounce (the rock would have to pull
-      the bit back, model.md);
-    * ``rop_m_per_h``: rate of penetration over the window [m/h].
-
-    Returns a structured array (:data:`SWEEP_DTYPE`), one row per frequency.
-    """
-    freqs = np.asarray(frequencies, dtype=float)
-    out = np.zeros(len(freqs), dtype=SWEEP_DTYPE)
-    dur = config.stop - config.start
-    win = dur / 3.0 if window is None else float(window)
-    F_s = config.rig.scales.friction_force
-    cfg0 = config.replace(record=("wob", "bit_position"), record_every=1, progress=False)
-    for i, f in enumerate(freqs):
-        cfg = cfg0.replace(rig=config.rig.replace(frequency=float(f)))
-        r = cosimulate(string, cfg, fmu=fmu)
-        t0 = config.stop - win
-        w = r.window(t0)
-        out[i] = (f, r.wob_mean(t0), r.wob_amplitude(t0), w["wob"].min(),
-                  1.0 + w["wob"].min() / F_s,
-                  (w["bit_position"][-1] - w["bit_position"][0]) / (w["time"][-1] - w["time"][0]) * 3600.0,
-                  r.penetration_m)
-        if progress:
-            progress(i + 1, len(freqs), out[i])
-    return out
-
-
-def plot_sweep(result: np.ndarray, path, *, modes: Optional[np.ndarray] = None, title: str = "") -> Path:
-    """Sweep figure: WOB amplitude, bounce margin and ROP against frequency,
-    with the coupled natural frequencies (bit on bottom) as vertical lines."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    f = result["frequency_hz"]
-    fig, ax = plt.subplots(3, 1, figsize=(8, 8), sharex=True)
-    ax[0].plot(f, result["wob_amplitude_n"] / 1e3, ".-")
-    ax[0].set_ylabel("dynamic WOB amplitude [kN]")
-    ax[1].plot(f, result["bounce_margin"], ".-")
-    ax[1].axhline(0.0, color="r", lw=0.8)
-    ax[1].set_ylabel("bounce margin [-]")
-    ax[2].plot(f, result["rop_m_per_h"], ".-")
-    ax[2].set_ylabel("ROP [m/h]")
-    ax[2].set_xlabel("hammer excitation frequency [Hz]")
-    if modes is not None:
-        for a in ax:
-            for fm in modes:
-                if f.min() <= fm <= f.max():
-                    a.axvline(fm, color="0.6", lw=0.6, ls="--")
-    if title:
-        ax[0].set_title(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
-
-
-def write_sweep_csv(result: np.ndarray, path) -> Path:
-    """CSV of a sweep (header = field names)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    np.savetxt(path, np.column_stack([result[n] for n in result.dtype.names]), delimiter=",",
-               header=",".join(result.dtype.names), comments="", fmt="%.10g")
-    return path
-
-
-def wob_frf(string, frequencies, config: CosimConfig = CosimConfig()) -> np.ndarray:
-    """Linear frequency response of the WOB at the bit per newton of hammer force
-    (bit stuck, the system of :func:`coupled_modes`), complex (F,) [N/N].
-
-    With a small harmonic amplitude the bit stays stuck, the coupled system is
-    linear and :func:`sweep`'s ``wob_amplitude_n`` equals ``A |frf|``; its peaks
-    are at :func:`coupled_modes`.
-    """
-    A, n, m1, K, C = _coupled_system(string, config)
-    b = np.zeros(n + 2)
-    b[n + 1] = 1.0 / m1
-    out = []
-    I = np.eye(n + 2)
-    for f in np.atleast_1d(np.asarray(frequencies, dtype=float)):
-        x = np.linalg.solve(2j * math.pi * f * I - A, b)
-        out.append(K * x[n] + C * x[n + 1])
-    return np.array(out)
+def __getattr__(name):
+    if name in _MOVED_TO_STUDIES:
+        from hammerbit.studies import sweep as _sweep_module
+        return getattr(_sweep_module, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 
-from hammerbit.analysis import bifurcation, penetration_sweep
+from hammerbit.studies.bifurcation import bifurcation, penetration_sweep
 from hammerbit.model.params import preset
 from hammerbit.plots import plot_bifurcation, plot_penetration, plot_scene
 

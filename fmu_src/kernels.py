@@ -1436,8 +1436,11 @@ def advance(y, istate, fstate, t_end, p, opts,
                 while True:
                     if h > hmax:
                         h = hmax
-                    if h >= remaining or remaining - h < 1e3 * hmin:
-                        h = remaining  # never leave a sliver behind
+                    if h >= remaining or (not rejected and remaining - h < 1e3 * hmin):
+                        # never leave a sliver behind; after a rejection the step only
+                        # shrinks (snapping back to the whole remainder would retry the
+                        # rejected step forever when hmin is coarse, e.g. at a late start)
+                        h = remaining
                     if h < hmin:
                         fstate[F_T] = t
                         fstate[F_H] = h

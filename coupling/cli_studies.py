@@ -1,0 +1,417 @@
+"""``hammerbit bifurcation | sweep | map | optimize``: studies over many scenes.
+
+Every study runs on the one executor (:mod:`hammerbit.studies.executor`):
+``--workers N`` local worker processes (default: one per CPU; ``--workers 1``
+runs in this process without Dask), ``--scheduler ADDRESS`` (or
+``$DASK_SCHEDULER_ADDRESS``) an existing Dask cluster.  A progress bar shows
+on stderr when it is a terminal.
+
+``hammerbit map --preset NAME --axis a=0.05:0.25:81 --axis eta=0.6:1.4:81
+[--set ...] [--periods 300] [--out map.nc] [--plot map.png] [--json]``
+
+``hammerbit optimize --preset lab --string FILE [--bounds frequency=LO:HI
+amplitude=LO:HI ...] [--margin 0.15] [--max-contact-force N] [--confirm] [--json]``
+
+``hammerbit bifurcation --param a --range LO HI --out FILE.png``
+
+``hammerbit sweep --string FILE [--fmu FILE] --frequencies LO HI N``
+"""
+from __future__ import annotations
+
+import json
+import math
+import sys
+import time
+
+from .cli_common import RunFailure, UsageError, add_set_argument, parse_settings
+
+__all__ = ["register", "cmd_bifurcation", "cmd_sweep", "cmd_map", "cmd_optimize"]
+
+
+# ---------------------------------------------------------------------------
+# shared options
+# ---------------------------------------------------------------------------
+def _add_executor_args(p) -> None:
+    p.add_argument("--workers", type=int, default=None,
+                   help="local worker processes (default: one per CPU); 1 runs in this process "
+                        "without Dask")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run on an existing Dask cluster (default $DASK_SCHEDULER_ADDRESS if set)")
+
+
+def _executor_options(args, *, default_workers=None):
+    from .studies.executor import ExecutorOptions
+    w = args.workers if args.workers is not None else default_workers
+    if w is not None and w < 1:
+        raise UsageError(f"--workers {w}: allowed 1 or more")
+    return ExecutorOptions(workers=w, scheduler=args.scheduler)
+
+
+def _add_scene_args(p, *, default_preset="paper-fig9") -> None:
+    from hammerbit.model.params import PRESETS
+    p.add_argument("--preset", default=default_preset, choices=sorted(PRESETS),
+                   help=f"parameter preset (default {default_preset})")
+    add_set_argument(p)
+    p.add_argument("--rtol", type=float, default=None, help="relative tolerance (default 1e-8)")
+
+
+def _groups(args):
+    from hammerbit.model.params import apply_settings, preset
+    return apply_settings(preset(args.preset), parse_settings(args.set))
+
+
+def _solver(args):
+    from hammerbit.model.stepping import SolverOptions
+    if args.rtol is None:
+        return SolverOptions()
+    return SolverOptions(rtol=args.rtol, atol=args.rtol * 1e-2)
+
+
+def _dump(obj) -> str:
+    def clean(x):
+        if isinstance(x, float) and not math.isfinite(x):
+            return None
+        if isinstance(x, dict):
+            return {k: clean(v) for k, v in x.items()}
+        if isinstance(x, (list, tuple)):
+            return [clean(v) for v in x]
+        return x
+    return json.dumps(clean(obj))
+
+
+# ---------------------------------------------------------------------------
+# bifurcation
+# ---------------------------------------------------------------------------
+def cmd_bifurcation(args) -> int:
+    import numpy as np
+    from .plots import plot_bifurcation
+    from .studies.bifurcation import bifurcation
+    g = _groups(args)
+    lo, hi = args.range
+    if args.num < 1:
+        raise UsageError(f"--num {args.num}: allowed 1 or more")
+    values = np.linspace(lo, hi, args.num)
+    res = bifurcation(g, args.param, values, periods=args.periods, keep=args.keep, solver=_solver(args),
+                      options=_executor_options(args))
+    plot_bifurcation(res, args.out)
+    if args.csv:
+        res.to_csv(args.csv)
+    summary = {"param": args.param, "num": args.num, "periods": args.periods,
+               "wall_time_s": res.wall_time_s, "periods_per_second": res.periods_per_second,
+               "workers": res.workers, "out": args.out, "csv": args.csv, "period_n": list(res.periods)}
+    if args.json:
+        print(_dump(summary))
+    else:
+        print(f"{args.num} values x {args.periods} periods in {res.wall_time_s:.2f} s "
+              f"({res.periods_per_second:,.0f} periods/s, {res.workers} worker(s)); figure: {args.out}")
+    return 0
+
+
+# ---------------------------------------------------------------------------
+# sweep
+# ---------------------------------------------------------------------------
+def cmd_sweep(args) -> int:
+    import numpy as np
+    from .cli_cosim import config_from_args, fmu_arg, load_string_arg
+    from .cosim import coupled_modes
+    from .studies.sweep import plot_sweep, sweep, write_sweep_csv
+    lo, hi, n = args.frequencies
+    if not (0 < lo < hi) or n < 1 or n != int(n):
+        raise UsageError(f"--frequencies {lo:g} {hi:g} {n:g}: need 0 < LO < HI and a whole N >= 1")
+    n = int(n)
+    freqs = np.linspace(lo, hi, n) if n > 1 else np.array([lo])
+    # a fixed step (1 ms unless --step) without the error-estimate companion: one run per frequency
+    cfg = config_from_args(args, stop=args.duration, progress=False, estimate=False,
+                           **({} if args.step is not None else {"step": 1e-3}))
+    string = load_string_arg(args)
+    t0 = time.perf_counter()
+    res = sweep(string, freqs, cfg, fmu=fmu_arg(args), window_periods=args.window_periods,
+                steady_tol=args.steady_tol, max_duration=args.max_duration,
+                options=_executor_options(args))
+    modes = coupled_modes(string, cfg, f_max=hi * 1.2)
+    in_band = [float(f) for f in modes if lo <= f <= hi]
+    i_pk = int(np.argmax(res["wob_amplitude_n"]))
+    unsettled = [float(r["frequency_hz"]) for r in res if not r["steady"]]
+    out = {"string": string.name, "frequencies_hz": [float(f) for f in freqs],
+           "duration_s": args.duration, "wall_time_s": time.perf_counter() - t0,
+           "peak_frequency_hz": float(res["frequency_hz"][i_pk]),
+           "peak_wob_amplitude_n": float(res["wob_amplitude_n"][i_pk]),
+           "coupled_modes_hz": in_band, "not_settled_hz": unsettled,
+           "rows": [{k: float(r[k]) for k in res.dtype.names} for r in res]}
+    if in_band:
+        out["nearest_mode_to_peak_hz"] = min(in_band, key=lambda f: abs(f - out["peak_frequency_hz"]))
+    if args.csv:
+        write_sweep_csv(res, args.csv)
+        out["csv"] = str(args.csv)
+    if args.plot:
+        plot_sweep(res, args.plot, modes=np.array(in_band),
+                   title=f"{string.name}: hammer frequency sweep (A = {cfg.rig.amplitude:g} N)")
+        out["plot"] = str(args.plot)
+    if unsettled:
+        print(f"hammerbit sweep: warning: the WOB amplitude did not settle within "
+              f"{args.steady_tol:g} by {res['duration_s'].max():g} s at "
+              + ", ".join(f"{f:g}" for f in unsettled) + " Hz (flag steady = 0)", file=sys.stderr)
+    if args.json:
+        print(_dump(out))
+    else:
+        for r in res:
+            print(f"  {r['frequency_hz']:8.3f} Hz  WOB amplitude {r['wob_amplitude_n']:10.1f} N  "
+                  f"bounce margin {r['bounce_margin']:7.3f}  ROP {r['rop_m_per_h']:8.4f} m/h  "
+                  f"({r['duration_s']:g} s{'' if r['steady'] else ', not settled'})")
+        print(f"peak dynamic WOB amplitude {out['peak_wob_amplitude_n']:.1f} N at "
+              f"{out['peak_frequency_hz']:.3f} Hz; coupled natural frequencies (bit on bottom) in band: "
+              + (", ".join(f"{f:.2f}" for f in in_band) or "none")
+              + f"; {out['wall_time_s']:.1f} s")
+    return 0
+
+
+# ---------------------------------------------------------------------------
+# map
+# ---------------------------------------------------------------------------
+def cmd_map(args) -> int:
+    from .studies.map import Axis, map_to_json, regime_map
+    if not args.axis:
+        raise UsageError("map needs at least one --axis NAME=LO:HI:N")
+    if len(args.axis) > 3:
+        raise UsageError(f"map takes 1 to 3 --axis options, got {len(args.axis)}")
+    axes = [Axis.parse(a) for a in args.axis]
+    g = _groups(args)
+    ds = regime_map(g, axes, periods=args.periods, solver=_solver(args), options=_executor_options(args),
+                    attrs={"preset": args.preset, "settings": json.dumps(parse_settings(args.set))})
+    if args.out:
+        ds.to_netcdf(args.out, engine="scipy")
+    if args.plot:
+        from .studies.plots import plot_map
+        plot_map(ds, args.plot)
+    failed = int(ds.attrs["failed_cells"])
+    if failed:
+        first = json.loads(ds.attrs["errors"])[:1]
+        print(f"hammerbit map: warning: {failed} cell(s) did not run (status 1/2, NaN values): "
+              + (first[0] if first else ""), file=sys.stderr)
+    if args.json:
+        d = map_to_json(ds)
+        d.update({"preset": args.preset, "out": args.out, "plot": args.plot})
+        print(_dump(d))
+    else:
+        import numpy as np
+        per = ds["period"].values
+        n = per.size
+        counts = {}
+        for v in per.ravel():
+            key = "none" if not np.isfinite(v) else f"P{int(v)}"
+            counts[key] = counts.get(key, 0) + 1
+        order = sorted(counts, key=lambda k: (k == "none", int(k[1:]) if k != "none" else 0))
+        tp = ds.attrs["total_periods"]
+        print(f"map of {args.preset} over " + " x ".join(f"{a.name} ({len(a.values)})" for a in axes)
+              + f": {n} cells x {args.periods} periods in {ds.attrs['wall_time_s']:.2f} s "
+              f"({tp / ds.attrs['wall_time_s']:,.0f} periods/s, {ds.attrs['workers']} worker(s))")
+        print("period-n: " + ", ".join(f"{k} {counts[k]}" for k in order))
+        rop = ds["rop_m_per_h"].values
+        if np.any(np.isfinite(rop)):
+            i = np.unravel_index(np.nanargmax(rop), rop.shape)
+            where = ", ".join(f"{a.name}={a.values[k]:g}" for a, k in zip(axes, i))
+            print(f"highest ROP {rop[i]:.4g} m/h ({ds['rop_mm_per_period'].values[i]:.4g} mm per period) "
+                  f"at {where}")
+        for f in ("bounce", "overload", "runaway"):
+            k = int(ds[f].values.sum())
+            if k:
+                print(f"flag {f}: {k} cell(s)")
+        if args.out:
+            print(f"wrote {args.out}")
+        if args.plot:
+            print(f"wrote {args.plot}")
+    return 0
+
+
+# ---------------------------------------------------------------------------
+# optimize
+# ---------------------------------------------------------------------------
+def _default_bounds(g):
+    from .studies.optimize import Bound
+    rig = g.to_rig()
+    F0 = g.scales.friction_force
+    return (Bound("frequency", 0.7 * rig.frequency, 1.3 * rig.frequency),
+            Bound("amplitude", 0.05 * F0, 0.6 * F0))
+
+
+def _confirm(groups, string, args) -> dict:
+    """Co-simulate the optimum on the string; dynamic WOB amplitude and bounce margin."""
+    from .cli_cosim import fmu_arg
+    from .cosim import CosimConfig, cosimulate
+    rig = groups.to_rig()
+    T = 1.0 / rig.frequency
+    periods = args.confirm_periods
+    kw = {}
+    if args.interface_stiffness is not None:
+        kw["interface_stiffness"] = args.interface_stiffness
+    if args.interface_damping is not None:
+        kw["interface_damping"] = args.interface_damping
+    base = CosimConfig(rig=rig, **kw)
+    # the hammer on the interface spring is the fastest coupled motion; the string is truncated
+    # above twice its frequency (and 50 x the hammer's) and the step resolves the truncation 20 x
+    f_i = math.sqrt((base.interface_stiffness + rig.stiffness) / rig.hammer_mass) / (2 * math.pi)
+    f_max = max(2.0 * f_i, 50.0 * rig.frequency)
+    step = min(T / 200.0, 1.0 / (20.0 * f_max))
+    cfg = base.replace(stop=periods * T, step=step, f_max=f_max, record=("wob", "bit_position"), progress=False)
+    t0 = time.perf_counter()
+    r = cosimulate(string, cfg, fmu=fmu_arg(args))
+    w = r.window()
+    F_s = rig.scales.friction_force
+    wmin = float(w["wob"].min())
+    tb, xb = w["time"], w["bit_position"]
+    return {"periods": periods, "step_s": step, "f_max_hz": f_max,
+            "interface_stiffness_n_per_m": cfg.interface_stiffness,
+            "hammer": "fmu" if args.fmu else "in-process",
+            "wob_mean_n": r.wob_mean(), "wob_amplitude_n": r.wob_amplitude(), "wob_min_n": wmin,
+            "bounce_margin": 1.0 + wmin / F_s,
+            "rop_m_per_h": float((xb[-1] - xb[0]) / (tb[-1] - tb[0]) * 3600.0),
+            "wall_time_s": time.perf_counter() - t0}
+
+
+def cmd_optimize(args) -> int:
+    from .drillstring import load_string
+    from .studies.optimize import Bound, OptimizeConfig, optimize
+    g = _groups(args)
+    bounds = tuple(Bound.parse(b) for b in args.bounds) if args.bounds else _default_bounds(g)
+    string = load_string(args.string) if args.string else None
+    cfg = OptimizeConfig(bounds=bounds, margin=args.margin,
+                         max_contact_force=math.inf if args.max_contact_force is None
+                         else args.max_contact_force,
+                         periods=args.periods, grid=args.grid, solver=_solver(args))
+    res = optimize(g, cfg, string=string, options=_executor_options(args))
+    out = res.to_dict()
+    out.update({"preset": args.preset, "string": None if string is None else string.name,
+                "bounds": [{"name": b.name, "lo": b.lo, "hi": b.hi, "unit": b.unit} for b in bounds],
+                "at_bounds": res.at_bounds(bounds)})
+    if res.optimum is None:
+        msg = (f"no feasible operating point on the {'x'.join(map(str, res.grid_shape))} grid within the "
+               f"bounds (no bounce, a + b <= 1, no runaway"
+               + (", frequency check" if string is not None else "")
+               + (", contact force" if args.max_contact_force is not None else "") + ")")
+        if args.json:
+            print(_dump(out))
+        raise RunFailure(msg)
+    if args.confirm:
+        if string is None:
+            raise UsageError("--confirm needs --string")
+        out["confirm"] = _confirm(res.optimum.groups, string, args)
+    if args.json:
+        print(_dump(out))
+        return 0
+    o = out["optimum"]
+    print(f"optimum of {args.preset}" + (f" on {string.name}" if string else "") + ": "
+          f"frequency {o['frequency_hz']:.4g} Hz, amplitude {o['amplitude_n']:.4g} N, "
+          f"preload {o['preload_n']:.4g} N (a={o['a']:.4g}, b={o['b']:.4g}, eta={o['eta']:.4g})")
+    print(f"  period-{o['period'] if o['period'] else 'none'}, ROP {o['rop_m_per_h']:.4g} m/h "
+          f"({o['rop_mm_per_period']:.4g} mm per period); best grid cell "
+          f"{out['best_grid_cell']['rop_m_per_h']:.4g} m/h; {res.grid_feasible} feasible of "
+          f"{'x'.join(map(str, res.grid_shape))} cells, {res.evaluations} evaluations")
+    for name, side in out["at_bounds"].items():
+        print(f"  {name} sits on its {side} bound: widen --bounds to look further")
+    for k, m in o["margins"].items():
+        if m["margin"] is None:
+            print(f"  constraint {k}: not checked")
+        else:
+            unit = "" if m["unit"] == "relative" else f" {m['unit']}"
+            if m["unit"] == "relative":
+                val = (f"{100 * m['margin']:.3g} %" if math.isfinite(m["margin"])
+                       else "no mode band within 0.25-4 x the frequency bounds")
+            else:
+                val = f"{m['margin']:.4g}{unit}"
+            print(f"  constraint {k}: margin {val} ({'ok' if m['ok'] else 'VIOLATED'})")
+    for r in out["runners_up"]:
+        print(f"  runner-up period-{r['period'] if r['period'] else 'none'}: ROP {r['rop_m_per_h']:.4g} m/h "
+              f"at frequency {r['frequency_hz']:.4g} Hz, amplitude {r['amplitude_n']:.4g} N, "
+              f"preload {r['preload_n']:.4g} N")
+    if "confirm" in out:
+        cf = out["confirm"]
+        print(f"  co-simulation on {string.name} ({cf['hammer']} hammer, {cf['periods']} periods): "
+              f"dynamic WOB amplitude {cf['wob_amplitude_n']:.4g} N, bounce margin "
+              f"{cf['bounce_margin']:.3g}, ROP {cf['rop_m_per_h']:.4g} m/h")
+    return 0
+
+
+# ---------------------------------------------------------------------------
+def register(subparsers) -> None:
+    """Add ``bifurcation``, ``sweep``, ``map`` and ``optimize``."""
+    p = subparsers.add_parser("bifurcation", help="bifurcation diagram over one parameter",
+                              description="Poincaré points and period-n against one parameter "
+                                          "(a group or an SI name).")
+    _add_scene_args(p)
+    p.add_argument("--param", default="a", help="parameter to sweep: a group or an SI name (default a)")
+    p.add_argument("--range", nargs=2, type=float, required=True, metavar=("LO", "HI"))
+    p.add_argument("--num", type=int, default=100)
+    p.add_argument("--periods", type=int, default=300)
+    p.add_argument("--keep", type=int, default=64, help="Poincaré points kept per value")
+    _add_executor_args(p)
+    p.add_argument("--out", required=True, help="PNG file")
+    p.add_argument("--csv", default=None)
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_bifurcation)
+
+    from .cli_cosim import add_cosim_options
+    p = subparsers.add_parser("sweep", help="frequency sweep of the co-simulated hammer on a string",
+                              description="Steady dynamic WOB amplitude, bounce margin and rate of "
+                                          "penetration against the hammer's excitation frequency.")
+    add_cosim_options(p)
+    p.add_argument("--frequencies", nargs=3, type=float, required=True, metavar=("LO", "HI", "N"),
+                   help="LO HI [Hz] and the number of frequencies N")
+    p.add_argument("--duration", type=float, default=1.5,
+                   help="initial simulated time per frequency [s], doubled until the WOB amplitude "
+                        "settles (default 1.5)")
+    p.add_argument("--max-duration", type=float, default=12.0,
+                   help="longest simulated time per frequency [s] (default 12)")
+    p.add_argument("--window-periods", type=int, default=5,
+                   help="forcing periods per steady-state window (default 5)")
+    p.add_argument("--steady-tol", type=float, default=0.01,
+                   help="allowed relative change of the WOB amplitude between the last two windows "
+                        "(default 0.01)")
+    _add_executor_args(p)
+    p.add_argument("--plot", default=None, help="figure file (png, svg, pdf)")
+    p.add_argument("--csv", default=None, help="CSV of the sweep")
+    p.add_argument("--json", action="store_true", help="print a JSON summary")
+    p.set_defaults(func=cmd_sweep)
+
+    p = subparsers.add_parser("map", help="regime map: period-n, ROP and flags over 1-3 parameters",
+                              description="One scene per cell of a grid over 1 to 3 parameters (groups "
+                                          "or SI names): period-n, rate of penetration (x0 per period, "
+                                          "mm per period, m/h), impacts per period, peak contact "
+                                          "force, and the bounce/overload/runaway flags.")
+    _add_scene_args(p)
+    p.add_argument("--axis", action="append", default=[], metavar="NAME=LO:HI:N",
+                   help="an axis (repeat for 2 or 3), e.g. a=0.05:0.25:81 or f=1.0:2.0:41")
+    p.add_argument("--periods", type=int, default=300, help="forcing periods per cell (default 300)")
+    _add_executor_args(p)
+    p.add_argument("--out", default=None, help="netCDF file (xarray.open_dataset reads it)")
+    p.add_argument("--plot", default=None, help="figure file: period map with ROP contours")
+    p.add_argument("--json", action="store_true", help="print the map as JSON")
+    p.set_defaults(func=cmd_map)
+
+    p = subparsers.add_parser("optimize", help="operating point of the highest ROP under the drilling "
+                                               "constraints",
+                              description="Maximise the ROP [m/h] over bounded parameters subject to no "
+                                          "bounce, a + b <= 1, no runaway, the string's frequency check "
+                                          "and a contact-force limit: a grid, then local refinement.")
+    _add_scene_args(p, default_preset="lab")
+    p.add_argument("--string", default=None, help="drillstring TOML file or example name (frequency check)")
+    p.add_argument("--bounds", nargs="+", default=None, metavar="NAME=LO:HI",
+                   help="bounded variables, e.g. frequency=1.0:2.0 amplitude=3:30 (SI: Hz, N) or groups "
+                        "(default: frequency 0.7-1.3 x the preset's, amplitude 0.05-0.6 F0)")
+    p.add_argument("--margin", type=float, default=0.15,
+                   help="frequency check: band half-width around each natural frequency (default 0.15)")
+    p.add_argument("--max-contact-force", type=float, default=None, metavar="N",
+                   help="largest allowed hammer-bit contact force [N]")
+    p.add_argument("--periods", type=int, default=200, help="forcing periods per evaluation (default 200)")
+    p.add_argument("--grid", type=int, default=21, help="grid points per variable (default 21)")
+    p.add_argument("--confirm", action="store_true",
+                   help="co-simulate the optimum on the string (dynamic WOB amplitude, bounce margin)")
+    p.add_argument("--confirm-periods", type=int, default=20, help="forcing periods of --confirm (default 20)")
+    p.add_argument("--fmu", default=None, help="--confirm with this hammer FMU (default: in process)")
+    p.add_argument("--interface-stiffness", type=float, default=None,
+                   help="--confirm: k_i between the string and the hammer [N/m] (default: the "
+                        "co-simulation's)")
+    p.add_argument("--interface-damping", type=float, default=None,
+                   help="--confirm: c_i between the string and the hammer [N s/m]")
+    _add_executor_args(p)
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_optimize)

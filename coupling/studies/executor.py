@@ -1,0 +1,242 @@
+"""The one study engine: chunks of scenes run in process or on a Dask cluster.
+
+Every study (``bifurcation``, ``sweep``, ``map``, ``optimize``) hands the
+executor a *chunk function* and a list of items (scenes).  The executor cuts
+the items into chunks of at least :attr:`ExecutorOptions.chunk_seconds` of
+estimated work, runs the chunks and returns the results in the items' order.
+
+* ``workers=1``: the chunks run here, one after the other, without Dask
+  (debugging, small studies, tests).
+* otherwise a ``dask.distributed`` client: on the cluster at
+  ``scheduler`` (or ``$DASK_SCHEDULER_ADDRESS``), else on a ``LocalCluster``
+  of ``workers`` single-threaded worker *processes* (default: one per CPU).
+  Each worker loads the compiled kernels from the on-disk cache once, when
+  the client connects (:func:`warm_worker`); tasks never recompile.
+
+Each item is computed independently of every other (a scene starts from
+rest), so the results are identical, bit for bit, whatever the chunking and
+the number or kind of workers.  A progress bar (tqdm) is drawn on stderr
+only when stderr is a terminal.  An interrupted run (Ctrl-C) cancels its
+tasks and closes the local cluster, so no worker process outlives it.
+"""
+from __future__ import annotations
+
+import logging
+import math
+import os
+import sys
+import time
+from dataclasses import dataclass
+from typing import Callable, Optional, Sequence
+
+import numpy as np
+
+from hammerbit.model.validation import ParameterError
+
+__all__ = ["ExecutorOptions", "Executor", "chunk_bounds", "warm_worker", "SCHEDULER_ENV"]
+
+#: Environment variable naming an existing Dask scheduler (same as Dask's own).
+SCHEDULER_ENV = "DASK_SCHEDULER_ADDRESS"
+
+
+@dataclass(frozen=True, kw_only=True)
+class ExecutorOptions:
+    """Where and how a study runs (keyword-only).
+
+    Attributes
+    ----------
+    workers : int, optional
+        Local worker processes (default: the CPUs of this machine); ``1``
+        runs in this process without Dask.  Ignored with ``scheduler``.
+    scheduler : str, optional
+        Address of a running Dask scheduler (``tcp://host:8786``); default
+        ``$DASK_SCHEDULER_ADDRESS`` if set.
+    progress : bool, optional
+        Progress bar on stderr; default only when stderr is a terminal.
+    chunk_seconds : float
+        Estimated work per task [s] (a chunk holds at least one item).
+    """
+
+    workers: Optional[int] = None
+    scheduler: Optional[str] = None
+    progress: Optional[bool] = None
+    chunk_seconds: float = 0.2
+
+    def __post_init__(self):
+        if self.workers is not None and not (isinstance(self.workers, (int, np.integer))
+                                             and 1 <= self.workers <= 4096):
+            raise ParameterError("workers", self.workers, "an integer in [1, 4096]")
+        if not (isinstance(self.chunk_seconds, (int, float)) and 0 < self.chunk_seconds < 3600):
+            raise ParameterError("chunk_seconds", self.chunk_seconds, "(0, 3600) s")
+
+    @property
+    def address(self) -> Optional[str]:
+        """The scheduler address in use (option, else the environment), or None."""
+        return self.scheduler or os.environ.get(SCHEDULER_ENV) or None
+
+    @property
+    def in_process(self) -> bool:
+        """True when the study runs here, without Dask."""
+        return self.address is None and self.workers == 1
+
+    @property
+    def local_workers(self) -> int:
+        return int(self.workers or os.cpu_count() or 1)
+
+
+def chunk_bounds(n_items: int, cost_s: float, target_s: float) -> list:
+    """``[(start, stop), ...]`` of contiguous chunks of about ``target_s`` work each.
+
+    ``cost_s`` is the estimated work per item; every chunk holds at least one.
+    """
+    if n_items <= 0:
+        return []
+    size = max(1, int(math.ceil(target_s / max(cost_s, 1e-12))))
+    return [(i, min(i + size, n_items)) for i in range(0, n_items, size)]
+
+
+def warm_worker() -> str:
+    """Load the compiled kernels in this process (from the on-disk cache).
+
+    Runs once on every worker when a client connects, so that no task pays for
+    loading (or compiling) the kernels.
+    """
+    from hammerbit.model.params import preset
+    from hammerbit.model.stepping import Stepper
+    g = preset("paper-fig9")
+    Stepper(g).advance(g.period)
+    return "ok"
+
+
+def _run_chunk(fn, items, fixed):
+    """Run one chunk; its results and the CPU time [s] it took in this worker."""
+    c0 = time.process_time()
+    res = fn(items, *fixed)
+    return res, time.process_time() - c0
+
+
+class Executor:
+    """Runs chunk functions over items; a context manager around its Dask client.
+
+    Parameters
+    ----------
+    options : ExecutorOptions
+
+    Examples
+    --------
+    >>> with Executor(ExecutorOptions(workers=1)) as ex:
+    ...     ex.run(chunk_fn, items, fixed=(groups,), cost_s=1e-3)   # doctest: +SKIP
+    """
+
+    def __init__(self, options: ExecutorOptions = ExecutorOptions()):
+        self.options = options
+        self.client = None
+        self.cluster = None
+        self.workers = 1
+        self.setup_s = 0.0
+        self.cpu_s = 0.0
+        """CPU time [s] the chunks took, summed over the workers (all runs so far)."""
+
+    # -- life cycle ---------------------------------------------------------
+    def __enter__(self) -> "Executor":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def connect(self) -> None:
+        """Start or join the Dask cluster (no-op in process or when connected)."""
+        if self.client is not None or self.options.in_process:
+            return
+        t0 = time.perf_counter()
+        from dask.distributed import Client, LocalCluster
+        addr = self.options.address
+        if addr:
+            try:
+                self.client = Client(addr, timeout="10s")
+            except (OSError, TimeoutError) as e:
+                raise ParameterError("scheduler", addr, f"a reachable Dask scheduler ({e})") from None
+        else:
+            # ":0": the scheduler's HTTP server on a free port (8787 may be taken by another study)
+            self.cluster = LocalCluster(n_workers=self.options.local_workers, threads_per_worker=1,
+                                        processes=True, dashboard_address=":0",
+                                        silence_logs=logging.CRITICAL)
+            self.client = Client(self.cluster)
+        self.client.run(warm_worker)
+        self.workers = max(1, len(self.client.scheduler_info().get("workers", {})))
+        self.setup_s = time.perf_counter() - t0
+
+    def close(self) -> None:
+        """Close the client and the local cluster (its worker processes end)."""
+        client, cluster = self.client, self.cluster
+        self.client = self.cluster = None
+        try:
+            if client is not None:
+                client.close(timeout=10)
+        finally:
+            if cluster is not None:
+                cluster.close(timeout=10)
+
+    # -- running ----------------------------------------------------------
+    def _progress(self, total: int, label: str):
+        from tqdm import tqdm
+        show = self.options.progress
+        if show is None:
+            show = sys.stderr.isatty()
+        return tqdm(total=total, desc=label or None, unit="scene", file=sys.stderr, disable=not show,
+                    dynamic_ncols=True, leave=False)
+
+    def run(self, fn: Callable, items: Sequence, *, fixed: tuple = (), cost_s: float = 1e-3,
+            label: str = "") -> list:
+        """Run ``fn(chunk, *fixed)`` over chunks of ``items``; results in the items' order.
+
+        Parameters
+        ----------
+        fn : callable
+            A module-level function (picklable by reference) taking a list of
+            items and the ``fixed`` arguments, returning a list with one
+            result per item.
+        items : sequence
+            The scenes (small picklable objects).
+        fixed : tuple
+            Arguments shared by every chunk.
+        cost_s : float
+            Estimated work per item [s], for the chunk size.
+        label : str
+            Progress-bar label.
+
+        Returns
+        -------
+        list
+            One result per item.
+        """
+        items = list(items)
+        bounds = chunk_bounds(len(items), cost_s, self.options.chunk_seconds)
+        chunks = [items[a:b] for a, b in bounds]
+        out: list = [None] * len(items)
+        bar = self._progress(len(items), label)
+        try:
+            if self.options.in_process or len(chunks) <= 1 and self.options.address is None \
+                    and self.client is None:
+                for (a, b), ch in zip(bounds, chunks):
+                    res, cpu = _run_chunk(fn, ch, fixed)
+                    out[a:b] = res
+                    self.cpu_s += cpu
+                    bar.update(b - a)
+                return out
+            self.connect()
+            from dask.distributed import as_completed
+            futures = [self.client.submit(_run_chunk, fn, ch, fixed, pure=False) for ch in chunks]
+            where = {f.key: bnd for f, bnd in zip(futures, bounds)}
+            try:
+                for fut in as_completed(futures):
+                    a, b = where[fut.key]
+                    out[a:b], cpu = fut.result()
+                    self.cpu_s += cpu
+                    bar.update(b - a)
+            except BaseException:
+                self.client.cancel(futures)
+                raise
+            return out
+        finally:
+            bar.close()

@@ -1,0 +1,339 @@
+"""Regime maps: period-n, rate of penetration, impacts and regime flags on a grid.
+
+:func:`regime_map` runs one scene per cell of a grid over 1 to 3 parameters
+(any group or SI name, applied with :func:`hammerbit.model.params.apply_settings`,
+which carries each cell's own scales) and returns an :class:`xarray.Dataset`.
+Per cell, from rest over ``periods`` forcing periods:
+
+``period``
+    period-n of the bounded motion (:func:`hammerbit.analysis.detect_period`
+    on the Poincaré samples of the second half), NaN when none up to 32;
+``rop``
+    rate of penetration, the mean penetration per forcing period over the
+    second half of the horizon [x0 per period], with ``rop_mm_per_period``
+    and ``rop_m_per_h`` in SI (the cell's own scales, :meth:`Groups.rop`);
+``impacts_per_period``
+    hammer-bit impacts per forcing period over the second half;
+``peak_contact_force_n``
+    largest hammer-bit contact force over the second half [N];
+``bounce``, ``overload``, ``runaway``
+    the flags of :func:`hammerbit.model.params.regime` (1 = set);
+``status``
+    0 when the scene ran, 1 when the solver stopped (the message is in the
+    dataset's ``errors`` attribute), 2 when the cell's parameters are invalid.
+
+A cell is exactly the scene ``simulate(groups, periods)`` of the same
+parameters: the same stepper from rest, one call to the end of the horizon.
+"""
+from __future__ import annotations
+
+import json
+import math
+import time as _time
+from dataclasses import dataclass
+from typing import Optional, Sequence
+
+import numpy as np
+
+from hammerbit.model import kernels as K
+from hammerbit.model.params import (Groups, ParameterError, apply_settings, regime,
+                                    setting_target)
+from hammerbit.model.stepping import MaxStepsError, SolverError, SolverOptions, Stepper
+
+from ..analysis import detect_period
+from .bifurcation import SECONDS_PER_PERIOD
+from .executor import Executor, ExecutorOptions
+
+__all__ = ["Axis", "CELL_DTYPE", "MapCell", "run_cell", "regime_map", "map_to_json", "axis_unit",
+           "STATUS_OK", "STATUS_SOLVER", "STATUS_INVALID"]
+
+STATUS_OK, STATUS_SOLVER, STATUS_INVALID = 0, 1, 2
+
+CELL_DTYPE = np.dtype([("period", "f8"), ("rop", "f8"), ("rop_mm_per_period", "f8"),
+                       ("rop_m_per_h", "f8"), ("impacts_per_period", "f8"),
+                       ("peak_contact_force_n", "f8"), ("bounce", "i1"), ("overload", "i1"),
+                       ("runaway", "i1"), ("status", "i1")])
+
+#: Units of SI names (spec symbols and RigParameters/FMU names).
+_SI_UNITS = {
+    "hammer_mass": "kg", "bit_mass": "kg", "stiffness": "N/m", "damping": "N s/m", "mu_static": "1",
+    "mu_kinetic": "1", "friction_decay": "s/m", "normal_force": "N", "contact_stiffness": "N/m^n",
+    "contact_exponent": "1", "contact_damping": "s/m", "gap": "m", "preload": "N", "amplitude": "N",
+    "frequency": "Hz", "phase": "rad",
+}
+
+_VARS = {
+    "period": ("period-n of the bounded motion (NaN: none up to 32)", "1"),
+    "rop": ("rate of penetration over the second half, nondimensional", "x0 per forcing period"),
+    "rop_mm_per_period": ("rate of penetration over the second half", "mm per forcing period"),
+    "rop_m_per_h": ("rate of penetration over the second half", "m/h"),
+    "impacts_per_period": ("hammer-bit impacts per forcing period over the second half", "1"),
+    "peak_contact_force_n": ("largest hammer-bit contact force over the second half", "N"),
+    "bounce": ("flag: a >= b, the harmonic force can exceed the preload (bit bounce)", "1"),
+    "overload": ("flag: a + b > 1, outside the paper's domain a + b <= mu_e F_N", "1"),
+    "runaway": ("flag: b above the kinetic friction floor, the drift grows without bound", "1"),
+    "status": ("0 ran, 1 solver stopped (see attribute errors), 2 invalid parameters", "1"),
+}
+
+
+def axis_unit(name: str) -> str:
+    """Unit of a parameter name: ``"1"`` for a group, SI for an SI name."""
+    kind, target = setting_target(name)
+    return "1" if kind == "group" else _SI_UNITS.get(target, "")
+
+
+@dataclass(frozen=True)
+class Axis:
+    """One axis of a map: a parameter name (group or SI) and its values."""
+
+    name: str
+    values: tuple
+
+    @classmethod
+    def parse(cls, text: str) -> "Axis":
+        """``"a=0.05:0.25:81"`` -> 81 values from 0.05 to 0.25; ``"a=0.1"`` -> one value."""
+        if "=" not in text:
+            raise ParameterError("--axis", text, "NAME=LO:HI:N")
+        name, spec = (s.strip() for s in text.split("=", 1))
+        parts = spec.split(":")
+        try:
+            if len(parts) == 1:
+                vals = (float(parts[0]),)
+            elif len(parts) == 3:
+                lo, hi, n = float(parts[0]), float(parts[1]), parts[2]
+                if not n.strip().isdigit() or int(n) < 1:
+                    raise ValueError
+                vals = tuple(float(v) for v in np.linspace(lo, hi, int(n)))
+            else:
+                raise ValueError
+        except ValueError:
+            raise ParameterError(f"--axis {name}", spec, "LO:HI:N with numbers LO, HI and a count N >= 1")\
+                from None
+        setting_target(name, spec)             # unknown names fail here, named as typed
+        if not all(math.isfinite(v) for v in vals):
+            raise ParameterError(f"--axis {name}", spec, "finite values")
+        return cls(name, vals)
+
+    @property
+    def unit(self) -> str:
+        return axis_unit(self.name)
+
+
+@dataclass(frozen=True)
+class MapCell:
+    """The figures of one cell (see the module docstring)."""
+
+    period: Optional[int]
+    rop: float
+    rop_mm_per_period: float
+    rop_m_per_h: float
+    impacts_per_period: float
+    peak_contact_force_n: float
+    regime: object
+    status: int = STATUS_OK
+    error: str = ""
+
+    def row(self) -> tuple:
+        r = self.regime
+        return (np.nan if self.period is None else float(self.period), self.rop, self.rop_mm_per_period,
+                self.rop_m_per_h, self.impacts_per_period, self.peak_contact_force_n,
+                int(r.bounce) if r else 0, int(r.overload) if r else 0, int(r.runaway) if r else 0,
+                self.status)
+
+
+class _Buffers:
+    """Record buffers reused by every scene of a chunk."""
+
+    def __init__(self, periods: int):
+        self.poin = np.zeros((periods + 1, 5))
+        self.log = np.zeros((max(64, 8 * periods), K.N_LOG_COLS))
+
+
+def run_cell(groups: Groups, periods: int, solver: SolverOptions = SolverOptions(),
+             buffers: Optional[_Buffers] = None) -> MapCell:
+    """Run one cell: the scene from rest over ``periods`` forcing periods.
+
+    The integration is that of :func:`hammerbit.simulate.simulate` (same
+    stepper, one call to the end), recording Poincaré samples and the event
+    log into preallocated buffers.
+    """
+    buf = buffers or _Buffers(periods)
+    T = groups.period
+    st = Stepper(groups, solver=solver)
+    poin = buf.poin[: periods + 1]
+    log = buf.log
+    st.advance(st.time, poincare=poin, log=log)
+    while True:
+        status = st.advance(periods * T, poincare=poin, log=log)
+        if status == "max_steps":
+            raise MaxStepsError(f"more than max_steps={solver.max_steps} steps in one call", time=st.time,
+                                status=K.ST_MAX_STEPS)
+        if status != "log_full":
+            break
+        buf.log = log = np.concatenate([log, np.zeros_like(log)])
+    n_poin = int(st.istate[K.I_POIN_NEXT])
+    rows = poin[:n_poin]
+    half = periods // 2
+    span = periods - half
+    x3_end = rows[periods, 3] if n_poin > periods else st.y[2]
+    rop = float((x3_end - rows[half, 3]) / span)
+    n_log = int(st.istate[K.I_NLOG])
+    ev = log[:n_log]
+    late = ev[:, K.L_T] >= half * T
+    kinds = ev[:, K.L_KIND]
+    impacts = int(np.count_nonzero(late & (kinds == K.EV_IMPACT)))
+    seps = late & (kinds == K.EV_SEPARATION)
+    peak = float(ev[seps, K.L_PEAK].max()) if np.any(seps) else 0.0
+    if st.istate[K.I_CONTACT] != K.FREE:
+        peak = max(peak, float(st.fstate[K.F_PEAK]))
+    si = groups.rop(rop)
+    return MapCell(period=detect_period(rows), rop=rop, rop_mm_per_period=si["mm_per_period"],
+                   rop_m_per_h=si["m_per_h"], impacts_per_period=impacts / span,
+                   peak_contact_force_n=peak * groups.scales.friction_force, regime=regime(groups))
+
+
+def _failed(status: int, message: str, groups: Optional[Groups]) -> MapCell:
+    nan = float("nan")
+    return MapCell(None, nan, nan, nan, nan, nan, regime(groups) if groups is not None else None,
+                   status, message)
+
+
+def _map_chunk(cells, base, names, periods, solver):
+    """Chunk function: one row of ``CELL_DTYPE`` and an error message per cell."""
+    buf = _Buffers(periods)
+    out = []
+    for values in cells:
+        g = None
+        try:
+            g = apply_settings(base, dict(zip(names, values)))
+            c = run_cell(g, periods, solver, buf)
+        except ParameterError as e:
+            c = _failed(STATUS_INVALID, str(e), None)
+        except SolverError as e:
+            c = _failed(STATUS_SOLVER, f"{type(e).__name__}: {e}", g)
+        out.append((c.row(), c.error))
+    return out
+
+
+def regime_map(groups: Groups, axes: Sequence[Axis], *, periods: int = 300,
+               solver: SolverOptions = SolverOptions(), executor: Optional[Executor] = None,
+               options: ExecutorOptions = ExecutorOptions(), attrs: Optional[dict] = None):
+    """The regime map of ``groups`` over 1 to 3 axes.
+
+    Parameters
+    ----------
+    groups : Groups
+        Base scene (the axes override its parameters cell by cell).
+    axes : sequence of Axis
+        1 to 3 axes, distinct names.
+    periods : int
+        Forcing periods per cell, from rest (>= 4).
+    solver : SolverOptions
+    executor : Executor, optional
+        A running executor (reused); default one made from ``options``.
+    options : ExecutorOptions
+    attrs : dict, optional
+        Extra dataset attributes (e.g. the preset name and the ``--set`` overrides).
+
+    Returns
+    -------
+    xarray.Dataset
+        Dimensions: the axis names (coordinates = their values, with units);
+        variables of ``CELL_DTYPE`` (see the module docstring).  Attributes:
+        ``periods``, ``method``, ``rtol``, ``atol``, ``groups`` and ``scales``
+        of the base scene (JSON), ``failed_cells``, ``errors`` (JSON list of
+        the first messages), ``wall_time_s``, ``cpu_time_s`` (summed over the
+        workers), ``workers``.
+    """
+    import xarray as xr
+    axes = list(axes)
+    if not 1 <= len(axes) <= 3:
+        raise ParameterError("axes", len(axes), "1 to 3 axes")
+    names = tuple(a.name for a in axes)
+    if len(set(names)) != len(names):
+        raise ParameterError("axes", ",".join(names), "distinct parameter names")
+    targets = [setting_target(n) for n in names]
+    if len(set(targets)) != len(targets):
+        raise ParameterError("axes", ",".join(names), "axes that change different parameters")
+    if not (isinstance(periods, (int, np.integer)) and 4 <= periods <= 10_000_000):
+        raise ParameterError("periods", periods, "an integer in [4, 1e7]")
+    shape = tuple(len(a.values) for a in axes)
+    # the corners of the grid are validated here, so that a bad range fails before any work
+    for corner in np.ndindex(*(2,) * len(axes)):
+        apply_settings(groups, {a.name: a.values[-1 if c else 0] for a, c in zip(axes, corner)})
+    grid = np.stack(np.meshgrid(*[np.asarray(a.values) for a in axes], indexing="ij"), axis=-1)
+    cells = [tuple(float(v) for v in row) for row in grid.reshape(-1, len(axes))]
+    own = executor is None
+    ex = Executor(options) if own else executor
+    try:
+        ex.connect()
+        t0 = _time.perf_counter()
+        cpu0 = ex.cpu_s
+        res = ex.run(_map_chunk, cells, fixed=(groups, names, int(periods), solver),
+                     cost_s=periods * SECONDS_PER_PERIOD, label="map")
+        wall = _time.perf_counter() - t0
+        cpu = ex.cpu_s - cpu0
+        workers = ex.workers
+    finally:
+        if own:
+            ex.close()
+    table = np.array([r for r, _ in res], dtype=CELL_DTYPE).reshape(shape)
+    errors = [f"{dict(zip(names, cells[i]))}: {m}" for i, (_, m) in enumerate(res) if m]
+    coords = {}
+    for a in axes:
+        coords[a.name] = xr.Variable(a.name, np.asarray(a.values, dtype=float),
+                                     attrs={"units": a.unit, "long_name": a.name})
+    data = {}
+    for name in CELL_DTYPE.names:
+        long, unit = _VARS[name]
+        data[name] = xr.Variable(names, table[name], attrs={"long_name": long, "units": unit})
+    at = {
+        "title": "hammerbit regime map",
+        "periods": int(periods), "method": solver.method, "rtol": solver.rtol, "atol": solver.atol,
+        "groups": json.dumps({k: (None if isinstance(v, float) and math.isinf(v) else v)
+                              for k, v in groups.values().items()}),
+        "scales": json.dumps(groups.scales.to_dict()),
+        "failed_cells": len(errors), "errors": json.dumps(errors[:20]),
+        "wall_time_s": wall, "cpu_time_s": cpu, "workers": int(workers),
+        "total_periods": int(periods * len(cells)),
+    }
+    at.update(attrs or {})
+    return xr.Dataset(data, coords=coords, attrs=at)
+
+
+def _nested(a: np.ndarray, *, integer: bool = False):
+    """Nested lists, NaN -> None."""
+    if a.ndim == 0:
+        v = float(a)
+        return None if not math.isfinite(v) else (int(v) if integer else v)
+    return [_nested(x, integer=integer) for x in a]
+
+
+def map_to_json(ds) -> dict:
+    """The JSON form: ``axes`` and nested lists (one level per axis)."""
+    names = [d for d in ds["period"].dims]
+    flags = np.empty(ds["period"].shape, dtype=object)
+    for idx in np.ndindex(*flags.shape):
+        flags[idx] = [f for f in ("bounce", "overload", "runaway") if int(ds[f].values[idx])]
+
+    def nest_flags(a):
+        return [nest_flags(x) for x in a] if a.ndim > 1 else [list(x) for x in a]
+
+    out = {
+        "axes": [{"name": n, "unit": ds[n].attrs.get("units", ""), "values": [float(v) for v in ds[n].values]}
+                 for n in names],
+        "period": _nested(ds["period"].values, integer=True),
+        "rop": _nested(ds["rop"].values),
+        "flags": nest_flags(flags),
+        "rop_mm_per_period": _nested(ds["rop_mm_per_period"].values),
+        "rop_m_per_h": _nested(ds["rop_m_per_h"].values),
+        "impacts_per_period": _nested(ds["impacts_per_period"].values),
+        "peak_contact_force_n": _nested(ds["peak_contact_force_n"].values),
+        "status": _nested(ds["status"].values.astype(float), integer=True),
+    }
+    for k in ("periods", "method", "rtol", "failed_cells", "wall_time_s", "workers", "total_periods"):
+        out[k] = ds.attrs.get(k)
+    out["errors"] = json.loads(ds.attrs.get("errors", "[]"))
+    for k in ("groups", "scales"):
+        out[k] = json.loads(ds.attrs[k])
+    return out

@@ -1,0 +1,244 @@
+"""Frequency sweeps of the co-simulated hammer on a drillstring.
+
+One co-simulation (:func:`hammerbit.cosim.cosimulate`) per excitation
+frequency, on the study executor.  Each worker process discretises the
+string once (the exact step's matrix exponential and modal form do not
+depend on the hammer frequency) and reuses it for every frequency it runs.
+
+Steady state is detected, not assumed: the WOB amplitude is measured over
+the last two windows of ``window_periods`` forcing periods; when they differ
+by more than ``steady_tol`` (relative) the run is repeated with twice the
+duration, up to ``max_duration``.  The figures come from those two windows,
+and rows that never settle are flagged ``steady = 0``.
+"""
+from __future__ import annotations
+
+import copy
+import hashlib
+import math
+import pickle
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+
+from hammerbit.model.validation import ParameterError
+
+from ..cosim import CosimConfig, StringSide, _coupled_system, cosimulate
+from .executor import Executor, ExecutorOptions
+
+__all__ = ["SWEEP_DTYPE", "sweep", "plot_sweep", "write_sweep_csv", "wob_frf", "steady_figures"]
+
+SWEEP_DTYPE = np.dtype([("frequency_hz", "f8"), ("wob_mean_n", "f8"), ("wob_amplitude_n", "f8"),
+                        ("wob_min_n", "f8"), ("bounce_margin", "f8"), ("rop_m_per_h", "f8"),
+                        ("penetration_m", "f8"), ("duration_s", "f8"), ("amplitude_change", "f8"),
+                        ("steady", "i1")])
+
+
+# one discretised string side per worker process, keyed by what it depends on
+_SIDES: dict = {}
+
+
+def _side_key(string, config: CosimConfig) -> str:
+    c = config.replace(rig=config.rig.replace(frequency=1.0), stop=config.start + 1.0)
+    return hashlib.sha1(pickle.dumps((string, c))).hexdigest()
+
+
+def _side_for(string, config: CosimConfig) -> StringSide:
+    """A copy of this worker's discretised string side.
+
+    The template is warmed by a one-step run, so it holds the discretisations
+    a run computes, in the order it computes them; every frequency gets its own
+    copy, so a result does not depend on which frequencies the worker ran
+    before (the same bits whatever the chunking).
+    """
+    key = _side_key(string, config)
+    side = _SIDES.get(key)
+    if side is None:
+        _SIDES.clear()
+        side = StringSide(string, config)
+        cosimulate(string, config.replace(stop=config.start + config.step, record=("wob",)), side=side)
+        _SIDES[key] = side
+    return copy.deepcopy(side)
+
+
+def steady_figures(data: np.ndarray, frequency: float, window_periods: int, friction_force: float) -> dict:
+    """Figures of the last two windows of ``window_periods`` forcing periods each.
+
+    ``data`` has ``time``, ``wob`` and ``bit_position`` (SI).  Returns the WOB
+    mean, amplitude ((max - min)/2) and minimum over both windows, the bounce
+    margin ``1 + min(WOB)/F_s``, the ROP [m/h] and ``amplitude_change``, the
+    relative change of the amplitude from the earlier window to the later.
+    """
+    t = data["time"]
+    tw = window_periods / frequency
+    t_end = t[-1]
+    last = t >= t_end - tw - 1e-12
+    prev = (t >= t_end - 2 * tw - 1e-12) & (t <= t_end - tw + 1e-12)
+    both = last | prev
+    w = data["wob"]
+
+    def amp(m):
+        return 0.5 * float(w[m].max() - w[m].min())
+
+    a_last, a_prev = amp(last), amp(prev)
+    change = abs(a_last - a_prev) / max(a_last, a_prev, 1e-9 * max(abs(w[both]).max(), 1.0))
+    tb, xb = t[both], data["bit_position"][both]
+    wmin = float(w[both].min())
+    return {"wob_mean_n": float(w[both].mean()), "wob_amplitude_n": amp(both), "wob_min_n": wmin,
+            "bounce_margin": 1.0 + wmin / friction_force,
+            "rop_m_per_h": float((xb[-1] - xb[0]) / (tb[-1] - tb[0]) * 3600.0),
+            "amplitude_change": change}
+
+
+def _sweep_one(string, f, config, fmu, window_periods, steady_tol, max_duration):
+    rig = config.rig.replace(frequency=float(f))
+    # at least three windows after the force ramp
+    dur = max(config.stop - config.start, config.ramp + 3.0 * window_periods / f)
+    F_s = config.rig.scales.friction_force
+    while True:
+        cfg = config.replace(rig=rig, stop=config.start + dur, record=("wob", "bit_position"),
+                             record_every=1, progress=False)
+        r = cosimulate(string, cfg, fmu=fmu, side=_side_for(string, cfg))
+        fig = steady_figures(r.data, f, window_periods, F_s)
+        steady = fig["amplitude_change"] <= steady_tol
+        if steady or 2 * dur > max_duration + 1e-12:
+            break
+        dur *= 2
+    return (f, fig["wob_mean_n"], fig["wob_amplitude_n"], fig["wob_min_n"], fig["bounce_margin"],
+            fig["rop_m_per_h"], r.penetration_m, dur, fig["amplitude_change"], int(steady))
+
+
+def _sweep_chunk(freqs, string, config, fmu, window_periods, steady_tol, max_duration):
+    return [_sweep_one(string, f, config, fmu, window_periods, steady_tol, max_duration) for f in freqs]
+
+
+def sweep(string, frequencies, config: CosimConfig = CosimConfig(), *, fmu=None, window_periods: int = 5,
+          steady_tol: float = 0.01, max_duration: Optional[float] = None,
+          executor: Optional[Executor] = None,
+          options: ExecutorOptions = ExecutorOptions(workers=1)) -> np.ndarray:
+    """Frequency sweep of the hammer excitation (one co-simulation per frequency).
+
+    For each frequency ``f`` the hammer's harmonic source runs at ``f`` from
+    the static equilibrium for ``config.stop - config.start`` seconds (at
+    least three windows), doubled up to ``max_duration`` until the WOB
+    amplitude settles (see the module docstring).  Over the last two windows:
+
+    * ``wob_amplitude_n``: dynamic WOB amplitude at the bit, (max - min)/2 [N];
+    * ``bounce_margin``: ``1 + min(WOB)/F_s`` with ``F_s = mu_e F_N`` the static
+      friction threshold; <= 0 means bit bounce (the rock would have to pull
+      the bit back);
+    * ``rop_m_per_h``: rate of penetration [m/h];
+    * ``duration_s``, ``amplitude_change``, ``steady``: the simulated time
+      used, the relative amplitude change between the two windows and whether
+      it is within ``steady_tol``.
+
+    Parameters
+    ----------
+    string : DrillString
+    frequencies : array_like
+        Excitation frequencies [Hz].
+    config : CosimConfig
+        Co-simulation options; its rig's frequency is replaced.
+    fmu : path, optional
+        The hammer FMU (default: the same kernels in process).
+    window_periods : int
+        Forcing periods per window.
+    steady_tol : float
+        Allowed relative change of the amplitude between the two windows.
+    max_duration : float, optional
+        Longest simulated time per frequency [s]; default the initial duration
+        (no repetition: unsettled rows are only flagged).
+    executor, options
+        Where the frequencies run (default: in this process).
+
+    Returns
+    -------
+    ndarray
+        :data:`SWEEP_DTYPE`, one row per frequency.
+    """
+    freqs = np.atleast_1d(np.asarray(frequencies, dtype=float))
+    if freqs.ndim != 1 or freqs.size == 0 or not np.all(np.isfinite(freqs)) or np.any(freqs <= 0):
+        raise ParameterError("frequencies", frequencies, "a non-empty list of frequencies > 0 Hz")
+    if not (isinstance(window_periods, (int, np.integer)) and window_periods >= 1):
+        raise ParameterError("window_periods", window_periods, "an integer >= 1")
+    if not 0 < steady_tol < 1:
+        raise ParameterError("steady_tol", steady_tol, "(0, 1)")
+    dur0 = config.stop - config.start
+    max_duration = dur0 if max_duration is None else float(max_duration)
+    if not max_duration >= dur0:
+        raise ParameterError("max_duration", max_duration, f">= the initial duration {dur0:g} s")
+    fmu = None if fmu is None else str(fmu)
+    own = executor is None
+    ex = Executor(options) if own else executor
+    try:
+        rows = ex.run(_sweep_chunk, list(freqs), fixed=(string, config, fmu, int(window_periods),
+                                                        float(steady_tol), max_duration),
+                      cost_s=1.0, label="sweep")
+    finally:
+        if own:
+            ex.close()
+    return np.array(rows, dtype=SWEEP_DTYPE)
+
+
+def plot_sweep(result: np.ndarray, path, *, modes: Optional[np.ndarray] = None, title: str = "") -> Path:
+    """Sweep figure: WOB amplitude, bounce margin and ROP against frequency,
+    with the coupled natural frequencies (bit on bottom) as vertical lines."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    f = result["frequency_hz"]
+    fig, ax = plt.subplots(3, 1, figsize=(8, 8), sharex=True)
+    ax[0].plot(f, result["wob_amplitude_n"] / 1e3, ".-")
+    if "steady" in result.dtype.names and np.any(result["steady"] == 0):
+        un = result["steady"] == 0
+        ax[0].plot(f[un], result["wob_amplitude_n"][un] / 1e3, "rx", label="not settled")
+        ax[0].legend()
+    ax[0].set_ylabel("dynamic WOB amplitude [kN]")
+    ax[1].plot(f, result["bounce_margin"], ".-")
+    ax[1].axhline(0.0, color="r", lw=0.8)
+    ax[1].set_ylabel("bounce margin [-]")
+    ax[2].plot(f, result["rop_m_per_h"], ".-")
+    ax[2].set_ylabel("ROP [m/h]")
+    ax[2].set_xlabel("hammer excitation frequency [Hz]")
+    if modes is not None:
+        for a in ax:
+            for fm in modes:
+                if f.min() <= fm <= f.max():
+                    a.axvline(fm, color="0.6", lw=0.6, ls="--")
+    if title:
+        ax[0].set_title(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def write_sweep_csv(result: np.ndarray, path) -> Path:
+    """CSV of a sweep (header = field names)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savetxt(path, np.column_stack([result[n] for n in result.dtype.names]), delimiter=",",
+               header=",".join(result.dtype.names), comments="", fmt="%.10g")
+    return path
+
+
+def wob_frf(string, frequencies, config: CosimConfig = CosimConfig()) -> np.ndarray:
+    """Linear frequency response of the WOB at the bit per newton of hammer force
+    (bit stuck, the system of :func:`hammerbit.cosim.coupled_modes`), complex (F,) [N/N].
+
+    With a small harmonic amplitude the bit stays stuck, the coupled system is
+    linear and :func:`sweep`'s ``wob_amplitude_n`` equals ``A |frf|``; its peaks
+    are at :func:`hammerbit.cosim.coupled_modes`.
+    """
+    A, n, m1, K, C = _coupled_system(string, config)
+    b = np.zeros(n + 2)
+    b[n + 1] = 1.0 / m1
+    out = []
+    I = np.eye(n + 2)
+    for f in np.atleast_1d(np.asarray(frequencies, dtype=float)):
+        x = np.linalg.solve(2j * math.pi * f * I - A, b)
+        out.append(K * x[n] + C * x[n + 1])
+    return np.array(out)
