@@ -39,15 +39,51 @@ import math
 import os
 import platform
 import sys
+import tempfile
 import time
 
-__all__ = ["RESULTS_DIR", "REPO_ROOT", "machine_info", "summary_row", "save_result",
+__all__ = ["RESULTS_DIR", "REPO_ROOT", "TRACKED_RESULTS_DIR", "TRACKED_FIGURES_DIR", "SCRATCH_DIR",
+           "configure_output", "results_dir", "figures_dir", "machine_info", "summary_row", "save_result",
            "fmt_time", "fmt_ratio", "fmt_num", "harness_command", "result_name", "kernel_source",
            "repo_on_path", "LoadedFMU"]
 
 BENCH_DIR = os.path.dirname(os.path.abspath(__file__))
 REPO_ROOT = os.path.dirname(BENCH_DIR)
-RESULTS_DIR = os.path.join(BENCH_DIR, "results")
+#: The tracked results (``benchmarks/results``) and figures (``docs/figures``):
+#: written only when asked (``python -m benchmarks --update``).
+TRACKED_RESULTS_DIR = os.path.join(BENCH_DIR, "results")
+TRACKED_FIGURES_DIR = os.path.join(REPO_ROOT, "docs", "figures")
+#: Where a run writes otherwise: ``$HAMMERBIT_BENCH_OUT`` or a directory in the system's temp dir.
+SCRATCH_DIR = os.environ.get("HAMMERBIT_BENCH_OUT") or os.path.join(tempfile.gettempdir(), "hammerbit-benchmarks")
+#: Where :func:`save_result` writes now (see :func:`configure_output`).
+RESULTS_DIR = os.path.join(SCRATCH_DIR, "results")
+FIGURES_DIR = os.path.join(SCRATCH_DIR, "figures")
+UPDATE = False
+
+
+def configure_output(update: bool) -> str:
+    """Point the benchmarks' outputs at the tracked files (``update=True``) or the scratch dir.
+
+    Returns the results directory now in use.  Benchmarks write their JSON and
+    PNG through :func:`save_result` and their figures into :func:`figures_dir`,
+    so nothing tracked changes unless a run is asked to update.
+    """
+    global RESULTS_DIR, FIGURES_DIR, UPDATE
+    UPDATE = bool(update)
+    RESULTS_DIR = TRACKED_RESULTS_DIR if UPDATE else os.path.join(SCRATCH_DIR, "results")
+    FIGURES_DIR = TRACKED_FIGURES_DIR if UPDATE else os.path.join(SCRATCH_DIR, "figures")
+    return RESULTS_DIR
+
+
+def results_dir() -> str:
+    """The directory :func:`save_result` writes into now."""
+    return RESULTS_DIR
+
+
+def figures_dir() -> str:
+    """Where benchmarks that draw the documentation's figures write them now (created)."""
+    os.makedirs(FIGURES_DIR, exist_ok=True)
+    return FIGURES_DIR
 
 
 def repo_on_path() -> None:
@@ -211,7 +247,7 @@ def _jsonable(o):
 
 
 def save_result(name: str, result: dict, fig=None) -> str:
-    """Write ``results/<name>.json`` (and ``<name>.png`` if a figure is given).
+    """Write ``<name>.json`` (and ``<name>.png`` if a figure is given) into :func:`results_dir`.
 
     Parameters
     ----------
@@ -237,7 +273,8 @@ def save_result(name: str, result: dict, fig=None) -> str:
         fig.savefig(png, dpi=150, bbox_inches="tight")
         import matplotlib.pyplot as plt
         plt.close(fig)
-        result.setdefault("png", os.path.relpath(png, REPO_ROOT))
+        inside = os.path.commonpath([os.path.abspath(png), REPO_ROOT]) == REPO_ROOT
+        result.setdefault("png", os.path.relpath(png, REPO_ROOT) if inside else png)
     path = os.path.join(RESULTS_DIR, f"{name}.json")
     tmp = path + ".tmp"
     with open(tmp, "w") as fh:
@@ -251,8 +288,13 @@ def standalone(run, doc: str) -> None:
     """``python benchmarks/bench_X.py [--quick]``: run one benchmark and print its summary rows."""
     import argparse
     ap = argparse.ArgumentParser(description=(doc or "").strip().splitlines()[0] if doc else None)
-    ap.add_argument("--quick", action="store_true")
-    res = run(quick=ap.parse_args().quick)
+    ap.add_argument("--quick", action="store_true", help="short runs")
+    ap.add_argument("--update", action="store_true",
+                    help="write benchmarks/results (tracked); default: the scratch dir " + SCRATCH_DIR)
+    a = ap.parse_args()
+    configure_output(a.update)
+    res = run(quick=a.quick)
+    print(f"results in {RESULTS_DIR}", file=sys.stderr)
     for row in res["summary"]:
         print(f"{row['metric']}: {row['ours']} (peer {row.get('peer')}, ratio {row.get('ratio')}, "
               f"goal {row.get('goal')})")

@@ -1,11 +1,18 @@
-"""``python -m benchmarks``: run every benchmark, write results, refresh the README table.
+"""``python -m benchmarks``: run every benchmark, write results, print or refresh the README table.
 
 Every module ``benchmarks/bench_*.py`` that exposes ``run(quick)`` is a
 benchmark (conventions in :mod:`benchmarks`).  They run one after the other in
-this process; each writes ``benchmarks/results/<name>.json`` (+ ``.png``).
-Then the README's performance table (between ``<!-- perf-table:start -->``
-and ``<!-- perf-table:end -->``) is regenerated from all results JSON; if the
-README has no markers, the table is printed instead.
+this process; each writes ``<name>.json`` (+ ``.png``) into the results
+directory.  Nothing tracked is written unless asked:
+
+* by default the results go to a scratch directory (``$HAMMERBIT_BENCH_OUT``
+  or ``hammerbit-benchmarks`` in the system's temp dir), figures that the
+  documentation shows too, and the performance table -- the tracked results
+  with this run's results in place of the ones that ran -- is printed;
+* ``--update`` writes ``benchmarks/results/`` and ``docs/figures/`` and
+  regenerates the README's performance table (between
+  ``<!-- perf-table:start -->`` and ``<!-- perf-table:end -->``), unless
+  ``--no-readme``.
 
 Options
 -------
@@ -13,7 +20,8 @@ Options
 --only NAME    run only this benchmark (``solvers`` or ``bench_solvers``);
                repeat or comma-separate for several
 --list         list the benchmarks found and exit
---no-readme    do not touch the README (print the table)
+--update       write the tracked results, figures and README table
+--no-readme    with --update: do not touch the README (print the table)
 
 The exit status is 1 if a benchmark failed (the others still run).
 """
@@ -27,7 +35,8 @@ import sys
 import time
 import traceback
 
-from benchmarks import BENCH_DIR, RESULTS_DIR, harness_command, machine_info, result_name, save_result
+import benchmarks
+from benchmarks import BENCH_DIR, harness_command, machine_info, result_name, save_result
 from benchmarks import readme_table
 
 
@@ -71,7 +80,7 @@ def run_one(name: str, modname: str, quick: bool) -> tuple:
     except Exception:
         return False, time.perf_counter() - t0, "run failed:\n" + traceback.format_exc()
     dt = time.perf_counter() - t0
-    path = os.path.join(RESULTS_DIR, f"{name}.json")
+    path = os.path.join(benchmarks.results_dir(), f"{name}.json")
     fresh = os.path.exists(path) and os.path.getmtime(path) >= started - 1.0
     if isinstance(result, dict) and not fresh:
         # the module returned its result without saving it: fill the conventions and save
@@ -94,7 +103,11 @@ def main(argv=None) -> int:
     ap.add_argument("--quick", action="store_true", help="short runs")
     ap.add_argument("--only", action="append", metavar="NAME", help="run only these benchmarks")
     ap.add_argument("--list", action="store_true", help="list the benchmarks and exit")
-    ap.add_argument("--no-readme", action="store_true", help="print the table instead of updating README.md")
+    ap.add_argument("--update", action="store_true",
+                    help="write benchmarks/results, docs/figures and the README table (tracked files); "
+                         "default: write into the scratch dir and print the table")
+    ap.add_argument("--no-readme", action="store_true", help="with --update: print the table instead of "
+                                                               "updating README.md")
     a = ap.parse_args(argv)
 
     found = discover()
@@ -103,8 +116,11 @@ def main(argv=None) -> int:
             print(f"{k:20s} {v}")
         return 0
     selected = _select(found, a.only)
-    os.makedirs(RESULTS_DIR, exist_ok=True)
-    failures = []
+    out_dir = benchmarks.configure_output(a.update)
+    os.makedirs(out_dir, exist_ok=True)
+    print(f"benchmarks: results into {out_dir}" + ("" if a.update else " (scratch; --update writes the "
+                                                   "tracked results)"), file=sys.stderr)
+    failures, ran = [], []
     t_all = time.perf_counter()
     for name, modname in selected.items():
         print(f"benchmarks: {name} ({'quick' if a.quick else 'full'}) ...", file=sys.stderr, flush=True)
@@ -114,11 +130,15 @@ def main(argv=None) -> int:
               file=sys.stderr, flush=True)
         if ok is False:
             failures.append(name)
+        elif ok:
+            ran.append(name)
     print(f"benchmarks: done in {time.perf_counter() - t_all:.1f} s", file=sys.stderr)
 
-    table = readme_table.render_table(readme_table.load_results())
-    if a.no_readme or not readme_table.update_readme(table):
-        if not a.no_readme:
+    results = readme_table.merge_results(readme_table.load_results(benchmarks.TRACKED_RESULTS_DIR),
+                                         readme_table.load_results(out_dir) if not a.update else [], ran)
+    table = readme_table.render_table(results)
+    if not a.update or a.no_readme or not readme_table.update_readme(table):
+        if a.update and not a.no_readme:
             print(f"benchmarks: README.md has no {readme_table.START} ... {readme_table.END} markers; "
                   f"the table:", file=sys.stderr)
         print(table)

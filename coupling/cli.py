@@ -1,9 +1,9 @@
-"""The ``hammerbit`` command line.
+"""The ``hammerbit`` command line (also ``python -m hammerbit``).
 
-Subcommands: ``simulate`` (this module); ``modes`` and ``check``
-(drillstring, :mod:`hammerbit.cli_string`); ``cosim`` (co-simulation,
-:mod:`hammerbit.cli_cosim`); ``bifurcation``, ``sweep``, ``map`` and
-``optimize`` (studies, :mod:`hammerbit.cli_studies`).
+Subcommands: ``simulate`` (this module) and those that the modules in
+:data:`COMMAND_MODULES` register (drillstring, co-simulation, studies, FMU).
+Every command shares the ``--set`` parser, the exit codes and the error
+handling of :mod:`hammerbit.cli_common`; ``docs/cli.md`` documents them.
 """
 from __future__ import annotations
 
@@ -11,13 +11,60 @@ import argparse
 import importlib
 import json
 import math
+import os
 import sys
+import warnings
 
 import numpy as np
 
-from .cli_common import add_set_argument, parse_settings, run_command
+from .cli_common import UsageError, add_set_argument, parse_settings, run_command
 
-__all__ = ["main"]
+__all__ = ["main", "build_parser", "COMMAND_MODULES", "HelpFormatter", "version"]
+
+#: Modules that add sub-commands through ``register(subparsers)``; a module
+#: that is not installed is skipped.
+COMMAND_MODULES = [
+    "hammerbit.cli_string",
+    "hammerbit.cli_cosim",
+    "hammerbit.cli_studies",
+    "hammerbit.cli_fmu",
+]
+
+#: Most samples ``simulate --csv`` writes (about 1 GB of text).
+MAX_CSV_SAMPLES = 10_000_000
+
+
+def version() -> str:
+    """The installed hammerbit version ("unknown" when run from a source tree without metadata)."""
+    try:
+        from importlib.metadata import PackageNotFoundError, version as _v
+        try:
+            return _v("hammerbit")
+        except PackageNotFoundError:
+            return "unknown"
+    except ImportError:  # pragma: no cover
+        return "unknown"
+
+
+class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Shows each option's default, unless it is None/False/empty or the help already gives it."""
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        if "default" in text.lower() or action.default in (None, False, argparse.SUPPRESS) \
+                or action.default == []:
+            return text
+        if action.option_strings or action.nargs in (argparse.OPTIONAL, argparse.ZERO_OR_MORE):
+            return (text + " " if text else "") + "(default: %(default)s)"
+        return text
+
+
+class _Parser(argparse.ArgumentParser):
+    """ArgumentParser whose sub-commands show defaults in their help."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("formatter_class", HelpFormatter)
+        super().__init__(*args, **kwargs)
 
 
 def _parse_settings(pairs):
@@ -32,75 +79,216 @@ def _groups_from_args(args):
 
 def _solver_from_args(args):
     from hammerbit.model.stepping import SolverOptions
+    from hammerbit.model.validation import ParameterError
     kw = {"method": args.method}
     if args.rtol is not None:
         kw["rtol"] = args.rtol
         kw["atol"] = args.rtol * 1e-2
-    if getattr(args, "steps_per_period", None):
+    if getattr(args, "steps_per_period", None) is not None:
         kw["steps_per_period"] = args.steps_per_period
-    return SolverOptions(**kw)
+    try:
+        return SolverOptions(**kw)
+    except ParameterError as e:
+        raise e.renamed("--" + e.name.replace("_", "-")) from None
 
 
 def _add_scene_args(p):
     from hammerbit.model.params import PRESETS
     p.add_argument("--preset", default="paper-fig9", choices=sorted(PRESETS),
-                   help="parameter preset (default paper-fig9)")
+                   help="parameter preset (docs/model.md, 'Presets')")
     add_set_argument(p)
-    p.add_argument("--method", default="adaptive", choices=["adaptive", "dp54", "rk4"])
-    p.add_argument("--rtol", type=float, default=None, help="relative tolerance (adaptive; default 1e-8)")
-    p.add_argument("--steps-per-period", type=int, default=None, help="rk4: steps per forcing period (1000)")
+    p.add_argument("--method", default="adaptive", choices=["adaptive", "dp54", "rk4"],
+                   help="integration method: adaptive (DOP853), dp54 (Dormand-Prince 5(4)) or rk4 "
+                        "(the paper's fixed step)")
+    p.add_argument("--rtol", type=float, default=None, metavar="RTOL",
+                   help="relative tolerance of adaptive and dp54 (default 1e-8; atol = rtol/100)")
+    p.add_argument("--steps-per-period", type=int, default=None, metavar="N",
+                   help="rk4: steps per forcing period (default 1000)")
+
+
+def check_output_path(path: str, option: str, *, formats=None) -> str:
+    """Refuse, before a run, an output file that cannot be written.
+
+    Raises :class:`UsageError` (exit 2) when the directory does not exist or is
+    not writable, the path is a directory, or (with ``formats``) the extension
+    is not one of them.
+    """
+    full = os.path.abspath(os.path.expanduser(path))
+    if os.path.isdir(full):
+        raise UsageError(f"{option} {path}: is a directory, not a file")
+    parent = os.path.dirname(full)
+    if not os.path.isdir(parent):
+        raise UsageError(f"{option} {path}: the directory {parent} does not exist")
+    if not os.access(parent, os.W_OK):
+        raise UsageError(f"{option} {path}: the directory {parent} is not writable")
+    if formats is not None:
+        ext = os.path.splitext(path)[1].lower().lstrip(".")
+        if ext not in formats:
+            raise UsageError(f"{option} {path}: unsupported format {ext or '(none)'!r}; "
+                             f"use one of {', '.join(sorted(formats))}")
+    return full
+
+
+def figure_formats() -> set:
+    """File extensions matplotlib can save (png, pdf, svg, ...)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    return set(FigureCanvasAgg(Figure()).get_supported_filetypes())
+
+
+def regime_warnings(g, bounces: int = 0) -> list:
+    """Plain-language warnings for a scene outside the model's validity domain (SI figures)."""
+    from hammerbit.model.params import regime
+    reg = regime(g)
+    F0 = g.scales.friction_force
+    out = []
+    if reg.bounce or bounces:
+        out.append(f"bounce: a = {g.a:g} >= b = {g.b:g}: the harmonic force (amplitude {g.a * F0:.4g} N) "
+                   f"can exceed the preload ({g.b * F0:.4g} N) and the rock would have to pull the bit "
+                   f"back; the model holds the bit instead ({bounces} time(s) in this run)")
+    if reg.overload:
+        out.append(f"overload: a + b = {g.a + g.b:g} > 1: preload plus amplitude "
+                   f"({(g.a + g.b) * F0:.4g} N) exceed the static friction threshold F0 = {F0:.4g} N, "
+                   f"outside the paper's domain a + b <= 1")
+    if reg.runaway:
+        floor = g.mu if g.gamma_hat > 0.0 else 1.0
+        out.append(f"runaway: b = {g.b:g} > {'mu' if g.gamma_hat > 0.0 else '1'} = {floor:g}: the preload "
+                   f"({g.b * F0:.4g} N) exceeds the kinetic friction at high speed ({floor * F0:.4g} N), so "
+                   f"the drift grows without bound; the penetration is not a rate of penetration")
+    return out
+
+
+def _finite_or_none(v):
+    return None if isinstance(v, float) and not math.isfinite(v) else v
 
 
 def cmd_simulate(args) -> int:
+    from hammerbit.model.params import regime
+    from hammerbit.model.validation import check
+
     from .analysis import detect_period
-    from .simulate import Record, simulate
+    from .simulate import BounceWarning, Record, simulate, write_samples_csv
+
     g = _groups_from_args(args)
     solver = _solver_from_args(args)
-    res = simulate(g, args.periods, record=Record(poincare=True, events=False), solver=solver)
+    check("simulate.periods", args.periods, label="--periods")
+    # every output path is checked before the run, so a typo does not cost the run
+    if args.plot:
+        check_output_path(args.plot, "--plot", formats=figure_formats())
+    if args.csv:
+        check_output_path(args.csv, "--csv")
+    times = None
+    if args.sample_dt is not None and not args.csv:
+        raise UsageError("--sample-dt sets the spacing of the --csv samples: give --csv FILE too")
+    if args.csv:
+        dt = g.period_s / 100.0 if args.sample_dt is None else \
+            check("simulate.sample_dt", args.sample_dt, label="--sample-dt")
+        horizon_s = args.periods * g.period_s
+        n = int(math.floor(horizon_s / dt * (1 + 1e-12))) + 1
+        if n > MAX_CSV_SAMPLES:
+            raise UsageError(f"--sample-dt {dt:g}: {n:,} samples over {horizon_s:.4g} s; at most "
+                             f"{MAX_CSV_SAMPLES:,}: use a larger --sample-dt or fewer --periods")
+        times = np.minimum(np.arange(n) * (dt / g.scales.time), args.periods * g.period)
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", BounceWarning)
+        res = simulate(g, args.periods, record=Record(poincare=True, events=g.has_gap, times=times),
+                       solver=solver)
+    for w in caught:
+        if not issubclass(w.category, BounceWarning):
+            warnings.showwarning(w.message, w.category, w.filename, w.lineno)
     period = detect_period(res.poincare) if res.poincare is not None and len(res.poincare) > 8 else None
+    reg = regime(g)
+    rop = res.rop()
+    peak = res.peak_contact_force_n() if g.has_gap else None
+    per_period = res.penetration / args.periods
     out = {
         "preset": args.preset,
-        "groups": {k: (None if isinstance(v, float) and math.isinf(v) else v) for k, v in g.values().items()},
+        "groups": {k: _finite_or_none(v) for k, v in g.values().items()},
         "scales": g.scales.to_dict(),
         "periods": args.periods,
+        "time_s": res.time_s,
+        "forcing_period_s": g.period_s,
+        "preload_n": g.b * g.scales.friction_force,
+        "amplitude_n": g.a * g.scales.friction_force,
+        "frequency_hz": 1.0 / g.period_s,
         "method": solver.method,
         "rtol": solver.rtol,
-        "penetration": res.penetration,
+        "penetration_x0": res.penetration,
         "penetration_m": res.penetration_m,
-        "penetration_per_period": res.penetration / args.periods,
+        "penetration_mm": res.penetration_m * 1e3,
+        "penetration_per_period_x0": per_period,
+        "penetration_per_period_mm": g.length_m(per_period) * 1e3,
+        "rop": rop,
         "period": period,
+        "regime": reg.to_dict(),
+        "flags": reg.flags,
         "events": res.counts,
+        "peak_contact_force_n": peak,
         "steps": res.stats,
         "wall_time_s": res.wall_time_s,
+        "csv": args.csv,
+        "plot": args.plot,
     }
+    for msg in regime_warnings(g, res.counts.get("bounce", 0)):
+        print(f"hammerbit: warning: {msg}", file=sys.stderr)
+    if args.csv:
+        write_samples_csv(res, args.csv)
     if args.json:
         print(json.dumps(out))
     else:
+        sc = g.scales
         print(f"preset {args.preset}: a={g.a:g} b={g.b:g} eta={g.eta:g} r={g.r:g} mu={g.mu:g}")
-        print(f"penetration after {args.periods} periods: {res.penetration:.6g} x0 = "
-              f"{out['penetration_m'] * 1e3:.4g} mm")
+        print(f"rig: x0 = {sc.length * 1e3:.4g} mm, forcing {1.0 / g.period_s:.4g} Hz "
+              f"(period {g.period_s:.4g} s), preload {out['preload_n']:.4g} N, "
+              f"amplitude {out['amplitude_n']:.4g} N")
+        print(f"penetration after {args.periods} periods ({res.time_s:.4g} s): "
+              f"{out['penetration_mm']:.4g} mm")
+        if rop is not None:
+            print(f"rate of penetration (second half): {rop['mm_per_period']:.4g} mm/period = "
+                  f"{rop['m_per_h']:.4g} m/h")
         print(f"period-n of the bounded motion: {period if period else 'none up to 32'}")
-        print("events: " + ", ".join(f"{k}={v}" for k, v in res.counts.items() if v))
-        print(f"solver: {solver.method}, {res.stats['steps']} steps, {res.wall_time_s * 1e3:.2f} ms")
+        print("events: " + (", ".join(f"{k}={v}" for k, v in res.counts.items() if v) or "none"))
+        if peak is not None:
+            print(f"peak contact force: {peak:.4g} N")
+        print(f"solver: {solver.method}, {res.stats['steps']} steps, {res.wall_time_s * 1e3:.3g} ms")
+        if reg.flags:
+            print("regime: " + ", ".join(reg.flags) + " (outside the model's validity domain; see stderr)")
+        if args.csv:
+            print(f"time series: {args.csv}")
     if args.plot:
         from .plots import plot_scene
-        plot_scene(g, args.periods, args.plot, solver=solver)
+        plot_scene(g, args.periods, args.plot, solver=solver, preset=args.preset, period=period)
+        if not args.json:
+            print(f"figure: {args.plot}")
     return 0
 
 
 def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog="hammerbit", description="Resonance-hammer drilling model "
-                                 "(Franca & Weber 2004): simulation, FMU co-simulation, drillstring checks")
-    sub = ap.add_subparsers(dest="command", required=True)
+    """The ``hammerbit`` parser with every registered sub-command."""
+    ap = _Parser(prog="hammerbit", description="Resonance-hammer drilling model "
+                 "(Franca & Weber 2004): simulation, FMU co-simulation, drillstring checks. "
+                 "Exit codes: docs/cli.md.")
+    ap.add_argument("--version", action="version", version=f"hammerbit {version()}")
+    sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_Parser)
 
-    p = sub.add_parser("simulate", help="simulate one scene")
+    p = sub.add_parser("simulate", help="simulate one scene and report it in SI",
+                       description="Simulate one scene from rest and report penetration [mm], rate of "
+                                   "penetration [mm/period, m/h], forces [N] and times [s]; the JSON "
+                                   "adds the nondimensional values (named *_x0).")
     _add_scene_args(p)
-    p.add_argument("--periods", type=int, default=100, help="forcing periods (default 100)")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.add_argument("--plot", default=None, help="save a figure (time history, phase portrait, Poincaré map)")
+    p.add_argument("--periods", type=int, default=100, metavar="N", help="horizon in forcing periods")
+    p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
+    p.add_argument("--plot", default=None, metavar="FILE",
+                   help="save the scene figure (positions [mm] against time [s], relative motion, "
+                        "Poincaré section); the format follows the extension (png, pdf, svg, ...)")
+    p.add_argument("--csv", default=None, metavar="FILE",
+                   help="write the time series in SI (time first, header with units)")
+    p.add_argument("--sample-dt", type=float, default=None, metavar="SECONDS",
+                   help="spacing of the --csv samples [s] (default: 1/100 of the forcing period)")
     p.set_defaults(func=cmd_simulate)
 
-    for modname in ("hammerbit.cli_string", "hammerbit.cli_cosim", "hammerbit.cli_studies", "hammerbit.cli_fmu"):
+    for modname in COMMAND_MODULES:
         try:
             mod = importlib.import_module(modname)
         except ModuleNotFoundError as e:

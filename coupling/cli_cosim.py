@@ -46,7 +46,9 @@ def add_cosim_options(p) -> None:
     p.add_argument("--fmu", default=None, help="HammerBitRock.fmu (default: the same model in process)")
     p.add_argument("--step", type=float, default=None,
                    help="fixed macro step H [s] (default: adaptive, see --tol)")
-    p.add_argument("--scheme", default="jacobi", choices=["jacobi", "gauss-seidel"])
+    p.add_argument("--scheme", default="jacobi", choices=["jacobi", "gauss-seidel"],
+                   help="coupling scheme: jacobi (both sides step from the data at t_n) or gauss-seidel "
+                        "(the hammer steps first, the string interpolates its new motion)")
     p.add_argument("--extrapolation", type=int, default=2, choices=[0, 1, 2],
                    help="polynomial order of the exchanged signals (default 2)")
     p.add_argument("--f-max", type=float, default=None, help="modal truncation of the string [Hz]")

@@ -339,14 +339,15 @@ def register(subparsers) -> None:
                                           "(a group or an SI name).")
     _add_scene_args(p)
     p.add_argument("--param", default="a", help="parameter to sweep: a group or an SI name (default a)")
-    p.add_argument("--range", nargs=2, type=float, required=True, metavar=("LO", "HI"))
-    p.add_argument("--num", type=int, default=100)
-    p.add_argument("--periods", type=int, default=300)
+    p.add_argument("--range", nargs=2, type=float, required=True, metavar=("LO", "HI"),
+                   help="first and last value of the parameter")
+    p.add_argument("--num", type=int, default=100, help="number of values, evenly spaced over --range")
+    p.add_argument("--periods", type=int, default=300, help="forcing periods per value")
     p.add_argument("--keep", type=int, default=64, help="Poincaré points kept per value")
     _add_executor_args(p)
     p.add_argument("--out", required=True, help="PNG file")
-    p.add_argument("--csv", default=None)
-    p.add_argument("--json", action="store_true")
+    p.add_argument("--csv", default=None, help="CSV of the Poincaré points")
+    p.add_argument("--json", action="store_true", help="print a JSON summary")
     p.set_defaults(func=cmd_bifurcation)
 
     from .cli_cosim import add_cosim_options
@@ -413,5 +414,5 @@ def register(subparsers) -> None:
     p.add_argument("--interface-damping", type=float, default=None,
                    help="--confirm: c_i between the string and the hammer [N s/m]")
     _add_executor_args(p)
-    p.add_argument("--json", action="store_true")
+    p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.set_defaults(func=cmd_optimize)

@@ -1,6 +1,8 @@
 """Figures of the paper's analyses (matplotlib, Agg backend)."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from hammerbit.model.stepping import SolverOptions
@@ -18,55 +20,137 @@ def _plt():
 
 
 def plot_scene(groups, periods, path, *, solver: SolverOptions = SolverOptions(), last: int = 10,
-               per_period: int = 400):
-    """Time history, phase portrait of the bounded motion and Poincaré map of one scene."""
+               per_period: int = 400, preset: str | None = None, period: int | None = None):
+    """The figure of one scene, in SI with the scene's own scales.
+
+    Four panels: hammer and bit displacement [mm] against time [s] over the
+    last ``last`` forcing periods; the relative motion x_b - x_s [mm] against
+    time, with the gap R when there is one; its phase portrait (relative
+    displacement [mm], relative velocity [m/s]) with the Poincaré points;
+    and the Poincaré section over the second half of the run in the bounded
+    coordinates (x_b - x_s [mm], v_b [m/s]) -- the bit's own velocity is 0
+    there, since the bit sticks at the sampling phase.
+
+    Parameters
+    ----------
+    groups : Groups
+        The scene.
+    periods : int
+        Horizon in forcing periods.
+    path : str or Path
+        Output file; the format follows the extension.
+    solver : SolverOptions
+        Method and tolerances.
+    last, per_period : int
+        Periods shown in the time panels and samples per period.
+    preset : str, optional
+        Preset name for the title.
+    period : int, optional
+        Detected period-n for the title (``analysis.detect_period``); computed
+        here when not given.
+    """
+    from .analysis import detect_period
     plt = _plt()
     T = groups.period
+    sc = groups.scales
+    mm = sc.length * 1e3
+    last = max(1, min(int(last), int(math.ceil(periods))))
     t0 = max(periods - last, 0) * T
     times = np.linspace(t0, periods * T, last * per_period + 1)
     r = simulate(groups, periods, record=Record(poincare=True, times=times), solver=solver)
     s, p = r.samples, r.poincare
-    fig, ax = plt.subplots(1, 3, figsize=(14, 4))
-    ax[0].plot(s["time"] / T, s["bit_position"], label="bit x3 (penetration)")
-    ax[0].plot(s["time"] / T, s["hammer_position"], label="hammer x1", lw=0.8)
-    ax[0].set_xlabel("forcing periods")
-    ax[0].set_ylabel("position [x0]")
-    ax[0].legend()
-    ax[1].plot(s["hammer_position"] - s["bit_position"], s["hammer_velocity"] - s["bit_velocity"], lw=0.8)
+    if period is None and len(p) > 8:
+        period = detect_period(p)
+    t_s = s["time"] * sc.time
+    rel_mm = (s["hammer_position"] - s["bit_position"]) * mm
+    rel_v = (s["hammer_velocity"] - s["bit_velocity"]) * sc.velocity
+    fig, ax = plt.subplots(2, 2, figsize=(12, 8))
+    a0, a1, a2, a3 = ax.ravel()
+    a0.plot(t_s, s["hammer_position"] * mm, label="hammer x_b", lw=0.9)
+    a0.plot(t_s, s["bit_position"] * mm, label="bit x_s (penetration)", lw=1.4)
+    a0.set_xlabel("time [s]")
+    a0.set_ylabel("displacement [mm]")
+    a0.set_title(f"last {last} forcing periods ({last * groups.period_s:.3g} s)")
+    a0.legend(loc="upper left")
+    a0.grid(alpha=0.3)
+    a1.plot(t_s, rel_mm, lw=0.9)
+    if groups.has_gap:
+        gap_mm = groups.length_m(groups.r) * 1e3
+        a1.axhline(gap_mm, color="r", ls="--", lw=0.8)
+        a1.annotate("gap R: contact above", xy=(1.0, gap_mm), xycoords=("axes fraction", "data"),
+                    xytext=(-4, 3), textcoords="offset points", ha="right", va="bottom", color="r", fontsize=8)
+    a1.set_xlabel("time [s]")
+    a1.set_ylabel("relative displacement x_b − x_s [mm]")
+    a1.set_title("relative motion")
+    a1.grid(alpha=0.3)
+    in_win = p["time"] >= t0 - 1e-9 * T
+    pw = p[in_win]
+    a2.plot(rel_mm, rel_v, lw=0.8)
+    a2.plot((pw["hammer_position"] - pw["bit_position"]) * mm,
+            (pw["hammer_velocity"] - pw["bit_velocity"]) * sc.velocity, "r.", ms=8, label="Poincaré points")
+    a2.set_xlabel("relative displacement x_b − x_s [mm]")
+    a2.set_ylabel("relative velocity v_b − v_s [m/s]")
+    a2.set_title("phase portrait of the relative motion")
+    a2.legend(loc="best")
+    a2.grid(alpha=0.3)
     half = p[len(p) // 2:]
-    ax[1].plot(half["hammer_position"] - half["bit_position"], half["hammer_velocity"] - half["bit_velocity"],
-               "r.", ms=6, label="Poincaré")
-    ax[1].set_xlabel("x1 - x3")
-    ax[1].set_ylabel("x2 - x4")
-    ax[1].set_title("phase portrait (relative motion)")
-    ax[1].legend()
-    ax[2].plot(half["hammer_position"] - half["bit_position"], half["bit_velocity"], "k.", ms=4)
-    ax[2].set_xlabel("x1 - x3")
-    ax[2].set_ylabel("x4")
-    ax[2].set_title("Poincaré map")
-    fig.suptitle(f"a={groups.a:g}, b={groups.b:g}, eta={groups.eta:g}, r={groups.r:g}, mu={groups.mu:g}")
-    fig.tight_layout()
+    a3.plot((half["hammer_position"] - half["bit_position"]) * mm, half["hammer_velocity"] * sc.velocity,
+            "k.", ms=4)
+    a3.set_xlabel("relative displacement x_b − x_s [mm]")
+    a3.set_ylabel("hammer velocity v_b [m/s]")
+    a3.set_title(f"Poincaré section ({len(half)} periods of the second half)")
+    a3.grid(alpha=0.3)
+    name = preset or "scene"
+    pn = f"period {period}" if period else "no period up to 32"
+    fig.suptitle(f"{name}: {pn}; a={groups.a:g}, b={groups.b:g}, eta={groups.eta:g}, r={groups.r:g}, "
+                 f"mu={groups.mu:g}; forcing {1.0 / groups.period_s:.4g} Hz, x0 = {sc.length * 1e3:.4g} mm")
+    # fixed margins: tight_layout would draw the figure once more (a second of the command's time)
+    fig.subplots_adjust(left=0.065, right=0.985, bottom=0.07, top=0.9, wspace=0.2, hspace=0.3)
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
 
 
-def plot_bifurcation(res, path):
-    """Bifurcation diagram (x1 - x3 at the Poincaré section) and drift per period."""
+def _scales(scales, res=None):
+    """The scales of a figure: given, else the result's scene's, else the paper's rig."""
+    from hammerbit.model.params import DEFAULT_SCALES
+    if scales is not None:
+        return scales
+    g = getattr(res, "groups", None)
+    return getattr(g, "scales", None) or getattr(res, "scales", None) or DEFAULT_SCALES
+
+
+def _si_top_axis(ax, param: str, scales):
+    """A top axis in newtons when the x axis is the amplitude or preload group."""
+    F0 = scales.friction_force
+    if param in ("a", "b"):
+        top = ax.secondary_xaxis("top", functions=(lambda v: v * F0, lambda v: v / F0))
+        top.set_xlabel(("amplitude A" if param == "a" else "preload B") + " [N]")
+
+
+def plot_bifurcation(res, path, *, scales=None):
+    """Bifurcation diagram (relative displacement at the Poincaré section [mm]) and drift per period [mm].
+
+    ``scales`` (default: the scene's, else the paper's rig) turn lengths into mm.
+    """
     plt = _plt()
+    sc = _scales(scales, res)
+    mm = sc.length * 1e3
     fig, ax = plt.subplots(2, 1, figsize=(8, 7), sharex=True)
     for i, v in enumerate(res.values):
         P = res.points[i]
-        ax[0].plot(np.full(P.shape[0], v), P[:, 1] - P[:, 3], "k.", ms=1.5)
-    ax[0].set_ylabel("x1 - x3 at Poincaré section")
-    ax[0].set_title(f"bifurcation diagram over {res.param}")
-    ax[1].plot(res.values, res.drift, "b.-", ms=3)
-    ax[1].set_ylabel("penetration per period [x0]")
+        ax[0].plot(np.full(P.shape[0], v), (P[:, 1] - P[:, 3]) * mm, "k.", ms=1.5)
+    ax[0].set_ylabel("x_b − x_s at the Poincaré section [mm]")
+    ax[0].set_title(f"bifurcation diagram over {res.param} (x0 = {mm:.4g} mm)")
+    _si_top_axis(ax[0], res.param, sc)
+    ax[1].plot(res.values, np.asarray(res.drift) * mm, "b.-", ms=3)
+    ax[1].set_ylabel("penetration per period [mm]")
     ax[1].set_xlabel(res.param)
+    ax[1].grid(alpha=0.3)
     for i, v in enumerate(res.values):
         n = res.periods[i]
         if n and (i == 0 or res.periods[i - 1] != n):
-            ax[0].annotate(f"P{n}", (v, np.nanmax(res.points[i, :, 1] - res.points[i, :, 3])),
+            ax[0].annotate(f"P{n}", (v, np.nanmax(res.points[i, :, 1] - res.points[i, :, 3]) * mm),
                            fontsize=7, color="r")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
@@ -74,14 +158,20 @@ def plot_bifurcation(res, path):
     return path
 
 
-def plot_penetration(values, curves: dict, path, *, periods: int = 100):
-    """Penetration after ``periods`` forcing periods against a (Fig. 14)."""
+def plot_penetration(values, curves: dict, path, *, periods: int = 100, scales=None, param: str = "a"):
+    """Penetration [mm] after ``periods`` forcing periods against a group (Fig. 14).
+
+    ``curves`` maps a label to penetrations in x0; ``scales`` (default: the
+    paper's rig) turn them into mm.
+    """
     plt = _plt()
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+    sc = _scales(scales)
+    fig, ax = plt.subplots(figsize=(7, 4.8))
     for label, y in curves.items():
-        ax.plot(values, y, ".-", label=label)
-    ax.set_xlabel("a")
-    ax.set_ylabel(f"penetration after {periods} periods [x0]")
+        ax.plot(values, np.asarray(y) * sc.length * 1e3, ".-", label=label)
+    ax.set_xlabel(param)
+    ax.set_ylabel(f"penetration after {periods} periods [mm]")
+    _si_top_axis(ax, param, sc)
     ax.legend()
     ax.grid(alpha=0.3)
     fig.tight_layout()
@@ -90,14 +180,15 @@ def plot_penetration(values, curves: dict, path, *, periods: int = 100):
     return path
 
 
-def plot_attractor(poincare, path, *, title=""):
-    """Poincaré section of a (possibly strange) attractor (Fig. 15)."""
+def plot_attractor(poincare, path, *, title="", scales=None):
+    """Poincaré section of a (possibly strange) attractor (Fig. 15), relative motion in mm and m/s."""
     plt = _plt()
+    sc = _scales(scales)
     fig, ax = plt.subplots(figsize=(6, 5))
-    ax.plot(poincare["hammer_position"] - poincare["bit_position"],
-            poincare["hammer_velocity"] - poincare["bit_velocity"], "k.", ms=1)
-    ax.set_xlabel("x1 - x3")
-    ax.set_ylabel("x2 - x4")
+    ax.plot((poincare["hammer_position"] - poincare["bit_position"]) * sc.length * 1e3,
+            (poincare["hammer_velocity"] - poincare["bit_velocity"]) * sc.velocity, "k.", ms=1)
+    ax.set_xlabel("relative displacement x_b − x_s [mm]")
+    ax.set_ylabel("relative velocity v_b − v_s [m/s]")
     ax.set_title(title, fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=120)

@@ -19,9 +19,10 @@ import numpy as np
 from hammerbit.model import kernels as K
 from hammerbit.model.params import Groups, ParameterError
 from hammerbit.model.stepping import EVENT_NAMES, SolverOptions, Stepper
+from hammerbit.model.validation import RANGES, check
 
 __all__ = ["Record", "SimResult", "simulate", "BounceWarning", "POINCARE_DTYPE",
-           "SAMPLE_DTYPE", "EVENT_DTYPE"]
+           "SAMPLE_DTYPE", "EVENT_DTYPE", "SI_SAMPLE_COLUMNS", "samples_si", "write_samples_csv"]
 
 
 class BounceWarning(UserWarning):
@@ -121,6 +122,43 @@ class SimResult:
         """Bit position at the end [m], with the scene's own length scale x0 = F0/K."""
         return self.groups.length_m(self.penetration)
 
+    @property
+    def time_s(self) -> float:
+        """Horizon [s]: ``periods`` forcing periods of the scene."""
+        return self.periods * self.groups.period_s
+
+    def rop(self, *, window: float = 0.5) -> Optional[dict]:
+        """Rate of penetration over the last ``window`` of the horizon, from the Poincaré samples.
+
+        The start-up transient is left out: the rate is the bit's advance between
+        the Poincaré sample at ``(1 - window) * periods`` and the last one, divided
+        by the number of forcing periods between them.
+
+        Returns
+        -------
+        dict or None
+            ``{"x0_per_period", "mm_per_period", "m_per_h"}`` (:meth:`Groups.rop`,
+            with the scene's own scales), or None without Poincaré samples
+            (``Record(poincare=True)``) or with fewer than two in the window.
+        """
+        if not (0.0 < window <= 1.0):
+            raise ParameterError("window", window, "(0, 1]")
+        p = self.poincare
+        if p is None or len(p) < 2:
+            return None
+        k0 = min(int(math.floor(len(p) * (1.0 - window))), len(p) - 2)
+        dt = (p["time"][-1] - p["time"][k0]) / self.groups.period
+        if dt <= 0:
+            return None
+        return self.groups.rop(float((p["bit_position"][-1] - p["bit_position"][k0]) / dt))
+
+    def peak_contact_force_n(self) -> Optional[float]:
+        """Largest contact force of the run [N] (from the event log), None without ``Record(events=True)``."""
+        if self.events is None:
+            return None
+        peaks = self.events["peak_contact_force"][self.events["kind"] == "separation"]
+        return float(peaks.max() * self.groups.scales.friction_force) if peaks.size else 0.0
+
 
 def _energy_terms(y, ne_start, g: Groups) -> dict:
     x1, x2, x3, x4 = y[:4]
@@ -169,9 +207,9 @@ def simulate(groups: Groups, periods: float, *, record: Record = Record(),
     EventStormError, StepSizeError, NonFiniteStateError
         The integration could not continue; the message says where and why.
     """
-    if not (isinstance(periods, (int, float, np.integer, np.floating)) and math.isfinite(periods)
-            and 0 < periods <= 1e9):
-        raise ParameterError("periods", periods, "(0, 1e9]")
+    if isinstance(periods, (bool, np.bool_)):
+        raise ParameterError("periods", periods, "a number in " + RANGES["simulate.periods"].text())
+    periods = check("simulate.periods", periods, label="periods")
     T = groups.period
     tau_end = periods * T
     st = Stepper(groups, solver=solver, energy=record.energy, y0=y0)
@@ -183,7 +221,8 @@ def simulate(groups: Groups, periods: float, *, record: Record = Record(),
     if record.times is not None:
         samp_t = np.ascontiguousarray(record.times[record.times <= tau_end * (1 + 1e-15)])
         samp = np.zeros((samp_t.shape[0], K.N_SAMPLE_COLS))
-    log = np.zeros((max(64, int(8 * periods)) if record.events else 0, K.N_LOG_COLS))
+    # the log starts small and doubles when full (status "log_full"), so a long run costs what it logs
+    log = np.zeros((min(max(64, int(8 * periods)), 65536) if record.events else 0, K.N_LOG_COLS))
     st.advance(st.time, poincare=poin, sample_times=samp_t, samples=samp, log=log)  # load compiled code
     t0 = _time.perf_counter()
     while True:
@@ -226,3 +265,59 @@ def simulate(groups: Groups, periods: float, *, record: Record = Record(),
     if record.energy:
         res.energy = _energy_terms(st.y, 4, groups)
     return res
+
+
+#: Columns of :func:`samples_si` / :func:`write_samples_csv`: (name, unit).
+SI_SAMPLE_COLUMNS = (
+    ("time", "s"), ("hammer_position", "mm"), ("hammer_velocity", "m/s"),
+    ("bit_position", "mm"), ("bit_velocity", "m/s"), ("relative_position", "mm"),
+    ("spring_damper_force", "N"), ("contact_force", "N"), ("slip", "1"), ("contact", "1"),
+)
+
+
+def samples_si(result: SimResult) -> np.ndarray:
+    """Dense samples of a result in SI, with the scene's own scales.
+
+    Parameters
+    ----------
+    result : SimResult
+        A result with ``samples`` (``Record(times=...)``).
+
+    Returns
+    -------
+    ndarray, shape (n, len(SI_SAMPLE_COLUMNS))
+        One row per sample, columns :data:`SI_SAMPLE_COLUMNS`: time [s],
+        positions [mm] (the bit position is the penetration), velocities [m/s],
+        the relative position x_b - x_s [mm], the spring + damper force F_k and
+        the contact force F_c on the bit [N], and the stick/slip (1 = slip) and
+        contact (1 = gap closed) states.
+    """
+    s = result.samples
+    if s is None:
+        raise ParameterError("samples", None, "a result recorded with Record(times=...)")
+    g = result.groups
+    sc = g.scales
+    p = g.to_kernel()
+    y = np.empty(4)
+    fk = np.empty(s.shape[0])
+    for i in range(s.shape[0]):
+        y[0], y[1], y[2], y[3] = (s["hammer_position"][i], s["hammer_velocity"][i],
+                                  s["bit_position"][i], s["bit_velocity"][i])
+        fk[i] = K.spring_damper_force(y, p)
+    mm = sc.length * 1e3
+    return np.column_stack([
+        s["time"] * sc.time, s["hammer_position"] * mm, s["hammer_velocity"] * sc.velocity,
+        s["bit_position"] * mm, s["bit_velocity"] * sc.velocity,
+        (s["hammer_position"] - s["bit_position"]) * mm,
+        fk * sc.friction_force, s["contact_force"] * sc.friction_force,
+        (s["slip"] == K.SLIP).astype(float), (s["contact"] != K.FREE).astype(float),
+    ])
+
+
+def write_samples_csv(result: SimResult, path) -> int:
+    """Write :func:`samples_si` as CSV with a header of ``name [unit]``; returns the number of rows."""
+    data = samples_si(result)
+    header = ",".join(f"{name} [{unit}]" for name, unit in SI_SAMPLE_COLUMNS)
+    fmt = ["%.9g"] * (len(SI_SAMPLE_COLUMNS) - 2) + ["%d", "%d"]
+    np.savetxt(path, data, delimiter=",", header=header, comments="", fmt=fmt)
+    return data.shape[0]

@@ -1,10 +1,16 @@
-"""Regenerate the paper's figures (Figs. 9/10, 12/13, 14) into docs/figures/.
+"""The paper's figures (Figs. 9/10, 12/13, 14, 15) and two scene figures.
 
-    python examples/paper_figures.py [--num 120] [--periods 300]
+    python examples/paper_figures.py [--num 120] [--periods 300] [--out DIR]
+    python examples/paper_figures.py --update      # into docs/figures/ (tracked)
+
+Without ``--update`` or ``--out`` the figures go to ``hammerbit-figures`` in
+the system's temp dir; nothing tracked changes unless asked.
 """
 import argparse
 import json
 import pathlib
+import sys
+import tempfile
 import time
 
 import numpy as np
@@ -13,41 +19,49 @@ from hammerbit.studies.bifurcation import bifurcation, penetration_sweep
 from hammerbit.model.params import preset
 from hammerbit.plots import plot_bifurcation, plot_penetration, plot_scene
 
-OUT = pathlib.Path(__file__).resolve().parent.parent / "docs" / "figures"
+TRACKED = pathlib.Path(__file__).resolve().parent.parent / "docs" / "figures"
+SCRATCH = pathlib.Path(tempfile.gettempdir()) / "hammerbit-figures"
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--num", type=int, default=120)
-    ap.add_argument("--periods", type=int, default=300)
+    ap = argparse.ArgumentParser(description="The paper's figures (bifurcation diagrams, penetration, "
+                                             "strange attractor, scenes).")
+    ap.add_argument("--num", type=int, default=120, help="values of a per bifurcation diagram")
+    ap.add_argument("--periods", type=int, default=300, help="forcing periods per value")
+    where = ap.add_mutually_exclusive_group()
+    where.add_argument("--out", type=pathlib.Path, default=None,
+                       help=f"output directory (default {SCRATCH})")
+    where.add_argument("--update", action="store_true", help=f"write into {TRACKED} (tracked files)")
     args = ap.parse_args(argv)
+    OUT = TRACKED if args.update else (args.out or SCRATCH)
     OUT.mkdir(parents=True, exist_ok=True)
     summary = {}
     for name, lo, hi in (("paper-fig9", 0.0, 0.25), ("paper-fig12", 0.0, 0.25)):
         t0 = time.perf_counter()
         res = bifurcation(preset(name), "a", np.linspace(lo, hi, args.num), periods=args.periods, keep=48)
-        plot_bifurcation(res, OUT / f"bifurcation_{name}.png")
+        plot_bifurcation(res, OUT / f"bifurcation_{name}.png", scales=preset(name).scales)
         summary[name] = {"periods_per_second": res.periods_per_second, "wall_s": time.perf_counter() - t0,
                          "period_n": dict(zip([round(v, 4) for v in res.values.tolist()], res.periods))}
     a = np.linspace(0.0, 0.4, 41)
     p9 = penetration_sweep(preset("paper-fig9"), a, periods=100)
     p12 = penetration_sweep(preset("paper-fig12"), a, periods=100)
     plot_penetration(a, {"no impact (paper-fig9)": p9, "impact r=0.84 (paper-fig12)": p12},
-                     OUT / "penetration_fig14.png", periods=100)
-    plot_scene(preset("paper-fig9").replace(a=0.083), 300, OUT / "scene_fig9_a0.083.png")
-    plot_scene(preset("paper-fig12").replace(a=0.06), 300, OUT / "scene_fig12_a0.06.png")
+                     OUT / "penetration_fig14.png", periods=100, scales=preset("paper-fig9").scales)
+    plot_scene(preset("paper-fig9").replace(a=0.083), 300, OUT / "scene_fig9_a0.083.png", preset="paper-fig9")
+    plot_scene(preset("paper-fig12").replace(a=0.06), 300, OUT / "scene_fig12_a0.06.png", preset="paper-fig12")
     from hammerbit.analysis import largest_lyapunov
     from hammerbit.plots import plot_attractor
     from hammerbit.simulate import Record, simulate
     g = preset("chaos")
     lam = largest_lyapunov(g, windows=100)
     r = simulate(g, 5000, record=Record(poincare=True))
-    plot_attractor(r.poincare[200:], OUT / "chaos_fig15.png",
+    plot_attractor(r.poincare[200:], OUT / "chaos_fig15.png", scales=g.scales,
                    title=f"strange attractor: eta=0.8, b=0.3, r=0.84, mu=0.6, a=0.1967\n"
                          f"lambda_max = {lam['lambda_per_period']:.3f}/period")
     summary["chaos"] = {"lambda_per_period": lam["lambda_per_period"]}
     (OUT / "paper_figures.json").write_text(json.dumps(summary, indent=1))
     print(json.dumps({k: v.get("periods_per_second", v.get("lambda_per_period")) for k, v in summary.items()}))
+    print(f"figures written to {OUT}", file=sys.stderr)
 
 
 if __name__ == "__main__":

@@ -149,6 +149,9 @@ RANGES: dict[str, Range] = {
     "solver.graze_tol": Range(0.0, 1.0),
     "solver.max_steps": Range(0, 1e15),
     "solver.max_steps_per_period": Range(0, 1e15),
+    # -- a scene (simulate) --------------------------------------------------
+    "simulate.periods": Range(0.0, 1e9, lo_open=True),
+    "simulate.sample_dt": Range(0.0, 1e9, lo_open=True, unit="s"),
     # -- co-simulation master (hammerbit.cosim.CosimConfig) ----------------------
     "cosim.step": Range(0.0, 10.0, lo_open=True, unit="s"),
     "cosim.start": Range(-1e9, 1e9, unit="s"),

@@ -7,3 +7,31 @@ def built_fmu(tmp_path_factory):
     """``HammerBitRock.fmu`` built once per session (``hammerbit fmu build``) into a temporary directory."""
     from hammerbit.fmu_build import build_fmu
     return build_fmu(tmp_path_factory.mktemp("fmu") / "HammerBitRock.fmu")
+
+
+# ---------------------------------------------------------------------------
+# The slow set.  The README's test command, ``python -m pytest -q``, leaves it
+# out (``addopts = -m 'not slow'`` in pyproject.toml); ``-m slow`` runs only
+# it and ``-m "slow or not slow"`` runs everything.  Besides the tests decorated
+# with ``@pytest.mark.slow`` in their files, the tests below are slow: each
+# costs tens of seconds and its behaviour keeps a faster test in the default
+# set (named beside it).
+SLOW_TESTS = {
+    "tests/test_cosim.py::test_linear_sweep_matches_frf_and_modes":
+        "tests/test_hammer_boundary.py::test_coupled_modes_match_the_continuous_oracle",
+    "tests/test_cosim.py::test_cli_sweep": "tests/test_cli.py::test_documented_command_parses",
+    "tests/test_cosim.py::test_with_the_fmu":
+        "tests/test_cosim_adaptive.py::test_adaptive_through_the_fmu_rolls_back_and_matches_in_process",
+    "tests/test_cosim.py::test_schemes_and_extrapolation_orders":
+        "tests/test_cosim.py::test_matches_monolithic_wob_amplitude",
+    "tests/test_cosim.py::test_instability_detected_stiff_interface":
+        "tests/test_cosim.py::test_instability_detected_by_energy_residual",
+}
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config, items):
+    """Mark :data:`SLOW_TESTS` slow before ``-m`` selects (hence ``tryfirst``)."""
+    for item in items:
+        if item.nodeid in SLOW_TESTS or item.nodeid.split("[")[0] in SLOW_TESTS:
+            item.add_marker(pytest.mark.slow)

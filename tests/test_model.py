@@ -95,7 +95,7 @@ def test_si_override_reported_in_si_with_the_scene_scale():
                           "--set", "a=0.11", "--set", "K=4340", "--periods", "100", "--json"],
                          capture_output=True, text=True, check=True)
     d = json.loads(out.stdout)
-    assert d["penetration_m"] == pytest.approx(d["penetration"] * 54.0 / 4340.0, rel=1e-12)
+    assert d["penetration_m"] == pytest.approx(d["penetration_x0"] * 54.0 / 4340.0, rel=1e-12)
     assert d["penetration_m"] == pytest.approx(0.00516, abs=5e-6)
 
 
@@ -455,7 +455,7 @@ def test_cli_simulate_reports_period_3():
     d = json.loads(out.stdout)
     assert d["period"] == 3
     # x0 = F0 / K = 54 N / 2170 N/m for the paper's rig (hand value, not the code's scales)
-    assert d["penetration"] > 0 and d["penetration_m"] == pytest.approx(d["penetration"] * 54.0 / 2170.0)
+    assert d["penetration_x0"] > 0 and d["penetration_m"] == pytest.approx(d["penetration_x0"] * 54.0 / 2170.0)
     assert d["events"]["slip_start"] > 0
     assert 0 < d["wall_time_s"] < 5
 

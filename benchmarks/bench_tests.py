@@ -1,0 +1,67 @@
+"""Time of the README's test command, ``python -m pytest -q``, with an empty and a warm numba cache.
+
+The first run gets a fresh, empty ``HAMMERBIT_CACHE_DIR`` (numba compiles every
+kernel the tests use); the second run reuses that cache.  Goals: <= 3 min
+empty, <= 60 s warm.  ``--quick`` times only the warm run of one test file.
+
+The slow and stress tests (``-m slow``) are not part of the command and not
+timed here.
+"""
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+
+from benchmarks import REPO_ROOT, harness_command, save_result, summary_row
+
+NAME = "tests"
+COMMAND = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider"]
+GOAL_COLD_S = 180.0
+GOAL_WARM_S = 60.0
+
+
+def _run(args, env) -> dict:
+    t0 = time.perf_counter()
+    c0 = os.times()
+    p = subprocess.run(COMMAND + list(args), cwd=REPO_ROOT, env=env, capture_output=True, text=True)
+    c1 = os.times()
+    wall = time.perf_counter() - t0
+    last = (p.stdout.strip().splitlines() or [""])[-1]
+    counts = {k: int(v) for v, k in re.findall(r"(\d+) (passed|failed|skipped|deselected|error)", last)}
+    return {"wall_s": wall, "cpu_s": (c1.children_user - c0.children_user) + (c1.children_system - c0.children_system),
+            "returncode": p.returncode, "summary": last, "counts": counts}
+
+
+def run(quick: bool = False) -> dict:
+    cmd = harness_command(NAME, quick)
+    args = ["tests/test_docs.py"] if quick else []
+    cache = tempfile.mkdtemp(prefix="hammerbit-tests-cache-")
+    env = dict(os.environ, HAMMERBIT_CACHE_DIR=cache)
+    try:
+        cold = _run(args, env)
+        warm = _run(args, env)
+    finally:
+        shutil.rmtree(cache, ignore_errors=True)
+    what = "python -m pytest -q" + (" tests/test_docs.py" if quick else "")
+    rows = [
+        summary_row(f"`{what}` with an empty numba cache (compiles the kernels), wall",
+                    f"{cold['wall_s']:.0f} s", goal=f"<= {GOAL_COLD_S:.0f} s",
+                    met=cold["wall_s"] <= GOAL_COLD_S, command=cmd),
+        summary_row(f"`{what}` with a warm cache, wall ({warm['summary']})",
+                    f"{warm['wall_s']:.0f} s", goal=f"<= {GOAL_WARM_S:.0f} s",
+                    met=warm["wall_s"] <= GOAL_WARM_S, command=cmd),
+    ]
+    result = {"benchmark": NAME, "quick": quick, "command": cmd, "pytest": " ".join(["python"] + COMMAND[1:] + args),
+              "cold": cold, "warm": warm, "goals_s": {"cold": GOAL_COLD_S, "warm": GOAL_WARM_S}, "summary": rows}
+    save_result(NAME, result)
+    return result
+
+
+if __name__ == "__main__":
+    from benchmarks import standalone
+    standalone(run, __doc__)
