@@ -141,14 +141,31 @@ def cache_root() -> str:
     return DECISION["dir"]
 
 
+#: Runtime modules whose constants the compiled kernels fold in (parameter indices,
+#: ranges, Runge-Kutta tableaux): a change to any of them must miss the cache too.
+_COMPILED_IN = ("params.py", "validation.py", "tableaux.py")
+
+
+def _source_digest(py_file: str) -> str:
+    """SHA-256 of ``py_file`` and of the modules its compiled code folds in."""
+    h = hashlib.sha256()
+    for path in (py_file,) + tuple(os.path.join(_HERE, n) for n in _COMPILED_IN):
+        try:
+            with open(path, "rb") as fh:
+                h.update(fh.read())
+        except FileNotFoundError:
+            h.update(b"-")
+    return h.hexdigest()[:20]
+
+
 class ContentHashCacheLocator(_caching._SourceFileBackedLocatorMixin, _caching._CacheLocator):
-    """Cache locator keyed on the source file's SHA-256 and module name, not on its path."""
+    """Cache locator keyed on the SHA-256 of the source (and what it folds in) and the module name,
+    not on its path."""
 
     def __init__(self, py_func, py_file):
         self._py_file = py_file
         self._lineno = py_func.__code__.co_firstlineno
-        with open(py_file, "rb") as fh:
-            digest = hashlib.sha256(fh.read()).hexdigest()[:20]
+        digest = _source_digest(py_file)
         # numba's cache entries remember the module they were compiled in (and re-import it on
         # load): the library (hammerbit.model.kernels) and each FMU build
         # (hammerbit_fmu_runtime_<build hash>.kernels) have their own entries.
