@@ -523,20 +523,12 @@ def _hammer_on_bottom_exact(string, ki, m1, K, top, f_max, points: int = 4000) -
     """Exact frequencies of the continuous string with the hammer at the bottom (see above)."""
     from scipy.optimize import brentq
     from .drillstring import parse_boundary
+    from .drillstring.modes import bottom_state
     topb = parse_boundary(string.top if top is None else top)
 
     def g(w):
         w = np.atleast_1d(np.asarray(w, dtype=float))
-        if topb.is_fixed:
-            u, nn = np.zeros_like(w), np.ones_like(w)
-        else:
-            u, nn = np.ones_like(w), topb.ground_stiffness - topb.mass * w ** 2
-        for sec in string.sections:
-            a = w * sec.length / sec.wave_speed
-            zw = sec.impedance * w
-            ca, sa = np.cos(a), np.sin(a)
-            sz = np.where(zw > 0, sa / np.where(zw > 0, zw, 1.0), sec.length / sec.axial_stiffness)
-            u, nn = ca * u + sz * nn, -zw * sa * u + ca * nn
+        u, nn = bottom_state(string, topb, w)
         # bottom: N = -k_b(w) u with k_b the interface in series with the hammer on K
         return ki * (K - m1 * w ** 2) * u + (ki + K - m1 * w ** 2) * nn
 

@@ -70,6 +70,21 @@ def _bisect(kd, ke, md, me, lo, hi, first, rtol, out):
 
 
 @njit(cache=True)
+def _quadratic_form(d, e, x):
+    """x^T A x for the symmetric tridiagonal A with diagonal ``d`` and off-diagonal ``e``."""
+    n = d.size
+    q = 0.0
+    for i in range(n):
+        v = d[i] * x[i]
+        if i > 0:
+            v += e[i - 1] * x[i - 1]
+        if i < n - 1:
+            v += e[i] * x[i + 1]
+        q += x[i] * v
+    return q
+
+
+@njit(cache=True)
 def _inverse_iteration(kd, ke, md, me, lam, out):
     """M-normalised eigenvectors ``out[:, j]`` of the eigenvalues ``lam[j]``;
     ``lam[j]`` is replaced by the Rayleigh quotient of its vector."""
@@ -121,23 +136,8 @@ def _inverse_iteration(kd, ke, md, me, lam, out):
             for i in range(n):
                 x[i] = y[i] / big
         # M-normalise
-        nrm = 0.0
-        for i in range(n):
-            v = md[i] * x[i]
-            if i > 0:
-                v += me[i - 1] * x[i - 1]
-            if i < n - 1:
-                v += me[i] * x[i + 1]
-            nrm += x[i] * v
-        kx = 0.0
-        for i in range(n):
-            v = kd[i] * x[i]
-            if i > 0:
-                v += ke[i - 1] * x[i - 1]
-            if i < n - 1:
-                v += ke[i] * x[i + 1]
-            kx += x[i] * v
-        lam[j] = kx / nrm
+        nrm = _quadratic_form(md, me, x)
+        lam[j] = _quadratic_form(kd, ke, x) / nrm
         nrm = math.sqrt(nrm)
         for i in range(n):
             out[i, j] = x[i] / nrm

@@ -247,15 +247,13 @@ def modes(string: DrillString, top: "Boundary | str | None" = None,
 # --------------------------------------------------------------------------
 # exact (continuous) solution by transfer matrices
 # --------------------------------------------------------------------------
-def _characteristic(string: DrillString, top: Boundary, bottom: Boundary,
-                    omega: np.ndarray) -> np.ndarray:
-    """Frequency function g(omega) whose roots are the exact natural frequencies.
+def bottom_state(string: DrillString, top: Boundary, omega) -> tuple:
+    """State ``(u, N)`` at the bottom of the continuous string, per ``omega`` [rad/s].
 
-    State ``s = [u, N]`` (displacement, tension ``N = EA u'``) is carried
-    down each uniform section by ``[[cos kl, sin kl/(Z w)], [-Z w sin kl, cos kl]]``
-    (``k = w/c``, ``Z w = EA k``).  Top: fixed ``s0=[0, 1]``, otherwise
-    ``s0 = [1, k_t - m_t w^2]``.  Bottom: fixed ``r=[1, 0]``, otherwise
-    ``r = [k_b - m_b w^2, 1]``; ``g = r . T(w) s0``.  Dashpots are ignored.
+    Starts at the top (fixed: ``[0, 1]``, otherwise ``[1, k_t - m_t w^2]``) and
+    carries ``s = [u, N]`` (displacement, tension ``N = EA u'``) down each uniform
+    section by ``[[cos kl, sin kl/(Z w)], [-Z w sin kl, cos kl]]`` (``k = w/c``,
+    ``Z w = EA k``).  Dashpots are ignored.
     """
     w = np.asarray(omega, dtype=float)
     if top.is_fixed:
@@ -269,6 +267,21 @@ def _characteristic(string: DrillString, top: Boundary, bottom: Boundary,
         with np.errstate(divide="ignore", invalid="ignore"):
             sz = np.where(zw > 0, sa / np.where(zw > 0, zw, 1.0), s.length / s.axial_stiffness)
         u, n = ca * u + sz * n, -zw * sa * u + ca * n
+    return u, n
+
+
+def _characteristic(string: DrillString, top: Boundary, bottom: Boundary,
+                    omega: np.ndarray) -> np.ndarray:
+    """Frequency function g(omega) whose roots are the exact natural frequencies.
+
+    State ``s = [u, N]`` (displacement, tension ``N = EA u'``) is carried
+    down each uniform section by ``[[cos kl, sin kl/(Z w)], [-Z w sin kl, cos kl]]``
+    (``k = w/c``, ``Z w = EA k``).  Top: fixed ``s0=[0, 1]``, otherwise
+    ``s0 = [1, k_t - m_t w^2]``.  Bottom: fixed ``r=[1, 0]``, otherwise
+    ``r = [k_b - m_b w^2, 1]``; ``g = r . T(w) s0``.  Dashpots are ignored.
+    """
+    u, n = bottom_state(string, top, omega)
+    w = np.asarray(omega, dtype=float)
     if bottom.is_fixed:
         return u
     return (bottom.ground_stiffness - bottom.mass * w ** 2) * u + n
