@@ -135,6 +135,8 @@ DECISION = _decide()
 
 from numba.core import caching as _caching  # noqa: E402  (after the CPU target is set)
 
+from ._numba_startup import import_arraymath_lazily  # noqa: E402
+
 
 def cache_root() -> str:
     """Directory that holds (or receives) this package's compiled kernels in this process."""
@@ -194,6 +196,9 @@ def _register():
 
 
 _register()
+
+# numba's first context refresh would import scipy.linalg for a flag the kernels never read
+import_arraymath_lazily()
 
 _REPORTED = []
 
