@@ -18,6 +18,8 @@ import time
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from hammerbit.analysis import detect_period
 from hammerbit.model.params import ParameterError, apply_settings, preset, regime
@@ -119,6 +121,27 @@ def test_map_cells_equal_simulate_bit_for_bit():
             assert list(ds[f].values[i, j] for f in ("bounce", "overload", "runaway")) == \
                 [int(v) for v in regime(s).to_dict().values()]
     assert np.nansum(ds["impacts_per_period"].values) > 0        # the case has impacts
+
+
+@settings(max_examples=300, deadline=None)
+@given(n_rows=st.integers(1, 140), period=st.integers(1, 40), scale=st.sampled_from([0.0, 1e-7, 1e-5, 1e-3]),
+       seed=st.integers(0, 2**32 - 1), nan=st.booleans())
+def test_cell_figures_period_equals_detect_period(n_rows, period, scale, seed, nan):
+    """The map's compiled period detection against analysis.detect_period: period-n rows with
+    perturbations around the tolerance, short arrays, NaN."""
+    from hammerbit.studies.map import cell_figures
+    rng = np.random.default_rng(seed)
+    base = rng.normal(size=(period, 5)) * rng.choice([1e-3, 1.0, 1e3])
+    rows = base[np.arange(n_rows) % period] + scale * rng.normal(size=(n_rows, 5))
+    rows[:, 0] = np.arange(n_rows)
+    if nan:
+        rows[rng.integers(n_rows), rng.integers(1, 5)] = np.nan
+    out = np.zeros(4)
+    periods = n_rows - 1 if n_rows > 1 else 1
+    buf = np.vstack([rows, np.zeros((periods + 1 - n_rows + 1, 5))])
+    cell_figures(buf, n_rows, 0.0, np.zeros((0, 8)), 0, periods, 0.0, 32, 1e-5, out)
+    n = detect_period(rows)
+    assert out[3] == (0 if n is None else n)
 
 
 def test_map_si_axis_uses_cell_scales():
