@@ -147,12 +147,10 @@ def warm_worker() -> str:
     loading (or compiling) the kernels or importing the chunk functions.
     """
     import hammerbit.studies.bifurcation  # noqa: F401  (the chunk functions' modules)
-    import hammerbit.studies.map  # noqa: F401
     import hammerbit.studies.sweep  # noqa: F401
     from hammerbit.model.params import preset
-    from hammerbit.model.stepping import Stepper
-    g = preset("paper-fig9")
-    Stepper(g).advance(g.period)
+    from hammerbit.studies.map import run_cell
+    run_cell(preset("paper-fig9"), 4)       # the stepper's kernel and the map's cell_figures
     return "ok"
 
 

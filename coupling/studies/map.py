@@ -47,7 +47,7 @@ from hammerbit.model.stepping import MaxStepsError, SolverError, SolverOptions, 
 from .bifurcation import SECONDS_PER_PERIOD
 from .executor import Executor, ExecutorOptions
 
-__all__ = ["Axis", "CELL_DTYPE", "MapCell", "run_cell", "regime_map", "map_to_json", "axis_unit",
+__all__ = ["Axis", "CELL_DTYPE", "MapCell", "run_cell", "cell_figures", "regime_map", "map_to_json", "axis_unit",
            "STATUS_OK", "STATUS_SOLVER", "STATUS_INVALID"]
 
 STATUS_OK, STATUS_SOLVER, STATUS_INVALID = 0, 1, 2
