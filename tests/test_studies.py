@@ -47,7 +47,7 @@ def test_chunk_bounds_cover_items_once(n, cost, target):
 
 
 @pytest.mark.parametrize("n,cost,target,workers", [(1, 1.0, 0.1, 2), (961, 6e-3, 0.2, 2), (961, 6e-3, 0.2, 16),
-                                                    (10, 1e-4, 0.2, 4), (5000, 1e-3, 0.1, 3)])
+                                                    (10, 1e-4, 0.2, 4), (5000, 1e-3, 0.1, 3), (31, 1.0, 0.2, 2)])
 def test_chunk_plan_covers_items_once_largest_first(n, cost, target, workers):
     plan = chunk_plan(n, cost, target, workers)
     assert np.array_equal(np.sort(np.concatenate(plan)), np.arange(n))
@@ -58,6 +58,8 @@ def test_chunk_plan_covers_items_once_largest_first(n, cost, target, workers):
     assert all(s >= least for s in sizes[:-1])
     assert all(s <= max(least, math.ceil(n / (2 * workers))) for s in sizes)
     # spread out: a chunk of a grid holds items from all over it, not one contiguous run
+    if cost >= target:                  # nothing to amortise: one item per task
+        assert sizes == [1] * n
     big = plan[0]
     if len(big) >= 20:
         assert big.max() - big.min() > 0.8 * n and np.max(np.diff(big)) < n / 4

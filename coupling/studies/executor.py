@@ -113,11 +113,15 @@ def chunk_plan(n_items: int, cost_s: float, target_s: float, workers: int) -> li
     guided self-scheduling: ``ceil(remaining / (2 workers))`` items, but at
     least ``target_s / cost_s`` (and one); the chunks come largest first, so
     the last ones, which set how evenly the workers finish, are the smallest.
+    Items that each carry the target work on their own (``cost_s >=
+    target_s``: nothing to amortise) are one chunk each, in their order.
     Every item is in exactly one chunk.
     """
     if n_items <= 0:
         return []
     least = max(1, int(math.ceil(target_s / max(cost_s, 1e-12))))
+    if least == 1:
+        return [np.array([i]) for i in range(n_items)]
     order = np.random.default_rng(20040101).permutation(n_items)
     plan, start = [], 0
     while start < n_items:
