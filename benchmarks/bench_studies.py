@@ -48,7 +48,7 @@ RTOL = 1e-8
 def _config(quick: bool) -> dict:
     if quick:
         return {"n_a": 11, "n_eta": 11, "periods": 100, "repeats": 2, "sweep_n": 5, "old_n": 1}
-    return {"n_a": 31, "n_eta": 31, "periods": 300, "repeats": 3, "sweep_n": 31, "old_n": 2}
+    return {"n_a": 31, "n_eta": 31, "periods": 300, "repeats": 5, "sweep_n": 31, "old_n": 2}
 
 
 def _axes(cfg):
