@@ -21,8 +21,9 @@ balance (:func:`chunk_plan`): each chunk is a spread-out sample of the items
 (the cost of a scene varies over a grid: a cell in stick-slip costs much
 more than one that stays stuck), and the chunks shrink from a few per worker
 to the minimum size, submitted largest first, so the workers finish together.
-A progress bar (tqdm) is drawn on stderr only when stderr is a terminal.  An interrupted run (Ctrl-C) cancels its
-tasks and closes the local cluster, so no worker process outlives it.
+A progress bar (tqdm) is drawn on stderr only when stderr is a terminal.  An
+interrupted run (Ctrl-C) cancels its tasks and closes the local cluster, so no
+worker process outlives it.
 """
 from __future__ import annotations
 
