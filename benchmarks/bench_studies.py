@@ -28,6 +28,7 @@ Run ``python -m benchmarks --only studies [--quick]``.
 """
 from __future__ import annotations
 
+import os
 import sys
 import tempfile
 import time
@@ -133,6 +134,7 @@ def measure_maps(cfg, log) -> dict:
     out = {}
     log("map in process and on a local cluster of 2 workers, alternating ...")
     runs = {"in_process": [], "dask_2": []}
+    load0 = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
     with Executor(ExecutorOptions(workers=1)) as ip:
         _one_map({**cfg, "n_a": 2, "n_eta": 2, "periods": 10}, ip)          # load the kernels here
         t0 = time.perf_counter()
@@ -142,6 +144,7 @@ def measure_maps(cfg, log) -> dict:
             for _ in range(cfg["repeats"]):
                 runs["in_process"].append(_one_map(cfg, ip))
                 runs["dask_2"].append(_one_map(cfg, d2))
+    out["load_average_1min"] = [load0, os.getloadavg()[0] if load0 is not None else None]
     log("map on a local cluster of 1 worker ...")
     t0 = time.perf_counter()
     with Executor(ExecutorOptions(workers=1, dask=True)) as d1:
@@ -278,6 +281,12 @@ def run(quick: bool = False, *, verbose: bool = True) -> dict:
     return result
 
 
+def _fmt_load(pair) -> str:
+    if not pair or pair[0] is None:
+        return "n/a"
+    return f"{pair[0]:.1f} before, {pair[1]:.1f} after"
+
+
 def _summary(cfg, maps, sw, cmd) -> list:
     """The README rows of a run."""
     ip, d2 = maps["in_process"], maps["dask_2"]
@@ -299,7 +308,8 @@ def _summary(cfg, maps, sw, cmd) -> list:
                     f"repeats, cluster start-up excluded; it needs 2 idle cores: see the CPU seconds)",
                     f"{maps['parallel_efficiency_2']:.2f}",
                     peer=f"in process {fmt_time(ip['wall_s'])} ({ip['cpu_s']:.2f} CPU s), 2 workers "
-                         f"{fmt_time(d2['wall_s'])} ({d2['cpu_s']:.2f} CPU s over both)",
+                         f"{fmt_time(d2['wall_s'])} ({d2['cpu_s']:.2f} CPU s over both); 1-min load average "
+                         f"{_fmt_load(maps.get('load_average_1min'))}",
                     ratio=f"CPU in process / CPU on 2 workers {ip['cpu_s'] / d2['cpu_s']:.2f}",
                     goal=f">= {GOAL_EFF}", met=maps["parallel_efficiency_2"] >= GOAL_EFF, command=cmd),
         summary_row("Dask overhead: same map on a 1-worker local cluster vs in process (wall-time ratio; "
