@@ -18,12 +18,14 @@ import time
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from hammerbit.analysis import detect_period
 from hammerbit.model.params import ParameterError, apply_settings, preset, regime
 from hammerbit.simulate import Record, simulate
 from hammerbit.studies.bifurcation import bifurcation, penetration_sweep
-from hammerbit.studies.executor import ExecutorOptions, chunk_bounds
+from hammerbit.studies.executor import ExecutorOptions, chunk_bounds, chunk_plan
 from hammerbit.studies.map import Axis, map_to_json, regime_map
 from hammerbit.studies.optimize import Bound, OptimizeConfig, optimize
 
@@ -44,6 +46,25 @@ def test_chunk_bounds_cover_items_once(n, cost, target):
     assert all(s * cost >= target - 1e-12 for s in sizes[:-1])
 
 
+@pytest.mark.parametrize("n,cost,target,workers", [(1, 1.0, 0.1, 2), (961, 6e-3, 0.2, 2), (961, 6e-3, 0.2, 16),
+                                                    (10, 1e-4, 0.2, 4), (5000, 1e-3, 0.1, 3), (31, 1.0, 0.2, 2)])
+def test_chunk_plan_covers_items_once_largest_first(n, cost, target, workers):
+    plan = chunk_plan(n, cost, target, workers)
+    assert np.array_equal(np.sort(np.concatenate(plan)), np.arange(n))
+    sizes = [len(c) for c in plan]
+    assert sizes == sorted(sizes, reverse=True)
+    least = max(1, math.ceil(target / cost))
+    # every chunk but the last carries at least the target work, none more than n / (2 workers)
+    assert all(s >= least for s in sizes[:-1])
+    assert all(s <= max(least, math.ceil(n / (2 * workers))) for s in sizes)
+    # spread out: a chunk of a grid holds items from all over it, not one contiguous run
+    if cost >= target:                  # nothing to amortise: one item per task
+        assert sizes == [1] * n
+    big = plan[0]
+    if len(big) >= 20:
+        assert big.max() - big.min() > 0.8 * n and np.max(np.diff(big)) < n / 4
+
+
 def test_scheduler_from_the_environment(monkeypatch):
     monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", "tcp://127.0.0.1:8786")
     o = ExecutorOptions(workers=1)
@@ -55,6 +76,7 @@ def test_executor_options_validate():
     with pytest.raises(ParameterError, match="workers"):
         ExecutorOptions(workers=0)
     assert ExecutorOptions(workers=1).in_process
+    assert not ExecutorOptions(workers=1, dask=True).in_process
     assert not ExecutorOptions(workers=1, scheduler="tcp://127.0.0.1:1").in_process
 
 
@@ -101,6 +123,27 @@ def test_map_cells_equal_simulate_bit_for_bit():
             assert list(ds[f].values[i, j] for f in ("bounce", "overload", "runaway")) == \
                 [int(v) for v in regime(s).to_dict().values()]
     assert np.nansum(ds["impacts_per_period"].values) > 0        # the case has impacts
+
+
+@settings(max_examples=300, deadline=None)
+@given(n_rows=st.integers(1, 140), period=st.integers(1, 40), scale=st.sampled_from([0.0, 1e-7, 1e-5, 1e-3]),
+       seed=st.integers(0, 2**32 - 1), nan=st.booleans())
+def test_cell_figures_period_equals_detect_period(n_rows, period, scale, seed, nan):
+    """The map's compiled period detection against analysis.detect_period: period-n rows with
+    perturbations around the tolerance, short arrays, NaN."""
+    from hammerbit.studies.map import cell_figures
+    rng = np.random.default_rng(seed)
+    base = rng.normal(size=(period, 5)) * rng.choice([1e-3, 1.0, 1e3])
+    rows = base[np.arange(n_rows) % period] + scale * rng.normal(size=(n_rows, 5))
+    rows[:, 0] = np.arange(n_rows)
+    if nan:
+        rows[rng.integers(n_rows), rng.integers(1, 5)] = np.nan
+    out = np.zeros(4)
+    periods = n_rows - 1 if n_rows > 1 else 1
+    buf = np.vstack([rows, np.zeros((periods + 1 - n_rows + 1, 5))])
+    cell_figures(buf, n_rows, 0.0, np.zeros((0, 8)), 0, periods, 0.0, 32, 1e-5, out)
+    n = detect_period(rows)
+    assert out[3] == (0 if n is None else n)
 
 
 def test_map_si_axis_uses_cell_scales():
@@ -227,9 +270,10 @@ def test_map_identical_on_every_executor(dask_cluster):
     ref = regime_map(g, axes, options=IN_PROCESS, **kw)
     fine = regime_map(g, axes, options=ExecutorOptions(workers=1, chunk_seconds=1e-9), **kw)
     local = regime_map(g, axes, options=ExecutorOptions(workers=2, chunk_seconds=1e-9), **kw)
+    one = regime_map(g, axes, options=ExecutorOptions(workers=1, dask=True, chunk_seconds=1e-9), **kw)
     remote = regime_map(g, axes, options=ExecutorOptions(scheduler=dask_cluster, chunk_seconds=1e-3), **kw)
-    assert local.attrs["workers"] == 2 and remote.attrs["workers"] == 2
-    for other in (fine, local, remote):
+    assert local.attrs["workers"] == 2 and remote.attrs["workers"] == 2 and one.attrs["workers"] == 1
+    for other in (fine, local, one, remote):
         for v in ref.data_vars:
             np.testing.assert_array_equal(other[v].values, ref[v].values, err_msg=v)
 

@@ -6,7 +6,8 @@ the items into chunks of at least :attr:`ExecutorOptions.chunk_seconds` of
 estimated work, runs the chunks and returns the results in the items' order.
 
 * ``workers=1``: the chunks run here, one after the other, without Dask
-  (debugging, small studies, tests).
+  (debugging, small studies, tests; ``dask=True`` runs them on a 1-worker
+  local cluster instead).
 * otherwise a ``dask.distributed`` client: on the cluster at
   ``scheduler`` (or ``$DASK_SCHEDULER_ADDRESS``), else on a ``LocalCluster``
   of ``workers`` single-threaded worker *processes* (default: one per CPU).
@@ -15,9 +16,14 @@ estimated work, runs the chunks and returns the results in the items' order.
 
 Each item is computed independently of every other (a scene starts from
 rest), so the results are identical, bit for bit, whatever the chunking and
-the number or kind of workers.  A progress bar (tqdm) is drawn on stderr
-only when stderr is a terminal.  An interrupted run (Ctrl-C) cancels its
-tasks and closes the local cluster, so no worker process outlives it.
+the number or kind of workers.  On a cluster the chunks are planned for load
+balance (:func:`chunk_plan`): each chunk is a spread-out sample of the items
+(the cost of a scene varies over a grid: a cell in stick-slip costs much
+more than one that stays stuck), and the chunks shrink from a few per worker
+to the minimum size, submitted largest first, so the workers finish together.
+A progress bar (tqdm) is drawn on stderr only when stderr is a terminal.  An
+interrupted run (Ctrl-C) cancels its tasks and closes the local cluster, so no
+worker process outlives it.
 """
 from __future__ import annotations
 
@@ -33,7 +39,7 @@ import numpy as np
 
 from hammerbit.model.validation import ParameterError
 
-__all__ = ["ExecutorOptions", "Executor", "chunk_bounds", "warm_worker", "SCHEDULER_ENV"]
+__all__ = ["ExecutorOptions", "Executor", "chunk_bounds", "chunk_plan", "warm_worker", "SCHEDULER_ENV"]
 
 #: Environment variable naming an existing Dask scheduler (same as Dask's own).
 SCHEDULER_ENV = "DASK_SCHEDULER_ADDRESS"
@@ -54,13 +60,17 @@ class ExecutorOptions:
     progress : bool, optional
         Progress bar on stderr; default only when stderr is a terminal.
     chunk_seconds : float
-        Estimated work per task [s] (a chunk holds at least one item).
+        Least estimated work per task [s] (a chunk holds at least one item).
+    dask : bool
+        Run on Dask even with ``workers=1`` (a 1-worker local cluster), e.g.
+        to measure Dask's own overhead against the in-process run.
     """
 
     workers: Optional[int] = None
     scheduler: Optional[str] = None
     progress: Optional[bool] = None
     chunk_seconds: float = 0.2
+    dask: bool = False
 
     def __post_init__(self):
         if self.workers is not None and not (isinstance(self.workers, (int, np.integer))
@@ -77,7 +87,7 @@ class ExecutorOptions:
     @property
     def in_process(self) -> bool:
         """True when the study runs here, without Dask."""
-        return self.address is None and self.workers == 1
+        return self.address is None and self.workers == 1 and not self.dask
 
     @property
     def local_workers(self) -> int:
@@ -95,16 +105,57 @@ def chunk_bounds(n_items: int, cost_s: float, target_s: float) -> list:
     return [(i, min(i + size, n_items)) for i in range(0, n_items, size)]
 
 
+def chunk_plan(n_items: int, cost_s: float, target_s: float, workers: int) -> list:
+    """Index arrays of the chunks of a cluster run, in submission order.
+
+    The items are visited in a fixed pseudo-random order, so that every chunk
+    is a spread-out sample of them and chunks of equal size cost about the
+    same even where the cost per item varies along a grid.  Sizes follow
+    guided self-scheduling: ``ceil(remaining / (2 workers))`` items, but at
+    least ``target_s / cost_s`` (and one); the chunks come largest first, so
+    the last ones, which set how evenly the workers finish, are the smallest.
+    Items that each carry the target work on their own (``cost_s >=
+    target_s``: nothing to amortise) are one chunk each, in their order.
+    Every item is in exactly one chunk.
+    """
+    if n_items <= 0:
+        return []
+    least = max(1, int(math.ceil(target_s / max(cost_s, 1e-12))))
+    if least == 1:
+        return [np.array([i]) for i in range(n_items)]
+    order = np.random.default_rng(20040101).permutation(n_items)
+    plan, start = [], 0
+    while start < n_items:
+        size = max(least, int(math.ceil((n_items - start) / (2.0 * max(1, workers)))))
+        plan.append(np.sort(order[start:start + size]))
+        start += size
+    return plan
+
+
+#: Dask settings of a local cluster (scheduler, nannies, workers).  Its
+#: processes share the machine's cores with the scenes, so the periodic
+#: housekeeping is slowed down: no statistical profiler (a stack sample of
+#: every thread every 10 ms), the event-loop tick, system monitor and the
+#: nannies' memory check at 0.2 s, 1 s and 1 s instead of 20, 500 and 100 ms.
+LOCAL_CLUSTER_CONFIG = {
+    "distributed.worker.profile.enabled": False,
+    "distributed.admin.tick.interval": "200ms",
+    "distributed.admin.system-monitor.interval": "1s",
+    "distributed.worker.memory.monitor-interval": "1s",
+}
+
+
 def warm_worker() -> str:
-    """Load the compiled kernels in this process (from the on-disk cache).
+    """Import the studies and load the compiled kernels in this process (from the on-disk cache).
 
     Runs once on every worker when a client connects, so that no task pays for
-    loading (or compiling) the kernels.
+    loading (or compiling) the kernels or importing the chunk functions.
     """
+    import hammerbit.studies.bifurcation  # noqa: F401  (the chunk functions' modules)
+    import hammerbit.studies.sweep  # noqa: F401
     from hammerbit.model.params import preset
-    from hammerbit.model.stepping import Stepper
-    g = preset("paper-fig9")
-    Stepper(g).advance(g.period)
+    from hammerbit.studies.map import run_cell
+    run_cell(preset("paper-fig9"), 4)       # the stepper's kernel and the map's cell_figures
     return "ok"
 
 
@@ -158,9 +209,11 @@ class Executor:
                 raise ParameterError("scheduler", addr, f"a reachable Dask scheduler ({e})") from None
         else:
             # ":0": the scheduler's HTTP server on a free port (8787 may be taken by another study)
-            self.cluster = LocalCluster(n_workers=self.options.local_workers, threads_per_worker=1,
-                                        processes=True, dashboard_address=":0",
-                                        silence_logs=logging.CRITICAL)
+            import dask
+            with dask.config.set(LOCAL_CLUSTER_CONFIG):     # the nannies hand it to their workers
+                self.cluster = LocalCluster(n_workers=self.options.local_workers, threads_per_worker=1,
+                                            processes=True, dashboard_address=":0",
+                                            silence_logs=logging.CRITICAL)
             self.client = Client(self.cluster)
         self.client.run(warm_worker)
         self.workers = max(1, len(self.client.scheduler_info().get("workers", {})))
@@ -212,28 +265,32 @@ class Executor:
         """
         items = list(items)
         bounds = chunk_bounds(len(items), cost_s, self.options.chunk_seconds)
-        chunks = [items[a:b] for a, b in bounds]
         out: list = [None] * len(items)
         bar = self._progress(len(items), label)
         try:
-            if self.options.in_process or len(chunks) <= 1 and self.options.address is None \
+            if self.options.in_process or len(bounds) <= 1 and self.options.address is None \
                     and self.client is None:
-                for (a, b), ch in zip(bounds, chunks):
-                    res, cpu = _run_chunk(fn, ch, fixed)
+                for a, b in bounds:
+                    res, cpu = _run_chunk(fn, items[a:b], fixed)
                     out[a:b] = res
                     self.cpu_s += cpu
                     bar.update(b - a)
                 return out
             self.connect()
             from dask.distributed import as_completed
-            futures = [self.client.submit(_run_chunk, fn, ch, fixed, pure=False) for ch in chunks]
-            where = {f.key: bnd for f, bnd in zip(futures, bounds)}
+            plan = chunk_plan(len(items), cost_s, self.options.chunk_seconds, self.workers)
+            futures = [self.client.submit(_run_chunk, fn, [items[i] for i in idx], fixed, pure=False,
+                                          priority=len(plan) - k)          # largest first
+                       for k, idx in enumerate(plan)]
+            where = {f.key: idx for f, idx in zip(futures, plan)}
             try:
                 for fut in as_completed(futures):
-                    a, b = where[fut.key]
-                    out[a:b], cpu = fut.result()
+                    idx = where[fut.key]
+                    res, cpu = fut.result()
+                    for i, r in zip(idx, res):
+                        out[i] = r
                     self.cpu_s += cpu
-                    bar.update(b - a)
+                    bar.update(len(idx))
             except BaseException:
                 self.client.cancel(futures)
                 raise

@@ -24,6 +24,9 @@ Per cell, from rest over ``periods`` forcing periods:
 
 A cell is exactly the scene ``simulate(groups, periods)`` of the same
 parameters: the same stepper from rest, one call to the end of the horizon.
+The figures of a cell come out of one compiled pass over its Poincaré rows
+and event log (:func:`cell_figures`), so the Python work per cell is the
+scene's set-up and validation; the solver's own time dominates.
 """
 from __future__ import annotations
 
@@ -34,17 +37,17 @@ from dataclasses import dataclass
 from typing import Optional, Sequence
 
 import numpy as np
+from numba import njit
 
 from hammerbit.model import kernels as K
 from hammerbit.model.params import (Groups, ParameterError, apply_settings, regime,
                                     setting_target)
 from hammerbit.model.stepping import MaxStepsError, SolverError, SolverOptions, Stepper
 
-from ..analysis import detect_period
 from .bifurcation import SECONDS_PER_PERIOD
 from .executor import Executor, ExecutorOptions
 
-__all__ = ["Axis", "CELL_DTYPE", "MapCell", "run_cell", "regime_map", "map_to_json", "axis_unit",
+__all__ = ["Axis", "CELL_DTYPE", "MapCell", "run_cell", "cell_figures", "regime_map", "map_to_json", "axis_unit",
            "STATUS_OK", "STATUS_SOLVER", "STATUS_INVALID"]
 
 STATUS_OK, STATUS_SOLVER, STATUS_INVALID = 0, 1, 2
@@ -147,6 +150,67 @@ class _Buffers:
     def __init__(self, periods: int):
         self.poin = np.zeros((periods + 1, 5))
         self.log = np.zeros((max(64, 8 * periods), K.N_LOG_COLS))
+        self.figures = np.zeros(_N_FIGURES)
+
+
+#: Slots of :func:`cell_figures`'s ``out``.
+_FIG_ROP, _FIG_IMPACTS, _FIG_PEAK, _FIG_PERIOD = range(4)
+_N_FIGURES = 4
+#: Period detection of :func:`hammerbit.analysis.detect_period` (its defaults).
+_MAX_PERIOD, _PERIOD_TOL = 32, 1e-5
+
+
+@njit(cache=True, nogil=True)
+def cell_figures(poin, n_poin, y_bit, log, n_log, periods, t_half, max_period, tol, out):
+    """A cell's figures from its Poincaré rows and event log, into ``out``.
+
+    ``out[0]`` the rate of penetration [x0 per period] over the second half
+    (``periods // 2`` to ``periods``; ``y_bit`` is the bit position at the end
+    when the last sample is missing), ``out[1]`` impacts and ``out[2]`` the
+    peak contact force [F0] of the separations at or after ``t_half``,
+    ``out[3]`` the period-n (0: none up to ``max_period``) with exactly the
+    rule and floating-point operations of :func:`hammerbit.analysis.detect_period`.
+    """
+    half = periods // 2
+    x3_end = poin[periods, 3] if n_poin > periods else y_bit
+    out[_FIG_ROP] = (x3_end - poin[half, 3]) / (periods - half)
+    impacts = 0
+    peak = 0.0
+    seen = False
+    for i in range(n_log):
+        if log[i, K.L_T] >= t_half:
+            kind = log[i, K.L_KIND]
+            if kind == K.EV_IMPACT:
+                impacts += 1
+            elif kind == K.EV_SEPARATION:
+                v = log[i, K.L_PEAK]
+                if not seen or v > peak or v != v:      # as numpy's max: a NaN wins
+                    if seen and peak != peak:
+                        continue
+                    peak = v
+                    seen = True
+    out[_FIG_IMPACTS] = impacts
+    out[_FIG_PEAK] = peak
+    # period-n on the relative coordinates (x1 - x3, x2 - x4, x4) of the last half of the rows
+    start = n_poin // 2
+    m = n_poin - start
+    out[_FIG_PERIOD] = 0.0
+    for n in range(1, max_period + 1):
+        if m < 2 * n + 1:
+            break
+        ok = True
+        for k in range(start, n_poin - n):
+            j = k + n
+            a0, b0 = poin[j, 1] - poin[j, 3], poin[k, 1] - poin[k, 3]
+            a1, b1 = poin[j, 2] - poin[j, 4], poin[k, 2] - poin[k, 4]
+            a2, b2 = poin[j, 4], poin[k, 4]
+            if not (abs(a0 - b0) <= tol * (1.0 + abs(a0)) and abs(a1 - b1) <= tol * (1.0 + abs(a1))
+                    and abs(a2 - b2) <= tol * (1.0 + abs(a2))):
+                ok = False
+                break
+        if ok:
+            out[_FIG_PERIOD] = n
+            break
 
 
 def run_cell(groups: Groups, periods: int, solver: SolverOptions = SolverOptions(),
@@ -172,23 +236,17 @@ def run_cell(groups: Groups, periods: int, solver: SolverOptions = SolverOptions
             break
         buf.log = log = np.concatenate([log, np.zeros_like(log)])
     n_poin = int(st.istate[K.I_POIN_NEXT])
-    rows = poin[:n_poin]
-    half = periods // 2
-    span = periods - half
-    x3_end = rows[periods, 3] if n_poin > periods else st.y[2]
-    rop = float((x3_end - rows[half, 3]) / span)
-    n_log = int(st.istate[K.I_NLOG])
-    ev = log[:n_log]
-    late = ev[:, K.L_T] >= half * T
-    kinds = ev[:, K.L_KIND]
-    impacts = int(np.count_nonzero(late & (kinds == K.EV_IMPACT)))
-    seps = late & (kinds == K.EV_SEPARATION)
-    peak = float(ev[seps, K.L_PEAK].max()) if np.any(seps) else 0.0
+    fig = buf.figures
+    cell_figures(poin, n_poin, st.y[2], log, int(st.istate[K.I_NLOG]), periods, (periods // 2) * T,
+                 _MAX_PERIOD, _PERIOD_TOL, fig)
+    rop = float(fig[_FIG_ROP])
+    peak = float(fig[_FIG_PEAK])
     if st.istate[K.I_CONTACT] != K.FREE:
         peak = max(peak, float(st.fstate[K.F_PEAK]))
     si = groups.rop(rop)
-    return MapCell(period=detect_period(rows), rop=rop, rop_mm_per_period=si["mm_per_period"],
-                   rop_m_per_h=si["m_per_h"], impacts_per_period=impacts / span,
+    n = int(fig[_FIG_PERIOD])
+    return MapCell(period=n if n > 0 else None, rop=rop, rop_mm_per_period=si["mm_per_period"],
+                   rop_m_per_h=si["m_per_h"], impacts_per_period=fig[_FIG_IMPACTS] / (periods - periods // 2),
                    peak_contact_force_n=peak * groups.scales.friction_force, regime=regime(groups))
 
 
