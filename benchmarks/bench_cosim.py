@@ -141,9 +141,13 @@ def _accuracy(string, base, ref, log) -> dict:
                "penetration_estimate_rel": ad.estimate.penetration_rel,
                "meets_tolerance": ad.estimate.meets_tolerance, "wall_time_s": ad.wall_time_s,
                "macro_steps": ad.macro_steps, "rejected": ad.stats["rejected"], "passes": ad.stats["passes"],
-               "h_min_used_s": ad.stats["h_min_used"], "h_max_used_s": ad.stats["h_max_used"]}
+               "h_min_used_s": ad.stats["h_min_used"], "h_max_used_s": ad.stats["h_max_used"],
+               "hammer_steps": ad.stats["hammer_steps"], "companion_steps": ad.stats["companion_steps"],
+               "state_saves": ad.stats["state_saves"], "estimate_step_ratio": ad.estimate.step_ratio}
     log(f"  default (adaptive, tol 1e-3): penetration error {default['penetration_error_rel']:.2e}, "
-        f"amplitude error {default['wob_amplitude_error_rel']:.2e}, wall {ad.wall_time_s:.3f} s; "
+        f"amplitude error {default['wob_amplitude_error_rel']:.2e}, wall {ad.wall_time_s:.3f} s "
+        f"({default['hammer_steps']} + {default['companion_steps']} hammer steps, {default['passes']} "
+        f"pass(es)); "
         f"fixed 1 ms without estimate: {rows[0]['wall_time_s']:.3f} s")
     return {"fixed": rows, "orders": orders, "default": default,
             "fixed_1ms_wall_time_s": rows[0]["wall_time_s"]}
