@@ -47,15 +47,14 @@ from the interface force defect, with rollback of both sides (the FMU through
 
 Coupling error estimate
 -----------------------
-Every run (``estimate=True``) carries a companion co-simulation in lock step:
-with a fixed step it takes two half steps per macro step, with the adaptive
-step one double step per pair of equal steps (half the run's cost).  The
-difference, scaled by the measured order, is the a posteriori estimate of the
-run's error in WOB amplitude and penetration (:mod:`hammerbit.cosim_error`).
-``CosimResult.estimate.meets_tolerance`` says whether it is within ``tol``.
-``stats`` counts the hammer's doSteps (``hammer_steps``, rolled-back ones
-included), the companion's (``companion_steps``), the state saves and the
-rollbacks.
+Every run (``estimate=True``) carries a companion co-simulation that takes two
+half steps per macro step; the difference, scaled by the measured order, is
+the a posteriori estimate of the run's error in WOB amplitude and penetration
+(:mod:`hammerbit.cosim_error`).  ``CosimResult.estimate.meets_tolerance``
+says whether it is within ``tol``.  ``stats`` counts the hammer's doSteps
+(``hammer_steps``, rolled-back ones included), the companion's
+(``companion_steps``), the state saves and the rollbacks (summed over the
+passes of an adaptive run).
 
 Coupling instability
 --------------------
@@ -521,15 +520,6 @@ class _StabilityWatch:
         self.win_prev = w
         self.win_sum, self.k_in_win = 0.0, 0
 
-    def save(self) -> tuple:
-        """The running sums (for a rollback)."""
-        return (self.win_sum, self.win_prev, self.n_grow, self.k_in_win, self.max_win, self.max_steady,
-                self.total)
-
-    def restore(self, s: tuple) -> None:
-        (self.win_sum, self.win_prev, self.n_grow, self.k_in_win, self.max_win, self.max_steady,
-         self.total) = s
-
     def stats(self) -> dict:
         return {"max_window_energy_residual_j": self.max_win,
                 "steady_window_energy_residual_j": self.max_steady,
@@ -582,17 +572,15 @@ def cosimulate(string, config: CosimConfig = CosimConfig(), *, fmu=None, hammer=
     config : CosimConfig
         ``adaptive=False``: fixed macro step ``step`` (communication times
         ``t0 + n H``, a shorter last step to reach ``stop``).  ``adaptive=True``:
-        the step is chosen per *pair* of equal steps (powers of two of ``step``
-        within ``[h_min, h_max]``): a step whose interface force defect
-        ``|F_held - mean F_i|`` (the force the hammer held against the force
-        the string transmitted) exceeds ``tol / 40`` times the WOB rolls the
-        pair back (the state is saved once per pair; the FMU through
-        ``fmi2GetFMUstate``/``fmi2SetFMUstate``) and halves the step; a pair
-        below a tenth of it doubles the next.  The companion takes one double
-        step per accepted pair.  When the run's estimate still exceeds ``tol``
-        the run is repeated with the defect tolerance scaled down by the
-        estimate (at most :data:`MAX_PASSES` passes); the result says whether
-        the last one meets it.
+        Gauss–Seidel-or-Jacobi as configured with the step chosen per step: the
+        step's interface force defect ``|F_held - mean F_i|`` (the force the
+        hammer held against the force the string transmitted) is held below
+        ``tol / 4`` times the WOB; above it both sides roll back (the FMU
+        through ``fmi2SetFMUstate``) and the step halves, below ``tol / 16``
+        the next step doubles, within ``[h_min, h_max]`` (powers of two of
+        ``step``).  When the run's estimate still exceeds ``tol`` the run is
+        repeated with the defect tolerance scaled down by the estimate (at most
+        :data:`MAX_PASSES` passes); the result says whether the last one meets it.
     fmu : path, optional
         ``HammerBitRock.fmu``; the hammer is then the FMU (fmpy ``FMU2Slave``);
         the companion is a second instance.
@@ -691,12 +679,19 @@ def _run(side: StringSide, c: CosimConfig, *, fmu, hammer, defect_tol) -> CosimR
         if comp is not None:
             lanes.append(comp)
         H = c.step
-        ratio = 2.0 if c.adaptive else 0.5          # companion step / run step
-        if comp is not None and not c.adaptive:
+        if comp is not None:
             side.discretisation(0.5 * H)        # first: the run's step is then its square
+        if c.adaptive:
+            # every power of two the run and its half-step companion may take, before the loop,
+            # smallest first: one expm, the rest squares (set-up time)
+            h_lo, h_hi = c.step_range
+            h = 0.5 * h_lo
+            while h <= h_hi * (1 + 1e-12):
+                side.discretisation(h)
+                h *= 2.0
         side.discretisation(H)
         main = _Lane(side, hammer, c, H)
-        fine = _Lane(side, comp, c, ratio * H) if comp is not None else None
+        fine = _Lane(side, comp, c, 0.5 * H) if comp is not None else None
         n_full, rem = c.whole_steps
         n_est = n_full + 1 if not c.adaptive else int((c.stop - c.start) / H) + 1
         rec = _Recorder(c, n_est // c.record_every + 2, main)
@@ -704,12 +699,84 @@ def _run(side: StringSide, c: CosimConfig, *, fmu, hammer, defect_tol) -> CosimR
         setup = _time.perf_counter() - ts
         t_loop = _time.perf_counter()
         bar = _progress_bar(c.stop - c.start, c.progress, n_est)
+        wob_m, wob_f, t_all = [main.out[4]], [fine.out[4] if fine is not None else 0.0], [c.start]
         rec.add(c.start, 0.0, 0.0, 0.0, 0.0)
+        d_main, d_fine = [], []
+        accepted = rejected = at_min = 0
+        steps = csteps = saves = 0               # doSteps of the run (rolled back included), companion's
+        h_used = (math.inf, 0.0)
+        h_lo, h_hi = c.step_range
+        t = c.start
+        n = 0
+        unit = h_lo / 2.0                   # adaptive times: t0 + k * unit (exact)
+        k_t = 0
         try:
-            if c.adaptive:
-                lp = _adaptive_loop(main, fine, c, W, rec, watch, bar, defect_tol)
-            else:
-                lp = _fixed_loop(main, fine, c, rec, watch, bar)
+            while True:
+                if c.adaptive:
+                    if t >= c.stop - 1e-12 * max(1.0, abs(c.stop)):
+                        break
+                    h, last = _adaptive_step(H, c.stop - t, unit)
+                else:
+                    if n >= n_full + (1 if rem > 0.0 else 0):
+                        break
+                    h = H if n < n_full else rem
+                    t = c.start + n * H
+                    last = True
+                snap = main.snapshot() if defect_tol is not None else None
+                saves += snap is not None
+                steps += 1
+                try:
+                    main.step(t, h)
+                except CouplingInstabilityError:
+                    raise
+                except Exception as err:
+                    watch.hammer_failed(err, t, n, h, main.F_held)
+                    raise
+                defect = float(main.sc[3])
+                if defect_tol is not None:
+                    rel = abs(defect) / max(W, 1.0)
+                    if not math.isfinite(rel):
+                        main.free(snap)
+                        raise CouplingInstabilityError(
+                            f"coupling unstable: non-finite interface values at t = {t + h:.6g} s "
+                            f"(H = {h:g} s)", time=t + h, step=n + 1, residual=math.inf, reference=W)
+                    if rel > defect_tol and h > h_lo * (1 + 1e-12) and not last:
+                        main.restore(snap)
+                        main.free(snap)
+                        rejected += 1
+                        H = max(H / 2, h_lo)
+                        continue
+                    main.free(snap)
+                    if rel > defect_tol:
+                        at_min += 1
+                t_end = c.stop if (c.adaptive and last) else (
+                    c.start + (k_t + int(round(h / unit))) * unit if c.adaptive else
+                    (c.start + (n + 1) * H if n < n_full else c.stop))
+                if c.adaptive:
+                    k_t += int(round(h / unit))
+                if fine is not None:
+                    fine.step(t, 0.5 * h)
+                    d_fine.append(float(fine.sc[3]))
+                    fine.step(t + 0.5 * h, t_end - (t + 0.5 * h))
+                    d_fine.append(float(fine.sc[3]))
+                    csteps += 2
+                    wob_f.append(fine.out[4])
+                d_main.append(defect)
+                wob_m.append(main.out[4])
+                t_all.append(t_end)
+                watch.update(t_end, n, h, main.F, main.out, float(main.sc[1]))
+                n += 1
+                accepted += 1
+                if (n % c.record_every == 0) or t_end >= c.stop - 1e-12 * max(1.0, abs(c.stop)):
+                    rec.add(t_end, h, float(main.sc[1]), defect,
+                            main.out[4] - fine.out[4] if fine is not None else math.nan)
+                if bar is not None:
+                    bar.update(t_end - t)
+                t = t_end
+                if c.adaptive:
+                    h_used = (min(h_used[0], h), max(h_used[1], h)) if not last or h == H else h_used
+                    if abs(defect) / max(W, 1.0) < 0.1 * defect_tol:
+                        H = min(2 * H, h_hi)
         finally:
             if bar is not None:
                 bar.close()
@@ -719,30 +786,26 @@ def _run(side: StringSide, c: CosimConfig, *, fmu, hammer, defect_tol) -> CosimR
         data = rec.result()
         est = None
         if fine is not None:
-            # both amplitudes on the communication points both lanes share, in the steady window
-            t_c = np.asarray(lp["t_common"])
-            sel = t_c >= steady_start(c) - 1e-12
-            amp = 0.5 * float(np.ptp(np.asarray(lp["wob_main"])[sel]))
-            amp_f = 0.5 * float(np.ptp(np.asarray(lp["wob_comp"])[sel]))
-            d_m, d_c = np.asarray(lp["d_main"]), np.asarray(lp["d_comp"])
-            p = measured_order(d_c, d_m) if ratio > 1.0 else measured_order(d_m, d_c)
+            # both amplitudes on the run's communication points in the steady window
+            sel = np.asarray(t_all) >= steady_start(c) - 1e-12
+            amp = 0.5 * float(np.ptp(np.asarray(wob_m)[sel]))
+            amp_f = 0.5 * float(np.ptp(np.asarray(wob_f)[sel]))
+            p = measured_order(np.asarray(d_main), np.asarray(d_fine))
             est = richardson(amplitude=amp, amplitude_fine=amp_f,
                              penetration=pen, penetration_fine=float(fine.out[2]), order=p, tol=c.tol,
-                             length_scale=c.rig.scales.length, step_ratio=ratio)
+                             length_scale=c.rig.scales.length)
             if "wob_error_estimate" in data.dtype.names:
                 data["wob_error_estimate"] *= est.factor
         stats = watch.stats()
         stats["string_states"] = side.n
         stats["modal"] = bool(side.modal)
-        stats["hammer_steps"] = lp["hammer_steps"]
-        stats["companion_steps"] = lp["companion_steps"]
-        stats["rollbacks"] = lp.get("rejected", 0)
-        stats["state_saves"] = lp.get("state_saves", 0)
+        stats.update({"hammer_steps": steps, "companion_steps": csteps, "rollbacks": rejected,
+                      "state_saves": saves})
         if c.adaptive:
-            stats.update({"accepted": lp["accepted"], "rejected": lp["rejected"], "at_min_step": lp["at_min"],
+            stats.update({"accepted": accepted, "rejected": rejected, "at_min_step": at_min,
                           "defect_tol": defect_tol, "passes": 1, "tol": c.tol,
-                          "h_min_used": lp["h_used"][0], "h_max_used": lp["h_used"][1]})
-        return CosimResult(data, c, lp["accepted"], wall, setup, pen, stats,
+                          "h_min_used": h_used[0], "h_max_used": h_used[1]})
+        return CosimResult(data, c, accepted, wall, setup, pen, stats,
                            "cosim-adaptive" if c.adaptive else "cosim", counts=counts, estimate=est)
     finally:
         if own:
@@ -751,147 +814,19 @@ def _run(side: StringSide, c: CosimConfig, *, fmu, hammer, defect_tol) -> CosimR
             lanes[1].close()
 
 
-def _step_lane(lane: "_Lane", watch: "_StabilityWatch", t: float, h: float, n: int) -> None:
-    """One macro step of a lane; a failing hammer side is reported as an instability when the
-    interface was growing."""
-    try:
-        lane.step(t, h)
-    except CouplingInstabilityError:
-        raise
-    except Exception as err:
-        watch.hammer_failed(err, t, n, h, lane.F_held)
-        raise
-
-
-def _fixed_loop(main: "_Lane", fine: Optional["_Lane"], c: CosimConfig, rec, watch, bar) -> dict:
-    """Fixed macro steps ``t0 + n H`` (a shorter last step); the companion takes two half steps
-    per macro step."""
-    H = c.step
-    n_full, rem = c.whole_steps
-    n_steps = n_full + (1 if rem > 0.0 else 0)
-    wob_m, wob_f, t_all = [main.out[4]], [fine.out[4] if fine is not None else 0.0], [c.start]
-    d_main, d_fine = [], []
-    for n in range(n_steps):
-        h = H if n < n_full else rem
-        t = c.start + n * H
-        _step_lane(main, watch, t, h, n)
-        defect = float(main.sc[3])
-        t_end = c.start + (n + 1) * H if n < n_full else c.stop
-        if fine is not None:
-            fine.step(t, 0.5 * h)
-            d_fine.append(float(fine.sc[3]))
-            fine.step(t + 0.5 * h, t_end - (t + 0.5 * h))
-            d_fine.append(float(fine.sc[3]))
-            wob_f.append(fine.out[4])
-        d_main.append(defect)
-        wob_m.append(main.out[4])
-        t_all.append(t_end)
-        watch.update(t_end, n, h, main.F, main.out, float(main.sc[1]))
-        if ((n + 1) % c.record_every == 0) or n == n_steps - 1:
-            rec.add(t_end, h, float(main.sc[1]), defect,
-                    main.out[4] - fine.out[4] if fine is not None else math.nan)
-        if bar is not None:
-            bar.update(t_end - t)
-    return {"accepted": n_steps, "t_common": t_all, "wob_main": wob_m, "wob_comp": wob_f, "d_main": d_main,
-            "d_comp": d_fine, "hammer_steps": n_steps, "companion_steps": 2 * n_steps if fine is not None else 0}
-
-
-def _adaptive_loop(main: "_Lane", comp: Optional["_Lane"], c: CosimConfig, W: float, rec, watch, bar,
-                   defect_tol: float) -> dict:
-    """Adaptive macro steps in pairs of equal steps ``h`` (powers of two of ``step``).
-
-    The state is saved once per pair; a step whose force defect exceeds ``defect_tol`` x WOB
-    rolls the pair back and halves ``h``; a pair whose defects all stay below a tenth of it
-    doubles the next ``h``.  The companion takes one step of ``2 h`` per accepted pair (the
-    double-step estimate, :func:`hammerbit.cosim_error.richardson` with ``r = 2``) and is never
-    rolled back.  Times are ``t0 + k unit`` (exact)."""
-    h_lo, h_hi = c.step_range
-    if comp is not None:
-        h_hi = max(0.5 * h_hi, h_lo)             # the companion's double step stays resolved
-    unit = h_lo / 2.0
-    eps = 1e-12 * max(1.0, abs(c.stop))
-    H = min(max(c.step, h_lo), h_hi)
-    t, k_t, n = c.start, 0, 0
-    accepted = rejected = at_min = saves = steps = csteps = 0
-    h_used = (math.inf, 0.0)
-    t_pair, wob_m, wob_c = [c.start], [main.out[4]], [comp.out[4] if comp is not None else 0.0]
-    d_main, d_comp = [], []
-    scale = 1.0 / max(W, 1.0)
-    while t < c.stop - eps:
-        h, n_in_pair, final = _pair_step(H, c.stop - t, unit)
-        snap = main.snapshot() if h > h_lo * (1 + 1e-12) else None
-        saves += snap is not None
-        saved = (k_t, n, accepted, rec.j, len(d_main), watch.save())
-        t_a, worst, ok = t, 0.0, True
-        for i in range(n_in_pair):
-            _step_lane(main, watch, t_a, h, n)
-            steps += 1
-            defect = float(main.sc[3])
-            rel = abs(defect) * scale
-            if not math.isfinite(rel):
-                raise CouplingInstabilityError(
-                    f"coupling unstable: non-finite interface values at t = {t_a + h:.6g} s "
-                    f"(H = {h:g} s)", time=t_a + h, step=n + 1, residual=math.inf, reference=W)
-            if rel > defect_tol and snap is not None:
-                main.restore(snap)
-                k_t, n, accepted, rec.j, nd, st = saved
-                del d_main[nd:]
-                watch.restore(st)
-                rejected += 1
-                H = max(0.5 * h, h_lo)
-                ok = False
-                break
-            if rel > defect_tol:
-                at_min += 1
-            worst = max(worst, rel)
-            k_t += int(round(h / unit))
-            t_end = c.stop if (final and i == n_in_pair - 1) else c.start + k_t * unit
-            last_of_pair = i == n_in_pair - 1
-            diff = math.nan
-            if last_of_pair and comp is not None:
-                comp.step(t, t_end - t)
-                csteps += 1
-                d_comp.append(float(comp.sc[3]))
-                wob_c.append(comp.out[4])
-                wob_m.append(main.out[4])
-                t_pair.append(t_end)
-                diff = main.out[4] - comp.out[4]
-            d_main.append(defect)
-            watch.update(t_end, n, h, main.F, main.out, float(main.sc[1]))
-            n += 1
-            accepted += 1
-            if (n % c.record_every == 0) or t_end >= c.stop - eps:
-                rec.add(t_end, h, float(main.sc[1]), defect, diff)
-            t_a = t_end
-        if snap is not None:
-            main.free(snap)
-        if not ok:
-            continue
-        if bar is not None:
-            bar.update(t_a - t)
-        t = t_a
-        if not final:
-            h_used = (min(h_used[0], h), max(h_used[1], h))
-        if worst < 0.1 * defect_tol:
-            H = min(2.0 * H, h_hi)
-    if h_used[1] == 0.0:
-        h_used = (H, H)
-    return {"accepted": accepted, "rejected": rejected, "at_min": at_min, "h_used": h_used,
-            "t_common": t_pair, "wob_main": wob_m, "wob_comp": wob_c, "d_main": d_main, "d_comp": d_comp,
-            "hammer_steps": steps, "companion_steps": csteps, "state_saves": saves}
-
-
-def _pair_step(H: float, remaining: float, unit: float) -> tuple:
-    """``(h, steps, final)``: the next pair of equal steps ``h`` -- ``H``, or near the end the
-    longest power of two of ``unit`` that fits twice (its exact step is a square of a cached one,
-    no new ``expm``) -- or, when less than two ``unit`` are left, one step over the rest."""
-    if remaining >= 2.0 * H * (1.0 - 1e-12):
-        return H, 2, abs(remaining - 2.0 * H) <= 1e-9 * unit
-    k = int(math.floor(remaining / (2.0 * unit) * (1.0 + 1e-12)))
+def _adaptive_step(H: float, remaining: float, unit: float) -> tuple:
+    """``(h, last)``: the adaptive step ``H``, or near the end the longest power of two of
+    ``unit`` within the remaining time (its exact step is a square of a cached one, no new
+    ``expm``), and the remaining time itself when less than one ``unit`` is left."""
+    if remaining >= H:
+        return H, abs(remaining - H) <= 1e-9 * unit
+    k = int(math.floor(remaining / unit * (1.0 + 1e-12)))
     if k < 1:
-        return remaining, 1, True
+        return remaining, True
     h = unit * 2.0 ** int(math.floor(math.log2(k)))
-    return h, 2, abs(remaining - 2.0 * h) <= 1e-9 * unit
+    if abs(remaining - h) <= 1e-9 * unit:
+        return remaining, True
+    return h, False
 
 
 def monolithic(string, config: CosimConfig = CosimConfig()) -> CosimResult:

@@ -11,18 +11,15 @@ Two questions a co-simulation engineer asks of every run, answered here:
   and the largest step that resolves it, before the run starts.
 
 * **How far is the answer from the coupled system's?**  A posteriori, by
-  step doubling (Richardson extrapolation): beside the run the master steps a
-  *companion* co-simulation whose macro steps are ``r`` times the run's, in
-  lock step.  If the coupling error of a quantity ``Q`` behaves as ``C H^p``,
-  then ``Q_H - Q_rH = C H^p (1 - r^p)`` and the error of the run is
-  ``Q_H - Q_true ~ (Q_H - Q_rH) / (1 - r^p)``.  A fixed-step run uses
-  ``r = 1/2`` (two half steps per macro step: the estimate holds up to the
-  largest steps, at about twice the run's cost); the adaptive run uses
-  ``r = 2`` (one double step per pair of equal steps: half the run's cost).
-  The order ``p`` is measured on the run itself: the interface force defect
+  step doubling (Richardson extrapolation): the master runs a *companion*
+  co-simulation that takes two half steps for every macro step of the run, in
+  lock step.  If the coupling error of a quantity ``Q`` behaves as
+  ``C H^p``, then ``Q_H - Q_{H/2} = C H^p (1 - 2^-p)`` and the error of the
+  run is ``Q_H - Q_true ~ (Q_H - Q_{H/2}) 2^p / (2^p - 1)``.  The order ``p``
+  is measured on the run itself, each macro step: the interface force defect
   ``F_held - mean F_i`` (the force the hammer held against the force the
   string transmitted over the step) of the run and of the companion give
-  ``p = log2(rms defect_coarse / rms defect_fine)``, clipped to ``[1, 3]``.
+  ``p = log2(rms defect_H / rms defect_{H/2})``, clipped to ``[1, 3]``.
   :func:`richardson` turns the two runs' WOB amplitudes and penetrations into
   :class:`CouplingErrorEstimate`.
 """
@@ -149,9 +146,7 @@ class CouplingErrorEstimate:
     order : float
         Measured order p of the coupling error (:func:`measured_order`).
     factor : float
-        ``1 / (1 - r^p)``: the run's error is this times (run - companion); ``r`` is the
-        companion's step over the run's (``2^p / (2^p - 1)`` for half steps, ``-1 / (2^p - 1)``
-        for double steps).
+        ``2^p / (2^p - 1)``: the run's error is this times its difference to the companion.
     wob_amplitude_rel : float
         Estimated relative error of the dynamic WOB amplitude over the steady window [-].
     wob_amplitude_n : float
@@ -168,8 +163,6 @@ class CouplingErrorEstimate:
         Tolerance the estimate is held against [-].
     meets_tolerance : bool
         Both relative estimates are at most ``tol``.
-    step_ratio : float
-        The companion's macro step over the run's, ``r`` (0.5: half steps, 2: double steps).
     """
 
     order: float
@@ -181,7 +174,6 @@ class CouplingErrorEstimate:
     penetration_floor_m: float
     tol: float
     meets_tolerance: bool
-    step_ratio: float = 0.5
 
     @property
     def worst(self) -> float:
@@ -200,8 +192,8 @@ class CouplingErrorEstimate:
 
 
 def richardson(*, amplitude: float, amplitude_fine: float, penetration: float, penetration_fine: float,
-               order: float, tol: float, length_scale: float, step_ratio: float = 0.5) -> CouplingErrorEstimate:
-    """The estimate of a run from itself and its companion.
+               order: float, tol: float, length_scale: float) -> CouplingErrorEstimate:
+    """The estimate of a run from itself and its half-step companion.
 
     Parameters
     ----------
@@ -215,22 +207,16 @@ def richardson(*, amplitude: float, amplitude_fine: float, penetration: float, p
         Relative tolerance [-].
     length_scale : float
         The rig's x0 [m] (sets the penetration floor, 1 % of it).
-    step_ratio : float
-        The companion's macro step over the run's, ``r`` (0.5: half steps, the
-        ``*_fine`` values are the finer run's; 2: double steps, they are the
-        coarser run's).  Relative errors are taken against the finer of the two.
     """
-    r = float(step_ratio)
-    k = 1.0 / (1.0 - r ** order)
-    e_amp = abs(k) * abs(amplitude - amplitude_fine)
-    e_pen = abs(k) * abs(penetration - penetration_fine)
+    k = 2.0 ** order / (2.0 ** order - 1.0)
+    e_amp = k * abs(amplitude - amplitude_fine)
+    e_pen = k * abs(penetration - penetration_fine)
     floor = 1e-2 * length_scale
-    amp_ref, pen_ref = (amplitude_fine, penetration_fine) if r < 1.0 else (amplitude, penetration)
-    rel_amp = e_amp / max(abs(amp_ref), 1e-300) if e_amp > 0 else 0.0
-    rel_pen = e_pen / max(abs(pen_ref), floor)
+    rel_amp = e_amp / max(abs(amplitude_fine), 1e-300) if e_amp > 0 else 0.0
+    rel_pen = e_pen / max(abs(penetration_fine), floor)
     if not (math.isfinite(rel_amp) and math.isfinite(rel_pen)):
         rel_amp = rel_pen = math.inf
     return CouplingErrorEstimate(order=float(order), factor=float(k), wob_amplitude_rel=float(rel_amp),
                                  wob_amplitude_n=float(e_amp), penetration_rel=float(rel_pen),
                                  penetration_m=float(e_pen), penetration_floor_m=float(floor), tol=float(tol),
-                                 meets_tolerance=bool(rel_amp <= tol and rel_pen <= tol), step_ratio=r)
+                                 meets_tolerance=bool(rel_amp <= tol and rel_pen <= tol))
