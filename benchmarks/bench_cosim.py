@@ -128,7 +128,7 @@ def _accuracy(string, base, ref, log) -> dict:
         ref_amp = 0.5 * float(np.ptp(rw["wob"][rw["time"] >= t_st - 1e-12]))
         rows.append({"step_s": H, "wob_amplitude_error_rel": _rel(r.wob_amplitude(), ref_amp),
                      "penetration_error_rel": _rel(r.penetration_m, ref.penetration_m),
-                     "wall_time_s": r.wall_time_s, "macro_steps": r.macro_steps})
+                     "wall_time_s": r.wall_time_s, "setup_time_s": r.setup_time_s, "macro_steps": r.macro_steps})
     orders = {k: _order([r["step_s"] for r in rows], [r[k] for r in rows])
               for k in ("wob_amplitude_error_rel", "penetration_error_rel")}
     runs = [cosimulate(string, base.replace(step=1e-3, adaptive=True, check_step=True, record=("wob",)))
@@ -140,10 +140,15 @@ def _accuracy(string, base, ref, log) -> dict:
                "wob_amplitude_estimate_rel": ad.estimate.wob_amplitude_rel,
                "penetration_estimate_rel": ad.estimate.penetration_rel,
                "meets_tolerance": ad.estimate.meets_tolerance, "wall_time_s": ad.wall_time_s,
+               "setup_time_s": ad.setup_time_s,
                "macro_steps": ad.macro_steps, "rejected": ad.stats["rejected"], "passes": ad.stats["passes"],
-               "h_min_used_s": ad.stats["h_min_used"], "h_max_used_s": ad.stats["h_max_used"]}
+               "h_min_used_s": ad.stats["h_min_used"], "h_max_used_s": ad.stats["h_max_used"],
+               "hammer_steps": ad.stats["hammer_steps"], "companion_steps": ad.stats["companion_steps"],
+               "state_saves": ad.stats["state_saves"]}
     log(f"  default (adaptive, tol 1e-3): penetration error {default['penetration_error_rel']:.2e}, "
-        f"amplitude error {default['wob_amplitude_error_rel']:.2e}, wall {ad.wall_time_s:.3f} s; "
+        f"amplitude error {default['wob_amplitude_error_rel']:.2e}, wall {ad.wall_time_s:.3f} s "
+        f"({default['hammer_steps']} + {default['companion_steps']} hammer steps, {default['passes']} "
+        f"pass(es)); "
         f"fixed 1 ms without estimate: {rows[0]['wall_time_s']:.3f} s")
     return {"fixed": rows, "orders": orders, "default": default,
             "fixed_1ms_wall_time_s": rows[0]["wall_time_s"]}
@@ -183,7 +188,7 @@ def measure_errors(cfg: dict, log) -> dict:
                 rows.append({"scheme": scheme, "extrapolation": order, "step_s": H,
                              "max_wob_error_rel": float(np.max(np.abs(r.data["wob"] - rw["wob"])) / ref_amp),
                              "wob_amplitude_error_rel": abs(amp / ref_amp - 1.0),
-                             "wall_time_s": r.wall_time_s, "macro_steps": r.macro_steps})
+                             "wall_time_s": r.wall_time_s, "setup_time_s": r.setup_time_s, "macro_steps": r.macro_steps})
                 log(f"{scheme:13s} order {order} H {H * 1e3:5.2f} ms: max WOB error "
                     f"{rows[-1]['max_wob_error_rel']:.3e}, amplitude error "
                     f"{rows[-1]['wob_amplitude_error_rel']:.3e}, wall {r.wall_time_s:.3f} s")

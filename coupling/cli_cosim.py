@@ -148,6 +148,10 @@ def _print_text(out: dict, res, cfg, string) -> None:
           f"{c.get('impacts', 0)}, bounce violations {c.get('bounce_violations', 0)}")
     if res.estimate is not None:
         print(f"  {res.estimate.text()}")
+    if "hammer_steps" in out:
+        print(f"  hammer doSteps {out['hammer_steps']} (+ companion {out['companion_steps']}), "
+              f"{out['state_saves']} state saves, {out['rollbacks']} rolled back"
+              + (f", {out['passes']} pass(es)" if cfg.adaptive else ""))
     print(f"  wall time {out['wall_time_s']:.3f} s (+ set-up {out['setup_time_s']:.3f} s)")
     if out.get("csv"):
         print(f"  wrote {out['csv']}")

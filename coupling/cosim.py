@@ -51,7 +51,10 @@ Every run (``estimate=True``) carries a companion co-simulation that takes two
 half steps per macro step; the difference, scaled by the measured order, is
 the a posteriori estimate of the run's error in WOB amplitude and penetration
 (:mod:`hammerbit.cosim_error`).  ``CosimResult.estimate.meets_tolerance``
-says whether it is within ``tol``.
+says whether it is within ``tol``.  ``stats`` counts the hammer's doSteps
+(``hammer_steps``, rolled-back ones included), the companion's
+(``companion_steps``), the state saves and the rollbacks (summed over the
+passes of an adaptive run).
 
 Coupling instability
 --------------------
@@ -617,7 +620,8 @@ def cosimulate(string, config: CosimConfig = CosimConfig(), *, fmu=None, hammer=
     defect_tol = DEFECT_TOL_FACTOR * c.tol
     res = _run(side, c, fmu=fmu, hammer=hammer, defect_tol=defect_tol)
     setup = res.setup_time_s + t_side
-    passes, wall, rejected = 1, res.wall_time_s, res.stats["rejected"]
+    passes, wall = 1, res.wall_time_s
+    total = {k: res.stats[k] for k in _SUMMED}
     while (res.estimate is not None and not res.estimate.meets_tolerance and math.isfinite(res.estimate.worst)
            and hammer is None and passes < MAX_PASSES):
         # the global error grows at least linearly with the defect tolerance
@@ -626,8 +630,9 @@ def cosimulate(string, config: CosimConfig = CosimConfig(), *, fmu=None, hammer=
         setup += res.setup_time_s
         passes += 1
         wall += res.wall_time_s
-        rejected += res.stats["rejected"]
-    res.stats.update(passes=passes, rejected=rejected)
+        for k in _SUMMED:
+            total[k] += res.stats[k]
+    res.stats.update(passes=passes, **total)
     res.wall_time_s = wall
     res.setup_time_s = setup
     return res
@@ -636,6 +641,8 @@ def cosimulate(string, config: CosimConfig = CosimConfig(), *, fmu=None, hammer=
 #: Per-step force-defect tolerance of the adaptive step, relative to the WOB, per unit of ``tol``
 #: (the first pass; a second pass tightens it when the run's estimate exceeds ``tol``).
 DEFECT_TOL_FACTOR = 1.0 / 40.0
+#: Counts summed over the passes of an adaptive run.
+_SUMMED = ("rejected", "rollbacks", "hammer_steps", "companion_steps", "state_saves")
 #: Passes of the adaptive run at most (each tightens the defect tolerance by the estimate).
 MAX_PASSES = 3
 
@@ -674,6 +681,14 @@ def _run(side: StringSide, c: CosimConfig, *, fmu, hammer, defect_tol) -> CosimR
         H = c.step
         if comp is not None:
             side.discretisation(0.5 * H)        # first: the run's step is then its square
+        if c.adaptive:
+            # every power of two the run and its half-step companion may take, before the loop,
+            # smallest first: one expm, the rest squares (set-up time)
+            h_lo, h_hi = c.step_range
+            h = 0.5 * h_lo
+            while h <= h_hi * (1 + 1e-12):
+                side.discretisation(h)
+                h *= 2.0
         side.discretisation(H)
         main = _Lane(side, hammer, c, H)
         fine = _Lane(side, comp, c, 0.5 * H) if comp is not None else None
@@ -688,6 +703,7 @@ def _run(side: StringSide, c: CosimConfig, *, fmu, hammer, defect_tol) -> CosimR
         rec.add(c.start, 0.0, 0.0, 0.0, 0.0)
         d_main, d_fine = [], []
         accepted = rejected = at_min = 0
+        steps = csteps = saves = 0               # doSteps of the run (rolled back included), companion's
         h_used = (math.inf, 0.0)
         h_lo, h_hi = c.step_range
         t = c.start
@@ -707,8 +723,10 @@ def _run(side: StringSide, c: CosimConfig, *, fmu, hammer, defect_tol) -> CosimR
                     t = c.start + n * H
                     last = True
                 snap = main.snapshot() if defect_tol is not None else None
+                saves += snap is not None
+                steps += 1
                 try:
-                    main.step(t, h, )
+                    main.step(t, h)
                 except CouplingInstabilityError:
                     raise
                 except Exception as err:
@@ -741,6 +759,7 @@ def _run(side: StringSide, c: CosimConfig, *, fmu, hammer, defect_tol) -> CosimR
                     d_fine.append(float(fine.sc[3]))
                     fine.step(t + 0.5 * h, t_end - (t + 0.5 * h))
                     d_fine.append(float(fine.sc[3]))
+                    csteps += 2
                     wob_f.append(fine.out[4])
                 d_main.append(defect)
                 wob_m.append(main.out[4])
@@ -780,6 +799,8 @@ def _run(side: StringSide, c: CosimConfig, *, fmu, hammer, defect_tol) -> CosimR
         stats = watch.stats()
         stats["string_states"] = side.n
         stats["modal"] = bool(side.modal)
+        stats.update({"hammer_steps": steps, "companion_steps": csteps, "rollbacks": rejected,
+                      "state_saves": saves})
         if c.adaptive:
             stats.update({"accepted": accepted, "rejected": rejected, "at_min_step": at_min,
                           "defect_tol": defect_tol, "passes": 1, "tol": c.tol,

@@ -129,3 +129,28 @@ def test_harmonic_force_from_the_master(string, built_fmu):
     assert np.max(np.abs(mst.data["wob"] - inproc.data["wob"])) < 1e-6 * 55e3
     with pytest.raises(ValueError, match="harmonic_source"):
         CosimConfig(harmonic_source="nowhere")
+
+
+def test_step_counts_are_the_hammers_own(string, monkeypatch):
+    """``hammer_steps``, ``companion_steps``, ``state_saves`` and ``rollbacks`` in the stats are
+    what the hammer sides were actually asked to do (counted on the hammer class itself)."""
+    from hammerbit import cosim as C
+    calls = {"step": 0, "get_state": 0, "set_state": 0}
+    for name in calls:
+        orig = getattr(C.StepperHammer, name)
+
+        def wrapped(self, *a, _orig=orig, _name=name):
+            calls[_name] += 1
+            return _orig(self, *a)
+        monkeypatch.setattr(C.StepperHammer, name, wrapped)
+    r = cosimulate(string, CosimConfig(stop=0.2, step=4e-3, rig=DRILL, adaptive=True, record=("wob",)))
+    s = r.stats
+    assert s["rejected"] > 0 and s["passes"] >= 1
+    assert s["hammer_steps"] + s["companion_steps"] == calls["step"]
+    assert s["state_saves"] == calls["get_state"] and s["rollbacks"] == calls["set_state"] == s["rejected"]
+    assert s["hammer_steps"] >= r.macro_steps + s["rejected"] and s["companion_steps"] >= 2 * r.macro_steps
+    for k in calls:
+        calls[k] = 0
+    f = cosimulate(string, CosimConfig(stop=0.2, step=1e-3, rig=DRILL, record=("wob",)))
+    assert f.stats["hammer_steps"] == f.macro_steps == 200 and f.stats["companion_steps"] == 400
+    assert calls["step"] == 600 and calls["get_state"] == 0 and f.stats["rollbacks"] == 0
