@@ -21,6 +21,9 @@ from benchmarks import REPO_ROOT, harness_command, save_result, summary_row
 
 NAME = "tests"
 COMMAND = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider"]
+#: pytest's --durations report: the slowest phases (setup/call/teardown) land in the JSON.
+SLOWEST = 15
+_DURATION = re.compile(r"^\s*([\d.]+)s (setup|call|teardown)\s+(\S.*)$")
 GOAL_COLD_S = 180.0
 GOAL_WARM_S = 60.0
 
@@ -28,13 +31,16 @@ GOAL_WARM_S = 60.0
 def _run(args, env) -> dict:
     t0 = time.perf_counter()
     c0 = os.times()
-    p = subprocess.run(COMMAND + list(args), cwd=REPO_ROOT, env=env, capture_output=True, text=True)
+    p = subprocess.run(COMMAND + [f"--durations={SLOWEST}"] + list(args), cwd=REPO_ROOT, env=env,
+                       capture_output=True, text=True)
     c1 = os.times()
     wall = time.perf_counter() - t0
     last = (p.stdout.strip().splitlines() or [""])[-1]
     counts = {k: int(v) for v, k in re.findall(r"(\d+) (passed|failed|skipped|deselected|error)", last)}
     return {"wall_s": wall, "cpu_s": (c1.children_user - c0.children_user) + (c1.children_system - c0.children_system),
-            "returncode": p.returncode, "summary": last, "counts": counts}
+            "returncode": p.returncode, "summary": last, "counts": counts,
+            "slowest": [{"seconds": float(m.group(1)), "phase": m.group(2), "test": m.group(3)}
+                        for m in map(_DURATION.match, p.stdout.splitlines()) if m]}
 
 
 def run(quick: bool = False) -> dict:

@@ -5,6 +5,9 @@
  *   fmu_native_host SO URI GUID [type=1] [steps=10000] [h=1e-3] [out=VR] [logging=0] [threads=1]
  *
  * threads=N runs N instances at once, each in its own thread, from instantiation to the end.
+ * uri1=URI [uri2=URI ...] run one more instance after the first, one after the other, each with
+ * its own resource URI (one process for several URI forms); each prints "result <i> <rc>", and
+ * the exit code is the first non-zero one.
  * stdout: "log <status> <category> <message>" per logger call, "value <%.17g>" per instance.
  * Exit codes: 0 ok, 2 dlopen, 3 missing symbol, 10 fmi2Instantiate returned NULL, 11 a call
  * failed. */
@@ -62,11 +65,11 @@ static pthread_mutex_t g_out = PTHREAD_MUTEX_INITIALIZER;
     } while (0)
 
 /* one instance from fmi2Instantiate to fmi2FreeInstance; the exit code */
-static int run(const char *name) {
+static int run(const char *name, const char *uri) {
     fmi2CallbackFunctions cb = {logger, calloc, free, NULL, NULL};
     int type = atoi(opt(g_argc, g_argv, "type", "1"));
     int logging = atoi(opt(g_argc, g_argv, "logging", "0"));
-    fmi2Component c = F.instantiate(name, (fmi2Type)type, g_argv[3], g_argv[2], &cb, fmi2False,
+    fmi2Component c = F.instantiate(name, (fmi2Type)type, g_argv[3], uri, &cb, fmi2False,
                                     logging ? fmi2True : fmi2False);
     if (!c) {
         printf("instantiate NULL\n");
@@ -93,7 +96,7 @@ static int run(const char *name) {
 static void *run_thread(void *arg) {
     char name[32];
     snprintf(name, sizeof name, "host%ld", (long)(intptr_t)arg);
-    return (void *)(intptr_t)run(name);
+    return (void *)(intptr_t)run(name, g_argv[2]);
 }
 
 #define LOAD(T, var)                                                   \
@@ -124,7 +127,22 @@ int main(int argc, char **argv) {
     LOAD(Terminate, terminate)
     LOAD(FreeInstance, free_instance)
     int threads = atoi(opt(argc, argv, "threads", "1"));
-    if (threads <= 1) return run("host");
+    if (opt(argc, argv, "uri1", NULL)) {
+        int rc = 0;
+        const char *uri = argv[2];
+        for (int i = 0; uri; i++) {
+            char name[32], key[16];
+            snprintf(name, sizeof name, "host%d", i);
+            int r = run(name, uri);
+            printf("result %d %d\n", i, r);
+            fflush(stdout);
+            if (r && !rc) rc = r;
+            snprintf(key, sizeof key, "uri%d", i + 1);
+            uri = opt(argc, argv, key, NULL);
+        }
+        return rc;
+    }
+    if (threads <= 1) return run("host", argv[2]);
     pthread_t t[16];
     if (threads > 16) threads = 16;
     for (long i = 0; i < threads; i++) pthread_create(&t[i], NULL, run_thread, (void *)(intptr_t)i);

@@ -280,8 +280,14 @@ def test_every_command_has_working_help(name, capsys):
 
 
 # --------------------------------------------------------------------------- documented commands
+#: A documented command whose trailing comment says ``# exit N`` (e.g. ``# exit 5: estimate > tol``)
+#: shows a non-zero exit on purpose.
+DOCUMENTED_EXIT = re.compile(r"#\s*exit\s+(\d+)\b")
+
+
 def documented_commands():
-    """Every ``hammerbit ...`` command line in a ```bash block of README.md and docs/*.md."""
+    """Every ``hammerbit ...`` command line in a ```bash block of README.md and docs/*.md:
+    ``[(document name, argv, documented exit code or None)]``."""
     found = []
     for doc in DOCS:
         in_bash = False
@@ -301,18 +307,19 @@ def documented_commands():
             for part in line.split("&&"):
                 words = shlex.split(part, comments=True)
                 if words[:1] == ["hammerbit"]:
-                    found.append((doc.name, words[1:]))
+                    code = DOCUMENTED_EXIT.search(part)
+                    found.append((doc.name, words[1:], int(code.group(1)) if code else None))
     return found
 
 
 def test_documented_commands_are_found():
     cmds = documented_commands()
-    assert any(a[:1] == ["simulate"] and "--plot" in a for _, a in cmds)
-    assert len({a[0] for _, a in cmds}) >= 4
+    assert any(a[:1] == ["simulate"] and "--plot" in a for _, a, _ in cmds)
+    assert len({a[0] for _, a, _ in cmds}) >= 4
 
 
-@pytest.mark.parametrize("doc, argv", documented_commands(),
-                         ids=[f"{d}: {' '.join(a)}" for d, a in documented_commands()])
+@pytest.mark.parametrize("doc, argv", [(d, a) for d, a, _ in documented_commands()],
+                         ids=[f"{d}: {' '.join(a)}" for d, a, _ in documented_commands()])
 def test_documented_command_parses(doc, argv):
     """Every command shown in the docs names a real command with real options."""
     try:
@@ -323,15 +330,21 @@ def test_documented_command_parses(doc, argv):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("doc, argv", documented_commands(),
-                         ids=[f"{d}: {' '.join(a)}" for d, a in documented_commands()])
-def test_documented_command_runs(doc, argv, tmp_path, built_fmu):
-    """Every command shown in the docs runs in a fresh directory (with dist/HammerBitRock.fmu): exit 0."""
+@pytest.mark.parametrize("doc, argv, code", documented_commands(),
+                         ids=[f"{d}: {' '.join(a)}" for d, a, _ in documented_commands()])
+def test_documented_command_runs(doc, argv, code, tmp_path, built_fmu):
+    """Every command shown in the docs runs in a fresh directory (with dist/HammerBitRock.fmu): exit 0,
+    or the exit code its comment documents (``# exit 5: ...``)."""
     (tmp_path / "dist").mkdir()
     shutil.copy(built_fmu, tmp_path / "dist" / "HammerBitRock.fmu")
     r = console(*argv, cwd=tmp_path, timeout=1200)
     assert "Traceback" not in r.stderr
-    assert r.returncode in (0, 4) if "--strict" in argv else r.returncode == 0, r.stderr
+    if code is not None:
+        assert r.returncode == code, (r.returncode, r.stderr)
+    elif "--strict" in argv:
+        assert r.returncode in (0, 4), r.stderr
+    else:
+        assert r.returncode == 0, r.stderr
 
 
 # --------------------------------------------------------------------------- nothing writes tracked files

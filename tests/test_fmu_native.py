@@ -291,14 +291,36 @@ def odd_dir(front_dir, tmp_path_factory):
     return d
 
 
-@pytest.mark.parametrize("form", ["file:/", "file://localhost/", "file:///", "unencoded"])
-def test_resource_uri_forms(odd_dir, c_host, form):
+URI_FORMS = ["file:/", "file://localhost/", "file:///", "unencoded"]
+
+
+@pytest.fixture(scope="module")
+def uri_runs(odd_dir, c_host):
+    """One host process, one instance per form of :data:`URI_FORMS` after the other (``uri1=``...):
+    ``{form: (exit code of that instance, its value or None, the host's output)}``."""
     path = str(odd_dir / "resources")
     quoted = urllib.parse.quote(path.lstrip("/"), safe="/")
     assert "%C3%BC" in quoted and "%23" in quoted and "%20" in quoted
-    uri = f"file:///{path.lstrip('/')}" if form == "unencoded" else form + quoted
-    proc, value = run_host(c_host, odd_dir, uri=uri, steps=20, out=vr_of(odd_dir, "bit_position"))
-    assert proc.returncode == 0, proc.stdout + proc.stderr
+    uris = [f"file:///{path.lstrip('/')}" if form == "unencoded" else form + quoted for form in URI_FORMS]
+    extra = {f"uri{i}": u for i, u in enumerate(uris) if i}
+    proc, _ = run_host(c_host, odd_dir, uri=uris[0], steps=20, out=vr_of(odd_dir, "bit_position"), **extra)
+    runs, value = {}, None
+    for line in proc.stdout.splitlines():
+        if line.startswith("value "):
+            value = float(line.split()[1])
+        elif line.startswith("result "):
+            i, rc = map(int, line.split()[1:3])
+            runs[URI_FORMS[i]] = (rc, value, proc.stdout + proc.stderr)
+            value = None
+    assert len(runs) == len(URI_FORMS), proc.stdout + proc.stderr
+    assert proc.returncode == next((rc for rc, _, _ in runs.values() if rc), 0)
+    return runs
+
+
+@pytest.mark.parametrize("form", URI_FORMS)
+def test_resource_uri_forms(uri_runs, form):
+    rc, value, output = uri_runs[form]
+    assert rc == 0, output
     assert value is not None
 
 
