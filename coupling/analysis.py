@@ -10,11 +10,25 @@ import math
 from typing import Optional
 
 import numpy as np
+from numba import njit
 
 from hammerbit.model.params import Groups
 from hammerbit.model.stepping import SolverOptions, Stepper
 
-__all__ = ["relative_coordinates", "detect_period", "largest_lyapunov"]
+__all__ = ["relative_coordinates", "relative_rows", "detect_period", "period_n", "PERIOD_MAX", "PERIOD_TOL", "largest_lyapunov"]
+
+#: Period detection: the largest period-n tried, and the relative tolerance of a repeat.
+PERIOD_MAX = 32
+PERIOD_TOL = 1e-5
+
+
+@njit(cache=True, nogil=True)
+def relative_rows(poin, n_rows, out):
+    """Bounded coordinates (x1 - x3, x2 - x4, x4) of plain Poincaré rows ``poin[:n_rows]`` into ``out``."""
+    for k in range(n_rows):
+        out[k, 0] = poin[k, 1] - poin[k, 3]
+        out[k, 1] = poin[k, 2] - poin[k, 4]
+        out[k, 2] = poin[k, 4]
 
 
 def relative_coordinates(poincare: np.ndarray) -> np.ndarray:
@@ -24,18 +38,49 @@ def relative_coordinates(poincare: np.ndarray) -> np.ndarray:
     plain rows ``[tau, x1, x2, x3, x4]`` of shape (n, 5).
     """
     p = poincare
-    if p.dtype.names is None:
-        return np.column_stack([p[:, 1] - p[:, 3], p[:, 2] - p[:, 4], p[:, 4]])
-    return np.column_stack([p["hammer_position"] - p["bit_position"],
-                            p["hammer_velocity"] - p["bit_velocity"], p["bit_velocity"]])
+    if p.dtype.names is not None:
+        p = np.column_stack([np.zeros(len(p)), p["hammer_position"], p["hammer_velocity"],
+                             p["bit_position"], p["bit_velocity"]])
+    p = np.ascontiguousarray(p, dtype=np.float64)
+    out = np.empty((len(p), 3))
+    relative_rows(p, len(p), out)
+    return out
 
 
-def detect_period(poincare: np.ndarray, *, max_period: int = 32, tol: float = 1e-5) -> Optional[int]:
+@njit(cache=True, nogil=True)
+def period_n(s, max_period, tol):
+    """Period-n of the relative coordinates ``s`` (shape (n, 3)), 0 when none up to ``max_period``.
+
+    The rule of :func:`detect_period`, compiled, so that a study can run it
+    per scene without Python in between: the last half of the rows, the
+    smallest n with ``|s[k + n] - s[k]| <= tol * (1 + |s[k + n]|)`` for every
+    k and coordinate (a NaN never repeats).
+    """
+    start = s.shape[0] // 2
+    m = s.shape[0] - start
+    for n in range(1, max_period + 1):
+        if m < 2 * n + 1:
+            break
+        ok = True
+        for k in range(start, s.shape[0] - n):
+            for c in range(s.shape[1]):
+                a = s[k + n, c]
+                if not (abs(a - s[k, c]) <= tol * (1.0 + abs(a))):
+                    ok = False
+                    break
+            if not ok:
+                break
+        if ok:
+            return n
+    return 0
+
+
+def detect_period(poincare: np.ndarray, *, max_period: int = PERIOD_MAX, tol: float = PERIOD_TOL) -> Optional[int]:
     """Period-n of the bounded motion from Poincaré samples.
 
     Uses the last half of the samples: the smallest n <= ``max_period`` with
     ``|s[k + n] - s[k]| <= tol * (1 + |s|)`` for every k there, where s are the
-    relative coordinates (x1 - x3, x2 - x4, x4).
+    relative coordinates (x1 - x3, x2 - x4, x4) (:func:`period_n`).
 
     Returns
     -------
@@ -43,16 +88,8 @@ def detect_period(poincare: np.ndarray, *, max_period: int = 32, tol: float = 1e
         n, or None when no period up to ``max_period`` fits (quasi-periodic,
         chaotic or not yet settled).
     """
-    s = relative_coordinates(poincare)
-    half = s[len(s) // 2:]
-    m = len(half)
-    for n in range(1, max_period + 1):
-        if m < 2 * n + 1:
-            break
-        diff = np.abs(half[n:] - half[:-n])
-        if np.all(diff <= tol * (1.0 + np.abs(half[n:]))):
-            return n
-    return None
+    n = int(period_n(relative_coordinates(poincare), int(max_period), float(tol)))
+    return n if n > 0 else None
 
 
 def largest_lyapunov(groups: Groups, *, windows: int = 200, window_periods: int = 10, transient: int = 300,

@@ -44,6 +44,7 @@ from hammerbit.model.params import (Groups, ParameterError, apply_settings, regi
                                     setting_target)
 from hammerbit.model.stepping import MaxStepsError, SolverError, SolverOptions, Stepper
 
+from ..analysis import PERIOD_MAX, PERIOD_TOL, period_n, relative_rows
 from .bifurcation import SECONDS_PER_PERIOD
 from .executor import Executor, ExecutorOptions
 
@@ -156,8 +157,6 @@ class _Buffers:
 #: Slots of :func:`cell_figures`'s ``out``.
 _FIG_ROP, _FIG_IMPACTS, _FIG_PEAK, _FIG_PERIOD = range(4)
 _N_FIGURES = 4
-#: Period detection of :func:`hammerbit.analysis.detect_period` (its defaults).
-_MAX_PERIOD, _PERIOD_TOL = 32, 1e-5
 
 
 @njit(cache=True, nogil=True)
@@ -168,8 +167,8 @@ def cell_figures(poin, n_poin, y_bit, log, n_log, periods, t_half, max_period, t
     (``periods // 2`` to ``periods``; ``y_bit`` is the bit position at the end
     when the last sample is missing), ``out[1]`` impacts and ``out[2]`` the
     peak contact force [F0] of the separations at or after ``t_half``,
-    ``out[3]`` the period-n (0: none up to ``max_period``) with exactly the
-    rule and floating-point operations of :func:`hammerbit.analysis.detect_period`.
+    ``out[3]`` the period-n (0: none up to ``max_period``) by
+    :func:`hammerbit.analysis.period_n`, the rule of ``detect_period``.
     """
     half = periods // 2
     x3_end = poin[periods, 3] if n_poin > periods else y_bit
@@ -191,26 +190,10 @@ def cell_figures(poin, n_poin, y_bit, log, n_log, periods, t_half, max_period, t
                     seen = True
     out[_FIG_IMPACTS] = impacts
     out[_FIG_PEAK] = peak
-    # period-n on the relative coordinates (x1 - x3, x2 - x4, x4) of the last half of the rows
-    start = n_poin // 2
-    m = n_poin - start
-    out[_FIG_PERIOD] = 0.0
-    for n in range(1, max_period + 1):
-        if m < 2 * n + 1:
-            break
-        ok = True
-        for k in range(start, n_poin - n):
-            j = k + n
-            a0, b0 = poin[j, 1] - poin[j, 3], poin[k, 1] - poin[k, 3]
-            a1, b1 = poin[j, 2] - poin[j, 4], poin[k, 2] - poin[k, 4]
-            a2, b2 = poin[j, 4], poin[k, 4]
-            if not (abs(a0 - b0) <= tol * (1.0 + abs(a0)) and abs(a1 - b1) <= tol * (1.0 + abs(a1))
-                    and abs(a2 - b2) <= tol * (1.0 + abs(a2))):
-                ok = False
-                break
-        if ok:
-            out[_FIG_PERIOD] = n
-            break
+    # period-n on the relative coordinates (x1 - x3, x2 - x4, x4) of the rows
+    rel = np.empty((n_poin, 3))
+    relative_rows(poin, n_poin, rel)
+    out[_FIG_PERIOD] = period_n(rel, max_period, tol)
 
 
 def run_cell(groups: Groups, periods: int, solver: SolverOptions = SolverOptions(),
@@ -238,7 +221,7 @@ def run_cell(groups: Groups, periods: int, solver: SolverOptions = SolverOptions
     n_poin = int(st.istate[K.I_POIN_NEXT])
     fig = buf.figures
     cell_figures(poin, n_poin, st.y[2], log, int(st.istate[K.I_NLOG]), periods, (periods // 2) * T,
-                 _MAX_PERIOD, _PERIOD_TOL, fig)
+                 PERIOD_MAX, PERIOD_TOL, fig)
     rop = float(fig[_FIG_ROP])
     peak = float(fig[_FIG_PEAK])
     if st.istate[K.I_CONTACT] != K.FREE:
