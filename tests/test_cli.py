@@ -21,7 +21,8 @@ import sys
 import numpy as np
 import pytest
 
-from hammerbit.cli import build_parser, main
+from cli_run import run_cli
+from hammerbit.cli import build_parser
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 DOCS = [ROOT / "README.md"] + sorted((ROOT / "docs").glob("*.md"))
@@ -34,16 +35,6 @@ C_RIG = 2.0 * 0.074 * math.sqrt(2170.0 * 25.3)
 
 def period_s(eta: float, K: float = 2170.0, m1: float = 25.3) -> float:
     return 2.0 * math.pi / (eta * math.sqrt(K / m1))
-
-
-def run_cli(argv, capsys):
-    """``main(argv)`` in-process: (exit code, stdout, stderr); argparse's exits count too."""
-    try:
-        code = main(argv)
-    except SystemExit as e:
-        code = e.code if isinstance(e.code, int) else 1
-    out = capsys.readouterr()
-    return code, out.out, out.err
 
 
 def console(*args, cwd=None, timeout=300):

@@ -18,6 +18,7 @@ import pytest
 
 pytest.importorskip("fmpy")
 
+from cli_run import run_cli  # noqa: E402
 from hammerbit.fmu_build import build_fmu, build_hash, runtime_files  # noqa: E402
 from hammerbit.fmu_host import FMUInstance  # noqa: E402
 from hammerbit.model.params import RigParameters  # noqa: E402
@@ -39,15 +40,10 @@ RIG = RigParameters()
 def test_build_command_refuses_bad_start_values(tmp_path, setting, words, capsys):
     """``hammerbit fmu build`` in this process (the console script's process boundary is tested in
     test_cli.py): exit 2, the name and value as typed, no traceback, no file."""
-    from hammerbit.cli import main
-    try:
-        code = main(["fmu", "build", "--out", str(tmp_path / "x.fmu"), "--set", setting])
-    except SystemExit as e:
-        code = e.code
-    out = capsys.readouterr()
-    assert code == 2, out.out + out.err
-    assert all(w in out.err for w in words), out.err
-    assert "Traceback" not in out.err
+    code, out, err = run_cli(["fmu", "build", "--out", str(tmp_path / "x.fmu"), "--set", setting], capsys)
+    assert code == 2, out + err
+    assert all(w in err for w in words), err
+    assert "Traceback" not in err
     assert not (tmp_path / "x.fmu").exists()
 
 

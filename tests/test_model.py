@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pytest
+from cli_run import run_cli
 
 from hammerbit.analysis import detect_period, largest_lyapunov
 from hammerbit.model import kernels as K
@@ -87,21 +88,9 @@ def test_si_overrides_carry_their_scales(settings, x0, omega):
     assert g.replace(a=0.2).scales == g.scales
 
 
-def _cli(argv, capsys):
-    """``hammerbit.cli.main(argv)`` in this process (the console script's own process boundary is
-    tested in test_cli.py): (exit code, stdout, stderr)."""
-    from hammerbit.cli import main
-    try:
-        code = main(argv)
-    except SystemExit as e:
-        code = e.code if isinstance(e.code, int) else 1
-    out = capsys.readouterr()
-    return code, out.out, out.err
-
-
 def test_si_override_reported_in_si_with_the_scene_scale(capsys):
     """K doubled halves x0 = F0 / K: the SI penetration is the x0 value times 54 N / 4340 N/m."""
-    code, out, err = _cli(["simulate", "--preset", "paper-fig9", "--set", "a=0.11", "--set", "K=4340",
+    code, out, err = run_cli(["simulate", "--preset", "paper-fig9", "--set", "a=0.11", "--set", "K=4340",
                            "--periods", "100", "--json"], capsys)
     assert code == 0, err
     d = json.loads(out)
@@ -459,7 +448,7 @@ def test_chaos_preset_is_chaotic():
 
 # --------------------------------------------------------------------------- command line
 def test_cli_simulate_reports_period_3(capsys):
-    code, out, err = _cli(["simulate", "--preset", "paper-fig9", "--set", "a=0.083", "--periods", "300",
+    code, out, err = run_cli(["simulate", "--preset", "paper-fig9", "--set", "a=0.083", "--periods", "300",
                            "--json"], capsys)
     assert code == 0, err
     d = json.loads(out)
@@ -471,7 +460,7 @@ def test_cli_simulate_reports_period_3(capsys):
 
 
 def test_cli_bad_value_is_a_clear_error(capsys):
-    code, _, err = _cli(["simulate", "--set", "mu=2"], capsys)
+    code, _, err = run_cli(["simulate", "--set", "mu=2"], capsys)
     assert code == 2
     assert "'mu'" in err and "allowed" in err and "Traceback" not in err
 
