@@ -70,17 +70,22 @@ def _bisect(kd, ke, md, me, lo, hi, first, rtol, out):
 
 
 @njit(cache=True)
+def _tridiagonal_row(d, e, x, i):
+    """(A x)_i for the symmetric tridiagonal A with diagonal ``d`` and off-diagonal ``e``."""
+    v = d[i] * x[i]
+    if i > 0:
+        v += e[i - 1] * x[i - 1]
+    if i < d.size - 1:
+        v += e[i] * x[i + 1]
+    return v
+
+
+@njit(cache=True)
 def _quadratic_form(d, e, x):
     """x^T A x for the symmetric tridiagonal A with diagonal ``d`` and off-diagonal ``e``."""
-    n = d.size
     q = 0.0
-    for i in range(n):
-        v = d[i] * x[i]
-        if i > 0:
-            v += e[i - 1] * x[i - 1]
-        if i < n - 1:
-            v += e[i] * x[i + 1]
-        q += x[i] * v
+    for i in range(d.size):
+        q += x[i] * _tridiagonal_row(d, e, x, i)
     return q
 
 
@@ -117,12 +122,7 @@ def _inverse_iteration(kd, ke, md, me, lam, out):
         for _ in range(3):
             # y = M x
             for i in range(n):
-                v = md[i] * x[i]
-                if i > 0:
-                    v += me[i - 1] * x[i - 1]
-                if i < n - 1:
-                    v += me[i] * x[i + 1]
-                y[i] = v
+                y[i] = _tridiagonal_row(md, me, x, i)
             # solve L D L^T z = y
             for i in range(1, n):
                 y[i] -= low[i] * y[i - 1]
