@@ -3,10 +3,10 @@
 The first time numba loads or compiles anything in a process, it refreshes its
 typing and target contexts, which imports ``numba.np.arraymath``.  That module
 probes for a BLAS at import time (``_HAVE_BLAS = _check_blas()``) by importing
-``scipy.linalg.cython_blas``, and so all of ``scipy.linalg``: about 0.3 s on a
-2-core machine, a third of an FMU's first start, spent on a flag that only
-decides how ``np.correlate`` and ``np.convolve`` are lowered.  The kernels use
-neither.
+``scipy.linalg.cython_blas``, and so all of ``scipy.linalg``, a large share of
+an FMU's first start (``python -m benchmarks --only fmu``), spent on a flag
+that only decides how ``np.correlate`` and ``np.convolve`` are lowered.  The
+kernels use neither.
 
 :func:`import_arraymath_lazily` imports ``numba.np.arraymath`` first, with
 ``scipy.linalg`` held back for the duration of that one import, and then sets

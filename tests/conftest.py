@@ -2,8 +2,8 @@
 import os
 
 # One BLAS thread for the tests' small dense algebra (5x5 expm oracles, modal pencils): with
-# OpenBLAS's default of one thread per core, each small call pays thread hand-overs, and on a
-# busy 2-core machine a loop of 2000 5x5 ``expm`` took 9.8 s of CPU instead of 0.11 s.  Set
+# OpenBLAS's default of one thread per core, each small call pays thread hand-overs, which on a
+# busy 2-core machine cost far more than the algebra itself.  Set
 # before numpy is first imported (test modules import it after this file); a value the user
 # exported wins.  Subprocesses of the tests inherit it.
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
