@@ -134,8 +134,9 @@ def main(argv=None) -> int:
             ran.append(name)
     print(f"benchmarks: done in {time.perf_counter() - t_all:.1f} s", file=sys.stderr)
 
+    # with --update, out_dir is the tracked directory: its fresh results replace the rows of what ran
     results = readme_table.merge_results(readme_table.load_results(benchmarks.TRACKED_RESULTS_DIR),
-                                         readme_table.load_results(out_dir) if not a.update else [], ran)
+                                         readme_table.load_results(out_dir), ran)
     table = readme_table.render_table(results)
     if not a.update or a.no_readme or not readme_table.update_readme(table):
         if a.update and not a.no_readme:
