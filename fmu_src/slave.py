@@ -56,6 +56,7 @@ __all__ = ["HammerBitRock", "PARAMETERS", "INPUTS", "OUTPUTS", "UNITS", "STATE_F
            "OK", "WARNING", "DISCARD", "ERROR", "guard_pythonfmu_exit"]
 
 _INF = math.inf
+_ST_DONE = K.ST_DONE
 _isfinite = math.isfinite
 
 #: FMI 2.0 status codes recorded in ``last_status``
@@ -69,11 +70,6 @@ STATE_FORMAT = "hammerbit-fmu-state/2"
 _DESERIALIZED = threading.local()
 
 
-def _restore(arr, data: bytes) -> None:
-    """Write a ``tobytes()`` snapshot back into ``arr`` (in place)."""
-    arr[:] = np.frombuffer(data, dtype=arr.dtype)
-
-
 def _build_start_values(resources) -> dict:
     """The start values the FMU build recorded in ``resources/start_values.json`` ({} if none)."""
     if not resources:
@@ -83,6 +79,28 @@ def _build_start_values(resources) -> dict:
         return {}
     with open(path, encoding="utf-8") as fh:
         return json.load(fh)
+
+
+def _entry_point(dispatcher, args):
+    """The compiled function of the numba ``dispatcher`` for ``args``, or the dispatcher.
+
+    Called directly it skips the dispatcher's typing of the arguments (do_step passes the same
+    arrays, of the same types, at every step).  The dispatcher itself when it has no compiled
+    version for these types yet.
+    """
+    try:
+        from numba import typeof
+        return dispatcher.overloads[tuple(typeof(a) for a in args)].entry_point
+    except Exception:  # noqa: BLE001 -- not compiled for these types (or another numba): dispatch
+        return dispatcher
+
+
+def _general_advance(st):
+    """``Stepper.advance`` of ``st`` with the kernel's call signature (its status, or it raises)."""
+    def kernel(y, ist, fst, tau_end, *_):
+        st.advance(tau_end)
+        return _ST_DONE
+    return kernel
 
 
 # ---------------------------------------------------------------------------
@@ -376,7 +394,8 @@ class HammerBitRock(Fmi2Slave):
         self._yi, self._ii = st.y.item, st.istate.item
         # do_step's hot path calls the stepper's compiled entry point with the stepper's own
         # arrays: Stepper.advance would repeat the argument checks do_step has made already
-        self._kernel = K.advance_hammer if st._fast else None
+        self._kernel = K.advance_hammer if st._fast else _general_advance(st)
+        self._slow = True          # do_step rebuilds its tuple of the stepper's arrays
         self._rig = rig
         self._x0 = x0
         self._v0 = s.velocity
@@ -423,6 +442,7 @@ class HammerBitRock(Fmi2Slave):
                               f"refused, the start time stays {self._t_start!r} s")
         self._t_start = float(start_time)
         self._t = float(start_time)
+        self._slow = True
         self._stale = True
         if tolerance is not None:
             rng = variable_range("tolerance")
@@ -468,53 +488,66 @@ class HammerBitRock(Fmi2Slave):
 
     def do_step(self, current_time, step_size):
         try:
-            if self._slow and not self._prepare_step():
+            # the checks of the common case first: initialised, on the FMU's time, a valid step
+            if (self._slow or current_time != self._t or not 0.0 < step_size < _INF) \
+                    and not self._step_allowed(current_time, step_size):
                 return False
-            t = self._t
-            if not (0.0 < step_size < _INF) or (
-                    current_time != t and not abs(current_time - t) <= 1e-9 * max(abs(t), step_size)):
-                return self._reject_step(current_time, step_size)
-            preload = self.preload
-            fh = self.harmonic_force
-            st = self._st
-            y, ist, fst, p = self._y, self._ist, st.fstate, self._p
-            # snapshot of the state at the step start (bytes: the cheapest copy numpy makes)
-            snap = (y.tobytes(), ist.tobytes(), fst.tobytes())
+            kernel, y, ist, fst, p, opts, t_start, omega, state = self._hot
+            # snapshot of y, ist and fst at the step start (views of `state`; bytes: the cheapest
+            # copy numpy makes, Stepper.snapshot without the method call)
+            snap = state.tobytes()
             old_inputs = None
-            if preload != self._applied_preload or fh != self._applied_force:
-                if not (_isfinite(preload) and _isfinite(fh)):
-                    bad = "preload" if not _isfinite(preload) else "harmonic_force"
-                    return self._fail(f"input {bad!r} = {getattr(self, bad)!r} N is not finite; "
-                                      f"step refused, state unchanged")
-                old_inputs = (p[P_B], p[P_FEXT], self._applied_preload, self._applied_force)
-                p[P_B] = preload / self._F0          # exactly as RigParameters.to_groups()
-                p[P_FEXT] = fh / self._F0
-                self._applied_preload = preload
-                self._applied_force = fh
-            tau_end = (current_time + step_size - self._t_start) * self._omega
+            if self.preload != self._applied_preload or self.harmonic_force != self._applied_force:
+                old_inputs = self._apply_inputs(p)
+                if old_inputs is None:
+                    return False
             try:
-                if self._kernel is not None:
-                    status = self._kernel(y, ist, fst, tau_end, p, st.opts, _NO_POIN, _EMPTY_F, _NO_SAMP,
-                                          _NO_LOG)
-                    if status != K.ST_DONE:
-                        st._status(status)          # raises the solver's error
-                else:
-                    st.advance(tau_end)
+                status = kernel(y, ist, fst, (current_time + step_size - t_start) * omega, p, opts,
+                                _NO_POIN, _EMPTY_F, _NO_SAMP, _NO_LOG)
+                if status != _ST_DONE:
+                    self._st._status(status)          # raises the solver's error
             except Exception as e:  # noqa: BLE001 -- restore the state, report, never raise
-                _restore(y, snap[0])
-                _restore(ist, snap[1])
-                _restore(fst, snap[2])
-                if old_inputs is not None:
-                    p[P_B], p[P_FEXT], self._applied_preload, self._applied_force = old_inputs
-                kind = "solver failure" if isinstance(e, SolverError) else f"failure ({e!r})"
-                return self._fail(f"{kind} in the step from t = {current_time!r} s with "
-                                  f"h = {step_size!r} s: {e}; state restored to t = {current_time!r} s "
-                                  f"(retry with a shorter step)", DISCARD)
+                return self._step_failed(e, snap, old_inputs, current_time, step_size)
             self._t = current_time + step_size
             self.last_status = OK
             return True
         except Exception as e:  # noqa: BLE001 -- an exception would be fmi2Fatal in pythonfmu
             return self._fail(f"fmi2DoStep failed: {type(e).__name__}: {e}")
+
+    def _step_allowed(self, current_time, step_size) -> bool:
+        """The checks of do_step off its common case; False (with the status recorded) to refuse."""
+        if self._slow and not self._prepare_step():
+            return False
+        t = self._t
+        if not (0.0 < step_size < _INF) or (
+                current_time != t and not abs(current_time - t) <= 1e-9 * max(abs(t), step_size)):
+            return self._reject_step(current_time, step_size)
+        return True
+
+    def _apply_inputs(self, p):
+        """Write the inputs into the kernel's parameters; their previous values, or None if refused."""
+        preload, fh = self.preload, self.harmonic_force
+        if not (_isfinite(preload) and _isfinite(fh)):
+            bad = "preload" if not _isfinite(preload) else "harmonic_force"
+            self._fail(f"input {bad!r} = {getattr(self, bad)!r} N is not finite; step refused, "
+                       f"state unchanged")
+            return None
+        old_inputs = (p[P_B], p[P_FEXT], self._applied_preload, self._applied_force)
+        p[P_B] = preload / self._F0          # exactly as RigParameters.to_groups()
+        p[P_FEXT] = fh / self._F0
+        self._applied_preload = preload
+        self._applied_force = fh
+        return old_inputs
+
+    def _step_failed(self, e, snap, old_inputs, current_time, step_size) -> bool:
+        """The kernel failed: put the state and the inputs back as they were, report Discard."""
+        self._st.restore(snap)
+        if old_inputs is not None:
+            self._p[P_B], self._p[P_FEXT], self._applied_preload, self._applied_force = old_inputs
+        kind = "solver failure" if isinstance(e, SolverError) else f"failure ({e!r})"
+        return self._fail(f"{kind} in the step from t = {current_time!r} s with "
+                          f"h = {step_size!r} s: {e}; state restored to t = {current_time!r} s "
+                          f"(retry with a shorter step)", DISCARD)
 
     def _prepare_step(self) -> bool:
         """Slow path of do_step: not initialised, terminated, or the tolerance was set."""
@@ -524,6 +557,14 @@ class HammerBitRock(Fmi2Slave):
             return self._fail(f"fmi2DoStep refused: {self._error}")
         if self._dirty and not self._apply_tolerance():
             return False
+        st = self._st
+        # what the hot path of do_step reads, in one tuple (the stepper, its arrays and the
+        # clock change only when _slow is set)
+        if self._kernel is K.advance_hammer:     # compiled by now: call it without the type dispatch
+            self._kernel = _entry_point(K.advance_hammer, (st.y, st.istate, st.fstate, 0.0, st.p, st.opts,
+                                                            _NO_POIN, _EMPTY_F, _NO_SAMP, _NO_LOG))
+        self._hot = (self._kernel, st.y, st.istate, st.fstate, st.p, st.opts, self._t_start, self._omega,
+                     st.state_buffer)
         self._slow = False
         return True
 

@@ -277,13 +277,15 @@ class Stepper:
         self._fast = solver.method == "adaptive" and nz == 0 and self.ne == 0
         self._entry = "advance_hammer" if self._fast else "advance"
         n = 4 + nz + self.ne
-        self.y = np.zeros(n)
+        # y, istate and fstate are views of one buffer: snapshot() copies them in one call
+        self.state_buffer = np.zeros(n + K.N_ISTATE + K.N_FSTATE)
+        self.y = self.state_buffer[:n]
+        self.istate = self.state_buffer[n:n + K.N_ISTATE].view(np.int64)
+        self.fstate = self.state_buffer[n + K.N_ISTATE:]
         if y0 is not None:
             self.y[:4] = y0
         if z0 is not None:
             self.y[4:4 + nz] = z0
-        self.istate = np.zeros(K.N_ISTATE, dtype=np.int64)
-        self.fstate = np.zeros(K.N_FSTATE)
         period = groups.period
         if solver.method == "rk4":
             h0 = period / solver.steps_per_period
@@ -414,6 +416,17 @@ class Stepper:
         raise SolverError(f"solver stopped with status {status} at tau = {t:.9g}", time=t, status=status)
 
     # ------------------------------------------------------------------
+    def snapshot(self) -> bytes:
+        """The integration state (y, istate, fstate) as bytes, for :meth:`restore`.
+
+        The parameters ``p`` are not included (see :meth:`get_state` for the whole state).
+        """
+        return self.state_buffer.tobytes()
+
+    def restore(self, data: bytes) -> None:
+        """Put back, in place, the integration state of a :meth:`snapshot` of this stepper."""
+        self.state_buffer[:] = np.frombuffer(data, dtype=np.float64)
+
     def get_state(self) -> np.ndarray:
         """Whole solver state as one flat float64 array (y, istate, fstate, p)."""
         return np.concatenate([self.y, self.istate.astype(np.float64), self.fstate, self.p])

@@ -688,11 +688,57 @@ def test_solver_failure_inside_a_step_restores_the_state(monkeypatch):
         return K.ST_EVENT_STORM
 
     monkeypatch.setattr(s, "_kernel", failing)
+    s._slow = True                  # do_step takes the kernel from the tuple its slow path rebuilds
     assert s.do_step(300 * h, h) is False
     assert s.last_status == FMI_DISCARD                  # the master may retry with a shorter step
     assert "event storm" in s.log_queue[-1].msg
     after = (s._st.get_state(), s._t)
     assert np.array_equal(after[0], before[0]) and after[1] == before[1]
     monkeypatch.setattr(s, "_kernel", real)
+    s._slow = True
     s.preload = RIG.preload
     assert s.do_step(300 * h, h)
+
+
+def test_stepper_snapshot_restores_the_integration_state_in_place():
+    """Stepper.snapshot/restore (do_step's rollback): y, istate and fstate come back bit for bit, in
+    the same arrays, and the stepper then continues exactly as it did the first time."""
+    st = Stepper(RIG.to_groups(), solver=SolverOptions(rtol=TOL, atol=1e-2 * TOL))
+    st.advance(3.0)
+    arrays = (st.y, st.istate, st.fstate)
+    before, snap = st.get_state(), st.snapshot()
+    st.advance(9.0)                                  # moves y, the event counts and the clock
+    first = st.get_state()
+    assert not np.array_equal(first, before) and st.istate[K.I_COUNT0:].sum() > 0
+    st.restore(snap)
+    assert np.array_equal(st.get_state(), before)
+    assert all(a is b for a, b in zip((st.y, st.istate, st.fstate), arrays))
+    st.advance(9.0)
+    assert np.array_equal(st.get_state(), first)
+
+
+def test_tolerance_set_after_initialisation_applies_from_the_next_step():
+    """The slave's step equals the library's Stepper stepped on the same grid, with its tolerance
+    switched at the same communication point (and differs from not switching it)."""
+    from hammerbit.model.slave import HammerBitRock
+    s = HammerBitRock(instance_name="unit")
+    s.setup_experiment(0.0)
+    s.exit_initialization_mode()
+    vr_tol = next(vr for vr, v in s.vars.items() if v.name == "tolerance")
+    h, om = 5e-3, SCALES.omega
+    lib = Stepper(RIG.to_groups(), solver=SolverOptions(rtol=TOL, atol=1e-2 * TOL))
+    same = Stepper(RIG.to_groups(), solver=SolverOptions(rtol=TOL, atol=1e-2 * TOL))
+    t = 0.0
+    for k in range(200):
+        if k == 100:
+            s.set_real([vr_tol], [1e-6])
+            assert s.last_status == 0
+            state = lib.get_state()
+            lib = Stepper(RIG.to_groups(), solver=SolverOptions(rtol=1e-6, atol=1e-8))
+            lib.set_state(state)
+        assert s.do_step(t, h)
+        t += h
+        lib.advance(t * om)
+        same.advance(t * om)
+    assert np.array_equal(s._st.get_state(), lib.get_state())
+    assert not np.array_equal(lib.y, same.y)
