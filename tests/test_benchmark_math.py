@@ -183,3 +183,26 @@ def test_load_results_skips_bad_files(tmp_path, capsys):
     res = load_results(str(tmp_path))
     assert [r["benchmark"] for r in res] == ["named", "b_bench"]     # sorted by file name
     assert "d.json" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------- step_statistics
+def test_step_statistics_pairs_blocks_and_takes_the_median_ratio():
+    from benchmarks.bench_fmu import step_statistics
+    ours = [2.0, 3.0, 4.0, 10.0]
+    floor = [1.6, 2.0, 2.0, 4.0]
+    st = step_statistics(ours, floor)
+    # paired ratios 1.25, 1.5, 2, 2.5: median (1.5 + 2) / 2; quartiles at positions 0.75 and 2.25
+    # of the sorted ratios (linear): 1.25 + 0.75 * 0.25 and 2 + 0.25 * 0.5
+    assert st["ratio"] == pytest.approx(1.75)
+    assert st["ratio_q1"] == pytest.approx(1.4375) and st["ratio_q3"] == pytest.approx(2.125)
+    # the minima come from different pairs: 2 / 1.6
+    assert st["ratio_of_min"] == pytest.approx(1.25)
+    assert st["ours_s"] == pytest.approx(3.5) and st["floor_s"] == pytest.approx(2.0)
+    assert st["ours_min_s"] == 2.0 and st["floor_min_s"] == 1.6
+
+
+@pytest.mark.parametrize("ours, floor", [([1.0, 2.0], [1.0]), ([], []), ([1.0], [0.0])])
+def test_step_statistics_refuses_unpaired_or_empty_blocks(ours, floor):
+    from benchmarks.bench_fmu import step_statistics
+    with pytest.raises(ValueError, match="paired positive times"):
+        step_statistics(ours, floor)
