@@ -145,7 +145,7 @@ def cache_root() -> str:
 
 #: Runtime modules whose constants the compiled kernels fold in (parameter indices,
 #: ranges, Runge-Kutta tableaux): a change to any of them must miss the cache too.
-_COMPILED_IN = ("params.py", "validation.py", "tableaux.py")
+_COMPILED_IN = ("params.py", "validation.py", "tableaux.py", "partial.py")
 
 
 def _source_digest(py_file: str) -> str:
