@@ -456,7 +456,7 @@ class Stepper:
 
 #: CPU time to compile each entry point with an empty cache [s] on a 2-core
 #: machine (``benchmarks/bench_throughput.py``, CLI cold start), for the notice.
-COMPILE_SECONDS = {"advance_hammer": 50, "advance": 50}
+COMPILE_SECONDS = {"advance_hammer": 20, "advance": 25}
 _NOTICE_CHECKED = set()
 
 
