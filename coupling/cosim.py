@@ -401,14 +401,18 @@ class _Lane:
         self.string = _StringState(side)
         self.x_eq = hammer.x_eq
         self.out = hammer.read()
-        self.th = np.array([c.start, c.start - H_hist, c.start - 2 * H_hist])
-        self.wh = np.zeros((3, 2))
+        # the exchange histories and scalars in one array (one copy per snapshot): th (3,)
+        # communication times, wh (3, 2) hammer (x deviation, v), Fh (3,) interface forces,
+        # sc (4,) the exchange's outputs
+        self.hist = np.zeros(16)
+        self.th, self.wh = self.hist[0:3], self.hist[3:9].reshape(3, 2)
+        self.Fh, self.sc = self.hist[9:12], self.hist[12:16]
+        self.th[:] = (c.start, c.start - H_hist, c.start - 2 * H_hist)
         self.wh[:] = (self.out[0] - self.x_eq, self.out[1])
-        self.sc = np.zeros(4)
         self.sc[2] = self.string.f_xi()
         F = side.wob + self.sc[2] - side.ki * self.wh[0, 0] - side.ci * self.wh[0, 1]
         self.sc[0] = F
-        self.Fh = np.array([F, F, F])
+        self.Fh[:] = F
         self.F_held = F
         self.w = np.zeros(3)
         self.cbuf = np.zeros(6)
@@ -443,14 +447,13 @@ class _Lane:
                       self.th, self.wh, self.Fh, out[0] - self.x_eq, out[1], F_held, self.cbuf, self.sc)
 
     def snapshot(self):
-        return (self.hammer.get_state(), self.string.copy_state(), self.th.copy(), self.wh.copy(),
-                self.Fh.copy(), self.sc.copy(), self.out.copy())
+        return self.hammer.get_state(), self.string.copy_state(), self.hist.copy(), self.out.copy()
 
     def restore(self, snap) -> None:
-        hs, v, th, wh, Fh, sc, out = snap
+        hs, v, hist, out = snap
         self.hammer.set_state(hs)
         self.string.restore(v)
-        self.th[:], self.wh[:], self.Fh[:], self.sc[:] = th, wh, Fh, sc
+        self.hist[:] = hist
         self.out = out.copy()
 
     def free(self, snap) -> None:
@@ -527,35 +530,69 @@ class _StabilityWatch:
 
 
 class _Recorder:
-    """The recorded series (grows as needed; adaptive runs do not know their length)."""
+    """The recorded series (grows as needed; adaptive runs do not know their length).
+
+    Rows go into a plain float array (one column per variable, ``time`` first), viewed as
+    the structured array of :func:`_dtype` at the end; the string's outputs are read with
+    one product per row."""
+
+    #: Variables read from the lane's hammer outputs ``out`` (their index there).
+    _OUT = {"wob": 4, "hammer_position": 0, "hammer_velocity": 1, "bit_position": 2, "bit_velocity": 3}
+    #: Variables of :meth:`add`'s arguments (their position after ``t``).
+    _ARG = {"step_size": 0, "energy_residual": 1, "force_defect": 2, "wob_error_estimate": 3}
+    #: The string's outputs (row of ``_StringState.outputs``).
+    _STR = {"string_bit_displacement": 0, "string_bit_velocity": 1, "hook_load": 2}
 
     def __init__(self, c: CosimConfig, capacity: int, lane: _Lane):
         self.names = tuple(c.record)
-        self.data = np.zeros(max(capacity, 2), dtype=_dtype(self.names))
+        self.dtype = _dtype(self.names)
+        self.data = np.zeros((max(capacity, 2), 1 + len(self.names)))
         self.j = 0
         self.lane = lane
         self.need_flags = "stick" in self.names or "contact" in self.names
-        self.need_string = bool({"string_bit_displacement", "string_bit_velocity", "hook_load"} & set(self.names))
+        self.need_string = any(n in self._STR for n in self.names)
+        cols = {"out": [], "arg": [], "str": [], "flag": [], "lane": []}
+        for i, n in enumerate(self.names, start=1):
+            if n in self._OUT:
+                cols["out"].append((i, self._OUT[n]))
+            elif n in self._ARG:
+                cols["arg"].append((i, self._ARG[n]))
+            elif n in self._STR:
+                cols["str"].append((i, self._STR[n]))
+            elif n in ("stick", "contact"):
+                cols["flag"].append((i, 0 if n == "stick" else 1))
+            else:                                   # interface_force, hammer_force
+                cols["lane"].append((i, n))
+        self.cols = cols
 
     def add(self, t, h, r_step, defect, wob_diff) -> None:
         if self.j == len(self.data):
-            self.data = np.resize(self.data, 2 * len(self.data))
+            self.data = np.concatenate([self.data, np.zeros_like(self.data)])
         lane = self.lane
         out = lane.out
-        v = {"wob": out[4], "interface_force": lane.sc[0], "hammer_force": lane.F_held,
-             "hammer_position": out[0], "hammer_velocity": out[1], "bit_position": out[2],
-             "bit_velocity": out[3], "energy_residual": r_step, "step_size": h, "force_defect": defect,
-             "wob_error_estimate": wob_diff}     # the difference now, the factor at the end
+        row = self.data[self.j]
+        row[0] = t
+        cols = self.cols
+        for i, k in cols["out"]:
+            row[i] = out[k]
+        if cols["arg"]:
+            args = (h, r_step, defect, wob_diff)     # wob_diff: the difference now, the factor at the end
+            for i, k in cols["arg"]:
+                row[i] = args[k]
+        for i, n in cols["lane"]:
+            row[i] = lane.sc[0] if n == "interface_force" else lane.F_held
         if self.need_flags:
-            v["stick"], v["contact"] = _hammer_flags(lane.hammer)
+            fl = _hammer_flags(lane.hammer)
+            for i, k in cols["flag"]:
+                row[i] = fl[k]
         if self.need_string:
-            v["string_bit_displacement"], v["string_bit_velocity"] = lane.string.bit()
-            v["hook_load"] = lane.string.hook_load()
-        self.data[self.j] = (t, *[v[n] for n in self.names])
+            so = lane.string.outputs()
+            for i, k in cols["str"]:
+                row[i] = so[k]
         self.j += 1
 
     def result(self) -> np.ndarray:
-        return self.data[:self.j]
+        return np.ascontiguousarray(self.data[:self.j]).view(self.dtype).reshape(self.j)
 
 
 # ---------------------------------------------------------------------------

@@ -69,6 +69,7 @@ class StringSide:
         self.E = np.column_stack((B * ki, B * ci))
         self.n = ss.A.shape[0]
         self.frow = ki * self.Cu + ci * self.Cv   # F_i - W = frow.xi - ki x_dev - ci v
+        self.rows3 = np.ascontiguousarray(np.vstack((self.Cu, self.Cv, self.Ct)))  # bit u, v; top tension
         self.hook_eq = float(ss.hook_load)
         self._disc = {}
         self._phi = {}                # step length -> expm(Z h) (the squaring base of longer steps)
@@ -180,6 +181,7 @@ class StringSide:
             self._Vk_w = Vk * wgt[None, :]
             self.m_frow = np.ascontiguousarray(self.frow @ self._Vk_w)
             self.m_rows = (self.Cu @ self._Vk_w, self.Cv @ self._Vk_w, self.Ct @ self._Vk_w)
+            self.m_rows3 = np.ascontiguousarray(np.vstack(self.m_rows))
             self.m_V = self._Vk_w                 # xi = Re(m_V @ eta)
             self.m_Vinv = Vinv[keep]              # eta = m_Vinv @ xi
             self.modal = True
@@ -256,6 +258,14 @@ class _StringState:
         if self.modal:
             return s.hook_eq + float((s.m_rows[2] @ self.v).real)
         return s.hook_eq + float(s.Ct @ self.v)
+
+    def outputs(self) -> np.ndarray:
+        """(displacement deviation [m], velocity [m/s]) of the string's bottom node and the
+        hook load [N], in one product."""
+        s = self.side
+        o = (s.m_rows3 @ self.v).real if self.modal else s.rows3 @ self.v
+        o[2] += s.hook_eq
+        return o
 
     def copy_state(self):
         return self.v.copy()
