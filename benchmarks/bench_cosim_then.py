@@ -17,13 +17,11 @@ time, the penetration of each, and their medians and ratios.  The current
 fixed H = 1 ms run (``--step 0.001``) is measured in the same loop, for the
 ratio against today's master as well.
 
-Usage: ``python -m benchmarks.cosim_then_now [--repeats N] [--update]``
-(results in the scratch directory unless ``--update``; needs git and the
-repository's history).
+Run ``python -m benchmarks --only cosim_then [--quick]`` (needs git and the
+repository's history; about a minute, most of it installing and warming the old code).
 """
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import shutil
@@ -33,7 +31,9 @@ import sys
 import tempfile
 import time
 
-from benchmarks import REPO_ROOT, configure_output, save_result
+from benchmarks import REPO_ROOT, harness_command, save_result, stage_logger, summary_row
+
+NAME = "cosim_then"
 
 #: the code of the day issue 15 was filed (before the coupling-error estimate)
 THEN = "9db0dea"
@@ -57,15 +57,15 @@ def _summary(rows: list) -> dict:
             "penetration_m": rows[-1]["penetration_m"], "runs": rows}
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
-    ap.add_argument("--repeats", type=int, default=5, help="alternating runs of each (default 5)")
-    ap.add_argument("--update", action="store_true", help="write benchmarks/results (tracked)")
-    a = ap.parse_args(argv)
-    configure_output(a.update)
+def run(quick: bool = False, *, verbose: bool = True) -> dict:
+    """Run the comparison; write ``results/cosim_then.json``."""
+    log = stage_logger(NAME, verbose)
+    repeats = 3 if quick else 5
     now_exe = os.path.join(os.path.dirname(sys.executable), "hammerbit")
+    t_start = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="hammerbit-then-") as tmp:
         wt = os.path.join(tmp, "then")
+        log(f"checking out {THEN} and installing it into a temporary environment ...")
         subprocess.run(["git", "-C", REPO_ROOT, "worktree", "add", "-q", "--detach", wt, THEN], check=True)
         try:
             venv = os.path.join(tmp, "venv")
@@ -74,16 +74,18 @@ def main(argv=None) -> int:
                            check=True, cwd=tmp, capture_output=True)
             then_exe = os.path.join(venv, "bin", "hammerbit")
             env = dict(os.environ, HAMMERBIT_CACHE_DIR=os.path.join(tmp, "cache"))
+            log("warming both (the old code compiles its kernels) ...")
             for exe, extra in ((then_exe, []), (now_exe, []), (now_exe, ["--step", "0.001"])):
-                _run(exe, CASE + extra, env)  # compile / load the kernels, warm the file cache
+                _run(exe, CASE + extra, env)
             then, now, now_fixed = [], [], []
-            for _ in range(a.repeats):
+            for i in range(repeats):
+                log(f"round {i + 1}/{repeats} ...")
                 then.append(_run(then_exe, CASE, env))
                 now.append(_run(now_exe, CASE, env))
                 now_fixed.append(_run(now_exe, CASE + ["--step", "0.001"], env))
         finally:
             subprocess.run(["git", "-C", REPO_ROOT, "worktree", "remove", "--force", wt], check=False)
-    res = {"command": "python -m benchmarks.cosim_then_now", "then_commit": THEN, "case": " ".join(CASE),
+    res = {"quick": quick, "command": harness_command(NAME, quick), "then_commit": THEN, "case": " ".join(CASE),
            "then_fixed_1ms": _summary(then), "now_default": _summary(now), "now_fixed_1ms": _summary(now_fixed)}
     res["ratio_now_default_to_then_fixed_loop"] = (res["now_default"]["loop_s_median"]
                                                    / res["then_fixed_1ms"]["loop_s_median"])
@@ -91,20 +93,24 @@ def main(argv=None) -> int:
                                                     / res["then_fixed_1ms"]["total_s_median"])
     res["ratio_now_default_to_now_fixed_loop"] = (res["now_default"]["loop_s_median"]
                                                   / res["now_fixed_1ms"]["loop_s_median"])
-    path = save_result("cosim_then_now", res)
-    print(f"then ({THEN}) fixed 1 ms: loop {res['then_fixed_1ms']['loop_s_median'] * 1e3:.1f} ms, "
-          f"command {res['then_fixed_1ms']['total_s_median']:.2f} s, penetration "
-          f"{res['then_fixed_1ms']['penetration_m'] * 1e3:.3f} mm")
-    print(f"now default (adaptive): loop {res['now_default']['loop_s_median'] * 1e3:.1f} ms, "
-          f"command {res['now_default']['total_s_median']:.2f} s, penetration "
-          f"{res['now_default']['penetration_m'] * 1e3:.3f} mm")
-    print(f"now fixed 1 ms: loop {res['now_fixed_1ms']['loop_s_median'] * 1e3:.1f} ms")
-    print(f"now default / then fixed: loop {res['ratio_now_default_to_then_fixed_loop']:.2f}, "
-          f"command {res['ratio_now_default_to_then_fixed_total']:.2f}; now default / now fixed: loop "
-          f"{res['ratio_now_default_to_now_fixed_loop']:.2f}")
-    print(f"results: {path}", file=sys.stderr)
-    return 0
+    th, nd = res["then_fixed_1ms"], res["now_default"]
+    res["summary"] = [summary_row(
+        f"`hammerbit {' '.join(CASE)}`: the default run (adaptive, tol 1e-3) against the fixed 1 ms run of "
+        f"the code before the estimate ({THEN}), stepping-loop wall time, median of {repeats} alternating runs "
+        f"(whole commands: {nd['total_s_median']:.2f} s against {th['total_s_median']:.2f} s)",
+        f"{nd['loop_s_median'] * 1e3:.0f} ms, penetration {nd['penetration_m'] * 1e3:.2f} mm",
+        peer=f"{th['loop_s_median'] * 1e3:.0f} ms, penetration {th['penetration_m'] * 1e3:.2f} mm",
+        ratio=f"{res['ratio_now_default_to_then_fixed_loop']:.2f}x wall",
+        goal="<= 1x the fixed 1 ms run of the day of issue 15",
+        met=res["ratio_now_default_to_then_fixed_loop"] <= 1.0, command=res["command"])]
+    res["elapsed_s"] = time.perf_counter() - t_start
+    path = save_result(NAME, res)
+    log(f"now default / then fixed: loop {res['ratio_now_default_to_then_fixed_loop']:.2f}, command "
+        f"{res['ratio_now_default_to_then_fixed_total']:.2f}; now default / now fixed (CLI): loop "
+        f"{res['ratio_now_default_to_now_fixed_loop']:.2f}; {path}")
+    return res
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from benchmarks import standalone
+    standalone(run, __doc__)
