@@ -35,7 +35,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg as sla
 
 from .assembly import Assembly, _element_pattern, assemble
 from .description import (
@@ -63,6 +62,7 @@ def _eigen(asm: Assembly, f_max: float | None, count: int | None, *,
     computed (both given: both limits apply; neither: 10).  ``all_modes``:
     the whole spectrum (dense ``eigh``).
     """
+    import scipy.linalg as sla  # noqa: PLC0415 -- only where needed (0.2 s import)
     kd, ke = asm.tridiagonal("K")
     md, me = asm.tridiagonal("M")
     n = kd.size

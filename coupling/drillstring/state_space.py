@@ -12,7 +12,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg as sla
 
 from .assembly import assemble
 from .description import DEFAULT_MASS, G, Boundary, DrillString
@@ -146,6 +145,7 @@ def state_space(string: DrillString, top: "Boundary | str | None" = None,
     -------
     StateSpace
     """
+    import scipy.linalg as sla  # noqa: PLC0415 -- only where needed (0.2 s import)
     if mud_density is not None:
         string = string.replace(mud_density=mud_density)
     asm = assemble(string, top, bottom, mass=mass)
