@@ -36,6 +36,10 @@ SLOW_TESTS = {
         "tests/test_cosim.py::test_matches_monolithic_wob_amplitude",
     "tests/test_cosim.py::test_instability_detected_stiff_interface":
         "tests/test_cosim.py::test_instability_detected_by_energy_residual",
+    "tests/test_studies.py::test_map_identical_on_a_dask_scheduler":
+        "tests/test_studies.py::test_map_identical_on_every_executor",
+    "tests/test_studies.py::test_map_identical_on_a_one_worker_dask_cluster":
+        "tests/test_studies.py::test_map_identical_on_every_executor",
 }
 
 
