@@ -36,6 +36,8 @@ SLOW_TESTS = {
         "tests/test_cosim.py::test_matches_monolithic_wob_amplitude",
     "tests/test_cosim.py::test_instability_detected_stiff_interface":
         "tests/test_cosim.py::test_instability_detected_by_energy_residual",
+    "tests/test_startup.py::test_kernels_load_without_scipy_linalg_and_blas_functions_still_compile":
+        "tests/test_startup.py::test_kernels_load_without_scipy_linalg_and_the_blas_flag_is_numbas_own",
     "tests/test_studies.py::test_map_identical_on_a_dask_scheduler":
         "tests/test_studies.py::test_map_identical_on_every_executor",
     "tests/test_studies.py::test_map_identical_on_a_one_worker_dask_cluster":
