@@ -21,6 +21,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from cli_run import run_cli
 from hammerbit.analysis import detect_period
 from hammerbit.model.params import ParameterError, apply_settings, preset, regime
 from hammerbit.simulate import Record, simulate
@@ -298,6 +299,41 @@ def test_map_identical_on_a_one_worker_dask_cluster():
     one = _map_on(ExecutorOptions(workers=1, dask=True, chunk_seconds=1e-9))
     assert one.attrs["workers"] == 1
     _assert_same_map(one, _map_on(IN_PROCESS))
+
+
+def test_ctrl_c_in_a_map_on_local_workers_exits_130_and_leaves_no_processes(monkeypatch, capsys):
+    """``hammerbit map --workers 2`` in this process, Ctrl-C after the first chunk came back (the
+    main thread is then in the executor's wait for results, where a Ctrl-C lands): exit 130, no
+    traceback, and every worker process the map started ends.  The signal itself, in a new
+    process: ``test_cli_map_interrupted_leaves_no_processes`` (slow set)."""
+    psutil = pytest.importorskip("psutil")
+    from hammerbit.studies.executor import Executor
+    me = psutil.Process()
+    before = {p.pid for p in me.children(recursive=True)}
+
+    class CtrlC:
+        """The progress bar of the map: a KeyboardInterrupt at its first update."""
+        done, workers = 0, []
+
+        def update(self, n):
+            CtrlC.done += n
+            # the map's processes; multiprocessing's resource tracker lives as long as this process
+            CtrlC.workers = [p for p in me.children(recursive=True) if p.pid not in before
+                             and "resource_tracker" not in " ".join(p.cmdline())]
+            raise KeyboardInterrupt
+
+        def close(self):
+            pass
+
+    monkeypatch.setattr(Executor, "_progress", lambda self, total, label: CtrlC())
+    cells = 20 * 12
+    code, out, err = run_cli(["map", "--axis", "a=0.05:0.25:20", "--axis", "eta=0.6:1.4:12", "--periods", "300",
+                              "--workers", "2"], capsys)
+    assert code == 130 and "interrupted" in err and "Traceback" not in err, err
+    assert 0 < CtrlC.done < cells                       # inside the run: cells still to come
+    assert len(CtrlC.workers) >= 2
+    gone, alive = psutil.wait_procs(CtrlC.workers, timeout=30)
+    assert not alive, [p.cmdline() for p in alive]
 
 
 def test_cli_map_interrupted_leaves_no_processes(tmp_path):
