@@ -24,8 +24,8 @@ def built_fmu(tmp_path_factory):
 # out (``addopts = -m 'not slow'`` in pyproject.toml); ``-m slow`` runs only
 # it and ``-m "slow or not slow"`` runs everything.  Besides the tests decorated
 # with ``@pytest.mark.slow`` in their files, the tests below are slow: each
-# costs tens of seconds and its behaviour keeps a faster test in the default
-# set (named beside it).
+# costs seconds (a new process, a cluster, a compile) to tens of seconds, and its
+# behaviour keeps a faster test in the default set (named beside it).
 SLOW_TESTS = {
     "tests/test_cosim.py::test_linear_sweep_matches_frf_and_modes":
         "tests/test_hammer_boundary.py::test_coupled_modes_match_the_continuous_oracle",
@@ -36,6 +36,14 @@ SLOW_TESTS = {
         "tests/test_cosim.py::test_matches_monolithic_wob_amplitude",
     "tests/test_cosim.py::test_instability_detected_stiff_interface":
         "tests/test_cosim.py::test_instability_detected_by_energy_residual",
+    "tests/test_startup.py::test_kernels_load_without_scipy_linalg_and_blas_functions_still_compile":
+        "tests/test_startup.py::test_kernels_load_without_scipy_linalg_and_the_blas_flag_is_numbas_own",
+    "tests/test_studies.py::test_cli_map_interrupted_leaves_no_processes":
+        "tests/test_studies.py::test_ctrl_c_in_a_map_on_local_workers_exits_130_and_leaves_no_processes",
+    "tests/test_studies.py::test_map_identical_on_a_dask_scheduler":
+        "tests/test_studies.py::test_map_identical_on_every_executor",
+    "tests/test_studies.py::test_map_identical_on_a_one_worker_dask_cluster":
+        "tests/test_studies.py::test_map_identical_on_every_executor",
 }
 
 

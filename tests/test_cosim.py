@@ -323,7 +323,7 @@ def test_step_that_cannot_resolve_is_refused(string):
 def test_estimate_within_a_factor_3_of_the_true_error(string, case, H):
     """Against the monolithic reference (independent: one hybrid system, no exchange)."""
     rig = field_hammer().replace(amplitude=2e3) if case == "stuck" else DRILL
-    cfg = CosimConfig(stop=0.8, step=H, rig=rig, record=("wob",))
+    cfg = CosimConfig(stop=0.5, step=H, rig=rig, record=("wob",))      # >= 8 slips when drilling
     ref = monolithic(string, cfg)
     r = cosimulate(string, cfg)
     e = r.estimate

@@ -11,8 +11,10 @@ FMU carries the native front (``hammerbit.fmu_native``), the FMI call itself ret
 """
 from __future__ import annotations
 
+import atexit
 import json
 import math
+import shutil
 import subprocess
 import sys
 import textwrap
@@ -44,8 +46,27 @@ OUTPUT_NAMES = ("hammer_position", "hammer_velocity", "bit_position", "bit_veloc
 # ---------------------------------------------------------------------------
 # helpers
 # ---------------------------------------------------------------------------
+_EXTRACTED = {}                          # FMU path -> its one extraction directory in this process
+
+
+def _extracted(path) -> str:
+    """The FMU extracted once per process and shared by its instances, as FMI hosts do (one
+    binary, several instances).  New extraction directories: ``fresh_process`` below."""
+    key = str(path)
+    if key not in _EXTRACTED:
+        from fmpy import extract
+        d = extract(key)
+        atexit.register(shutil.rmtree, d, True)
+        _EXTRACTED[key] = d
+    return _EXTRACTED[key]
+
+
 class Instance(FMUInstance):
-    """The project's loader plus the outputs as one tuple and the recorded status."""
+    """The project's loader plus the outputs as one tuple and the recorded status; the
+    instances of one FMU share its extraction directory."""
+
+    def __init__(self, path, *args, unzipdir=None, **kw):
+        super().__init__(path, *args, unzipdir=unzipdir if unzipdir is not None else _extracted(path), **kw)
 
     def outputs(self):
         reals = self.get(*OUTPUT_NAMES)

@@ -21,6 +21,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from cli_run import run_cli
 from hammerbit.analysis import detect_period
 from hammerbit.model.params import ParameterError, apply_settings, preset, regime
 from hammerbit.simulate import Record, simulate
@@ -263,36 +264,106 @@ def dask_cluster():
                 p.wait()
 
 
-def test_map_identical_on_every_executor(dask_cluster):
-    g = preset("paper-fig12")
-    axes = [Axis.parse("a=0.03:0.09:4"), Axis.parse("eta=0.9:1.0:2")]
-    kw = dict(periods=40)
-    ref = regime_map(g, axes, options=IN_PROCESS, **kw)
-    fine = regime_map(g, axes, options=ExecutorOptions(workers=1, chunk_seconds=1e-9), **kw)
-    local = regime_map(g, axes, options=ExecutorOptions(workers=2, chunk_seconds=1e-9), **kw)
-    one = regime_map(g, axes, options=ExecutorOptions(workers=1, dask=True, chunk_seconds=1e-9), **kw)
-    remote = regime_map(g, axes, options=ExecutorOptions(scheduler=dask_cluster, chunk_seconds=1e-3), **kw)
-    assert local.attrs["workers"] == 2 and remote.attrs["workers"] == 2 and one.attrs["workers"] == 1
-    for other in (fine, local, one, remote):
-        for v in ref.data_vars:
-            np.testing.assert_array_equal(other[v].values, ref[v].values, err_msg=v)
+MAP_AXES = ("a=0.03:0.09:4", "eta=0.9:1.0:2")
+
+
+def _map_on(options):
+    return regime_map(preset("paper-fig12"), [Axis.parse(a) for a in MAP_AXES], options=options, periods=40)
+
+
+def _assert_same_map(other, ref):
+    for v in ref.data_vars:
+        np.testing.assert_array_equal(other[v].values, ref[v].values, err_msg=v)
+
+
+def test_map_identical_on_every_executor():
+    """In process (one chunk, and one chunk per cell) and on 2 local workers: the same map.
+    The other Dask clusters go through the same tasks (the two tests below)."""
+    ref = _map_on(IN_PROCESS)
+    fine = _map_on(ExecutorOptions(workers=1, chunk_seconds=1e-9))
+    local = _map_on(ExecutorOptions(workers=2, chunk_seconds=1e-9))
+    assert local.attrs["workers"] == 2
+    for other in (fine, local):
+        _assert_same_map(other, ref)
+
+
+def test_map_identical_on_a_dask_scheduler(dask_cluster):
+    """A scheduler with two ``dask worker`` processes (``--scheduler``): the same map."""
+    remote = _map_on(ExecutorOptions(scheduler=dask_cluster, chunk_seconds=1e-3))
+    assert remote.attrs["workers"] == 2
+    _assert_same_map(remote, _map_on(IN_PROCESS))
+
+
+def test_map_identical_on_a_one_worker_dask_cluster():
+    """``dask=True`` with one worker: a local cluster of one process, the same map."""
+    one = _map_on(ExecutorOptions(workers=1, dask=True, chunk_seconds=1e-9))
+    assert one.attrs["workers"] == 1
+    _assert_same_map(one, _map_on(IN_PROCESS))
+
+
+def test_ctrl_c_in_a_map_on_local_workers_exits_130_and_leaves_no_processes(monkeypatch, capsys):
+    """``hammerbit map --workers 2`` in this process, Ctrl-C after the first chunk came back (the
+    main thread is then in the executor's wait for results, where a Ctrl-C lands): exit 130, no
+    traceback, and every worker process the map started ends.  The signal itself, in a new
+    process: ``test_cli_map_interrupted_leaves_no_processes`` (slow set)."""
+    psutil = pytest.importorskip("psutil")
+    from hammerbit.studies.executor import Executor
+    me = psutil.Process()
+    before = {p.pid for p in me.children(recursive=True)}
+
+    class CtrlC:
+        """The progress bar of the map: a KeyboardInterrupt at its first update."""
+        done, workers = 0, []
+
+        def update(self, n):
+            CtrlC.done += n
+            # the map's processes; multiprocessing's resource tracker lives as long as this process
+            CtrlC.workers = [p for p in me.children(recursive=True) if p.pid not in before
+                             and "resource_tracker" not in " ".join(p.cmdline())]
+            raise KeyboardInterrupt
+
+        def close(self):
+            pass
+
+    monkeypatch.setattr(Executor, "_progress", lambda self, total, label: CtrlC())
+    cells = 20 * 12
+    code, out, err = run_cli(["map", "--axis", "a=0.05:0.25:20", "--axis", "eta=0.6:1.4:12", "--periods", "300",
+                              "--workers", "2"], capsys)
+    assert code == 130 and "interrupted" in err and "Traceback" not in err, err
+    assert 0 < CtrlC.done < cells                       # inside the run: cells still to come
+    assert len(CtrlC.workers) >= 2
+    gone, alive = psutil.wait_procs(CtrlC.workers, timeout=30)
+    assert not alive, [p.cmdline() for p in alive]
 
 
 def test_cli_map_interrupted_leaves_no_processes(tmp_path):
     """Ctrl-C during a map on 2 local workers: exit 130 and no worker process left behind."""
     psutil = pytest.importorskip("psutil")
-    cmd = [sys.executable, "-m", "hammerbit.cli", "map", "--axis", "a=0.05:0.25:60", "--axis",
-           "eta=0.6:1.4:60", "--periods", "300", "--workers", "2"]
+    cmd = [sys.executable, "-m", "hammerbit.cli", "map", "--axis", "a=0.05:0.25:30", "--axis",
+           "eta=0.6:1.4:40", "--periods", "300", "--workers", "2"]
     p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     proc = psutil.Process(p.pid)
+
+    def worker_cpu_s():
+        """CPU time [s] of each worker process (the spawn's resource tracker left out)."""
+        out = []
+        for k in proc.children(recursive=True):
+            try:
+                if "python" in k.name().lower() and "resource_tracker" not in " ".join(k.cmdline()):
+                    out.append(sum(k.cpu_times()[:2]))
+            except psutil.Error:        # ended or not yet readable
+                pass
+        return out
+
+    # Inside the run: both workers past their start-up (imports, kernel load, warm-up scene) and
+    # into the cells.  Measured in CPU time, which a busy machine does not stretch as it does the
+    # wall clock; the cells of the map take several times the margin above the start-up.
     deadline = time.monotonic() + 120
-    kids = []
     while time.monotonic() < deadline and p.poll() is None:
-        kids = proc.children(recursive=True)
-        if len([k for k in kids if "python" in k.name().lower()]) >= 2:
+        cpu = worker_cpu_s()
+        if len(cpu) >= 2 and min(cpu) >= 1.2:
             break
-        time.sleep(0.2)
-    time.sleep(3.0)                     # inside the run (workers warm, tasks running)
+        time.sleep(0.1)
     assert p.poll() is None, p.stderr.read()
     kids = proc.children(recursive=True)
     p.send_signal(signal.SIGINT)
