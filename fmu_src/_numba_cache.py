@@ -160,6 +160,11 @@ def _source_digest(py_file: str) -> str:
     return h.hexdigest()[:20]
 
 
+def kernels_digest() -> str:
+    """The digest the cache of this package's ``kernels.py`` is keyed on."""
+    return _source_digest(os.path.join(_HERE, "kernels.py"))
+
+
 class ContentHashCacheLocator(_caching._SourceFileBackedLocatorMixin, _caching._CacheLocator):
     """Cache locator keyed on the SHA-256 of the source (and what it folds in) and the module name,
     not on its path."""

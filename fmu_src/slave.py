@@ -51,6 +51,9 @@ from .params import P_B, P_FEXT, RigParameters
 from .pythonfmu_exit import guard_pythonfmu_exit
 from .stepping import _EMPTY_F, _NO_LOG, _NO_POIN, _NO_SAMP, SolverError, SolverOptions, Stepper
 from .validation import ParameterError, check
+from . import compile_ahead
+
+compile_ahead.ENABLED = False  # no helper interpreters inside an FMI host
 
 __all__ = ["HammerBitRock", "PARAMETERS", "INPUTS", "OUTPUTS", "UNITS", "STATE_FORMAT",
            "OK", "WARNING", "DISCARD", "ERROR", "guard_pythonfmu_exit"]

@@ -16,6 +16,7 @@ from typing import Optional
 import numpy as np
 
 from . import _numba_cache
+from . import compile_ahead
 from . import kernels as K
 from . import tableaux as T
 from .params import Groups, ParameterError
@@ -368,13 +369,15 @@ class Stepper:
         st = sample_times if sample_times is not None else _EMPTY_F
         sa = samples if samples is not None else _NO_SAMP
         lg = log if log is not None else _NO_LOG
-        if self._entry not in _NOTICE_CHECKED:
-            compile_notice(self._entry)
+        if self._entry not in _NOTICE_CHECKED and compile_notice(self._entry):
+            compile_ahead.start(self._entry)  # a second process compiles part of it
         if self._fast:
             status = K.advance_hammer(self.y, self.istate, self.fstate, t_end, self.p, self.opts,
                                       poin, st, sa, lg)
         else:
             status = self._advance_general(t_end, poin, st, sa, lg)
+        if compile_ahead.running():
+            compile_ahead.finish()
         return self._status(status)
 
     def _advance_general(self, t_end, poin, st, sa, lg):
@@ -456,7 +459,7 @@ class Stepper:
 
 #: CPU time to compile each entry point with an empty cache [s] on a 2-core
 #: machine (``benchmarks/bench_throughput.py``, CLI cold start), for the notice.
-COMPILE_SECONDS = {"advance_hammer": 20, "advance": 25}
+COMPILE_SECONDS = {"advance_hammer": 15, "advance": 25}
 _NOTICE_CHECKED = set()
 
 
