@@ -111,7 +111,11 @@ def _helper_main(entry: str) -> None:
             continue
 
 
-def record(entry: str = "advance_hammer") -> list:
+#: a scene that compiles each entry point (``Stepper`` picks the entry from the method)
+_RECORD_METHOD = {"advance_hammer": "adaptive", "advance": "rk4"}
+
+
+def record(entry: str) -> list:
     """Compile ``entry`` in this process (empty cache) and return the callees numba finished, in order."""
     global ENABLED
     from numba.core import event  # noqa: PLC0415
@@ -130,34 +134,39 @@ def record(entry: str = "advance_hammer") -> list:
                 done.append((name, tuple(ev.data["args"])))
 
     from .params import preset  # noqa: PLC0415
-    from .stepping import Stepper  # noqa: PLC0415
+    from .stepping import SolverOptions, Stepper  # noqa: PLC0415
     with event.install_listener("numba:compile", _Listener()):
         g = preset("paper-fig9")
-        Stepper(g).advance(g.period)
+        st = Stepper(g, solver=SolverOptions(method=_RECORD_METHOD[entry]))
+        assert st._entry == entry
+        st.advance(g.period)
     return done
 
 
+def _record_entry(entry: str) -> None:
+    """(In a fresh process with an empty cache) print the plan of ``entry`` as a hex pickle."""
+    print(pickle.dumps(record(entry)).hex())
+
+
 def _record_main() -> None:
+    """Record the plan of every entry point, each in a fresh process with an empty cache."""
     import tempfile  # noqa: PLC0415
-    if "numba" in sys.modules or not os.environ.get("HAMMERBIT_CACHE_DIR"):
-        # a fresh process with an empty cache, so every callee compiles here
-        with tempfile.TemporaryDirectory() as tmp:
-            env = dict(os.environ, HAMMERBIT_CACHE_DIR=tmp)
-            pkg = __package__
-            subprocess.run([sys.executable, "-c", f"from {pkg} import compile_ahead as c; c._record_main()"],
-                           env=env, check=True)
-        return
     import numba  # noqa: PLC0415
     from . import _numba_cache  # noqa: PLC0415
-    plan = {"numba": numba.__version__, "digest": _numba_cache.kernels_digest(),
-            "entries": {"advance_hammer": record("advance_hammer")}}
+    entries = {}
+    for entry in _RECORD_METHOD:
+        with tempfile.TemporaryDirectory() as tmp:
+            env = dict(os.environ, HAMMERBIT_CACHE_DIR=tmp)
+            r = subprocess.run([sys.executable, "-c", f"from {__package__} import compile_ahead as c; "
+                                f"c._record_entry({entry!r})"], env=env, check=True, capture_output=True, text=True)
+            entries[entry] = pickle.loads(bytes.fromhex(r.stdout.strip().splitlines()[-1]))
+    plan = {"numba": numba.__version__, "digest": _numba_cache.kernels_digest(), "entries": entries}
     with open(PLAN_FILE, "wb") as fh:
         pickle.dump(plan, fh)
-    print(f"{PLAN_FILE}: {len(plan['entries']['advance_hammer'])} callees of advance_hammer")
+    print(f"{PLAN_FILE}: " + ", ".join(f"{len(v)} callees of {k}" for k, v in entries.items()))
 
 
 if __name__ == "__main__":
     if sys.argv[1:] != ["--record"]:
         sys.exit("usage: python -m hammerbit.model.compile_ahead --record")
-    os.environ.pop("HAMMERBIT_CACHE_DIR", None)
     _record_main()
