@@ -19,7 +19,9 @@ holds one run's state.
 """
 from __future__ import annotations
 
+import hashlib
 import math
+from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Optional
 
@@ -28,6 +30,38 @@ import scipy.linalg as sla
 from numba import njit as _njit
 
 __all__ = ["StringSide"]
+
+#: eigendecompositions and matrix exponentials of recent string models, shared by every side built
+#: from the same matrices (a sweep, a run and its reference, a study's repeated runs): an n = 440
+#: string costs about 0.1 s for each
+_MEMO: "OrderedDict[bytes, object]" = OrderedDict()
+_MEMO_SIZE = 32
+
+
+def _memo(key: bytes, compute):
+    """``compute()``, remembered under ``key`` (its arrays made read-only: they are shared)."""
+    hit = _MEMO.get(key)
+    if hit is not None:
+        _MEMO.move_to_end(key)
+        return hit
+    value = compute()
+    for a in (value if isinstance(value, tuple) else (value,)):
+        if isinstance(a, np.ndarray):
+            a.setflags(write=False)
+    _MEMO[key] = value
+    while len(_MEMO) > _MEMO_SIZE:
+        _MEMO.popitem(last=False)
+    return value
+
+
+def _digest(tag: str, *arrays, extra=()) -> bytes:
+    h = hashlib.sha1(tag.encode())
+    for a in arrays:
+        a = np.ascontiguousarray(a)
+        h.update(repr((a.shape, a.dtype.str)).encode())
+        h.update(a.tobytes())
+    h.update(repr(extra).encode())
+    return h.digest()
 
 
 class StringSide:
@@ -81,9 +115,11 @@ class StringSide:
     # -- modes ---------------------------------------------------------------
     def _eigen(self):
         if self._eig is None:
-            try:
+            def decompose():
                 lam, V = np.linalg.eig(self.A1)
-                self._eig = (lam, V, np.linalg.inv(V))
+                return lam, V, np.linalg.inv(V)
+            try:
+                self._eig = _memo(_digest("eig", self.A1), decompose)
             except np.linalg.LinAlgError:
                 self._eig = False
         return self._eig
@@ -138,7 +174,7 @@ class StringSide:
             Z[n + 2:n + 4, n + 4:n + 6] = np.eye(2)
             Z[N - 1, :n] = self.frow
             Z[N - 1, n:n + 2] = (-self.ki, -self.ci)
-            Phi = sla.expm(Z * h)
+            Phi = _memo(_digest("expm", Z, extra=h), lambda: sla.expm(Z * h))
         self._phi[float(f"{h:.12g}")] = Phi
         rows = np.r_[np.arange(n), N - 1]
         d = _Discretisation(h=h, P=np.ascontiguousarray(Phi[np.ix_(rows, np.arange(n + 6))]))
