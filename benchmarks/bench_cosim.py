@@ -315,7 +315,7 @@ def run(quick: bool = False, *, verbose: bool = True) -> dict:
         f"{d['penetration_error_rel']:.2e} in {fmt_time(d['wall_time_s'])}",
         peer=f"{acc['fixed'][0]['penetration_error_rel']:.2e} in {fmt_time(acc['fixed_1ms_wall_time_s'])}",
         ratio=f"{d['wall_time_s'] / acc['fixed_1ms_wall_time_s']:.2f}x wall",
-        goal="error <= 1e-3 (the wall-time goal is against the fixed run of the day of the issue: row "
+        goal="error <= 1e-3 (the wall-time goal is against the fixed run of the code before the estimate: row "
              "cosim_then)", met=bool(d["penetration_error_rel"] <= 1e-3),
         command=cmd))
     for o in errors["orders"]:
