@@ -156,6 +156,9 @@ def measure_cli(cfg: dict) -> dict:
     floor = [_timed_subprocess([sys.executable, "-c", "pass"], base_env)["wall_s"] for _ in range(3)]
     imp = [_timed_subprocess([sys.executable, "-c", "import hammerbit.simulate"], base_env)["wall_s"]
            for _ in range(3)]
+    # what any command that runs numba kernels and writes a matplotlib PNG imports
+    libs = [_timed_subprocess([sys.executable, "-c", "import numba, matplotlib.figure, "
+                               "matplotlib.backends.backend_agg"], base_env)["wall_s"] for _ in range(3)]
     cold, warm = [], []
     last_out = None
     for _ in range(cfg["cold_runs"]):
@@ -194,6 +197,7 @@ def measure_cli(cfg: dict) -> dict:
         "warm_median_s": float(np.median([r["wall_s"] for r in warm])) if warm else None,
         "python_floor_s": min(floor),
         "import_hammerbit_simulate_s": min(imp),
+        "import_numba_matplotlib_s": min(libs),
         "cold_runs": cold, "warm_runs": [{k: v for k, v in w.items() if k != "stdout"} for w in warm],
         "cli_output": parsed,
     }
@@ -301,7 +305,8 @@ def run(quick: bool = False, *, verbose: bool = True) -> dict:
                     f"wall (CPU)", f"{cli['cold_s']:.2f} s ({cli['cold_cpu_s']:.2f} s)",
                     goal=f"<= {GOAL_COLD_S:g} s", met=cli["cold_met"], command=cmd),
         summary_row(f"CLI warm start (same command, cached kernels; `python -c pass` takes "
-                    f"{cli['python_floor_s']:.2f} s), wall (CPU)",
+                    f"{cli['python_floor_s']:.2f} s, importing numba and matplotlib alone "
+                    f"{cli.get('import_numba_matplotlib_s', float('nan')):.2f} s), wall (CPU)",
                     f"{cli['warm_s']:.2f} s ({cli['warm_cpu_s']:.2f} s)" if cli["warm_s"] else "n/a",
                     peer=f"cold {cli['cold_s']:.2f} s",
                     ratio=fmt_ratio(cli["cold_s"] / cli["warm_s"]) if cli["warm_s"] else None,
