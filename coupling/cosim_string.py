@@ -32,8 +32,7 @@ from numba import njit as _njit
 __all__ = ["StringSide"]
 
 #: eigendecompositions and matrix exponentials of recent string models, shared by every side built
-#: from the same matrices (a sweep, a run and its reference, a study's repeated runs): an n = 440
-#: string costs about 0.1 s for each
+#: from the same matrices (a sweep, a run and its reference, a study's repeated runs)
 _MEMO: "OrderedDict[bytes, object]" = OrderedDict()
 _MEMO_SIZE = 32
 

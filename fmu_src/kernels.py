@@ -260,10 +260,10 @@ def harmonic_shifted(t, dt, s0, c0, p):
     return p[P_A] * math.sin(p[P_ETA] * (t + dt) + p[P_PHI])
 
 
-# The vector field is the one piece inlined into its callers at numba's IR level: called
-# instead, the Runge-Kutta stages ran 50-65 % slower (the mode branches no longer fold).
-# Every other helper is an ordinary call, which LLVM inlines where it pays; IR inlining
-# them all cost about a third of the compile for no measured speed.
+# The vector field is the one piece inlined into its callers at numba's IR level: as a
+# call, the Runge-Kutta stages are slower (the mode branches no longer fold).  Every other
+# helper is an ordinary call, which LLVM inlines where it pays; IR-inlining them too only
+# lengthens the compile.
 @njit(cache=True, inline="always", _nrt=False, no_cpython_wrapper=True)
 def rhs(t, y, p, mode_s, mode_c, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, out):
     """Vector field of one hybrid mode at time t (see ``rhs_forced``)."""

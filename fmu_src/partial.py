@@ -5,7 +5,7 @@ become read-only constant data and integers literal types, so branches on
 them vanish and loops over them get constant trip counts.  That is what an
 IR-inlined call with constant arguments achieves too, but inlining makes numba
 re-run its untyped passes and deep-copy the callee's IR into the caller, which
-for the solver driver cost more than the rest of its compile.  A bound copy
+is slow for a function as large as the solver driver.  A bound copy
 compiles as one ordinary function, and numba caches it like any other (a
 closure's cache entry is keyed on its code and on the values it closes over).
 

@@ -62,7 +62,7 @@ def _eigen(asm: Assembly, f_max: float | None, count: int | None, *,
     computed (both given: both limits apply; neither: 10).  ``all_modes``:
     the whole spectrum (dense ``eigh``).
     """
-    import scipy.linalg as sla  # noqa: PLC0415 -- only where needed (0.2 s import)
+    import scipy.linalg as sla  # noqa: PLC0415 -- imported where needed (a slow import)
     kd, ke = asm.tridiagonal("K")
     md, me = asm.tridiagonal("M")
     n = kd.size

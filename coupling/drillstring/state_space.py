@@ -145,7 +145,7 @@ def state_space(string: DrillString, top: "Boundary | str | None" = None,
     -------
     StateSpace
     """
-    import scipy.linalg as sla  # noqa: PLC0415 -- only where needed (0.2 s import)
+    import scipy.linalg as sla  # noqa: PLC0415 -- imported where needed (a slow import)
     if mud_density is not None:
         string = string.replace(mud_density=mud_density)
     asm = assemble(string, top, bottom, mass=mass)

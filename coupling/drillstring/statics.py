@@ -77,7 +77,7 @@ def static_equilibrium(string: DrillString, wob: float | None = None, hook_load:
     -------
     StaticState
     """
-    import scipy.linalg as sla  # noqa: PLC0415 -- only where needed (0.2 s import)
+    import scipy.linalg as sla  # noqa: PLC0415 -- imported where needed (a slow import)
     if mud_density is not None:
         string = string.replace(mud_density=mud_density)
     topb = _check_end(parse_boundary(string.top if top is None else top), "top")
