@@ -66,9 +66,10 @@ def start(entry: str) -> bool:
     env["HAMMERBIT_CACHE_DIR"] = _numba_cache.cache_root()  # the same cache as this process
     pkg = __package__
     try:
-        _helper = subprocess.Popen([sys.executable, "-c", f"from {pkg} import compile_ahead as c; c._helper_main({entry!r})"],
-                                   env=env, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                                   stderr=subprocess.DEVNULL, start_new_session=False)
+        # same process group: a Ctrl-C in the terminal ends the helper too
+        code = f"from {pkg} import compile_ahead as c; c._helper_main({entry!r})"
+        _helper = subprocess.Popen([sys.executable, "-c", code], env=env, stdin=subprocess.DEVNULL,
+                                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     except OSError:
         _helper = None
         return False
