@@ -1,12 +1,11 @@
 """The default co-simulation now against the fixed H = 1 ms run of the code it replaced.
 
 The goal is a default (adaptive, error-controlled) co-simulation whose
-wall time is no larger than the fixed H = 1 ms run of the day the issue was
-filed.  That code is commit :data:`THEN` (the last commit before the
-coupling-error estimate).  This script checks it out into a temporary git
+wall time is no larger than the fixed H = 1 ms run of the code it replaced:
+commit :data:`THEN`, the last commit before the coupling-error estimate.  This script checks it out into a temporary git
 worktree, installs it into a temporary virtual environment (sharing this
 Python's packages, ``--no-deps``), warms both numba caches, and then runs the
-drilling case of the issue with each, alternating, ``--repeats`` times::
+drilling case with each, alternating, ``--repeats`` times::
 
     hammerbit cosim --string field-2200m --stop 2 --set frequency=22.5 --json
 

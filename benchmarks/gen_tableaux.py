@@ -95,6 +95,17 @@ out += fmt("DP54_A", A7) + fmt("DP54_B", r.B) + fmt("DP54_C", C7) + fmt("DP54_E"
 out += "\n# ---- classic RK4: order 4, fixed step, cubic Hermite dense output ----\n"
 out += "RK4_N_STAGES = 4\n"
 out += fmt("RK4_A", A5) + fmt("RK4_B", B4) + fmt("RK4_C", C5) + fmt("RK4_W", W4)
+out += "RK4_E = np.zeros(RK4_N_STAGES + 1)  # no error estimate\n"
+out += '''
+# ---- each method as the driver takes it (``kernels.advance``): A, B, C, E, E3, W, the number of
+# stages, the error-estimate kind and the controller exponent 1 / (order of the estimate + 1) ----
+METHODS = {
+    "dop853": (DOP853_A, DOP853_B, DOP853_C, DOP853_E, DOP853_E3, DOP853_W, DOP853_N_STAGES, ERR_DOP853,
+               1.0 / 8.0),
+    "dp54": (DP54_A, DP54_B, DP54_C, DP54_E, DP54_E, DP54_W, DP54_N_STAGES, ERR_EMBEDDED, 1.0 / 5.0),
+    "rk4": (RK4_A, RK4_B, RK4_C, RK4_E, RK4_E, RK4_W, RK4_N_STAGES, ERR_NONE, 1.0 / 4.0),
+}
+'''
 
 TARGET = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "fmu_src", "tableaux.py")
 

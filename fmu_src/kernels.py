@@ -1662,13 +1662,11 @@ def advance(y, istate, fstate, t_end, p, opts,
 # per communication step).  ``advance_hammer`` is ``advance`` with those
 # arguments bound as constants (``partial.bind``), compiled as one function:
 # the same folded code as an IR-inlined call, without numba re-typing a copy
-# of the driver's IR (which was most of its compile).
+# of the driver's IR.
 # ---------------------------------------------------------------------------
 from . import tableaux as _T  # noqa: E402
 from .partial import bind  # noqa: E402
 
-_DOP_A, _DOP_B, _DOP_C, _DOP_E, _DOP_E3, _DOP_W = (_T.DOP853_A, _T.DOP853_B, _T.DOP853_C, _T.DOP853_E,
-                                                   _T.DOP853_E3, _T.DOP853_W)
 _NO_AP = np.zeros(1, dtype=np.int64)
 _NO_AI = np.zeros(0, dtype=np.int64)
 _NO_AX = np.zeros(0)
@@ -1680,5 +1678,6 @@ _NO_G2 = np.zeros(2)
 #: ``advance`` with DOP853, no linear subsystem and no energy block, all bound as constants
 advance_hammer = njit(cache=True, nogil=True)(bind(
     advance, "advance_hammer",
-    rk_a=_DOP_A, rk_b=_DOP_B, rk_c=_DOP_C, err_w=_DOP_E, err_w3=_DOP_E3, dense_w=_DOP_W, ns=12, err_kind=2,
-    err_exp=0.125, Ap=_NO_AP, Ai=_NO_AI, Ax=_NO_AX, sub_in=_NO_H, sub_out=_NO_G, link_x=_NO_G2, ne=0))
+    **dict(zip(("rk_a", "rk_b", "rk_c", "err_w", "err_w3", "dense_w", "ns", "err_kind", "err_exp"),
+               _T.METHODS["dop853"])),
+    Ap=_NO_AP, Ai=_NO_AI, Ax=_NO_AX, sub_in=_NO_H, sub_out=_NO_G, link_x=_NO_G2, ne=0))

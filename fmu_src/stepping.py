@@ -73,17 +73,11 @@ METHODS = ("adaptive", "dp54", "rk4")
 
 
 def method_tableau(name: str):
-    """Tableau arrays of a method name: (A, B, C, E, E3, W, ns, err_kind, err_exp)."""
-    if name in ("adaptive", "dop853"):
-        return (T.DOP853_A, T.DOP853_B, T.DOP853_C, T.DOP853_E,
-                T.DOP853_E3, T.DOP853_W, T.DOP853_N_STAGES, T.ERR_DOP853, 1.0 / 8.0)
-    if name == "dp54":
-        return (T.DP54_A, T.DP54_B, T.DP54_C, T.DP54_E, T.DP54_E, T.DP54_W,
-                T.DP54_N_STAGES, T.ERR_EMBEDDED, 1.0 / 5.0)
-    if name == "rk4":
-        z = np.zeros(T.RK4_N_STAGES + 1)
-        return (T.RK4_A, T.RK4_B, T.RK4_C, z, z, T.RK4_W, T.RK4_N_STAGES, T.ERR_NONE, 0.25)
-    raise ParameterError("method", name, "one of " + ", ".join(METHODS))
+    """Tableau arrays of a method name: (A, B, C, E, E3, W, ns, err_kind, err_exp) (``tableaux.METHODS``)."""
+    key = "dop853" if name == "adaptive" else name
+    if key not in T.METHODS:
+        raise ParameterError("method", name, "one of " + ", ".join(METHODS))
+    return T.METHODS[key]
 
 
 @dataclass(frozen=True)
@@ -369,14 +363,14 @@ class Stepper:
         st = sample_times if sample_times is not None else _EMPTY_F
         sa = samples if samples is not None else _NO_SAMP
         lg = log if log is not None else _NO_LOG
-        if self._entry not in _NOTICE_CHECKED and compile_notice(self._entry):
-            compile_ahead.start(self._entry)  # a second process compiles part of it
+        helper = (self._entry not in _NOTICE_CHECKED and compile_notice(self._entry)
+                  and compile_ahead.start(self._entry))  # a second process compiles part of it
         if self._fast:
             status = K.advance_hammer(self.y, self.istate, self.fstate, t_end, self.p, self.opts,
                                       poin, st, sa, lg)
         else:
             status = self._advance_general(t_end, poin, st, sa, lg)
-        if compile_ahead.running():
+        if helper:
             compile_ahead.finish()
         return self._status(status)
 

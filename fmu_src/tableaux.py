@@ -228,3 +228,13 @@ RK4_W = np.array([[ 0.16666666666666669,  0.33333333333333354,  0.33333333333333
    0.                 ],
  [-0.6666666666666665 ,  0.6666666666666667 ,  0.6666666666666667 ,  0.33333333333333337,
   -1.0000000000000002 ]])
+RK4_E = np.zeros(RK4_N_STAGES + 1)  # no error estimate
+
+# ---- each method as the driver takes it (``kernels.advance``): A, B, C, E, E3, W, the number of
+# stages, the error-estimate kind and the controller exponent 1 / (order of the estimate + 1) ----
+METHODS = {
+    "dop853": (DOP853_A, DOP853_B, DOP853_C, DOP853_E, DOP853_E3, DOP853_W, DOP853_N_STAGES, ERR_DOP853,
+               1.0 / 8.0),
+    "dp54": (DP54_A, DP54_B, DP54_C, DP54_E, DP54_E, DP54_W, DP54_N_STAGES, ERR_EMBEDDED, 1.0 / 5.0),
+    "rk4": (RK4_A, RK4_B, RK4_C, RK4_E, RK4_E, RK4_W, RK4_N_STAGES, ERR_NONE, 1.0 / 4.0),
+}
