@@ -215,8 +215,7 @@ class StringSide:
             self._keep = keep
             self._Vk_w = Vk * wgt[None, :]
             self.m_frow = np.ascontiguousarray(self.frow @ self._Vk_w)
-            self.m_rows = (self.Cu @ self._Vk_w, self.Cv @ self._Vk_w, self.Ct @ self._Vk_w)
-            self.m_rows3 = np.ascontiguousarray(np.vstack(self.m_rows))
+            self.m_rows3 = np.ascontiguousarray(np.vstack([r @ self._Vk_w for r in (self.Cu, self.Cv, self.Ct)]))
             self.m_V = self._Vk_w                 # xi = Re(m_V @ eta)
             self.m_Vinv = Vinv[keep]              # eta = m_Vinv @ xi
             self.modal = True
@@ -280,19 +279,6 @@ class _StringState:
         if self.modal:
             return float((s.m_frow @ self.v).real)
         return float(s.frow @ self.v)
-
-    def bit(self) -> tuple:
-        """(displacement deviation [m], velocity [m/s]) of the string's bottom node."""
-        s = self.side
-        if self.modal:
-            return float((s.m_rows[0] @ self.v).real), float((s.m_rows[1] @ self.v).real)
-        return float(s.Cu @ self.v), float(s.Cv @ self.v)
-
-    def hook_load(self) -> float:
-        s = self.side
-        if self.modal:
-            return s.hook_eq + float((s.m_rows[2] @ self.v).real)
-        return s.hook_eq + float(s.Ct @ self.v)
 
     def outputs(self) -> np.ndarray:
         """(displacement deviation [m], velocity [m/s]) of the string's bottom node and the
