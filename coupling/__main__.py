@@ -1,7 +1,5 @@
 """``python -m hammerbit``: the ``hammerbit`` command line."""
-import sys
-
-from hammerbit.cli import main
+from hammerbit.cli import console
 
 if __name__ == "__main__":
-    sys.exit(main())
+    console()

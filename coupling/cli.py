@@ -8,6 +8,7 @@ handling of :mod:`hammerbit.cli_common`; ``docs/cli.md`` documents them.
 from __future__ import annotations
 
 import argparse
+import gc
 import importlib
 import json
 import math
@@ -19,7 +20,7 @@ import numpy as np
 
 from .cli_common import UsageError, add_set_argument, parse_settings, run_command
 
-__all__ = ["main", "build_parser", "COMMAND_MODULES", "HelpFormatter", "version"]
+__all__ = ["main", "console", "build_parser", "COMMAND_MODULES", "HelpFormatter", "version"]
 
 #: Modules that add sub-commands through ``register(subparsers)``; a module
 #: that is not installed is skipped.
@@ -163,7 +164,20 @@ def _finite_or_none(v):
 
 
 def cmd_simulate(args) -> int:
+    from .figure_worker import start as start_figure_worker
+
+    # the figure's process imports matplotlib while this one loads the solver
+    worker = start_figure_worker() if args.plot else None
+    try:
+        return _simulate(args, worker)
+    finally:
+        if worker is not None:
+            worker.close()
+
+
+def _simulate(args, worker) -> int:
     from hammerbit.model.params import regime
+    from hammerbit.model.stepping import Stepper
     from hammerbit.model.validation import check
 
     from .analysis import detect_period
@@ -174,7 +188,10 @@ def cmd_simulate(args) -> int:
     check("simulate.periods", args.periods, label="--periods")
     # every output path is checked before the run, so a typo does not cost the run
     if args.plot:
-        check_output_path(args.plot, "--plot", formats=figure_formats())
+        if worker is not None:  # load the kernels while the worker imports matplotlib
+            Stepper(g, solver=solver).load()
+        formats = worker.formats() if worker is not None else None
+        check_output_path(args.plot, "--plot", formats=formats or figure_formats())
     if args.csv:
         check_output_path(args.csv, "--csv")
     times = None
@@ -257,8 +274,11 @@ def cmd_simulate(args) -> int:
         if args.csv:
             print(f"time series: {args.csv}")
     if args.plot:
-        from .plots import plot_scene
-        plot_scene(g, args.periods, args.plot, solver=solver, preset=args.preset, period=period)
+        from .plots import scene_figure
+        from .scene_figure import draw_scene
+        data = scene_figure(g, args.periods, solver=solver, preset=args.preset, period=period)
+        if worker is None or not worker.draw(draw_scene, data, args.plot) or worker.result() is None:
+            draw_scene(data, args.plot)
         if not args.json:
             print(f"figure: {args.plot}")
     return 0
@@ -300,10 +320,25 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
+    """Run the command line ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
     ap = build_parser()
     args = ap.parse_args(argv)
     return run_command(args.func, args)
 
 
+def console(argv=None) -> None:
+    """The ``hammerbit`` executable: :func:`main`, then exit with its code.
+
+    Before exiting, the objects alive are moved out of the garbage
+    collector's reach (:func:`gc.freeze`): the interpreter's shutdown then
+    does not walk numba's and matplotlib's object graphs, which took a tenth
+    of a second or more of a short command.  Everything else of the shutdown
+    runs as usual (exit handlers, files flushed and closed).
+    """
+    code = main(argv)
+    gc.freeze()
+    sys.exit(code)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    console()

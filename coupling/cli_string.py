@@ -24,12 +24,9 @@ from .drillstring import (
     MASS_SCHEMES,
     DrillStringError,
     example_names,
-    exact_frequencies,
     load_string,
-    modes,
     parse_boundary,
 )
-from .modal_check import CheckConfig, check, plot_check
 from hammerbit.model.validation import ParameterError
 
 __all__ = ["register", "cmd_modes", "cmd_check"]
@@ -143,6 +140,8 @@ def _writable(path: str | None, option: str, suffixes: tuple[str, ...] | None = 
 
 def cmd_modes(args: argparse.Namespace) -> int:
     """Handler of ``hammerbit modes``."""
+    from .drillstring import exact_frequencies, modes
+
     if getattr(args, "hammer_on_bottom", False):
         return _cmd_hammer_modes(args)
     _positive(args.fmax, "--fmax")
@@ -202,6 +201,8 @@ def cmd_modes(args: argparse.Namespace) -> int:
 
 
 def _check_config(args: argparse.Namespace) -> CheckConfig:
+    from .modal_check import CheckConfig
+
     if args.factor is not None and args.rpm is None:
         raise UsageError("--factor needs --rpm")
     if args.rpm_range is not None and args.rpm is None:
@@ -224,6 +225,8 @@ def _check_config(args: argparse.Namespace) -> CheckConfig:
 
 def cmd_check(args: argparse.Namespace) -> int:
     """Handler of ``hammerbit check``."""
+    from .modal_check import check, plot_check
+
     cfg = _check_config(args)
     _writable(args.plot, "--plot", (".png", ".pdf", ".svg"))
     string = load_string(args.string)

@@ -7,9 +7,10 @@ import numpy as np
 
 from hammerbit.model.stepping import SolverOptions
 
+from .scene_figure import SceneFigure, draw_scene
 from .simulate import Record, simulate
 
-__all__ = ["plot_scene", "plot_bifurcation", "plot_penetration", "plot_attractor"]
+__all__ = ["scene_figure", "plot_scene", "plot_bifurcation", "plot_penetration", "plot_attractor"]
 
 
 def _plt():
@@ -19,15 +20,14 @@ def _plt():
     return plt
 
 
-def plot_scene(groups, periods, path, *, solver: SolverOptions = SolverOptions(), last: int = 10,
-               per_period: int = 400, preset: str | None = None, period: int | None = None):
-    """The figure of one scene, in SI with the scene's own scales.
+def scene_figure(groups, periods, *, solver: SolverOptions = SolverOptions(), last: int = 10,
+                 per_period: int = 400, preset: str | None = None, period: int | None = None) -> SceneFigure:
+    """What the figure of one scene shows, in SI with the scene's own scales (:class:`SceneFigure`).
 
-    Four panels: hammer and bit displacement [mm] against time [s] over the
-    last ``last`` forcing periods; the relative motion x_b - x_s [mm] against
-    time, with the gap R when there is one; its phase portrait (relative
-    displacement [mm], relative velocity [m/s]) with the Poincaré points;
-    and the Poincaré section over the second half of the run in the bounded
+    Simulates ``periods`` forcing periods from rest, sampling the last
+    ``last`` of them at ``per_period`` points per period, and keeps the
+    Poincaré points: those inside that window (relative displacement and
+    velocity) and those of the second half of the run, in the bounded
     coordinates (x_b - x_s [mm], v_b [m/s]) -- the bit's own velocity is 0
     there, since the bit sticks at the sampling phase.
 
@@ -37,8 +37,6 @@ def plot_scene(groups, periods, path, *, solver: SolverOptions = SolverOptions()
         The scene.
     periods : int
         Horizon in forcing periods.
-    path : str or Path
-        Output file; the format follows the extension.
     solver : SolverOptions
         Method and tolerances.
     last, per_period : int
@@ -50,7 +48,6 @@ def plot_scene(groups, periods, path, *, solver: SolverOptions = SolverOptions()
         here when not given.
     """
     from .analysis import detect_period
-    plt = _plt()
     T = groups.period
     sc = groups.scales
     mm = sc.length * 1e3
@@ -61,54 +58,41 @@ def plot_scene(groups, periods, path, *, solver: SolverOptions = SolverOptions()
     s, p = r.samples, r.poincare
     if period is None and len(p) > 8:
         period = detect_period(p)
-    t_s = s["time"] * sc.time
-    rel_mm = (s["hammer_position"] - s["bit_position"]) * mm
-    rel_v = (s["hammer_velocity"] - s["bit_velocity"]) * sc.velocity
-    fig, ax = plt.subplots(2, 2, figsize=(12, 8))
-    a0, a1, a2, a3 = ax.ravel()
-    a0.plot(t_s, s["hammer_position"] * mm, label="hammer x_b", lw=0.9)
-    a0.plot(t_s, s["bit_position"] * mm, label="bit x_s (penetration)", lw=1.4)
-    a0.set_xlabel("time [s]")
-    a0.set_ylabel("displacement [mm]")
-    a0.set_title(f"last {last} forcing periods ({last * groups.period_s:.3g} s)")
-    a0.legend(loc="upper left")
-    a0.grid(alpha=0.3)
-    a1.plot(t_s, rel_mm, lw=0.9)
-    if groups.has_gap:
-        gap_mm = groups.length_m(groups.r) * 1e3
-        a1.axhline(gap_mm, color="r", ls="--", lw=0.8)
-        a1.annotate("gap R: contact above", xy=(1.0, gap_mm), xycoords=("axes fraction", "data"),
-                    xytext=(-4, 3), textcoords="offset points", ha="right", va="bottom", color="r", fontsize=8)
-    a1.set_xlabel("time [s]")
-    a1.set_ylabel("relative displacement x_b − x_s [mm]")
-    a1.set_title("relative motion")
-    a1.grid(alpha=0.3)
-    in_win = p["time"] >= t0 - 1e-9 * T
-    pw = p[in_win]
-    a2.plot(rel_mm, rel_v, lw=0.8)
-    a2.plot((pw["hammer_position"] - pw["bit_position"]) * mm,
-            (pw["hammer_velocity"] - pw["bit_velocity"]) * sc.velocity, "r.", ms=8, label="Poincaré points")
-    a2.set_xlabel("relative displacement x_b − x_s [mm]")
-    a2.set_ylabel("relative velocity v_b − v_s [m/s]")
-    a2.set_title("phase portrait of the relative motion")
-    a2.legend(loc="best")
-    a2.grid(alpha=0.3)
+    pw = p[p["time"] >= t0 - 1e-9 * T]
     half = p[len(p) // 2:]
-    a3.plot((half["hammer_position"] - half["bit_position"]) * mm, half["hammer_velocity"] * sc.velocity,
-            "k.", ms=4)
-    a3.set_xlabel("relative displacement x_b − x_s [mm]")
-    a3.set_ylabel("hammer velocity v_b [m/s]")
-    a3.set_title(f"Poincaré section ({len(half)} periods of the second half)")
-    a3.grid(alpha=0.3)
     name = preset or "scene"
     pn = f"period {period}" if period else "no period up to 32"
-    fig.suptitle(f"{name}: {pn}; a={groups.a:g}, b={groups.b:g}, eta={groups.eta:g}, r={groups.r:g}, "
-                 f"mu={groups.mu:g}; forcing {1.0 / groups.period_s:.4g} Hz, x0 = {sc.length * 1e3:.4g} mm")
-    # fixed margins: tight_layout would draw the figure once more (a second of the command's time)
-    fig.subplots_adjust(left=0.065, right=0.985, bottom=0.07, top=0.9, wspace=0.2, hspace=0.3)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return SceneFigure(
+        time_s=s["time"] * sc.time,
+        hammer_mm=s["hammer_position"] * mm,
+        bit_mm=s["bit_position"] * mm,
+        relative_mm=(s["hammer_position"] - s["bit_position"]) * mm,
+        relative_velocity=(s["hammer_velocity"] - s["bit_velocity"]) * sc.velocity,
+        window_points_mm=(pw["hammer_position"] - pw["bit_position"]) * mm,
+        window_points_velocity=(pw["hammer_velocity"] - pw["bit_velocity"]) * sc.velocity,
+        section_mm=(half["hammer_position"] - half["bit_position"]) * mm,
+        section_velocity=half["hammer_velocity"] * sc.velocity,
+        periods_shown=last,
+        window_s=last * groups.period_s,
+        gap_mm=groups.length_m(groups.r) * 1e3 if groups.has_gap else None,
+        title=(f"{name}: {pn}; a={groups.a:g}, b={groups.b:g}, eta={groups.eta:g}, r={groups.r:g}, "
+               f"mu={groups.mu:g}; forcing {1.0 / groups.period_s:.4g} Hz, x0 = {sc.length * 1e3:.4g} mm"))
+
+
+def plot_scene(groups, periods, path, *, solver: SolverOptions = SolverOptions(), last: int = 10,
+               per_period: int = 400, preset: str | None = None, period: int | None = None):
+    """The figure of one scene, in SI with the scene's own scales; returns ``path``.
+
+    :func:`scene_figure` computes what it shows (same parameters) and
+    :func:`hammerbit.scene_figure.draw_scene` draws it: hammer and bit
+    displacement [mm] against time [s] over the last ``last`` forcing periods;
+    the relative motion x_b - x_s [mm] with the gap R when there is one; its
+    phase portrait with the Poincaré points; the Poincaré section of the second
+    half of the run.  The format follows the extension of ``path``.
+    """
+    data = scene_figure(groups, periods, solver=solver, last=last, per_period=per_period,
+                        preset=preset, period=period)
+    return draw_scene(data, path)
 
 
 def _scales(scales, res=None):

@@ -374,6 +374,22 @@ class Stepper:
             compile_ahead.finish()
         return self._status(status)
 
+    def load(self) -> bool:
+        """Load the compiled kernel this stepper runs, if numba has it cached; True if it did.
+
+        Nothing is compiled and the state does not change.  The first call of a
+        kernel in a process pays numba's start-up and the cache load; a caller
+        with other work to overlap (another process starting) pays it here.
+        """
+        if not kernels_cached(self._entry):
+            return False
+        snap = self.snapshot()
+        try:
+            self.advance(self.time)
+        finally:
+            self.restore(snap)
+        return True
+
     def _advance_general(self, t_end, poin, st, sa, lg):
         A, B, C, E, E3, W, ns, ek, ee = self._tab
         Ap, Ai, Ax, Hz, Gz, g12 = self._lin

@@ -251,3 +251,23 @@ def test_stepper_reports_a_nan_parameter_as_non_finite_state():
     st.p[K.P_A] = math.nan
     box = within(600.0, st.advance, g.period)  # first call may compile the kernels
     assert isinstance(box.get("error"), NonFiniteStateError), box
+
+
+def test_load_changes_nothing_and_the_run_is_the_same():
+    """``load`` only loads the compiled kernel: state and later results are those of a stepper without it."""
+    g = preset("paper-fig9").replace(a=0.083)
+    loaded, plain = Stepper(g), Stepper(g)
+    before = loaded.get_state()
+    assert loaded.load() is True  # the test session has compiled the kernels
+    assert np.array_equal(loaded.get_state(), before)
+    loaded.advance(20 * g.period)
+    plain.advance(20 * g.period)
+    assert np.array_equal(loaded.get_state(), plain.get_state())
+
+
+def test_load_never_compiles(monkeypatch):
+    import hammerbit.model.stepping as S
+    monkeypatch.setattr(S, "kernels_cached", lambda entry: False)
+    st = Stepper(preset("paper-fig9"))
+    monkeypatch.setattr(S.Stepper, "advance", lambda *a, **k: pytest.fail("load() ran the kernel"))
+    assert st.load() is False

@@ -13,42 +13,26 @@ One concept per module:
 * :mod:`.state_space` -- the linear model the co-simulation master steps.
 
 Displacements are positive **downward**; depth ``z`` is 0 at the top node.
-"""
 
-from .assembly import Assembly, assemble
-from .damping import (
-    DampingModel,
-    bit_dynamic_stiffness,
-    bit_receptance,
-    exact_dynamic_stiffness,
-    exact_receptance,
-    reference_impedance,
-)
-from .description import (
-    DEFAULT_MASS,
-    DEFAULT_MAX_ELEMENT_LENGTH,
-    DEFAULT_RTOL,
-    G,
-    MASS_SCHEMES,
-    Boundary,
-    DrillString,
-    DrillStringError,
-    Mesh,
-    Section,
-    _check_end,
-    _check_number,
-    dispersion_error,
-    example_names,
-    example_path,
-    load_string,
-    loads_string,
-    parse_boundary,
-    resolve_ends,
-    string_from_dict,
-)
-from .modes import Modes, _eigen, _has_rigid_mode, corrected_eigenvalues, exact_frequencies, impedance_factor, modes
-from .state_space import StateSpace, state_space
-from .statics import StaticState, static_compliance, static_equilibrium
+Names are imported on first use (PEP 562): ``from hammerbit.drillstring import
+DEFAULT_RTOL`` loads :mod:`.description` only, not the numba kernels of
+:mod:`.eigen`, so a command that does not touch the string does not pay for it.
+"""
+from __future__ import annotations
+
+import importlib
+import sys
+import types
+
+#: the submodule that defines each public (and shared private) name
+_SOURCES = {name: module for module, names in {
+    "assembly": ("Assembly", "assemble"),
+    "damping": ("DampingModel", "bit_dynamic_stiffness", "bit_receptance", "exact_dynamic_stiffness", "exact_receptance", "reference_impedance"),
+    "description": ("DEFAULT_MASS", "DEFAULT_MAX_ELEMENT_LENGTH", "DEFAULT_RTOL", "G", "MASS_SCHEMES", "Boundary", "DrillString", "DrillStringError", "Mesh", "Section", "_check_end", "_check_number", "dispersion_error", "example_names", "example_path", "load_string", "loads_string", "parse_boundary", "resolve_ends", "string_from_dict"),
+    "modes": ("Modes", "_eigen", "_has_rigid_mode", "corrected_eigenvalues", "exact_frequencies", "impedance_factor", "modes"),
+    "state_space": ("StateSpace", "state_space"),
+    "statics": ("StaticState", "static_compliance", "static_equilibrium"),
+}.items() for name in names}
 
 __all__ = [
     "G", "DEFAULT_MASS", "DEFAULT_RTOL", "DEFAULT_MAX_ELEMENT_LENGTH", "MASS_SCHEMES",
@@ -59,3 +43,34 @@ __all__ = [
     "static_compliance", "state_space", "dispersion_error", "bit_receptance", "bit_dynamic_stiffness",
     "exact_dynamic_stiffness", "exact_receptance", "reference_impedance",
 ]
+
+
+class _Package(types.ModuleType):
+    """This package's module type: a function keeps its name when its same-named submodule loads.
+
+    The import system sets a package attribute to every submodule it loads;
+    :func:`modes` and :func:`state_space` share their names with their
+    submodules, and the package's name stays the function's, as it was when
+    everything was imported at once.
+    """
+
+    def __setattr__(self, name, value):
+        if isinstance(value, types.ModuleType) and _SOURCES.get(name) == name:
+            value = getattr(value, name)
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
+
+
+def __getattr__(name: str):
+    module = _SOURCES.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_SOURCES))

@@ -1,0 +1,120 @@
+"""The figure worker draws what this process would draw, reports its errors, and never decides an outcome.
+
+Oracle: the same drawing function run in this process (the file must be the
+same byte for byte); the exceptions the function raises here.
+"""
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+from hammerbit import figure_worker
+from hammerbit.cli import figure_formats
+from hammerbit.model.params import preset
+from hammerbit.plots import scene_figure
+from hammerbit.scene_figure import draw_scene
+from cli_run import run_cli
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return scene_figure(preset("paper-fig9").replace(a=0.083), 40, preset="paper-fig9")
+
+
+@pytest.fixture(autouse=True)
+def _on(monkeypatch):
+    monkeypatch.delenv(figure_worker.ENV, raising=False)
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+
+
+def test_worker_draws_the_same_file_as_this_process(scene, tmp_path):
+    here = draw_scene(scene, tmp_path / "here.png")
+    with figure_worker.start() as w:
+        assert w.formats() == figure_formats()
+        assert w.draw(draw_scene, scene, tmp_path / "there.png")
+        assert w.result() == tmp_path / "there.png"
+    assert (tmp_path / "there.png").read_bytes() == here.read_bytes()
+
+
+def test_an_error_while_drawing_comes_back_as_the_same_exception(scene, tmp_path):
+    with pytest.raises(FileNotFoundError) as here:
+        draw_scene(scene, tmp_path / "missing" / "x.png")
+    with figure_worker.start() as w:
+        assert w.draw(draw_scene, scene, tmp_path / "missing" / "x.png")
+        with pytest.raises(FileNotFoundError) as there:
+            w.result()
+    assert str(there.value) == str(here.value)
+
+
+def test_a_worker_that_dies_without_an_answer_leaves_the_drawing_to_the_caller():
+    w = figure_worker.start()
+    assert w.draw(os._exit, 3)  # the worker ends without answering
+    assert w.result() is None
+    assert w._proc.returncode == 3
+
+
+def test_nothing_to_draw_ends_the_worker():
+    w = figure_worker.start()
+    w.formats()
+    w._proc.stdin.close()  # end of input: the worker leaves by itself
+    assert w._proc.wait(timeout=30) == 0
+    w.close()
+
+
+def test_a_caller_that_fails_first_does_not_wait_for_the_worker(capsys, monkeypatch):
+    """Bad input found after the worker started: the worker is stopped, not waited for."""
+    started, real_start = [], figure_worker.start
+
+    def start():
+        started.append(real_start())
+        return started[-1]
+
+    monkeypatch.setattr(figure_worker, "start", start)
+    code, _, err = run_cli(["simulate", "--set", "a=abc", "--plot", "x.png"], capsys)
+    assert code == 2 and "a=abc" in err
+    assert len(started) == 1 and started[0]._proc.returncode == -signal.SIGTERM
+
+
+@pytest.mark.parametrize("env, cores", [("0", 2), ("1", 1)])
+def test_off_when_turned_off_or_on_one_core(env, cores, monkeypatch):
+    monkeypatch.setenv(figure_worker.ENV, env)
+    monkeypatch.setattr(os, "cpu_count", lambda: cores)
+    assert figure_worker.start() is None
+
+
+def test_simulate_plot_is_the_same_with_and_without_the_worker(tmp_path, capsys, monkeypatch):
+    argv = ["simulate", "--preset", "paper-fig9", "--set", "a=0.083", "--periods", "40", "--plot"]
+    assert run_cli(argv + [str(tmp_path / "with.png")], capsys)[0] == 0
+    monkeypatch.setenv(figure_worker.ENV, "0")
+    assert run_cli(argv + [str(tmp_path / "without.png")], capsys)[0] == 0
+    assert (tmp_path / "with.png").read_bytes() == (tmp_path / "without.png").read_bytes()
+
+
+def test_the_parser_loads_neither_numba_nor_matplotlib():
+    """Every command builds the whole parser: it must not pay for the solver or the plots."""
+    code = textwrap.dedent("""
+        import sys
+        from hammerbit.cli import build_parser
+        build_parser()
+        print(sorted(m for m in ("numba", "matplotlib", "scipy") if m in sys.modules))
+    """)
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip() == "[]"
+
+
+def test_a_function_keeps_its_name_in_the_string_package_whatever_loads_first():
+    """``modes`` and ``state_space`` are functions and submodules; the package's name is the function."""
+    code = textwrap.dedent("""
+        import types
+        import hammerbit.drillstring.state_space       # loads the submodules modes and state_space
+        import hammerbit.drillstring as d
+        print(type(d.modes).__name__, type(d.state_space).__name__, d.modes.__module__)
+        print(all(hasattr(d, n) for n in d.__all__))
+    """)
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split() == ["function", "function", "hammerbit.drillstring.modes", "True"]
