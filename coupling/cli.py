@@ -188,6 +188,7 @@ def _simulate(args, worker) -> int:
     check("simulate.periods", args.periods, label="--periods")
     # every output path is checked before the run, so a typo does not cost the run
     if args.plot:
+        check_output_path(args.plot, "--plot")  # the directory, before waiting for the worker's formats
         if worker is not None:  # load the kernels while the worker imports matplotlib
             Stepper(g, solver=solver).load()
         formats = worker.formats() if worker is not None else None

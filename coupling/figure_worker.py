@@ -18,7 +18,8 @@ return ``None`` and the caller draws in this process instead: the worker
 saves time, it never decides an outcome.
 
 ``HAMMERBIT_FIGURE_WORKER=0`` turns it off (every figure is drawn in this
-process); it is also off on a single-core machine.
+process); it is also off on a single-core machine and in a process that has
+imported matplotlib already (a notebook, a test session).
 
 Protocol (pickle frames): the worker writes ``("formats", set)`` once
 matplotlib is imported; it reads ``("draw", func, args, kwargs)`` or end of
@@ -41,10 +42,11 @@ ENV = "HAMMERBIT_FIGURE_WORKER"
 
 
 def enabled() -> bool:
-    """True where a worker can save time: not turned off, more than one core, a Python executable."""
+    """True where a worker can save time: not turned off, more than one core, a Python executable,
+    and matplotlib not imported in this process yet (drawing here then costs no import)."""
     if os.environ.get(ENV, "1").strip() in ("0", "false", "no", "off"):
         return False
-    if (os.cpu_count() or 1) < 2:
+    if (os.cpu_count() or 1) < 2 or "matplotlib" in sys.modules:
         return False
     return bool(sys.executable)
 

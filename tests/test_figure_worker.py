@@ -26,23 +26,15 @@ def scene():
 
 @pytest.fixture(autouse=True)
 def _on(monkeypatch):
-    monkeypatch.delenv(figure_worker.ENV, raising=False)
-    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    """The worker on, although this process has imported matplotlib (where it is off by default)."""
+    monkeypatch.setattr(figure_worker, "enabled", lambda: True)
 
 
-def test_worker_draws_the_same_file_as_this_process(scene, tmp_path):
-    here = draw_scene(scene, tmp_path / "here.png")
-    with figure_worker.start() as w:
-        assert w.formats() == figure_formats()
-        assert w.draw(draw_scene, scene, tmp_path / "there.png")
-        assert w.result() == tmp_path / "there.png"
-    assert (tmp_path / "there.png").read_bytes() == here.read_bytes()
-
-
-def test_an_error_while_drawing_comes_back_as_the_same_exception(scene, tmp_path):
+def test_worker_saves_what_this_process_saves_and_raises_what_it_raises(scene, tmp_path):
     with pytest.raises(FileNotFoundError) as here:
         draw_scene(scene, tmp_path / "missing" / "x.png")
     with figure_worker.start() as w:
+        assert w.formats() == figure_formats()
         assert w.draw(draw_scene, scene, tmp_path / "missing" / "x.png")
         with pytest.raises(FileNotFoundError) as there:
             w.result()
@@ -54,14 +46,6 @@ def test_a_worker_that_dies_without_an_answer_leaves_the_drawing_to_the_caller()
     assert w.draw(os._exit, 3)  # the worker ends without answering
     assert w.result() is None
     assert w._proc.returncode == 3
-
-
-def test_nothing_to_draw_ends_the_worker():
-    w = figure_worker.start()
-    w.formats()
-    w._proc.stdin.close()  # end of input: the worker leaves by itself
-    assert w._proc.wait(timeout=30) == 0
-    w.close()
 
 
 def test_a_caller_that_fails_first_does_not_wait_for_the_worker(capsys, monkeypatch):
@@ -78,11 +62,17 @@ def test_a_caller_that_fails_first_does_not_wait_for_the_worker(capsys, monkeypa
     assert len(started) == 1 and started[0]._proc.returncode == -signal.SIGTERM
 
 
-@pytest.mark.parametrize("env, cores", [("0", 2), ("1", 1)])
-def test_off_when_turned_off_or_on_one_core(env, cores, monkeypatch):
+@pytest.mark.parametrize("env, cores, matplotlib_loaded, on", [
+    ("1", 2, False, True), ("0", 2, False, False), ("1", 1, False, False), ("1", 2, True, False)])
+def test_on_only_where_it_can_save_time(env, cores, matplotlib_loaded, on, monkeypatch):
+    monkeypatch.undo()  # the real enabled()
     monkeypatch.setenv(figure_worker.ENV, env)
     monkeypatch.setattr(os, "cpu_count", lambda: cores)
-    assert figure_worker.start() is None
+    if not matplotlib_loaded:
+        monkeypatch.delitem(sys.modules, "matplotlib", raising=False)
+    else:
+        import matplotlib  # noqa: F401
+    assert figure_worker.enabled() is on
 
 
 def test_simulate_plot_is_the_same_with_and_without_the_worker(tmp_path, capsys, monkeypatch):
