@@ -21,7 +21,7 @@ def built_fmu(tmp_path_factory):
 
 # ---------------------------------------------------------------------------
 # The slow set.  The README's test command, ``python -m pytest -q``, leaves it
-# out (``addopts = -m 'not slow'`` in pyproject.toml); ``-m slow`` runs only
+# out (``addopts = -m 'not slow' ...`` in pyproject.toml); ``-m slow`` runs only
 # it and ``-m "slow or not slow"`` runs everything.  Besides the tests decorated
 # with ``@pytest.mark.slow`` in their files, the tests below are slow: each
 # costs seconds (a new process, a cluster, a compile) to tens of seconds, and its
