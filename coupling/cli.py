@@ -332,9 +332,9 @@ def console(argv=None) -> None:
 
     Before exiting, the objects alive are moved out of the garbage
     collector's reach (:func:`gc.freeze`): the interpreter's shutdown then
-    does not walk numba's and matplotlib's object graphs, which took a tenth
-    of a second or more of a short command.  Everything else of the shutdown
-    runs as usual (exit handlers, files flushed and closed).
+    does not walk numba's and matplotlib's object graphs, a large share of a
+    short command's exit.  Everything else of the shutdown runs as usual
+    (exit handlers, files flushed and closed).
     """
     code = main(argv)
     gc.freeze()
