@@ -9,6 +9,7 @@ import subprocess
 import sys
 import textwrap
 
+import numpy as np
 import pytest
 
 from hammerbit import figure_worker
@@ -108,3 +109,17 @@ def test_a_function_keeps_its_name_in_the_string_package_whatever_loads_first():
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
     assert r.stdout.split() == ["function", "function", "hammerbit.drillstring.modes", "True"]
+
+
+def test_scene_figure_data_is_the_scene_in_si():
+    """The panels' data: the last periods in seconds, the bit never moving back, mm of the rig's x0."""
+    g = preset("paper-fig12").replace(a=0.06)
+    d = scene_figure(g, 40, last=5, preset="paper-fig12")
+    T = g.period_s
+    assert d.time_s[0] == pytest.approx(35 * T) and d.time_s[-1] == pytest.approx(40 * T)
+    assert np.all(np.diff(d.bit_mm) >= -1e-12)            # the bit only drifts forward (v_s >= 0)
+    assert np.allclose(d.relative_mm, d.hammer_mm - d.bit_mm)
+    assert d.gap_mm == pytest.approx(g.r * g.scales.length * 1e3)
+    assert len(d.section_mm) == 41 - 41 // 2               # Poincaré points at t = 0, T, ..., 40 T
+    assert 0 < len(d.window_points_mm) <= 6
+    assert "paper-fig12" in d.title and "period" in d.title
