@@ -110,6 +110,20 @@ def load_string_arg(args):
         raise UsageError(f"--string {args.string}: {e}") from None
 
 
+def portable_target_for_fmu(args) -> None:
+    """With ``--fmu``: this process's numba runs the FMU's portable CPU target.
+
+    The FMU then loads the kernels it ships instead of compiling its own copy
+    in this process (:mod:`hammerbit.model.cpu_target`); the master's own
+    kernels compile once for that target into the user cache.  Called before
+    anything imports numba; without ``--fmu`` (or with ``--monolithic``) it
+    does nothing.
+    """
+    if getattr(args, "fmu", None) is not None and not getattr(args, "monolithic", False):
+        from hammerbit.model.cpu_target import select_portable
+        select_portable()
+
+
 def fmu_arg(args):
     """The ``--fmu`` path after a check that it is an FMU (errors exit 2), or None."""
     if args.fmu is None:
@@ -158,6 +172,7 @@ def _print_text(out: dict, res, cfg, string) -> None:
 
 
 def cmd_cosim(args) -> int:
+    portable_target_for_fmu(args)
     from .cosim import cosimulate, monolithic
     from .cosim_error import StepResolutionError
     adaptive = args.step is None or args.adaptive

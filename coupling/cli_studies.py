@@ -111,8 +111,9 @@ def cmd_bifurcation(args) -> int:
 # sweep
 # ---------------------------------------------------------------------------
 def cmd_sweep(args) -> int:
+    from .cli_cosim import config_from_args, fmu_arg, load_string_arg, portable_target_for_fmu
+    portable_target_for_fmu(args)
     import numpy as np
-    from .cli_cosim import config_from_args, fmu_arg, load_string_arg
     from .cosim import coupled_modes
     from .studies.sweep import plot_sweep, sweep, write_sweep_csv
     lo, hi, n = args.frequencies

@@ -39,8 +39,7 @@ _HERE = os.path.dirname(os.path.abspath(__file__))
 SHIPPED_DIR = os.path.join(_HERE, "_compiled")
 MANIFEST = "manifest.json"
 
-#: the portable CPU target the build compiles for
-PORTABLE_ENV = {"NUMBA_CPU_NAME": "generic", "NUMBA_CPU_FEATURES": ""}
+from .cpu_target import PORTABLE_ENV  # noqa: E402  (the portable CPU target the build compiles for)
 
 
 def user_cache_root() -> str:

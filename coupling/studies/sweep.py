@@ -44,20 +44,23 @@ def _side_key(string, config: CosimConfig) -> str:
     return hashlib.sha1(pickle.dumps((string, c))).hexdigest()
 
 
-def _side_for(string, config: CosimConfig) -> StringSide:
+def _side_for(string, config: CosimConfig, fmu=None) -> StringSide:
     """A copy of this worker's discretised string side.
 
     The template is warmed by a one-step run, so it holds the discretisations
     a run computes, in the order it computes them; every frequency gets its own
     copy, so a result does not depend on which frequencies the worker ran
-    before (the same bits whatever the chunking).
+    before (the same bits whatever the chunking).  The one step runs the
+    sweep's own hammer (``fmu``, else in process), so a sweep through the FMU
+    never needs the in-process solver kernels.
     """
     key = _side_key(string, config)
     side = _SIDES.get(key)
     if side is None:
         _SIDES.clear()
         side = StringSide(string, config)
-        cosimulate(string, config.replace(stop=config.start + config.step, record=("wob",)), side=side)
+        cosimulate(string, config.replace(stop=config.start + config.step, record=("wob",)), side=side,
+                   fmu=fmu)
         _SIDES[key] = side
     return copy.deepcopy(side)
 
@@ -99,7 +102,7 @@ def _sweep_one(string, f, config, fmu, window_periods, steady_tol, max_duration)
     while True:
         cfg = config.replace(rig=rig, stop=config.start + dur, record=("wob", "bit_position"),
                              record_every=1, progress=False)
-        r = cosimulate(string, cfg, fmu=fmu, side=_side_for(string, cfg))
+        r = cosimulate(string, cfg, fmu=fmu, side=_side_for(string, cfg, fmu))
         fig = steady_figures(r.data, f, window_periods, F_s)
         steady = fig["amplitude_change"] <= steady_tol
         if steady or 2 * dur > max_duration + 1e-12:
