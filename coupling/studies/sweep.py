@@ -50,17 +50,21 @@ def _side_for(string, config: CosimConfig, fmu=None) -> StringSide:
     The template is warmed by a one-step run, so it holds the discretisations
     a run computes, in the order it computes them; every frequency gets its own
     copy, so a result does not depend on which frequencies the worker ran
-    before (the same bits whatever the chunking).  The one step runs the
-    sweep's own hammer (``fmu``, else in process), so a sweep through the FMU
-    never needs the in-process solver kernels.
+    before (the same bits whatever the chunking).  The one step runs in
+    process, except in a process on the FMU's portable CPU target
+    (:mod:`hammerbit.model.cpu_target`, ``sweep --fmu``), where it runs
+    through ``fmu``: there the in-process kernels are not compiled, while
+    elsewhere they are loaded already (:func:`~hammerbit.studies.executor.warm_worker`)
+    and a second FMU instance would only cost its start-up.
     """
+    from hammerbit.model.cpu_target import runs_portable
     key = _side_key(string, config)
     side = _SIDES.get(key)
     if side is None:
         _SIDES.clear()
         side = StringSide(string, config)
         cosimulate(string, config.replace(stop=config.start + config.step, record=("wob",)), side=side,
-                   fmu=fmu)
+                   fmu=fmu if runs_portable() else None)
         _SIDES[key] = side
     return copy.deepcopy(side)
 
