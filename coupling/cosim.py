@@ -92,6 +92,7 @@ from .cosim_config import (RECORDABLE, SCHEMES, CosimConfig, CosimResult, Coupli
                            event_counts, field_hammer, steady_start)
 from .cosim_error import CouplingErrorEstimate, StepResolutionError, check_step, measured_order, richardson
 from .cosim_exchange import _exchange, _held_force, extrapolation_weights
+from hammerbit.model.dispatch import entry_point
 from .cosim_string import StringSide, _StringState
 
 __all__ = [
@@ -334,7 +335,7 @@ class FMUHammer:
                              [force, self.master_harmonic.mean(t, H)])
         else:
             self.fmu.setReal([self.vr_in], [force])
-        self.fmu.doStep(currentCommunicationPoint=t, communicationStepSize=H)
+        self.fmu.doStep(t, H)
 
     def get_state(self):
         """fmi2GetFMUstate (the FMU saves its whole hidden state)."""
@@ -350,10 +351,9 @@ class FMUHammer:
     def read(self) -> np.ndarray:
         v = self.fmu.getReal(self.vr_out)
         if self.vr_rock is not None:
-            wob = v[4]
-        else:
-            fc = v[4] if len(v) > 4 else 0.0
-            wob = self._K * (v[0] - v[2]) + self._C * (v[1] - v[3]) + fc
+            return np.array(v)               # the rock force is the WOB
+        fc = v[4] if len(v) > 4 else 0.0
+        wob = self._K * (v[0] - v[2]) + self._C * (v[1] - v[3]) + fc
         return np.array([v[0], v[1], v[2], v[3], wob])
 
     def close(self):
@@ -418,33 +418,40 @@ class _Lane:
         self.cbuf = np.zeros(6)
         self.frow = side.m_frow if self.string.modal else side.frow.astype(np.float64)
         self._h, self._d = None, None            # the last step length and its discretisation
+        self._xchg, self._held = _exchange, _held_force   # their entry points after the first step
 
     @property
     def F(self) -> float:
         return float(self.sc[0])
 
     def held_force(self, h: float) -> float:
-        return _held_force(self.order, self.th, self.Fh, h, self.w)
+        return self._held(self.order, self.th, self.Fh, h, self.w)
 
     def step(self, t: float, h: float) -> None:
         """One macro step [t, t + h]: hammer first, then the string (both schemes;
         Jacobi's string input does not use the new hammer value)."""
-        F_held = self.held_force(h)
+        F_held = self._held(self.order, self.th, self.Fh, h, self.w)
         self.F_held = F_held
         self.hammer.step(t, h, F_held)
         out = self.out = self.hammer.read()
         if h != self._h:
             self._h, self._d = h, self.side.discretisation(h)
+            self._xchg = _exchange          # new arrays: typed again by the dispatcher, once
         d = self._d
         s = self.string
+        side = self.side
         if s.modal:
-            _exchange(self.gs, self.order, h, True, _NONE_P, _NONE_F, _NONE_F, _NONE_F, d.m_d, d.m_G,
-                      d.m_irow, d.m_icol, s.v, self.frow, self.side.ki, self.side.ci, self.side.wob,
-                      self.th, self.wh, self.Fh, out[0] - self.x_eq, out[1], F_held, self.cbuf, self.sc)
+            args = (self.gs, self.order, h, True, _NONE_P, _NONE_F, _NONE_F, _NONE_F, d.m_d, d.m_G,
+                    d.m_irow, d.m_icol, s.v, self.frow, side.ki, side.ci, side.wob,
+                    self.th, self.wh, self.Fh, out[0] - self.x_eq, out[1], F_held, self.cbuf, self.sc)
         else:
-            _exchange(self.gs, self.order, h, False, d.P, s.v, s.buf, s.tmp, _NONE_C, _NONE_2, _NONE_C,
-                      _NONE_F, _NONE_C, self.frow, self.side.ki, self.side.ci, self.side.wob,
-                      self.th, self.wh, self.Fh, out[0] - self.x_eq, out[1], F_held, self.cbuf, self.sc)
+            args = (self.gs, self.order, h, False, d.P, s.v, s.buf, s.tmp, _NONE_C, _NONE_2, _NONE_C,
+                    _NONE_F, _NONE_C, self.frow, side.ki, side.ci, side.wob,
+                    self.th, self.wh, self.Fh, out[0] - self.x_eq, out[1], F_held, self.cbuf, self.sc)
+        self._xchg(*args)
+        if self._xchg is _exchange:  # compiled by now: the next steps call it without the type dispatch
+            self._xchg = entry_point(_exchange, args)
+            self._held = entry_point(_held_force, (self.order, self.th, self.Fh, h, self.w))
 
     def snapshot(self):
         return self.hammer.get_state(), self.string.copy_state(), self.hist.copy(), self.out.copy()
@@ -747,17 +754,22 @@ def _run(side: StringSide, c: CosimConfig, *, fmu, hammer, defect_tol) -> CosimR
         n = 0
         unit = h_lo / 2.0                   # adaptive times: t0 + k * unit (exact)
         k_t = 0
+        # loop invariants, read once
+        adaptive, start, stop, record_every = c.adaptive, c.start, c.stop, c.record_every
+        at_stop = stop - 1e-12 * max(1.0, abs(stop))
+        n_steps = n_full + (1 if rem > 0.0 else 0)
+        update = watch.update
         try:
             while True:
-                if c.adaptive:
-                    if t >= c.stop - 1e-12 * max(1.0, abs(c.stop)):
+                if adaptive:
+                    if t >= at_stop:
                         break
-                    h, last = _adaptive_step(H, c.stop - t, unit)
+                    h, last = _adaptive_step(H, stop - t, unit)
                 else:
-                    if n >= n_full + (1 if rem > 0.0 else 0):
+                    if n >= n_steps:
                         break
                     h = H if n < n_full else rem
-                    t = c.start + n * H
+                    t = start + n * H
                     last = True
                 snap = main.snapshot() if defect_tol is not None else None
                 saves += snap is not None
@@ -786,10 +798,10 @@ def _run(side: StringSide, c: CosimConfig, *, fmu, hammer, defect_tol) -> CosimR
                     main.free(snap)
                     if rel > defect_tol:
                         at_min += 1
-                t_end = c.stop if (c.adaptive and last) else (
-                    c.start + (k_t + int(round(h / unit))) * unit if c.adaptive else
-                    (c.start + (n + 1) * H if n < n_full else c.stop))
-                if c.adaptive:
+                t_end = stop if (adaptive and last) else (
+                    start + (k_t + int(round(h / unit))) * unit if adaptive else
+                    (start + (n + 1) * H if n < n_full else stop))
+                if adaptive:
                     k_t += int(round(h / unit))
                 if fine is not None:
                     fine.step(t, 0.5 * h)
@@ -801,16 +813,16 @@ def _run(side: StringSide, c: CosimConfig, *, fmu, hammer, defect_tol) -> CosimR
                 d_main.append(defect)
                 wob_m.append(main.out[4])
                 t_all.append(t_end)
-                watch.update(t_end, n, h, main.F, main.out, float(main.sc[1]))
+                update(t_end, n, h, main.F, main.out, float(main.sc[1]))
                 n += 1
                 accepted += 1
-                if (n % c.record_every == 0) or t_end >= c.stop - 1e-12 * max(1.0, abs(c.stop)):
+                if (n % record_every == 0) or t_end >= at_stop:
                     rec.add(t_end, h, float(main.sc[1]), defect,
                             main.out[4] - fine.out[4] if fine is not None else math.nan)
                 if bar is not None:
                     bar.update(t_end - t)
                 t = t_end
-                if c.adaptive:
+                if adaptive:
                     h_used = (min(h_used[0], h), max(h_used[1], h)) if not last or h == H else h_used
                     if abs(defect) / max(W, 1.0) < 0.1 * defect_tol:
                         H = min(2 * H, h_hi)

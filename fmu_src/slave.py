@@ -52,6 +52,7 @@ from .pythonfmu_exit import guard_pythonfmu_exit
 from .stepping import _EMPTY_F, _NO_LOG, _NO_POIN, _NO_SAMP, SolverError, SolverOptions, Stepper
 from .validation import ParameterError, check
 from . import compile_ahead
+from .dispatch import entry_point as _entry_point
 
 compile_ahead.ENABLED = False  # no helper interpreters inside an FMI host
 
@@ -82,20 +83,6 @@ def _build_start_values(resources) -> dict:
         return {}
     with open(path, encoding="utf-8") as fh:
         return json.load(fh)
-
-
-def _entry_point(dispatcher, args):
-    """The compiled function of the numba ``dispatcher`` for ``args``, or the dispatcher.
-
-    Called directly it skips the dispatcher's typing of the arguments (do_step passes the same
-    arrays, of the same types, at every step).  The dispatcher itself when it has no compiled
-    version for these types yet.
-    """
-    try:
-        from numba import typeof
-        return dispatcher.overloads[tuple(typeof(a) for a in args)].entry_point
-    except Exception:  # noqa: BLE001 -- not compiled for these types (or another numba): dispatch
-        return dispatcher
 
 
 def _general_advance(st):
