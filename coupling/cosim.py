@@ -385,6 +385,8 @@ _NONE_C = np.zeros(0, dtype=np.complex128)
 _NONE_2 = np.zeros((0, 6), dtype=np.complex128)
 _NONE_F = np.zeros(0)
 _NONE_P = np.zeros((0, 0))
+#: position of ``x_new`` in :func:`_exchange`'s arguments (then ``v_new``, ``F_held``)
+_X_NEW = _exchange.py_func.__code__.co_varnames.index("x_new")
 
 
 class _Lane:
@@ -419,6 +421,7 @@ class _Lane:
         self.frow = side.m_frow if self.string.modal else side.frow.astype(np.float64)
         self._h, self._d = None, None            # the last step length and its discretisation
         self._xchg, self._held = _exchange, _held_force   # their entry points after the first step
+        self._args = None                                  # _exchange's arguments (_exchange_args)
 
     @property
     def F(self) -> float:
@@ -436,22 +439,28 @@ class _Lane:
         out = self.out = self.hammer.read()
         if h != self._h:
             self._h, self._d = h, self.side.discretisation(h)
+            self._args = self._exchange_args(h, self._d)
             self._xchg = _exchange          # new arrays: typed again by the dispatcher, once
-        d = self._d
-        s = self.string
-        side = self.side
-        if s.modal:
-            args = (self.gs, self.order, h, True, _NONE_P, _NONE_F, _NONE_F, _NONE_F, d.m_d, d.m_G,
-                    d.m_irow, d.m_icol, s.v, self.frow, side.ki, side.ci, side.wob,
-                    self.th, self.wh, self.Fh, out[0] - self.x_eq, out[1], F_held, self.cbuf, self.sc)
-        else:
-            args = (self.gs, self.order, h, False, d.P, s.v, s.buf, s.tmp, _NONE_C, _NONE_2, _NONE_C,
-                    _NONE_F, _NONE_C, self.frow, side.ki, side.ci, side.wob,
-                    self.th, self.wh, self.Fh, out[0] - self.x_eq, out[1], F_held, self.cbuf, self.sc)
+        args = self._args
+        args[_X_NEW] = out[0] - self.x_eq
+        args[_X_NEW + 1] = out[1]
+        args[_X_NEW + 2] = F_held
         self._xchg(*args)
         if self._xchg is _exchange:  # compiled by now: the next steps call it without the type dispatch
             self._xchg = entry_point(_exchange, args)
             self._held = entry_point(_held_force, (self.order, self.th, self.Fh, h, self.w))
+
+    def _exchange_args(self, h: float, d) -> list:
+        """The arguments of :func:`_exchange` for steps of length ``h`` (discretisation ``d``);
+        the hammer's new position, velocity and held force (from ``_X_NEW``) are set per step."""
+        s, side = self.string, self.side
+        if s.modal:
+            return [self.gs, self.order, h, True, _NONE_P, _NONE_F, _NONE_F, _NONE_F, d.m_d, d.m_G,
+                    d.m_irow, d.m_icol, s.v, self.frow, side.ki, side.ci, side.wob,
+                    self.th, self.wh, self.Fh, 0.0, 0.0, 0.0, self.cbuf, self.sc]
+        return [self.gs, self.order, h, False, d.P, s.v, s.buf, s.tmp, _NONE_C, _NONE_2, _NONE_C,
+                _NONE_F, _NONE_C, self.frow, side.ki, side.ci, side.wob,
+                self.th, self.wh, self.Fh, 0.0, 0.0, 0.0, self.cbuf, self.sc]
 
     def snapshot(self):
         return self.hammer.get_state(), self.string.copy_state(), self.hist.copy(), self.out.copy()
@@ -810,9 +819,9 @@ def _run(side: StringSide, c: CosimConfig, *, fmu, hammer, defect_tol) -> CosimR
                     d_fine.append(float(fine.sc[3]))
                     csteps += 2
                     wob_f.append(fine.out[4])
-                d_main.append(defect)
-                wob_m.append(main.out[4])
-                t_all.append(t_end)
+                    d_main.append(defect)           # the histories the estimate reads
+                    wob_m.append(main.out[4])
+                    t_all.append(t_end)
                 update(t_end, n, h, main.F, main.out, float(main.sc[1]))
                 n += 1
                 accepted += 1
