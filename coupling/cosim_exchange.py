@@ -111,10 +111,7 @@ def _exchange(gs, order, h, modal, P, xi, buf, tmp, d, G, irow, icol, eta, frow,
     _coefficients(gs, order, a, a2, h, wh, x_new, v_new, c)
     F_start = W + out[2] - ki * c[0] - ci * c[1]
     if modal:
-        imp = _string_step_modal(d, G, irow, icol, eta, c)
-        f_xi = 0.0
-        for i in range(eta.shape[0]):
-            f_xi += (frow[i] * eta[i]).real
+        imp, f_xi = _string_step_modal(d, G, irow, icol, eta, c, frow)
     else:
         n = xi.shape[0]
         for k in range(6):

@@ -297,7 +297,7 @@ class _StringState:
     def advance(self, d: _Discretisation, coeffs: np.ndarray) -> float:
         """Advance with given coefficients; returns int (F_i - W) dt [N s]."""
         if self.modal:
-            return _string_step_modal(d.m_d, d.m_G, d.m_irow, d.m_icol, self.v, coeffs)
+            return _string_step_modal(d.m_d, d.m_G, d.m_irow, d.m_icol, self.v, coeffs, self.side.m_frow)[0]
         self.buf[self.side.n:] = coeffs
         return _string_step_dense(d.P, self.v, self.buf, self.tmp)
 
@@ -321,11 +321,13 @@ def _string_step_dense(P, xi, buf, tmp):
 
 
 @_njit(cache=True)
-def _string_step_modal(d, G, irow, icol, eta, c):
-    """eta <- d * eta + G c (modal exact step); returns int (F_i - W) dt."""
+def _string_step_modal(d, G, irow, icol, eta, c, frow):
+    """eta <- d * eta + G c (modal exact step); returns (int (F_i - W) dt, Re(frow . eta) after
+    the step), the second in the same pass."""
     imp = 0.0
     for k in range(6):
         imp += icol[k] * c[k]
+    f_xi = 0.0
     for i in range(eta.shape[0]):
         e0 = eta[i]
         imp += (irow[i] * e0).real
@@ -333,4 +335,5 @@ def _string_step_modal(d, G, irow, icol, eta, c):
         for k in range(6):
             e += G[i, k] * c[k]
         eta[i] = e
-    return imp
+        f_xi += (frow[i] * e).real
+    return imp, f_xi

@@ -27,9 +27,20 @@ import types
 #: the submodule that defines each public (and shared private) name
 _SOURCES = {name: module for module, names in {
     "assembly": ("Assembly", "assemble"),
-    "damping": ("DampingModel", "bit_dynamic_stiffness", "bit_receptance", "exact_dynamic_stiffness", "exact_receptance", "reference_impedance"),
-    "description": ("DEFAULT_MASS", "DEFAULT_MAX_ELEMENT_LENGTH", "DEFAULT_RTOL", "G", "MASS_SCHEMES", "Boundary", "DrillString", "DrillStringError", "Mesh", "Section", "_check_end", "_check_number", "dispersion_error", "example_names", "example_path", "load_string", "loads_string", "parse_boundary", "resolve_ends", "string_from_dict"),
-    "modes": ("Modes", "_eigen", "_has_rigid_mode", "corrected_eigenvalues", "exact_frequencies", "impedance_factor", "modes"),
+    "damping": (
+        "DampingModel", "bit_dynamic_stiffness", "bit_receptance", "exact_dynamic_stiffness",
+        "exact_receptance", "reference_impedance",
+    ),
+    "description": (
+        "DEFAULT_MASS", "DEFAULT_MAX_ELEMENT_LENGTH", "DEFAULT_RTOL", "G", "MASS_SCHEMES", "Boundary",
+        "DrillString", "DrillStringError", "Mesh", "Section", "_check_end", "_check_number",
+        "dispersion_error", "example_names", "example_path", "load_string", "loads_string",
+        "parse_boundary", "resolve_ends", "string_from_dict",
+    ),
+    "modes": (
+        "Modes", "_eigen", "_has_rigid_mode", "corrected_eigenvalues", "exact_frequencies",
+        "impedance_factor", "modes",
+    ),
     "state_space": ("StateSpace", "state_space"),
     "statics": ("StaticState", "static_compliance", "static_equilibrium"),
 }.items() for name in names}
