@@ -419,9 +419,11 @@ class _Lane:
         self.w = np.zeros(3)
         self.cbuf = np.zeros(6)
         self.frow = side.m_frow if self.string.modal else side.frow.astype(np.float64)
-        self._h, self._d = None, None            # the last step length and its discretisation
-        self._xchg, self._held = _exchange, _held_force   # their entry points after the first step
-        self._args = None                                  # _exchange's arguments (_exchange_args)
+        self._h = None                           # the last step length
+        # per step length: [the exchange (its compiled entry point after the first call), its
+        # arguments (_exchange_args)]; the held force's entry point after the first step
+        self._calls, self._call = {}, None
+        self._held = _held_force
 
     @property
     def F(self) -> float:
@@ -438,17 +440,21 @@ class _Lane:
         self.hammer.step(t, h, F_held)
         out = self.out = self.hammer.read()
         if h != self._h:
-            self._h, self._d = h, self.side.discretisation(h)
-            self._args = self._exchange_args(h, self._d)
-            self._xchg = _exchange          # new arrays: typed again by the dispatcher, once
-        args = self._args
+            self._h = h
+            call = self._calls.get(h)
+            if call is None:  # a new step length: its arrays, typed by the dispatcher once
+                call = self._calls[h] = [_exchange, self._exchange_args(h, self.side.discretisation(h))]
+            self._call = call
+        call = self._call
+        args = call[1]
         args[_X_NEW] = out[0] - self.x_eq
         args[_X_NEW + 1] = out[1]
         args[_X_NEW + 2] = F_held
-        self._xchg(*args)
-        if self._xchg is _exchange:  # compiled by now: the next steps call it without the type dispatch
-            self._xchg = entry_point(_exchange, args)
-            self._held = entry_point(_held_force, (self.order, self.th, self.Fh, h, self.w))
+        call[0](*args)
+        if call[0] is _exchange:  # compiled by now: later steps of this length skip the type dispatch
+            call[0] = entry_point(_exchange, args)
+            if self._held is _held_force:
+                self._held = entry_point(_held_force, (self.order, self.th, self.Fh, h, self.w))
 
     def _exchange_args(self, h: float, d) -> list:
         """The arguments of :func:`_exchange` for steps of length ``h`` (discretisation ``d``);
