@@ -24,7 +24,7 @@ coupled to the field hammer (:func:`hammerbit.cosim.field_hammer`):
    a trivial pythonfmu FMU (one input, four outputs, ``do_step`` returns at
    once), built in a temporary directory and driven with the same calls per
    step (one ``setReal``, one ``doStep``, one ``getReal`` of 5 values).
-   Goal: at most 2x the floor.
+   Both sides are the best of two runs.  Goal: at most 2x the floor.
 
 Run: ``python -m benchmarks --only cosim`` (``--quick`` for a short run).
 """
@@ -218,9 +218,11 @@ def measure_long_run(cfg: dict, log) -> dict:
         for label, f_max in (("nodal", None), ("modal_f_max_100hz", 100.0)):
             c = CosimConfig(stop=cfg["long_stop"], step=H, record=("wob",), progress=False, f_max=f_max,
                             rtol=1e-8, estimate=False)
-            log(f"{cfg['long_stop']:g} s at H = 1 ms through the FMU, string {label} ...")
-            r = cosimulate(string, c, fmu=fmu)
+            log(f"{cfg['long_stop']:g} s at H = 1 ms through the FMU, string {label} (best of 2) ...")
+            runs = [cosimulate(string, c, fmu=fmu) for _ in range(2)]   # best of 2, as the floor
+            r = min(runs, key=lambda x: x.wall_time_s)
             out[label] = {"wall_time_s": r.wall_time_s, "setup_time_s": r.setup_time_s,
+                          "wall_times_s": [x.wall_time_s for x in runs],
                           "macro_steps": r.macro_steps, "string_states": r.stats["string_states"],
                           "wob_amplitude_n": r.wob_amplitude()}
         n = out["nodal"]["macro_steps"]
@@ -337,7 +339,7 @@ def run(quick: bool = False, *, verbose: bool = True) -> dict:
         summary.append(summary_row(
             f"{cfg['long_stop']:g} s simulated at H = 1 ms ({n} macro steps) through HammerBitRock.fmu, "
             f"string {desc} ({long[label]['string_states']} states); peer = FMI call floor (trivial "
-            f"pythonfmu FMU, same calls)",
+            f"pythonfmu FMU, same calls); both best of 2",
             fmt_time(w), peer=fmt_time(long["floor_s"]), ratio=f"{ratio:.2f}x floor",
             goal="<= 2x floor", met=ratio <= 2.0, command=cmd))
     summary.append(summary_row(
