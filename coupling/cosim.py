@@ -429,9 +429,6 @@ class _Lane:
     def F(self) -> float:
         return float(self.sc[0])
 
-    def held_force(self, h: float) -> float:
-        return self._held(self.order, self.th, self.Fh, h, self.w)
-
     def step(self, t: float, h: float) -> None:
         """One macro step [t, t + h]: hammer first, then the string (both schemes;
         Jacobi's string input does not use the new hammer value)."""

@@ -39,7 +39,7 @@ _HERE = os.path.dirname(os.path.abspath(__file__))
 SHIPPED_DIR = os.path.join(_HERE, "_compiled")
 MANIFEST = "manifest.json"
 
-from .cpu_target import PORTABLE_ENV  # noqa: E402  (the portable CPU target the build compiles for)
+from .cpu_target import PORTABLE_ENV, runs_portable, select_portable  # noqa: E402
 
 
 def user_cache_root() -> str:
@@ -87,7 +87,7 @@ def _shipped_mismatch(manifest: dict):
                 f"{platform.machine()}")
     if "numba" in sys.modules:
         from numba.core import config  # noqa: PLC0415
-        if config.CPU_NAME != PORTABLE_ENV["NUMBA_CPU_NAME"] or (config.CPU_FEATURES or "") != "":
+        if not runs_portable():
             from llvmlite import binding as ll  # noqa: PLC0415
             cpu = config.CPU_NAME or ll.get_host_cpu_name()
             return (f"numba was already imported in this process for the CPU {cpu!r}; the shipped "
@@ -122,8 +122,7 @@ def _decide() -> dict:
     else:
         why = _shipped_mismatch(manifest)
     if why is None:
-        if "numba" not in sys.modules:
-            os.environ.update(PORTABLE_ENV)
+        select_portable()
         return {"dir": SHIPPED_DIR, "shipped": True, "reason": None}
     root, note = _user_cache()
     return {"dir": root, "shipped": False, "reason": why + (f"; {note}" if note else "")}
