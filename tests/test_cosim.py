@@ -337,3 +337,19 @@ def test_estimate_within_a_factor_3_of_the_true_error(string, case, H):
     else:
         assert r.penetration_m == 0.0 and e.penetration_m == 0.0
     assert e.meets_tolerance is (e.worst <= 1e-3)
+
+
+@pytest.mark.parametrize("kw", [dict(step=1e-3, estimate=False), dict(step=1e-3, f_max=100.0, estimate=False),
+                                dict()], ids=["fixed-nodal", "fixed-modal", "adaptive"])
+def test_compiled_entry_points_give_the_dispatchers_bits(kw, monkeypatch):
+    """The master calls the exchange through entry points kept per step length; through numba's
+    dispatcher on every call the run is the same to the bit (adaptive: many step lengths, rollbacks)."""
+    import hammerbit.cosim as cs
+    string = load_string("field-2200m")
+    c = CosimConfig(stop=0.4, record=("wob", "hammer_position", "hook_load"), progress=False, **kw)
+    fast = cosimulate(string, c)
+    monkeypatch.setattr(cs, "entry_point", lambda dispatcher, args: dispatcher)
+    plain = cosimulate(string, c)
+    for name in fast.data.dtype.names:
+        assert np.array_equal(fast.data[name], plain.data[name]), name
+    assert fast.stats.get("rollbacks") == plain.stats.get("rollbacks")
