@@ -130,13 +130,6 @@ def check_output_path(path: str, option: str, *, formats=None) -> str:
     return full
 
 
-def figure_formats() -> set:
-    """File extensions matplotlib can save (png, pdf, svg, ...)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-    return set(FigureCanvasAgg(Figure()).get_supported_filetypes())
-
-
 def regime_warnings(g, bounces: int = 0) -> list:
     """Plain-language warnings for a scene outside the model's validity domain (SI figures)."""
     from hammerbit.model.params import regime
@@ -192,7 +185,10 @@ def _simulate(args, worker) -> int:
         if worker is not None:  # load the kernels while the worker imports matplotlib
             Stepper(g, solver=solver).load()
         formats = worker.formats() if worker is not None else None
-        check_output_path(args.plot, "--plot", formats=formats or figure_formats())
+        if formats is None:
+            from .figure_worker import figure_formats
+            formats = figure_formats()
+        check_output_path(args.plot, "--plot", formats=formats)
     if args.csv:
         check_output_path(args.csv, "--csv")
     times = None

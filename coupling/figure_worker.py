@@ -35,10 +35,17 @@ import subprocess
 import sys
 import traceback
 
-__all__ = ["FigureWorker", "start", "ENV"]
+__all__ = ["FigureWorker", "start", "figure_formats", "ENV"]
 
 #: environment variable that turns the worker off ("0")
 ENV = "HAMMERBIT_FIGURE_WORKER"
+
+
+def figure_formats() -> set:
+    """File extensions matplotlib can save (png, pdf, svg, ...)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415
+    from matplotlib.figure import Figure  # noqa: PLC0415
+    return set(FigureCanvasAgg(Figure()).get_supported_filetypes())
 
 
 def enabled() -> bool:
@@ -168,9 +175,7 @@ def _main() -> int:
     try:
         import matplotlib  # noqa: PLC0415
         matplotlib.use("Agg")
-        from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415
-        from matplotlib.figure import Figure  # noqa: PLC0415
-        formats = sorted(FigureCanvasAgg(Figure()).get_supported_filetypes())
+        formats = sorted(figure_formats())
     except Exception:  # noqa: BLE001 -- the caller draws in its own process and reports the error
         if os.environ.get("HAMMERBIT_DEBUG"):
             traceback.print_exc()

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from hammerbit import figure_worker
-from hammerbit.cli import figure_formats
+from hammerbit.figure_worker import figure_formats
 from hammerbit.model.params import preset
 from hammerbit.plots import scene_figure
 from hammerbit.scene_figure import draw_scene
