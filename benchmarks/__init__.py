@@ -309,7 +309,7 @@ def stage_logger(name: str, verbose: bool):
 
 
 class LoadedFMU:
-    """An FMU loaded and initialised through the project's loader (:class:`hammerbit.fmu_host.FMUInstance`).
+    """An FMU loaded and initialised through the project's loader (:class:`hammerbit.fmu.host.FMUInstance`).
 
     Parameters
     ----------
@@ -323,7 +323,7 @@ class LoadedFMU:
     """
 
     def __init__(self, path, name, reals=None):
-        from hammerbit.fmu_host import FMUInstance
+        from hammerbit.fmu.host import FMUInstance
         self.host = FMUInstance(path, name, reals=reals, logging=False)
         self.vr, self.fmu, self.dir = self.host.vr, self.host.fmu, self.host.dir
         self.n = 0

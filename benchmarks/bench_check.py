@@ -63,7 +63,7 @@ def _string():
 
 
 def measure_check(f_hi: float, repeats: int) -> dict:
-    from hammerbit.modal_check import CheckConfig, check
+    from hammerbit.check.frequency import CheckConfig, check
     s = _string()
     cfg = CheckConfig(excitation_hz=f_hi / 2, frequency_range_hz=(0.0, f_hi))
     t0 = time.perf_counter()
@@ -86,7 +86,7 @@ def measure_cli(f_hi: float) -> dict:
     with tempfile.TemporaryDirectory() as d:
         path = Path(d) / "field-3300m.toml"
         path.write_text(TOML)
-        cmd = [sys.executable, "-c", "import sys; from hammerbit.cli import main; sys.exit(main())", "check",
+        cmd = [sys.executable, "-c", "import sys; from hammerbit.cli.main import main; sys.exit(main())", "check",
                "--string", str(path), "--frequency", f"{f_hi / 2:g}",
                "--range", "0", f"{f_hi:g}", "--json"]
         r0 = resource.getrusage(resource.RUSAGE_CHILDREN)

@@ -31,7 +31,7 @@ def _load(path: pathlib.Path):
 
 
 def run(quick: bool = False) -> dict:
-    from hammerbit.cli import main as cli
+    from hammerbit.cli.main import main as cli
     cmd = harness_command("figures", quick)
     rows, timings = [], {}
     FIG = pathlib.Path(benchmarks.figures_dir())

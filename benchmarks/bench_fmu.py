@@ -400,7 +400,7 @@ def run(quick: bool = False, *, verbose: bool = True) -> dict:
     """Run the FMU benchmark; write ``benchmarks/results/fmu.json`` and ``fmu.png``."""
     log = stage_logger(NAME, verbose)
 
-    from hammerbit.fmu_build import build_fmu
+    from hammerbit.fmu.build import build_fmu
     work = Path(tempfile.mkdtemp(prefix="hammerbit_bench_fmu_"))
     try:
         t0 = time.perf_counter()

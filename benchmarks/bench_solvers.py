@@ -45,7 +45,7 @@ from benchmarks import (stage_logger, fmt_num, fmt_ratio, fmt_time, harness_comm
 from benchmarks.scipy_reference import ReferenceError, simulate_reference
 from hammerbit.model.params import preset
 from hammerbit.model.stepping import SolverError, SolverOptions
-from hammerbit.simulate import simulate
+from hammerbit.scene.simulate import simulate
 
 NAME = "solvers"
 PERIODS = 100

@@ -170,7 +170,7 @@ def measure_maps(cfg, log) -> dict:
 def measure_sweep(cfg, log) -> dict:
     repo_on_path()
     from build_fmu import build_fmu
-    from hammerbit.cosim import CosimConfig, cosimulate
+    from hammerbit.cosim.master import CosimConfig, cosimulate
     from hammerbit.drillstring import load_string
     from hammerbit.studies.executor import ExecutorOptions
     from hammerbit.studies.sweep import sweep
@@ -214,7 +214,7 @@ def measure_readme_optimize(log) -> dict:
     import contextlib
     import io
     import json
-    from hammerbit.cli import main
+    from hammerbit.cli.main import main
     log("README optimize example ...")
     buf = io.StringIO()
     t0 = time.perf_counter()

@@ -15,7 +15,7 @@
    on stderr is checked: once in the cold run, never in a warm one.
    ``python -c pass`` is measured too, as the floor of any Python command,
    and the imports of numba and of matplotlib, which the command does in two
-   processes (:mod:`hammerbit.figure_worker`).
+   processes (:mod:`hammerbit.scene.figure_worker`).
 3. **Compiled-code speed, fresh against cache-loaded** (full run only): the
    same 100-period scene timed in a process that compiled the kernels itself
    and in a process that loaded them from the on-disk cache.
@@ -81,7 +81,7 @@ def _cli_cmd() -> list:
     exe = os.path.join(os.path.dirname(sys.executable), "hammerbit")
     if os.path.isfile(exe) and os.access(exe, os.X_OK):
         return [exe]
-    return [sys.executable, "-m", "hammerbit.cli"]
+    return [sys.executable, "-m", "hammerbit.cli.main"]
 
 
 def _timed_subprocess(cmd, env, timeout=600.0, cwd=REPO_ROOT) -> dict:
@@ -132,7 +132,7 @@ def measure_per_a(cfg: dict) -> dict:
     """Single-thread cost of one forcing period against a (min of 3 runs per value)."""
     from hammerbit.model.params import preset
     from hammerbit.model.stepping import SolverOptions
-    from hammerbit.simulate import simulate
+    from hammerbit.scene.simulate import simulate
     g = preset("paper-fig9")
     solver = SolverOptions(rtol=RTOL, atol=ATOL)
     simulate(g, 1, solver=solver)
@@ -156,7 +156,7 @@ def measure_cli(cfg: dict) -> dict:
     cmd = _cli_cmd() + CLI_ARGS
     base_env = dict(os.environ)
     floor = [_timed_subprocess([sys.executable, "-c", "pass"], base_env)["wall_s"] for _ in range(3)]
-    imp = [_timed_subprocess([sys.executable, "-c", "import hammerbit.simulate"], base_env)["wall_s"]
+    imp = [_timed_subprocess([sys.executable, "-c", "import hammerbit.scene.simulate"], base_env)["wall_s"]
            for _ in range(3)]
     # the two halves of the command, which run in two processes: the solver's imports and the figure's
     numba_imp = [_timed_subprocess([sys.executable, "-c", "import numba"], base_env)["wall_s"]

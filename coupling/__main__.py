@@ -1,5 +1,5 @@
 """``python -m hammerbit``: the ``hammerbit`` command line."""
-from hammerbit.cli import console
+from hammerbit.cli.main import console
 
 if __name__ == "__main__":
     console()

@@ -44,7 +44,7 @@ def _default(action) -> str:
 
 def reference() -> str:
     """Markdown: every sub-command with its help and a table of its options."""
-    from hammerbit.cli import build_parser
+    from hammerbit.cli.main import build_parser
     ap = build_parser()
     sub = next(a for a in ap._actions if isinstance(a, argparse._SubParsersAction))
     helps = {c.dest: c.help for c in sub._choices_actions}

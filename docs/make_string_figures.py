@@ -24,7 +24,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from hammerbit.drillstring import Boundary, DrillString, Section, exact_frequencies, load_string, modes  # noqa: E402
-from hammerbit.modal_check import CheckConfig, check, plot_check  # noqa: E402
+from hammerbit.check.frequency import CheckConfig, check, plot_check  # noqa: E402
 
 FIGURES = Path(__file__).resolve().parent / "figures"
 OUT = FIGURES

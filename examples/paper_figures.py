@@ -17,7 +17,7 @@ import numpy as np
 
 from hammerbit.studies.bifurcation import bifurcation, penetration_sweep
 from hammerbit.model.params import preset
-from hammerbit.plots import plot_bifurcation, plot_penetration, plot_scene
+from hammerbit.scene.plots import plot_bifurcation, plot_penetration, plot_scene
 
 TRACKED = pathlib.Path(__file__).resolve().parent.parent / "docs" / "figures"
 SCRATCH = pathlib.Path(tempfile.gettempdir()) / "hammerbit-figures"
@@ -49,9 +49,9 @@ def main(argv=None):
                      OUT / "penetration_fig14.png", periods=100, scales=preset("paper-fig9").scales)
     plot_scene(preset("paper-fig9").replace(a=0.083), 300, OUT / "scene_fig9_a0.083.png", preset="paper-fig9")
     plot_scene(preset("paper-fig12").replace(a=0.06), 300, OUT / "scene_fig12_a0.06.png", preset="paper-fig12")
-    from hammerbit.analysis import largest_lyapunov
-    from hammerbit.plots import plot_attractor
-    from hammerbit.simulate import Record, simulate
+    from hammerbit.scene.analysis import largest_lyapunov
+    from hammerbit.scene.plots import plot_attractor
+    from hammerbit.scene.simulate import Record, simulate
     g = preset("chaos")
     lam = largest_lyapunov(g, windows=100)
     r = simulate(g, 5000, record=Record(poincare=True))

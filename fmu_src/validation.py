@@ -152,7 +152,7 @@ RANGES: dict[str, Range] = {
     # -- a scene (simulate) --------------------------------------------------
     "simulate.periods": Range(0.0, 1e9, lo_open=True),
     "simulate.sample_dt": Range(0.0, 1e9, lo_open=True, unit="s"),
-    # -- co-simulation master (hammerbit.cosim.CosimConfig) ----------------------
+    # -- co-simulation master (hammerbit.cosim.master.CosimConfig) ----------------------
     "cosim.step": Range(0.0, 10.0, lo_open=True, unit="s"),
     "cosim.start": Range(-1e9, 1e9, unit="s"),
     "cosim.stop": Range(-1e9, 1e9, unit="s"),
@@ -170,7 +170,7 @@ RANGES: dict[str, Range] = {
     "state.subsystem": Range(-1e300, 1e300),       # linear subsystem and energy states: finite
     "state.time": Range(-1e12, 1e12),
     "state.extra_force": Range(-1e12, 1e12),       # constant extra force on the hammer / F0
-    # -- the hammer-frequency check (hammerbit.modal_check) ---------------------
+    # -- the hammer-frequency check (hammerbit.check.frequency) ---------------------
     "check.frequency": Range(0.0, 1e6, lo_open=True, unit="Hz"),
     "check.rpm": Range(0.0, 1e6, lo_open=True, unit="rev/min"),
     "check.factor": Range(0.0, 1e3, lo_open=True),

@@ -1,5 +1,5 @@
 """The CLI in the test's own process (the console script's process boundary is tested in test_cli.py)."""
-from hammerbit.cli import main
+from hammerbit.cli.main import main
 
 
 def run_cli(argv, capsys):

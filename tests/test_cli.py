@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 from cli_run import run_cli
-from hammerbit.cli import build_parser
+from hammerbit.cli.main import build_parser
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 DOCS = [ROOT / "README.md"] + sorted((ROOT / "docs").glob("*.md"))
@@ -89,7 +89,7 @@ def test_simulate_json_si_against_hand_scales(capsys):
     assert rop["m_per_h"] == pytest.approx(rop["mm_per_period"] * 1e-3 / T * 3600.0, rel=1e-12)
     # the ROP is the advance over the second half: two separate runs from rest give it too
     from hammerbit.model.params import preset
-    from hammerbit.simulate import simulate
+    from hammerbit.scene.simulate import simulate
     g = preset("paper-fig9").replace(a=0.083)
     p150, p300 = simulate(g, 150).penetration, simulate(g, 300).penetration
     assert rop["x0_per_period"] == pytest.approx((p300 - p150) / 150, rel=1e-7)
@@ -190,7 +190,7 @@ def test_plot_formats_follow_the_extension(tmp_path, capsys):
     ("out.xyz", ["unsupported format", "xyz"]),
 ])
 def test_bad_plot_path_refused_before_the_run(target, words, tmp_path, capsys, monkeypatch):
-    import hammerbit.simulate as sim
+    import hammerbit.scene.simulate as sim
 
     def must_not_run(*a, **k):
         raise AssertionError("the run started before the output path was checked")

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from hammerbit.cosim import (CosimConfig, CouplingInstabilityError, StringSide, cosimulate,
+from hammerbit.cosim.master import (CosimConfig, CouplingInstabilityError, StringSide, cosimulate,
                              extrapolation_weights, field_hammer, monolithic)
 from hammerbit.drillstring import load_string
 from hammerbit.model.params import RigParameters
@@ -81,7 +81,7 @@ def test_schemes_and_extrapolation_orders(string, base, reference, scheme):
 
 
 def test_instability_detected_stiff_interface(string):
-    from hammerbit.cosim import StepResolutionError
+    from hammerbit.cosim.master import StepResolutionError
     cfg = CosimConfig(stop=1.0, step=5e-3, interface_stiffness=1e10, estimate=False)
     with pytest.raises(StepResolutionError, match="string mode") as ei:   # refused before the run ...
         cosimulate(string, cfg)
@@ -196,7 +196,7 @@ def test_with_the_fmu(string, built_fmu):
 def test_linear_sweep_matches_frf_and_modes(string):
     """Small excitation (bit stays stuck): the swept WOB amplitude is A |FRF| and its peak
     sits at a natural frequency of the coupled system (bit on bottom, hammer as boundary)."""
-    from hammerbit.cosim import coupled_modes, sweep, wob_frf
+    from hammerbit.cosim.master import coupled_modes, sweep, wob_frf
     cfg = CosimConfig(stop=4.0, step=1e-3, rig=field_hammer().replace(amplitude=2e3), estimate=False)
     freqs = np.array([22.0, 22.5, 23.0])
     res = sweep(string, freqs, cfg)
@@ -210,7 +210,7 @@ def test_linear_sweep_matches_frf_and_modes(string):
 
 def test_cli_cosim_json(tmp_path, capsys):
     import json
-    from hammerbit.cli import main
+    from hammerbit.cli.main import main
     out = tmp_path / "r.csv"
     rc = main(["cosim", "--string", "field-2200m", "--stop", "0.3", "--step", "1e-3", "--scheme",
                "gauss-seidel", "--extrapolation", "1", "--json", "--out", str(out)])
@@ -228,7 +228,7 @@ def test_cli_cosim_json(tmp_path, capsys):
 
 def test_cli_sweep(tmp_path, capsys):
     import json
-    from hammerbit.cli import main
+    from hammerbit.cli.main import main
     rc = main(["sweep", "--string", "field-2200m", "--frequencies", "20", "24", "3", "--duration", "1",
                "--csv", str(tmp_path / "s.csv"), "--plot", str(tmp_path / "s.png"), "--json"])
     assert rc == 0
@@ -307,7 +307,7 @@ def test_dense_exchange_equals_modal(string):
 # the coupling-error estimate
 # ---------------------------------------------------------------------------
 def test_step_that_cannot_resolve_is_refused(string):
-    from hammerbit.cosim import StepResolutionError
+    from hammerbit.cosim.master import StepResolutionError
     with pytest.raises(StepResolutionError, match="slip dynamics") as ei:
         cosimulate(string, CosimConfig(stop=1.0, step=0.015, rig=DRILL))
     assert ei.value.limit.name == "slip"
@@ -344,7 +344,7 @@ def test_estimate_within_a_factor_3_of_the_true_error(string, case, H):
 def test_compiled_entry_points_give_the_dispatchers_bits(kw, monkeypatch):
     """The master calls the exchange through entry points kept per step length; through numba's
     dispatcher on every call the run is the same to the bit (adaptive: many step lengths, rollbacks)."""
-    import hammerbit.cosim as cs
+    import hammerbit.cosim.master as cs
     string = load_string("field-2200m")
     c = CosimConfig(stop=0.4, record=("wob", "hammer_position", "hook_load"), progress=False, **kw)
     fast = cosimulate(string, c)

@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from hammerbit.cosim import CosimConfig, cosimulate, cosimulate_adaptive, field_hammer, monolithic
+from hammerbit.cosim.master import CosimConfig, cosimulate, cosimulate_adaptive, field_hammer, monolithic
 from hammerbit.drillstring import load_string
 
 DRILL = field_hammer().replace(frequency=22.5)
@@ -72,7 +72,7 @@ def test_adaptive_bad_options(string):
 # the CLI: accurate by default, or says it is not
 # ---------------------------------------------------------------------------
 def test_cli_default_is_adaptive_and_within_tolerance(capsys):
-    from hammerbit.cli import main
+    from hammerbit.cli.main import main
     rc = main(["cosim", "--string", "field-2200m", "--stop", "0.3", "--set", "A=5000", "--json"])
     d = json.loads(capsys.readouterr().out)
     assert d["method"] == "cosim-adaptive" and d["adaptive"]["accepted"] == d["macro_steps"]
@@ -80,8 +80,8 @@ def test_cli_default_is_adaptive_and_within_tolerance(capsys):
 
 
 def test_cli_fixed_step_beyond_tolerance_exits_5_with_the_estimate(capsys):
-    from hammerbit.cli import main
-    from hammerbit.cli_common import EXIT_INACCURATE
+    from hammerbit.cli.main import main
+    from hammerbit.cli.common import EXIT_INACCURATE
     rc = main(["cosim", "--string", "field-2200m", "--stop", "0.4", "--set", "frequency=22.5",
                "--step", "0.01", "--json"])
     cap = capsys.readouterr()
@@ -100,7 +100,7 @@ def test_cli_fixed_step_beyond_tolerance_exits_5_with_the_estimate(capsys):
     (["--stop", "0.1", "--tol", "2"], "tol"),
 ])
 def test_cli_bad_input_exits_2_without_traceback(capsys, tmp_path, argv, needle):
-    from hammerbit.cli import main
+    from hammerbit.cli.main import main
     bad = tmp_path / "notazip.fmu"
     bad.write_text("not a zip")
     argv = [str(bad) if a == "__FILE__" else a for a in argv]
@@ -110,7 +110,7 @@ def test_cli_bad_input_exits_2_without_traceback(capsys, tmp_path, argv, needle)
 
 
 def test_cli_monolithic_same_output(capsys):
-    from hammerbit.cli import main
+    from hammerbit.cli.main import main
     assert main(["cosim", "--string", "field-2200m", "--stop", "0.2", "--monolithic", "--json"]) == 0
     d = json.loads(capsys.readouterr().out)
     assert d["method"] == "monolithic" and d["stop_s"] == 0.2 and d["meets_tolerance"] is None
@@ -134,7 +134,7 @@ def test_harmonic_force_from_the_master(string, built_fmu):
 def test_step_counts_are_the_hammers_own(string, monkeypatch):
     """``hammer_steps``, ``companion_steps``, ``state_saves`` and ``rollbacks`` in the stats are
     what the hammer sides were actually asked to do (counted on the hammer class itself)."""
-    from hammerbit import cosim as C
+    from hammerbit.cosim import master as C
     calls = {"step": 0, "get_state": 0, "set_state": 0}
     for name in calls:
         orig = getattr(C.StepperHammer, name)

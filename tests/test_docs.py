@@ -109,7 +109,7 @@ def test_cli_reference_is_current():
 def test_cli_reference_lists_every_command_and_option():
     """Independent of the generator: every sub-command and option string of the parser appears in cli.md."""
     import argparse
-    from hammerbit.cli import build_parser
+    from hammerbit.cli.main import build_parser
     text = (ROOT / "docs" / "cli.md").read_text(encoding="utf-8")
     ap = build_parser()
     sub = next(a for a in ap._actions if isinstance(a, argparse._SubParsersAction))
@@ -122,7 +122,7 @@ def test_cli_reference_lists_every_command_and_option():
 
 
 def test_exit_code_table_matches_the_code():
-    from hammerbit import cli_common as c
+    from hammerbit.cli import common as c
     text = (ROOT / "docs" / "cli.md").read_text(encoding="utf-8")
     rows = dict(re.findall(r"^\| (\d+) \| (.+?) \|$", text, flags=re.M))
     codes = {c.EXIT_OK, c.EXIT_FAILURE, c.EXIT_BAD_INPUT, c.EXIT_UNSTABLE, c.EXIT_CHECK_FAILED,

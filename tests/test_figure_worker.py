@@ -12,11 +12,11 @@ import textwrap
 import numpy as np
 import pytest
 
-from hammerbit import figure_worker
-from hammerbit.figure_worker import figure_formats
+from hammerbit.scene import figure_worker
+from hammerbit.scene.figure_worker import figure_formats
 from hammerbit.model.params import preset
-from hammerbit.plots import scene_figure
-from hammerbit.scene_figure import draw_scene
+from hammerbit.scene.plots import scene_figure
+from hammerbit.scene.figure import draw_scene
 from cli_run import run_cli
 
 
@@ -88,7 +88,7 @@ def test_the_parser_loads_neither_numba_nor_matplotlib():
     """Every command builds the whole parser: it must not pay for the solver or the plots."""
     code = textwrap.dedent("""
         import sys
-        from hammerbit.cli import build_parser
+        from hammerbit.cli.main import build_parser
         build_parser()
         print(sorted(m for m in ("numba", "matplotlib", "scipy") if m in sys.modules))
     """)

@@ -2,11 +2,11 @@
 state rollback and serialisation, statuses of bad calls, independent instances, warm start.
 
 The FMU is built once per session (``built_fmu`` in conftest.py, ``hammerbit fmu build``) and
-loaded into this process through the project's loader (:class:`hammerbit.fmu_host.FMUInstance`,
+loaded into this process through the project's loader (:class:`hammerbit.fmu.host.FMUInstance`,
 fmpy's ``FMU2Slave``) and by libcosim (libcosimpy), like any FMI host would.
 
 Statuses: the slave records the status of every call in its ``last_status`` variable; when the
-FMU carries the native front (``hammerbit.fmu_native``), the FMI call itself returns it too
+FMU carries the native front (``hammerbit.fmu.native``), the FMI call itself returns it too
 (fmpy raises ``FMICallException`` for Discard and Error).  Both are checked.
 """
 from __future__ import annotations
@@ -29,7 +29,7 @@ from fmpy import read_model_description  # noqa: E402
 from fmpy.fmi1 import FMICallException  # noqa: E402
 from fmpy.fmi2 import fmi2LastSuccessfulTime  # noqa: E402
 
-from hammerbit.fmu_host import FMI_DISCARD, FMI_ERROR, FMI_OK, FMI_WARNING, FMUInstance  # noqa: E402
+from hammerbit.fmu.host import FMI_DISCARD, FMI_ERROR, FMI_OK, FMI_WARNING, FMUInstance  # noqa: E402
 from hammerbit.model import kernels as K  # noqa: E402
 from hammerbit.model.params import P_B, P_FEXT, RigParameters  # noqa: E402
 from hammerbit.model.stepping import SolverOptions, Stepper  # noqa: E402
@@ -113,7 +113,7 @@ def _runtime_package(names):
 
 
 def test_build_carries_the_runtime_and_its_compiled_kernels(built_fmu):
-    from hammerbit.fmu_build import build_hash
+    from hammerbit.fmu.build import build_hash
     with zipfile.ZipFile(built_fmu) as zf:
         names = zf.namelist()
         md = zf.read("modelDescription.xml").decode()
@@ -641,7 +641,7 @@ def test_two_instances_with_different_parameters_are_independent(built_fmu):
 # ---------------------------------------------------------------------------
 _PROBE = textwrap.dedent("""
     import json, sys, time
-    from hammerbit.fmu_host import FMUInstance
+    from hammerbit.fmu.host import FMUInstance
     path, n = sys.argv[1], int(sys.argv[2])
     out = {}
     for i in range(n):

@@ -19,8 +19,8 @@ import pytest
 pytest.importorskip("fmpy")
 
 from cli_run import run_cli  # noqa: E402
-from hammerbit.fmu_build import build_fmu, build_hash, runtime_files  # noqa: E402
-from hammerbit.fmu_host import FMUInstance  # noqa: E402
+from hammerbit.fmu.build import build_fmu, build_hash, runtime_files  # noqa: E402
+from hammerbit.fmu.host import FMUInstance  # noqa: E402
 from hammerbit.model.params import RigParameters  # noqa: E402
 from hammerbit.model.stepping import SolverOptions, Stepper  # noqa: E402
 
@@ -101,7 +101,7 @@ def test_two_builds_with_different_start_values_in_one_process(built_fmu, tmp_pa
 _COLD = textwrap.dedent("""
     import json, sys, time
     t0 = time.perf_counter()
-    from hammerbit.fmu_host import FMUInstance
+    from hammerbit.fmu.host import FMUInstance
     inst = FMUInstance(sys.argv[1], "cold")
     t1 = time.perf_counter()
     inst.step(1e-3)
@@ -209,7 +209,7 @@ def test_fmpy_simulate_with_a_bad_start_value_fails_naming_it(built_fmu, tmp_pat
     has_front = probe.has_front
     probe.close()
     if not has_front:
-        pytest.skip("needs the native front (hammerbit.fmu_native): pythonfmu alone returns OK from "
+        pytest.skip("needs the native front (hammerbit.fmu.native): pythonfmu alone returns OK from "
                     "fmi2ExitInitializationMode")
     r = subprocess.run([sys.executable, "-m", "fmpy", "simulate", str(built_fmu), "--start-values",
                         "hammer_mass", "-1", "--output-file", str(tmp_path / "out.csv")],

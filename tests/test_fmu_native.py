@@ -1,4 +1,4 @@
-"""The FMU's native front (hammerbit.fmu_native) in native and Python hosts.
+"""The FMU's native front (hammerbit.fmu.native) in native and Python hosts.
 
 A C host compiled here against the standard FMI 2.0 headers loads the FMU with no LD_PRELOAD
 and no PYTHONPATH and must reproduce fmpy's result on the plain pythonfmu FMU; resource URIs,
@@ -29,7 +29,7 @@ from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFr
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2LastSuccessfulTime,
                        fmi2Terminated)
 
-from hammerbit.fmu_native import (FrontBuildError, build_front, find_compiler,  # noqa: E402
+from hammerbit.fmu.native import (FrontBuildError, build_front, find_compiler,  # noqa: E402
                                   generate_header, read_model_description as read_spec)
 
 HERE = Path(__file__).resolve().parent

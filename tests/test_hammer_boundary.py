@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from hammerbit.cosim import CosimConfig, coupled_modes, field_hammer
+from hammerbit.cosim.master import CosimConfig, coupled_modes, field_hammer
 from hammerbit.drillstring import DrillStringError, load_string
-from hammerbit.modal_check import hammer_on_bottom_frequencies
+from hammerbit.check.frequency import hammer_on_bottom_frequencies
 
 F_MAX = 40.0
 
@@ -109,7 +109,7 @@ def test_bad_hammer_boundary(string):
 
 def test_cli_modes_hammer_on_bottom_takes_the_cosim_options(capsys):
     """`modes --hammer-on-bottom` with --set and --interface-stiffness gives the oracle of that hammer."""
-    from hammerbit.cli import main
+    from hammerbit.cli.main import main
     assert main(["modes", "--string", "field-2200m", "--hammer-on-bottom", "--fmax", "30", "--json",
                  "--set", "m1=500", "--interface-stiffness", "3e6", "--exact"]) == 0
     d = json.loads(capsys.readouterr().out)

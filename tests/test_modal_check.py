@@ -20,7 +20,7 @@ import math
 import numpy as np
 import pytest
 
-from hammerbit import cli
+from hammerbit.cli import main as cli
 from hammerbit.drillstring import (
     Boundary,
     DampingModel,
@@ -35,7 +35,7 @@ from hammerbit.drillstring import (
     state_space,
     static_compliance,
 )
-from hammerbit.modal_check import (
+from hammerbit.check.frequency import (
     FAIL,
     MARGIN,
     NOMINAL_ONLY,

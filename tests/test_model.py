@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 from cli_run import run_cli
 
-from hammerbit.analysis import detect_period, largest_lyapunov
+from hammerbit.scene.analysis import detect_period, largest_lyapunov
 from hammerbit.model import kernels as K
 from hammerbit.model.params import (RIG, ParameterError, RigParameters, apply_settings,
                                     preset)
 from hammerbit.model.stepping import EventStormError, SolverOptions, Stepper
-from hammerbit.simulate import BounceWarning, Record, simulate
+from hammerbit.scene.simulate import BounceWarning, Record, simulate
 
 TIGHT = SolverOptions(rtol=1e-12, atol=1e-14)
 
@@ -441,7 +441,7 @@ def test_chaos_preset_is_chaotic():
     assert detect_period(r.poincare, max_period=32) is None
     # sensitive dependence: two tolerances separate to the attractor's size
     r2 = simulate(g, 600, record=Record(poincare=True), solver=SolverOptions(rtol=1e-11, atol=1e-13))
-    from hammerbit.analysis import relative_coordinates
+    from hammerbit.scene.analysis import relative_coordinates
     d = np.linalg.norm(relative_coordinates(r.poincare) - relative_coordinates(r2.poincare), axis=1)
     assert d[5] < 1e-5 and d[-200:].max() > 1e-2
 

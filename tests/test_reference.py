@@ -24,7 +24,7 @@ import pytest
 from benchmarks.scipy_reference import simulate_reference
 from hammerbit.model.params import preset
 from hammerbit.model.stepping import EventStormError, SolverOptions
-from hammerbit.simulate import BounceWarning, Record, simulate
+from hammerbit.scene.simulate import BounceWarning, Record, simulate
 
 PERIODS = 100
 SCENES = {"no_impact": ("paper-fig9", 0.11), "impact": ("paper-fig12", 0.06)}

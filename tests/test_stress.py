@@ -29,11 +29,11 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from hammerbit.analysis import detect_period
+from hammerbit.scene.analysis import detect_period
 from hammerbit.model.params import preset
 from hammerbit.model.stepping import (EventStormError, MaxStepsError, NonFiniteStateError,
                                       SolverError, SolverOptions, StepSizeError)
-from hammerbit.simulate import BounceWarning, Record, simulate
+from hammerbit.scene.simulate import BounceWarning, Record, simulate
 
 RTOL = 1e-8
 DEFAULT = SolverOptions(rtol=RTOL, atol=RTOL * 1e-2)

@@ -22,9 +22,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from cli_run import run_cli
-from hammerbit.analysis import detect_period
+from hammerbit.scene.analysis import detect_period
 from hammerbit.model.params import ParameterError, apply_settings, preset, regime
-from hammerbit.simulate import Record, simulate
+from hammerbit.scene.simulate import Record, simulate
 from hammerbit.studies.bifurcation import bifurcation, penetration_sweep
 from hammerbit.studies.executor import ExecutorOptions, chunk_bounds, chunk_plan
 from hammerbit.studies.map import Axis, map_to_json, regime_map
@@ -339,7 +339,7 @@ def test_ctrl_c_in_a_map_on_local_workers_exits_130_and_leaves_no_processes(monk
 def test_cli_map_interrupted_leaves_no_processes(tmp_path):
     """Ctrl-C during a map on 2 local workers: exit 130 and no worker process left behind."""
     psutil = pytest.importorskip("psutil")
-    cmd = [sys.executable, "-m", "hammerbit.cli", "map", "--axis", "a=0.05:0.25:30", "--axis",
+    cmd = [sys.executable, "-m", "hammerbit.cli.main", "map", "--axis", "a=0.05:0.25:30", "--axis",
            "eta=0.6:1.4:40", "--periods", "300", "--workers", "2"]
     p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     proc = psutil.Process(p.pid)
@@ -471,7 +471,7 @@ def test_penetration_sweep_equals_simulate():
 # sweep
 # ---------------------------------------------------------------------------
 def test_sweep_reuses_the_string_side_and_detects_steady_state():
-    from hammerbit.cosim import CosimConfig, cosimulate, field_hammer
+    from hammerbit.cosim.master import CosimConfig, cosimulate, field_hammer
     from hammerbit.drillstring import load_string
     from hammerbit.studies.sweep import steady_figures, sweep
     string = load_string("field-2200m")
@@ -490,7 +490,7 @@ def test_sweep_reuses_the_string_side_and_detects_steady_state():
 
 
 def test_moved_names_stay_importable_from_cosim():
-    import hammerbit.cosim as cosim
+    import hammerbit.cosim.master as cosim
     from hammerbit.studies import sweep as sweep_module
     assert cosim.sweep is sweep_module.sweep and cosim.wob_frf is sweep_module.wob_frf
 
@@ -499,7 +499,7 @@ def test_moved_names_stay_importable_from_cosim():
 # CLI
 # ---------------------------------------------------------------------------
 def test_cli_map_json_and_files(tmp_path, capsys):
-    from hammerbit.cli import main
+    from hammerbit.cli.main import main
     out, png = tmp_path / "m.nc", tmp_path / "m.png"
     rc = main(["map", "--preset", "paper-fig9", "--axis", "a=0.05:0.25:4", "--axis", "eta=0.8:1.2:3",
                "--periods", "20", "--workers", "1", "--out", str(out), "--plot", str(png), "--json"])
@@ -518,14 +518,14 @@ def test_cli_map_json_and_files(tmp_path, capsys):
     (["optimize", "--bounds", "frequency=2:1", "--workers", "1"], "frequency"),
 ])
 def test_cli_bad_input_exit_2(argv, needle, capsys):
-    from hammerbit.cli import main
+    from hammerbit.cli.main import main
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert needle in err and "Traceback" not in err
 
 
 def test_cli_optimize_lab_json(capsys):
-    from hammerbit.cli import main
+    from hammerbit.cli.main import main
     rc = main(["optimize", "--preset", "lab", "--string", "lab", "--grid", "5", "--periods", "20",
                "--workers", "1", "--json"])
     assert rc == 0
@@ -537,7 +537,7 @@ def test_cli_optimize_lab_json(capsys):
 
 
 def test_cli_bifurcation(tmp_path, capsys):
-    from hammerbit.cli import main
+    from hammerbit.cli.main import main
     rc = main(["bifurcation", "--range", "0.069", "0.2", "--num", "2", "--periods", "60", "--workers", "1",
                "--out", str(tmp_path / "b.png"), "--json"])
     assert rc == 0
@@ -548,7 +548,7 @@ def test_cli_bifurcation(tmp_path, capsys):
 def test_frequency_windows_are_the_robust_passes():
     """Windows that pass at the nominal damping only do not count for the optimizer."""
     from hammerbit.drillstring import load_string
-    from hammerbit.modal_check import CheckConfig, check
+    from hammerbit.check.frequency import CheckConfig, check
     from hammerbit.studies.optimize import frequency_windows
     string = load_string("field-2200m")
     wins = frequency_windows(string, 10.0, 40.0, 0.15)

@@ -17,7 +17,7 @@ from hammerbit.model import kernels as K
 from hammerbit.model.params import Groups, ParameterError, apply_settings, setting_target
 from hammerbit.model.stepping import SolverOptions, Stepper
 
-from ..analysis import detect_period
+from hammerbit.scene.analysis import detect_period
 from .executor import Executor, ExecutorOptions
 
 __all__ = ["BifurcationResult", "bifurcation", "penetration_sweep", "poincare_tail",
@@ -83,7 +83,7 @@ def poincare_tail(groups: Groups, periods: int, keep: int, solver: SolverOptions
 
     Rows are taken at ``(k + phase) T`` for ``k = 0 .. periods`` and the last
     ``keep`` returned: the same sampling times, to the bit, as
-    :func:`hammerbit.simulate.simulate` with ``Record(poincare=True)``.
+    :func:`hammerbit.scene.simulate.simulate` with ``Record(poincare=True)``.
     """
     T = groups.period
     st = Stepper(groups, solver=solver)
@@ -104,7 +104,7 @@ def _bifurcation_chunk(scenes, periods, keep, solver, phase):
 
 
 def _penetration_chunk(scenes, periods, solver):
-    from ..simulate import simulate
+    from hammerbit.scene.simulate import simulate
     return [simulate(g, periods, solver=solver).penetration for g in scenes]
 
 
@@ -182,7 +182,7 @@ def penetration_sweep(groups: Groups, values: Sequence[float], *, param: str = "
     Returns
     -------
     ndarray, shape (m,)
-        Penetration [x0] for each value, as :func:`hammerbit.simulate.simulate` gives it.
+        Penetration [x0] for each value, as :func:`hammerbit.scene.simulate.simulate` gives it.
     """
     values = np.asarray(values, dtype=float)
     if values.ndim != 1 or values.size == 0:

@@ -6,7 +6,7 @@ which carries each cell's own scales) and returns an :class:`xarray.Dataset`.
 Per cell, from rest over ``periods`` forcing periods:
 
 ``period``
-    period-n of the bounded motion (:func:`hammerbit.analysis.detect_period`
+    period-n of the bounded motion (:func:`hammerbit.scene.analysis.detect_period`
     on the Poincaré samples of the second half), NaN when none up to 32;
 ``rop``
     rate of penetration, the mean penetration per forcing period over the
@@ -44,7 +44,7 @@ from hammerbit.model.params import (Groups, ParameterError, apply_settings, regi
                                     setting_target)
 from hammerbit.model.stepping import MaxStepsError, SolverError, SolverOptions, Stepper
 
-from ..analysis import PERIOD_MAX, PERIOD_TOL, period_n, relative_rows
+from hammerbit.scene.analysis import PERIOD_MAX, PERIOD_TOL, period_n, relative_rows
 from .bifurcation import SECONDS_PER_PERIOD
 from .executor import Executor, ExecutorOptions
 
@@ -168,7 +168,7 @@ def cell_figures(poin, n_poin, y_bit, log, n_log, periods, t_half, max_period, t
     when the last sample is missing), ``out[1]`` impacts and ``out[2]`` the
     peak contact force [F0] of the separations at or after ``t_half``,
     ``out[3]`` the period-n (0: none up to ``max_period``) by
-    :func:`hammerbit.analysis.period_n`, the rule of ``detect_period``.
+    :func:`hammerbit.scene.analysis.period_n`, the rule of ``detect_period``.
     """
     half = periods // 2
     x3_end = poin[periods, 3] if n_poin > periods else y_bit
@@ -200,7 +200,7 @@ def run_cell(groups: Groups, periods: int, solver: SolverOptions = SolverOptions
              buffers: Optional[_Buffers] = None) -> MapCell:
     """Run one cell: the scene from rest over ``periods`` forcing periods.
 
-    The integration is that of :func:`hammerbit.simulate.simulate` (same
+    The integration is that of :func:`hammerbit.scene.simulate.simulate` (same
     stepper, one call to the end), recording Poincaré samples and the event
     log into preallocated buffers.
     """

@@ -9,7 +9,7 @@
 * **no runaway**: the preload stays below the kinetic friction floor
   (:func:`hammerbit.model.params.regime`);
 * **frequency check**: with a drillstring, the hammer frequency lies in a
-  window where :func:`hammerbit.modal_check.check` passes robustly (bit on
+  window where :func:`hammerbit.check.frequency.check` passes robustly (bit on
   and off bottom, over the check's damping range);
 * **contact force**: the peak hammer-bit contact force stays below a limit.
 
@@ -217,7 +217,7 @@ def frequency_windows(string, lo_hz: float, hi_hz: float, margin: float) -> list
     nominal damping only are left out).  A window edge at an end of the
     checked range is not a limit of the check: it is returned as 0 or inf.
     """
-    from hammerbit.modal_check import CheckConfig, check
+    from hammerbit.check.frequency import CheckConfig, check
     res = check(string, CheckConfig(excitation_hz=0.5 * (lo_hz + hi_hz), margin=margin,
                                     frequency_range_hz=(lo_hz, hi_hz)))
     labelled = getattr(res, "windows", None)

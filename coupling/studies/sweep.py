@@ -1,6 +1,6 @@
 """Frequency sweeps of the co-simulated hammer on a drillstring.
 
-One co-simulation (:func:`hammerbit.cosim.cosimulate`) per excitation
+One co-simulation (:func:`hammerbit.cosim.master.cosimulate`) per excitation
 frequency, on the study executor.  Each worker process discretises the
 string once (the exact step's matrix exponential and modal form do not
 depend on the hammer frequency) and reuses it for every frequency it runs.
@@ -24,7 +24,7 @@ import numpy as np
 
 from hammerbit.model.validation import ParameterError
 
-from ..cosim import CosimConfig, StringSide, _coupled_system, cosimulate
+from hammerbit.cosim.master import CosimConfig, StringSide, _coupled_system, cosimulate
 from .executor import Executor, ExecutorOptions
 
 __all__ = ["SWEEP_DTYPE", "sweep", "plot_sweep", "write_sweep_csv", "wob_frf", "steady_figures"]
@@ -234,11 +234,11 @@ def write_sweep_csv(result: np.ndarray, path) -> Path:
 
 def wob_frf(string, frequencies, config: CosimConfig = CosimConfig()) -> np.ndarray:
     """Linear frequency response of the WOB at the bit per newton of hammer force
-    (bit stuck, the system of :func:`hammerbit.cosim.coupled_modes`), complex (F,) [N/N].
+    (bit stuck, the system of :func:`hammerbit.cosim.master.coupled_modes`), complex (F,) [N/N].
 
     With a small harmonic amplitude the bit stays stuck, the coupled system is
     linear and :func:`sweep`'s ``wob_amplitude_n`` equals ``A |frf|``; its peaks
-    are at :func:`hammerbit.cosim.coupled_modes`.
+    are at :func:`hammerbit.cosim.master.coupled_modes`.
     """
     A, n, m1, K, C = _coupled_system(string, config)
     b = np.zeros(n + 2)

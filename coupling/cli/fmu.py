@@ -1,13 +1,13 @@
 """``hammerbit fmu build``: build HammerBitRock.fmu from the installed package."""
 from __future__ import annotations
 
-from .cli_common import UsageError, add_set_argument, parse_settings
+from hammerbit.cli.common import UsageError, add_set_argument, parse_settings
 
 __all__ = ["register", "cmd_fmu_build"]
 
 
 def cmd_fmu_build(args) -> int:
-    from .fmu_build import BuildOptions, UnknownVariableError, build_fmu
+    from hammerbit.fmu.build import BuildOptions, UnknownVariableError, build_fmu
     try:
         start = parse_settings(args.set)
         opts = BuildOptions(start_values=start, portable_cache=not args.no_portable_cache,

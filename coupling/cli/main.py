@@ -3,7 +3,7 @@
 Subcommands: ``simulate`` (this module) and those that the modules in
 :data:`COMMAND_MODULES` register (drillstring, co-simulation, studies, FMU).
 Every command shares the ``--set`` parser, the exit codes and the error
-handling of :mod:`hammerbit.cli_common`; ``docs/cli.md`` documents them.
+handling of :mod:`hammerbit.cli.common`; ``docs/cli.md`` documents them.
 """
 from __future__ import annotations
 
@@ -18,17 +18,17 @@ import warnings
 
 import numpy as np
 
-from .cli_common import UsageError, add_set_argument, parse_settings, run_command
+from hammerbit.cli.common import UsageError, add_set_argument, parse_settings, run_command
 
 __all__ = ["main", "console", "build_parser", "COMMAND_MODULES", "HelpFormatter", "version"]
 
 #: Modules that add sub-commands through ``register(subparsers)``; a module
 #: that is not installed is skipped.
 COMMAND_MODULES = [
-    "hammerbit.cli_string",
-    "hammerbit.cli_cosim",
-    "hammerbit.cli_studies",
-    "hammerbit.cli_fmu",
+    "hammerbit.cli.string",
+    "hammerbit.cli.cosim",
+    "hammerbit.cli.studies",
+    "hammerbit.cli.fmu",
 ]
 
 #: Most samples ``simulate --csv`` writes (about 1 GB of text).
@@ -69,7 +69,7 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _parse_settings(pairs):
-    """Kept for the sub-command modules: the one parser of ``--set`` (:mod:`hammerbit.cli_common`)."""
+    """Kept for the sub-command modules: the one parser of ``--set`` (:mod:`hammerbit.cli.common`)."""
     return parse_settings(pairs)
 
 
@@ -157,7 +157,7 @@ def _finite_or_none(v):
 
 
 def cmd_simulate(args) -> int:
-    from .figure_worker import start as start_figure_worker
+    from hammerbit.scene.figure_worker import start as start_figure_worker
 
     # the figure's process imports matplotlib while this one loads the solver
     worker = start_figure_worker() if args.plot else None
@@ -173,8 +173,8 @@ def _simulate(args, worker) -> int:
     from hammerbit.model.stepping import Stepper
     from hammerbit.model.validation import check
 
-    from .analysis import detect_period
-    from .simulate import BounceWarning, Record, simulate, write_samples_csv
+    from hammerbit.scene.analysis import detect_period
+    from hammerbit.scene.simulate import BounceWarning, Record, simulate, write_samples_csv
 
     g = _groups_from_args(args)
     solver = _solver_from_args(args)
@@ -186,7 +186,7 @@ def _simulate(args, worker) -> int:
             Stepper(g, solver=solver).load()
         formats = worker.formats() if worker is not None else None
         if formats is None:
-            from .figure_worker import figure_formats
+            from hammerbit.scene.figure_worker import figure_formats
             formats = figure_formats()
         check_output_path(args.plot, "--plot", formats=formats)
     if args.csv:
@@ -271,8 +271,8 @@ def _simulate(args, worker) -> int:
         if args.csv:
             print(f"time series: {args.csv}")
     if args.plot:
-        from .plots import scene_figure
-        from .scene_figure import draw_scene
+        from hammerbit.scene.plots import scene_figure
+        from hammerbit.scene.figure import draw_scene
         data = scene_figure(g, args.periods, solver=solver, preset=args.preset, period=period)
         if worker is None or not worker.draw(draw_scene, data, args.plot) or worker.result() is None:
             draw_scene(data, args.plot)

@@ -56,8 +56,8 @@ Safe windows
     rule that cleared it and the damping range assumed.  Safe runs narrower
     than ``min_window`` times their centre frequency are dropped.
 
-Inputs and results: :mod:`hammerbit.check_results`; plots:
-:mod:`hammerbit.check_plots` (both re-exported here).
+Inputs and results: :mod:`hammerbit.check.results`; plots:
+:mod:`hammerbit.check.plots` (both re-exported here).
 """
 
 from __future__ import annotations
@@ -67,7 +67,7 @@ from typing import Any
 
 import numpy as np
 
-from .check_results import (
+from hammerbit.check.results import (
     FAIL,
     LABELS,
     MARGIN,
@@ -79,7 +79,7 @@ from .check_results import (
     ModeRow,
     Window,
 )
-from .drillstring import (
+from hammerbit.drillstring import (
     Boundary,
     DampingModel,
     DrillString,
@@ -90,8 +90,8 @@ from .drillstring import (
     resolve_ends,
     static_compliance,
 )
-from .drillstring.damping import boundary_impedance
-from .drillstring.modes import _has_rigid_mode, _solve
+from hammerbit.drillstring.damping import boundary_impedance
+from hammerbit.drillstring.modes import _has_rigid_mode, _solve
 
 __all__ = [
     "CheckConfig", "ModeRow", "ConfigurationResult", "Window", "CheckResult", "resonance_factor", "check",
@@ -454,8 +454,8 @@ def resonance_factor(string: DrillString, freqs_hz: Any, top: "Boundary | str | 
     return _factors(string, t, b, bit_mass, DampingModel.of(string, damping_scale), f)[0]
 
 
-from .drillstring import bit_dynamic_stiffness, bit_receptance  # noqa: E402  (re-exported)
-from .check_plots import plot_campbell, plot_check, plot_receptance  # noqa: E402  (re-exported)
+from hammerbit.drillstring import bit_dynamic_stiffness, bit_receptance  # noqa: E402  (re-exported)
+from hammerbit.check.plots import plot_campbell, plot_check, plot_receptance  # noqa: E402  (re-exported)
 
 
 # --------------------------------------------------------------------------
@@ -498,7 +498,7 @@ def hammer_on_bottom_frequencies(string: DrillString, *, interface_stiffness: fl
         Natural frequencies up to ``f_max`` [Hz], ascending.
     """
     import scipy.linalg as sla
-    from .drillstring import assemble
+    from hammerbit.drillstring import assemble
     for name, v in (("interface_stiffness", interface_stiffness), ("hammer_mass", hammer_mass),
                     ("hammer_stiffness", hammer_stiffness)):
         _check_number("hammer boundary", name, v, 0.0, None, lo_open=True)
@@ -522,8 +522,8 @@ def hammer_on_bottom_frequencies(string: DrillString, *, interface_stiffness: fl
 def _hammer_on_bottom_exact(string, ki, m1, K, top, f_max, points: int = 4000) -> np.ndarray:
     """Exact frequencies of the continuous string with the hammer at the bottom (see above)."""
     from scipy.optimize import brentq
-    from .drillstring import parse_boundary
-    from .drillstring.modes import bottom_state
+    from hammerbit.drillstring import parse_boundary
+    from hammerbit.drillstring.modes import bottom_state
     topb = parse_boundary(string.top if top is None else top)
 
     def g(w):

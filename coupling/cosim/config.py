@@ -2,7 +2,7 @@
 
 Also the field hammer (:func:`field_hammer`), the recordable variables
 (:data:`RECORDABLE`) and :class:`CouplingInstabilityError`.  All re-exported by
-:mod:`hammerbit.cosim`.
+:mod:`hammerbit.cosim.master`.
 """
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ import numpy as np
 from hammerbit.model.params import RIG, RigParameters, Scales
 from hammerbit.model.validation import check as _check
 
-from .cosim_error import CouplingErrorEstimate
+from hammerbit.cosim.error import CouplingErrorEstimate
 
 __all__ = ["SCHEMES", "RECORDABLE", "CouplingInstabilityError", "field_hammer", "CosimConfig", "CosimResult",
            "steady_start", "event_counts"]
@@ -146,10 +146,10 @@ class CosimConfig:
         also drives the step.
     estimate : bool
         Run the half-step companion and estimate the coupling error
-        (:mod:`hammerbit.cosim_error`); costs about twice the run itself.
+        (:mod:`hammerbit.cosim.error`); costs about twice the run itself.
     check_step : bool
         Refuse a step that cannot resolve the forcing, the slip dynamics or the
-        string modes in the exchange (:func:`hammerbit.cosim_error.check_step`).
+        string modes in the exchange (:func:`hammerbit.cosim.error.check_step`).
     h_min, h_max : float, optional
         Adaptive step limits [s] (default ``step / 64`` and ``step * 8``).
     record : tuple of str

@@ -17,7 +17,7 @@
  *      pythonfmu_wrapper.c).
  *
  * The model-specific tables come from hb_model.h, generated from modelDescription.xml by
- * hammerbit.fmu_native.build_front(); the other parts are listed in front.h. */
+ * hammerbit.fmu.native.build_front(); the other parts are listed in front.h. */
 #define _GNU_SOURCE
 #include <limits.h>
 #include <math.h>

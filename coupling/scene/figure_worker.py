@@ -4,7 +4,7 @@ Importing matplotlib and drawing a four-panel figure cost a warm ``hammerbit
 simulate --plot`` about as much as importing numba, loading the compiled
 kernels and running the scene.  On a machine with two cores or more the two
 halves need not wait for each other: :func:`start` launches a worker
-(``python -m hammerbit.figure_worker``) that imports matplotlib while this
+(``python -m hammerbit.scene.figure_worker``) that imports matplotlib while this
 process loads the solver; :meth:`FigureWorker.draw` sends it a drawing
 function and its data (pickled); :meth:`FigureWorker.result` waits for the
 file.

@@ -6,7 +6,7 @@ Gauss–Seidel: interpolated through the new value), and the hammer holds the
 mean over the step of the interface force extrapolated the same way.  Both
 use the actual spacing of the communication points (a shorter last step,
 adaptive steps).  :func:`_exchange` builds the polynomial, steps the string
-exactly (:mod:`hammerbit.cosim_string`), and returns the interface force, the
+exactly (:mod:`hammerbit.cosim.string_side`), and returns the interface force, the
 energy residual of the step and the force defect ``F_held - mean F_i``.
 """
 from __future__ import annotations
@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit as _njit
 
-from .cosim_string import _string_step_dense, _string_step_modal
+from hammerbit.cosim.string_side import _string_step_dense, _string_step_modal
 
 __all__ = ["extrapolation_weights"]
 

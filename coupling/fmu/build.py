@@ -15,13 +15,13 @@ installed package :mod:`hammerbit.model`).  The steps:
    ``<user cache>/fmu-build/`` so a rebuild of the same code takes seconds.
 3. **pythonfmu** writes the FMU; the build then edits ``modelDescription.xml``
    (outputs declare ``dependencies=""``: no direct feedthrough).
-4. **Native front** (when :mod:`hammerbit.fmu_native` is installed): pythonfmu's
+4. **Native front** (when :mod:`hammerbit.fmu.native` is installed): pythonfmu's
    binary is renamed ``<id>_python.so`` and the front, compiled with the
    system C compiler, becomes ``binaries/linux64/<id>.so``.
 
 From Python::
 
-    from hammerbit.fmu_build import build_fmu
+    from hammerbit.fmu.build import build_fmu
     path = build_fmu("dist/HammerBitRock.fmu", start_values={"hammer_mass": 30.0})
 
 From the shell: ``hammerbit fmu build [--out PATH] [--set NAME=VALUE ...]``.
@@ -80,7 +80,7 @@ class BuildOptions:
         Ship the kernels compiled for the portable CPU target (instant start).
         False: the FMU compiles them on its first use on a machine.
     native_front : bool
-        Put the native front library (:mod:`hammerbit.fmu_native`) in front
+        Put the native front library (:mod:`hammerbit.fmu.native`) in front
         of pythonfmu's binary when that package is installed.
     python : str
         Python executable that compiles the kernels (default: this one; it must
@@ -269,11 +269,11 @@ def _edit_model_description(xml: bytes) -> bytes:
 
 
 def _native_front():
-    """``hammerbit.fmu_native.build_front``, or None if that package is not installed."""
+    """``hammerbit.fmu.native.build_front``, or None if that package is not installed."""
     try:
-        from hammerbit.fmu_native import build_front
+        from hammerbit.fmu.native import build_front
     except ModuleNotFoundError as e:
-        if e.name not in ("hammerbit.fmu_native", "hammerbit"):
+        if e.name not in ("hammerbit.fmu.native", "hammerbit"):
             raise
         return None
     return build_front

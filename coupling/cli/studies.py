@@ -23,7 +23,7 @@ import math
 import sys
 import time
 
-from .cli_common import RunFailure, UsageError, add_set_argument, parse_settings
+from hammerbit.cli.common import RunFailure, UsageError, add_set_argument, parse_settings
 
 __all__ = ["register", "cmd_bifurcation", "cmd_sweep", "cmd_map", "cmd_optimize"]
 
@@ -40,7 +40,7 @@ def _add_executor_args(p) -> None:
 
 
 def _executor_options(args, *, default_workers=None):
-    from .studies.executor import ExecutorOptions
+    from hammerbit.studies.executor import ExecutorOptions
     w = args.workers if args.workers is not None else default_workers
     if w is not None and w < 1:
         raise UsageError(f"--workers {w}: allowed 1 or more")
@@ -84,8 +84,8 @@ def _dump(obj) -> str:
 # ---------------------------------------------------------------------------
 def cmd_bifurcation(args) -> int:
     import numpy as np
-    from .plots import plot_bifurcation
-    from .studies.bifurcation import bifurcation
+    from hammerbit.scene.plots import plot_bifurcation
+    from hammerbit.studies.bifurcation import bifurcation
     g = _groups(args)
     lo, hi = args.range
     if args.num < 1:
@@ -111,11 +111,11 @@ def cmd_bifurcation(args) -> int:
 # sweep
 # ---------------------------------------------------------------------------
 def cmd_sweep(args) -> int:
-    from .cli_cosim import config_from_args, fmu_arg, load_string_arg, portable_target_for_fmu
+    from hammerbit.cli.cosim import config_from_args, fmu_arg, load_string_arg, portable_target_for_fmu
     portable_target_for_fmu(args)
     import numpy as np
-    from .cosim import coupled_modes
-    from .studies.sweep import plot_sweep, sweep, write_sweep_csv
+    from hammerbit.cosim.master import coupled_modes
+    from hammerbit.studies.sweep import plot_sweep, sweep, write_sweep_csv
     lo, hi, n = args.frequencies
     if not (0 < lo < hi) or n < 1 or n != int(n):
         raise UsageError(f"--frequencies {lo:g} {hi:g} {n:g}: need 0 < LO < HI and a whole N >= 1")
@@ -170,7 +170,7 @@ def cmd_sweep(args) -> int:
 # map
 # ---------------------------------------------------------------------------
 def cmd_map(args) -> int:
-    from .studies.map import Axis, map_to_json, regime_map
+    from hammerbit.studies.map import Axis, map_to_json, regime_map
     if not args.axis:
         raise UsageError("map needs at least one --axis NAME=LO:HI:N")
     if len(args.axis) > 3:
@@ -182,7 +182,7 @@ def cmd_map(args) -> int:
     if args.out:
         ds.to_netcdf(args.out, engine="scipy")
     if args.plot:
-        from .studies.plots import plot_map
+        from hammerbit.studies.plots import plot_map
         plot_map(ds, args.plot)
     failed = int(ds.attrs["failed_cells"])
     if failed:
@@ -228,7 +228,7 @@ def cmd_map(args) -> int:
 # optimize
 # ---------------------------------------------------------------------------
 def _default_bounds(g):
-    from .studies.optimize import Bound
+    from hammerbit.studies.optimize import Bound
     rig = g.to_rig()
     F0 = g.scales.friction_force
     return (Bound("frequency", 0.7 * rig.frequency, 1.3 * rig.frequency),
@@ -237,8 +237,8 @@ def _default_bounds(g):
 
 def _confirm(groups, string, args) -> dict:
     """Co-simulate the optimum on the string; dynamic WOB amplitude and bounce margin."""
-    from .cli_cosim import fmu_arg
-    from .cosim import CosimConfig, cosimulate
+    from hammerbit.cli.cosim import fmu_arg
+    from hammerbit.cosim.master import CosimConfig, cosimulate
     rig = groups.to_rig()
     T = 1.0 / rig.frequency
     periods = args.confirm_periods
@@ -270,8 +270,8 @@ def _confirm(groups, string, args) -> dict:
 
 
 def cmd_optimize(args) -> int:
-    from .drillstring import load_string
-    from .studies.optimize import Bound, OptimizeConfig, optimize
+    from hammerbit.drillstring import load_string
+    from hammerbit.studies.optimize import Bound, OptimizeConfig, optimize
     g = _groups(args)
     bounds = tuple(Bound.parse(b) for b in args.bounds) if args.bounds else _default_bounds(g)
     string = load_string(args.string) if args.string else None
@@ -351,7 +351,7 @@ def register(subparsers) -> None:
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     p.set_defaults(func=cmd_bifurcation)
 
-    from .cli_cosim import add_cosim_options
+    from hammerbit.cli.cosim import add_cosim_options
     p = subparsers.add_parser("sweep", help="frequency sweep of the co-simulated hammer on a string",
                               description="Steady dynamic WOB amplitude, bounce margin and rate of "
                                           "penetration against the hammer's excitation frequency.")

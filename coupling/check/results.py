@@ -4,7 +4,7 @@
 ranges, accuracy target); :class:`CheckResult` the verdict, the per
 configuration results (:class:`ConfigurationResult` with :class:`ModeRow`
 lines) and the labelled safe windows (:class:`Window`).  The rule itself is
-in :mod:`hammerbit.modal_check`.
+in :mod:`hammerbit.check.frequency`.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from .drillstring import DEFAULT_MASS, DEFAULT_RTOL, Boundary
+from hammerbit.drillstring import DEFAULT_MASS, DEFAULT_RTOL, Boundary
 from hammerbit.model.validation import ParameterError, check as _check_value
 
 __all__ = ["FAIL", "MARGIN", "RECEPTANCE", "NOMINAL_ONLY", "LABELS", "CheckConfig", "ModeRow",

@@ -1,8 +1,8 @@
 """The scene figure: what it shows (:class:`SceneFigure`, SI arrays) and how it is drawn.
 
 This module imports numpy and matplotlib only, never the solver, so that a
-process that only draws (:mod:`hammerbit.figure_worker`) does not load numba.
-:func:`hammerbit.plots.scene_figure` computes a :class:`SceneFigure` from a
+process that only draws (:mod:`hammerbit.scene.figure_worker`) does not load numba.
+:func:`hammerbit.scene.plots.scene_figure` computes a :class:`SceneFigure` from a
 scene; :func:`draw_scene` turns it into a file.
 """
 from __future__ import annotations

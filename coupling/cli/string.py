@@ -1,7 +1,7 @@
 """``hammerbit modes`` and ``hammerbit check`` sub-commands.
 
-Both are registered by :func:`hammerbit.cli.build_parser`; errors are
-exceptions that :func:`hammerbit.cli_common.run_command` turns into a one-line
+Both are registered by :func:`hammerbit.cli.main.build_parser`; errors are
+exceptions that :func:`hammerbit.cli.common.run_command` turns into a one-line
 message and an exit code: 2 for bad input (the message names the option or
 the file, section, key, value and allowed range), 4 for ``check --strict``
 when the verdict is FAIL.
@@ -17,8 +17,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from .cli_common import EXIT_CHECK_FAILED, EXIT_OK, UsageError
-from .drillstring import (
+from hammerbit.cli.common import EXIT_CHECK_FAILED, EXIT_OK, UsageError
+from hammerbit.drillstring import (
     DEFAULT_MASS,
     DEFAULT_RTOL,
     MASS_SCHEMES,
@@ -71,7 +71,7 @@ def register(subparsers: "argparse._SubParsersAction") -> tuple[argparse.Argumen
                          "frequencies the co-simulation sweep resonates at")
     pm.add_argument("--csv", default=None, metavar="FILE", help="also write the table as CSV to FILE")
     pm.add_argument("--json", action="store_true", help="JSON on stdout")
-    from .cli_cosim import add_hammer_options
+    from hammerbit.cli.cosim import add_hammer_options
     add_hammer_options(pm)          # --hammer-on-bottom: the hammer of ``cosim`` (--set, interface)
     pm.set_defaults(func=cmd_modes)
 
@@ -140,7 +140,7 @@ def _writable(path: str | None, option: str, suffixes: tuple[str, ...] | None = 
 
 def cmd_modes(args: argparse.Namespace) -> int:
     """Handler of ``hammerbit modes``."""
-    from .drillstring import exact_frequencies, modes
+    from hammerbit.drillstring import exact_frequencies, modes
 
     if getattr(args, "hammer_on_bottom", False):
         return _cmd_hammer_modes(args)
@@ -201,7 +201,7 @@ def cmd_modes(args: argparse.Namespace) -> int:
 
 
 def _check_config(args: argparse.Namespace) -> CheckConfig:
-    from .modal_check import CheckConfig
+    from hammerbit.check.frequency import CheckConfig
 
     if args.factor is not None and args.rpm is None:
         raise UsageError("--factor needs --rpm")
@@ -225,7 +225,7 @@ def _check_config(args: argparse.Namespace) -> CheckConfig:
 
 def cmd_check(args: argparse.Namespace) -> int:
     """Handler of ``hammerbit check``."""
-    from .modal_check import check, plot_check
+    from hammerbit.check.frequency import check, plot_check
 
     cfg = _check_config(args)
     _writable(args.plot, "--plot", (".png", ".pdf", ".svg"))
@@ -276,12 +276,12 @@ def _cmd_hammer_modes(args: argparse.Namespace) -> int:
     """``hammerbit modes --hammer-on-bottom``: the hammer as the bottom boundary.
 
     The hammer, interface and ``--set`` options and the config are those of
-    ``hammerbit cosim`` (:func:`hammerbit.cli_cosim.config_from_args`), so the
+    ``hammerbit cosim`` (:func:`hammerbit.cli.cosim.config_from_args`), so the
     modes are those of the system a co-simulation or sweep with the same
     options runs."""
-    from .cli_common import UsageError
-    from .cli_cosim import config_from_args
-    from .modal_check import hammer_on_bottom_frequencies
+    from hammerbit.cli.common import UsageError
+    from hammerbit.cli.cosim import config_from_args
+    from hammerbit.check.frequency import hammer_on_bottom_frequencies
     if args.bottom:
         raise UsageError("--bottom cannot be combined with --hammer-on-bottom: the hammer is the bottom "
                          "boundary (change it with --set and --interface-stiffness)")

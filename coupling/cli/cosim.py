@@ -1,12 +1,12 @@
-"""``hammerbit cosim``: the co-simulation from the command line (``sweep``: :mod:`hammerbit.cli_studies`).
+"""``hammerbit cosim``: the co-simulation from the command line (``sweep``: :mod:`hammerbit.cli.studies`).
 
 ``hammerbit cosim --string FILE [--fmu dist/HammerBitRock.fmu] --stop T [--step H | --tol TOL]
 [--scheme jacobi|gauss-seidel] [--extrapolation 0|1|2] [--ramp S] [--monolithic] [--json] [--out results.csv]``
 
 ``--string`` takes a TOML file or a built-in example name (``field-2200m``).
 Without ``--fmu`` the hammer runs in process (the FMU's own kernels,
-:class:`hammerbit.cosim.StepperHammer`).  The hammer is the field hammer
-(:func:`hammerbit.cosim.field_hammer`) unless ``--set`` changes it.
+:class:`hammerbit.cosim.master.StepperHammer`).  The hammer is the field hammer
+(:func:`hammerbit.cosim.master.field_hammer`) unless ``--set`` changes it.
 
 By default the macro step is adaptive (rollback through the FMU state) and
 the run's coupling-error estimate is held against ``--tol`` (1e-3, relative
@@ -25,7 +25,7 @@ import json
 import sys
 import time
 
-from .cli_common import EXIT_INACCURATE, EXIT_OK, UsageError, add_set_argument, parse_settings
+from hammerbit.cli.common import EXIT_INACCURATE, EXIT_OK, UsageError, add_set_argument, parse_settings
 
 __all__ = ["register", "cmd_cosim", "add_hammer_options", "add_cosim_options", "config_from_args",
            "load_string_arg", "fmu_arg"]
@@ -63,7 +63,7 @@ def add_cosim_options(p) -> None:
 def rig_from_args(args):
     """The field hammer with ``--set`` applied (groups, SI symbols, RigParameters/FMU names)."""
     from hammerbit.model.params import apply_settings
-    from .cosim import field_hammer
+    from hammerbit.cosim.master import field_hammer
     rig = field_hammer()
     settings = parse_settings(getattr(args, "set", None))
     if settings:
@@ -72,12 +72,12 @@ def rig_from_args(args):
 
 
 def config_from_args(args, **extra):
-    """The one :class:`~hammerbit.cosim.CosimConfig` builder of the CLI.
+    """The one :class:`~hammerbit.cosim.master.CosimConfig` builder of the CLI.
 
     Bad values raise :class:`~hammerbit.model.validation.ParameterError` or
-    :class:`~hammerbit.cli_common.UsageError` (exit code 2)."""
+    :class:`~hammerbit.cli.common.UsageError` (exit code 2)."""
     from hammerbit.model.validation import ParameterError
-    from .cosim import CosimConfig
+    from hammerbit.cosim.master import CosimConfig
     rig = rig_from_args(args)
     kw = {"rig": rig, "wob": getattr(args, "wob", None)}
     for name in ("scheme", "extrapolation", "f_max", "harmonic_source", "ramp"):
@@ -101,7 +101,7 @@ def config_from_args(args, **extra):
 
 def load_string_arg(args):
     """The drillstring of ``--string`` (errors exit 2)."""
-    from .drillstring import DrillStringError, load_string
+    from hammerbit.drillstring import DrillStringError, load_string
     try:
         return load_string(args.string)
     except DrillStringError:
@@ -128,7 +128,7 @@ def fmu_arg(args):
     """The ``--fmu`` path after a check that it is an FMU (errors exit 2), or None."""
     if args.fmu is None:
         return None
-    from .cosim import _check_fmu_file
+    from hammerbit.cosim.master import _check_fmu_file
     try:
         _check_fmu_file(args.fmu)
     except (OSError, ValueError) as e:
@@ -173,8 +173,8 @@ def _print_text(out: dict, res, cfg, string) -> None:
 
 def cmd_cosim(args) -> int:
     portable_target_for_fmu(args)
-    from .cosim import cosimulate, monolithic
-    from .cosim_error import StepResolutionError
+    from hammerbit.cosim.master import cosimulate, monolithic
+    from hammerbit.cosim.error import StepResolutionError
     adaptive = args.step is None or args.adaptive
     extra = {"stop": args.stop,
              "record": ("wob", "interface_force", "hammer_position", "hammer_velocity", "bit_position",

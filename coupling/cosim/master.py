@@ -22,7 +22,7 @@ Exact string step
 Over a macro step the hammer motion seen by the string is a polynomial
 (degree 0, 1 or 2); the string and the interface are stepped exactly through
 the matrix exponential of the string augmented by the polynomial and the
-integral of the interface force (:mod:`hammerbit.cosim_string`), in modal
+integral of the interface force (:mod:`hammerbit.cosim.string_side`), in modal
 coordinates when the eigenbasis reproduces the step, else dense; one numba
 kernel per step (:func:`_exchange`).  ``CosimConfig.f_max`` truncates to the
 modes below ``f_max``.
@@ -50,7 +50,7 @@ Coupling error estimate
 Every run (``estimate=True``) carries a companion co-simulation that takes two
 half steps per macro step; the difference, scaled by the measured order, is
 the a posteriori estimate of the run's error in WOB amplitude and penetration
-(:mod:`hammerbit.cosim_error`).  ``CosimResult.estimate.meets_tolerance``
+(:mod:`hammerbit.cosim.error`).  ``CosimResult.estimate.meets_tolerance``
 says whether it is within ``tol``.  ``stats`` counts the hammer's doSteps
 (``hammer_steps``, rolled-back ones included), the companion's
 (``companion_steps``), the state saves and the rollbacks (summed over the
@@ -88,12 +88,12 @@ import numpy as np
 
 from hammerbit.model.params import RigParameters
 
-from .cosim_config import (RECORDABLE, SCHEMES, CosimConfig, CosimResult, CouplingInstabilityError, _dtype,
+from hammerbit.cosim.config import (RECORDABLE, SCHEMES, CosimConfig, CosimResult, CouplingInstabilityError, _dtype,
                            event_counts, field_hammer, steady_start)
-from .cosim_error import CouplingErrorEstimate, StepResolutionError, check_step, measured_order, richardson
-from .cosim_exchange import _exchange, _held_force, extrapolation_weights
+from hammerbit.cosim.error import CouplingErrorEstimate, StepResolutionError, check_step, measured_order, richardson
+from hammerbit.cosim.exchange import _exchange, _held_force, extrapolation_weights
 from hammerbit.model.dispatch import entry_point
-from .cosim_string import StringSide, _StringState
+from hammerbit.cosim.string_side import StringSide, _StringState
 
 __all__ = [
     "CosimConfig", "CosimResult", "CouplingInstabilityError", "StepResolutionError", "CouplingErrorEstimate",
@@ -276,7 +276,7 @@ class FMUHammer:
 
     def __init__(self, path, rig: RigParameters, wob: float, *, t0: float = 0.0, rtol: float = 1e-8,
                  instance: str = "hammer"):
-        from .fmu_host import FMUInstance
+        from hammerbit.fmu.host import FMUInstance
         self.path = str(path)
         self._host = FMUInstance(self.path, instance, start_time=t0, init=False)
         md, self.fmu = self._host.md, self._host.fmu
@@ -652,7 +652,7 @@ def cosimulate(string, config: CosimConfig = CosimConfig(), *, fmu=None, hammer=
     Returns
     -------
     CosimResult
-        With ``estimate`` (:class:`~hammerbit.cosim_error.CouplingErrorEstimate`)
+        With ``estimate`` (:class:`~hammerbit.cosim.error.CouplingErrorEstimate`)
         when ``config.estimate``; it does not raise when the estimate exceeds
         ``tol`` (``result.estimate.meets_tolerance`` says so).
 
@@ -719,7 +719,7 @@ def _run(side: StringSide, c: CosimConfig, *, fmu, hammer, defect_tol) -> CosimR
         H_chk = c.step_range[1] if c.adaptive else min(c.step, c.stop - c.start)
         if c.adaptive:
             # the adaptive step never grows past what resolves the system
-            from .cosim_error import step_limits
+            from hammerbit.cosim.error import step_limits
             H_chk = min(H_chk, min(lim.max_step_s for lim in step_limits(side, c)))
             c = c.replace(h_max=max(min(c.step_range[1], H_chk), c.step_range[0]))
             check_step(side, c, c.step)
@@ -892,8 +892,8 @@ def _adaptive_step(H: float, remaining: float, unit: float) -> tuple:
 
 def monolithic(string, config: CosimConfig = CosimConfig()) -> CosimResult:
     """The same coupled system as one hybrid system (reference); see
-    :func:`hammerbit.cosim_reference.monolithic`."""
-    from .cosim_reference import monolithic as _mono
+    :func:`hammerbit.cosim.reference.monolithic`."""
+    from hammerbit.cosim.reference import monolithic as _mono
     return _mono(string, config)
 
 

@@ -7,8 +7,8 @@ import numpy as np
 
 from hammerbit.model.stepping import SolverOptions
 
-from .scene_figure import SceneFigure, draw_scene
-from .simulate import Record, simulate
+from hammerbit.scene.figure import SceneFigure, draw_scene
+from hammerbit.scene.simulate import Record, simulate
 
 __all__ = ["scene_figure", "plot_scene", "plot_bifurcation", "plot_penetration", "plot_attractor"]
 
@@ -47,7 +47,7 @@ def scene_figure(groups, periods, *, solver: SolverOptions = SolverOptions(), la
         Detected period-n for the title (``analysis.detect_period``); computed
         here when not given.
     """
-    from .analysis import detect_period
+    from hammerbit.scene.analysis import detect_period
     T = groups.period
     sc = groups.scales
     mm = sc.length * 1e3
@@ -84,7 +84,7 @@ def plot_scene(groups, periods, path, *, solver: SolverOptions = SolverOptions()
     """The figure of one scene, in SI with the scene's own scales; returns ``path``.
 
     :func:`scene_figure` computes what it shows (same parameters) and
-    :func:`hammerbit.scene_figure.draw_scene` draws it: hammer and bit
+    :func:`hammerbit.scene.figure.draw_scene` draws it: hammer and bit
     displacement [mm] against time [s] over the last ``last`` forcing periods;
     the relative motion x_b - x_s [mm] with the gap R when there is one; its
     phase portrait with the Poincaré points; the Poincaré section of the second

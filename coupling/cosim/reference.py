@@ -40,7 +40,7 @@ def monolithic(string, config=None):
     from hammerbit.model import kernels as K
     from hammerbit.model.stepping import LinearSubsystem, SolverOptions, Stepper
 
-    from .cosim import CosimConfig, CosimResult, StringSide, _dtype, event_counts
+    from hammerbit.cosim.master import CosimConfig, CosimResult, StringSide, _dtype, event_counts
     c = CosimConfig() if config is None else config
     ts = _time.perf_counter()
     side = StringSide(string, c)

@@ -82,9 +82,9 @@ def step_limits(side, config) -> list:
 
     Parameters
     ----------
-    side : hammerbit.cosim.StringSide
+    side : hammerbit.cosim.master.StringSide
         The string side of the run (its modes and interface).
-    config : hammerbit.cosim.CosimConfig
+    config : hammerbit.cosim.master.CosimConfig
 
     Notes
     -----
