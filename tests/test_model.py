@@ -156,6 +156,9 @@ def test_force_formulas_against_hand_values():
     (dict(a=0.1, b=0.9, mu=0.85, gamma_hat=92.0), (False, False, True)),
     (dict(a=0.1, b=0.9, mu=0.85, gamma_hat=0.0), (False, False, False)),      # floor 1 without decay
     (dict(a=0.3, b=0.2, mu=0.85, gamma_hat=0.0), (True, False, False)),
+    (dict(a=0.1, b=0.85, mu=0.85, gamma_hat=92.0), (False, False, False)),    # b = mu exactly
+    (dict(a=0.1, b=0.85, mu=0.85, gamma_hat=1e-9), (False, False, False)),    # any decay: floor mu
+    (dict(a=0.1, b=0.86, mu=0.85, gamma_hat=1e-9), (False, False, True)),
 ])
 def test_regime_flags(kw, flags):
     from hammerbit.model.regime import regime
