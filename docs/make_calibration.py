@@ -23,7 +23,8 @@ import sys
 
 import numpy as np
 
-from hammerbit.model.params import ParameterError, preset
+from hammerbit.model.presets import preset
+from hammerbit.model.validation import ParameterError
 from hammerbit.scene.analysis import detect_period
 from hammerbit.scene.simulate import Record, simulate
 from hammerbit.studies.executor import ExecutorOptions

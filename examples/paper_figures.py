@@ -42,7 +42,7 @@ def main(argv=None):
         plot_bifurcation(res, OUT / f"bifurcation_{name}.png", scales=preset(name).scales)
         summary[name] = {"periods_per_second": res.periods_per_second, "wall_s": time.perf_counter() - t0,
                          "period_n": dict(zip([round(v, 4) for v in res.values.tolist()], res.periods))}
-    a = np.linspace(0.0, 0.4, 41)
+    a = np.linspace(0.0, 0.25, 51)     # the range of the paper's Fig. 14
     p9 = penetration_sweep(preset("paper-fig9"), a, periods=100)
     p12 = penetration_sweep(preset("paper-fig12"), a, periods=100)
     plot_penetration(a, {"no impact (paper-fig9)": p9, "impact r=0.84 (paper-fig12)": p12},
