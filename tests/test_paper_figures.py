@@ -131,3 +131,30 @@ def test_fig14_over_the_figures_range():
     assert np.all(deficit > 0.0) and np.all(deficit < FIG14_LARGE_A_DEFICIT)
     # the impact matters less, relatively, at large a than where drilling starts without it
     assert np.all(deficit < abs(p12[first9] - p9[first9]) / p9[first9])
+
+
+# --------------------------------------------------------------------------- the derivation script
+def _calibration_script():
+    import importlib.util
+    import pathlib
+    path = pathlib.Path(__file__).resolve().parent.parent / "docs" / "make_calibration.py"
+    spec = importlib.util.spec_from_file_location("make_calibration", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_calibration_search_agrees_with_simulate_cell_by_cell():
+    """docs/make_calibration.py's band (regime map over xi x mu x a) on a 2 x 3 grid that holds the
+    calibration and the uncalibrated model, against a brute force with ``simulate`` per cell."""
+    mc = _calibration_script()
+    g9 = preset("paper-fig9")
+    xi, mu = mc.Axis("xi", (g9.xi, 0.074)), mc.Axis("mu", (g9.mu, 0.82, 0.85))
+    for name, sections in (("paper-fig9", FIG9), ("paper-fig12", FIG12)):
+        base = preset(name)
+        hits = mc.figure_hits(base, sections, xi, mu, 300, 1)
+        brute = np.array([[_sequence(base.replace(xi=x, mu=m), sections, 300) == [n for _, n in sections]
+                           for m in mu.values] for x in xi.values])
+        assert hits.tolist() == brute.tolist()
+        if name == "paper-fig12":
+            assert hits[0, 0] and not hits[1, 2]          # calibrated in, uncalibrated out
