@@ -1,6 +1,6 @@
 """The paper's figures (Figs. 9/10, 12/13, 14, 15) and two scene figures.
 
-    python examples/paper_figures.py [--num 120] [--periods 300] [--out DIR]
+    python examples/paper_figures.py [--num 120] [--periods 300] [--workers N] [--out DIR]
     python examples/paper_figures.py --update      # into docs/figures/ (tracked)
 
 Without ``--update`` or ``--out`` the figures go to ``hammerbit-figures`` in
@@ -16,6 +16,7 @@ import time
 import numpy as np
 
 from hammerbit.studies.bifurcation import bifurcation, penetration_sweep
+from hammerbit.studies.executor import ExecutorOptions
 from hammerbit.model.presets import preset
 from hammerbit.scene.plots import plot_bifurcation, plot_penetration, plot_scene
 
@@ -28,6 +29,7 @@ def main(argv=None):
                                              "strange attractor, scenes).")
     ap.add_argument("--num", type=int, default=120, help="values of a per bifurcation diagram")
     ap.add_argument("--periods", type=int, default=300, help="forcing periods per value")
+    ap.add_argument("--workers", type=int, default=None, help="local worker processes (default: one per CPU)")
     where = ap.add_mutually_exclusive_group()
     where.add_argument("--out", type=pathlib.Path, default=None,
                        help=f"output directory (default {SCRATCH})")
@@ -36,15 +38,17 @@ def main(argv=None):
     OUT = TRACKED if args.update else (args.out or SCRATCH)
     OUT.mkdir(parents=True, exist_ok=True)
     summary = {}
+    options = ExecutorOptions(workers=args.workers)
     for name, lo, hi in (("paper-fig9", 0.0, 0.25), ("paper-fig12", 0.0, 0.25)):
         t0 = time.perf_counter()
-        res = bifurcation(preset(name), "a", np.linspace(lo, hi, args.num), periods=args.periods, keep=48)
+        res = bifurcation(preset(name), "a", np.linspace(lo, hi, args.num), periods=args.periods, keep=48,
+                          options=options)
         plot_bifurcation(res, OUT / f"bifurcation_{name}.png", scales=preset(name).scales)
         summary[name] = {"periods_per_second": res.periods_per_second, "wall_s": time.perf_counter() - t0,
                          "period_n": dict(zip([round(v, 4) for v in res.values.tolist()], res.periods))}
-    a = np.linspace(0.0, 0.4, 41)
-    p9 = penetration_sweep(preset("paper-fig9"), a, periods=100)
-    p12 = penetration_sweep(preset("paper-fig12"), a, periods=100)
+    a = np.linspace(0.0, 0.25, 51)     # the range of the paper's Fig. 14
+    p9 = penetration_sweep(preset("paper-fig9"), a, periods=100, options=options)
+    p12 = penetration_sweep(preset("paper-fig12"), a, periods=100, options=options)
     plot_penetration(a, {"no impact (paper-fig9)": p9, "impact r=0.84 (paper-fig12)": p12},
                      OUT / "penetration_fig14.png", periods=100, scales=preset("paper-fig9").scales)
     plot_scene(preset("paper-fig9").replace(a=0.083), 300, OUT / "scene_fig9_a0.083.png", preset="paper-fig9")

@@ -711,13 +711,14 @@ def test_solver_convergence_impact_full(g):
     assume(_convergence_case(g, periods=300) is not None)
 
 
-@pytest.mark.parametrize("name, a, n", [("paper-fig9", 0.069, 5), ("paper-fig9", 0.083, 3),
-                                        ("paper-fig9", 0.11, 2), ("paper-fig9", 0.2, 1),
-                                        ("paper-fig12", 0.06, 2), ("paper-fig12", 0.11, 1)])
-def test_solver_convergence_on_paper_scenes(name, a, n):
-    # (paper-fig12 at a = 0.044, the paper's P4, is not periodic within 300 periods here and
-    #  its penetration differs by 1e-4 relative between rtol 1e-10 and 1e-13: left out)
-    assert _convergence_case(preset(name).replace(a=a), periods=300) == n
+@pytest.mark.parametrize("name, a, n, periods", [
+    ("paper-fig9", 0.069, 5, 300), ("paper-fig9", 0.083, 3, 300), ("paper-fig9", 0.11, 2, 300),
+    ("paper-fig9", 0.2, 1, 300),
+    # the P4 settles slowly: at 300 periods its 4-cycle still drifts by more than 1e-7
+    ("paper-fig12", 0.044, 4, 1000),
+    ("paper-fig12", 0.05, 3, 300), ("paper-fig12", 0.06, 2, 300), ("paper-fig12", 0.11, 1, 300)])
+def test_solver_convergence_on_paper_scenes(name, a, n, periods):
+    assert _convergence_case(preset(name).replace(a=a), periods=periods) == n
 
 
 #: a periodic impact scene (found by hypothesis) whose rtol-1e-8 run shows an error spike

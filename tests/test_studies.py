@@ -186,6 +186,10 @@ def test_map_json_nested_lists():
     assert d["flags"][0][1] == ["runaway"] or "bounce" not in d["flags"][0][1]
 
 
+#: The kinetic friction ratio the runaway tests are written for (the floor b crosses).
+RUNAWAY_MU = 0.85
+
+
 @pytest.mark.parametrize("flag,base,setting,below,above", [
     ("bounce", {"b": 0.3}, "a", 0.3 - 1e-9, 0.3),                     # a >= b
     ("overload", {"b": 0.5}, "a", 0.5 - 1e-9, 0.5 + 1e-9),            # a + b > 1
@@ -193,13 +197,13 @@ def test_map_json_nested_lists():
     ("runaway", {"a": 0.0, "gamma_hat": 0.0}, "b", 1.0, 1.0 + 1e-9),  # b > 1 (no velocity weakening)
 ])
 def test_map_flags_on_both_sides(flag, base, setting, below, above):
-    g = preset("paper-fig9").replace(**base)
+    g = preset("paper-fig9").replace(mu=RUNAWAY_MU).replace(**base)
     ds = regime_map(g, [Axis(setting, (below, above))], periods=4, options=IN_PROCESS)
     assert ds[flag].values.tolist() == [0, 1]
 
 
 def _window_drifts(b, *, gamma_hat=None):
-    g = preset("paper-fig9").replace(a=0.1, b=b)
+    g = preset("paper-fig9").replace(a=0.1, b=b, mu=RUNAWAY_MU)
     if gamma_hat is not None:
         g = g.replace(gamma_hat=gamma_hat)
     x3 = simulate(g, 300, record=Record(poincare=True)).poincare["bit_position"]
