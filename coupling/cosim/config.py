@@ -17,6 +17,7 @@ from hammerbit.model.params import RIG, RigParameters, Scales
 from hammerbit.model.validation import check as _check
 
 from hammerbit.cosim.error import CouplingErrorEstimate
+from hammerbit.drillstring.top import TopCondition
 
 __all__ = ["SCHEMES", "RECORDABLE", "CouplingInstabilityError", "field_hammer", "CosimConfig", "CosimResult",
            "steady_start", "event_counts"]
@@ -164,6 +165,10 @@ class CosimConfig:
         Progress bar on stderr (tqdm; None: only for runs above 20000 steps on a terminal).
     rtol : float
         Tolerance of the in-process hammer / the monolithic reference.
+    top : TopCondition
+        How the hook moves (:mod:`hammerbit.drillstring.top`): ``fixed`` (default),
+        a constant ``feed`` or the ``auto-driller`` (a PI controller on the hook
+        load holding the static WOB ``wob``).
     """
 
     stop: float = 1.0
@@ -198,6 +203,7 @@ class CosimConfig:
     blowup: float = 50.0
     progress: Optional[bool] = None
     rtol: float = 1e-10
+    top: TopCondition = field(default_factory=TopCondition)
     harmonic_source: str = "fmu"
     """``fmu``: the FMU's internal harmonic source (continuous in time);
     ``master``: the master computes the harmonic force and feeds its mean over
@@ -211,6 +217,9 @@ class CosimConfig:
             raise ValueError(f"extrapolation = {self.extrapolation!r}: allowed 0, 1, 2")
         if self.string_step not in ("auto", "dense"):
             raise ValueError(f"string_step = {self.string_step!r}: allowed 'auto', 'dense'")
+        if not isinstance(self.top, TopCondition):
+            raise ValueError(f"top = {self.top!r}: a hammerbit.drillstring.top.TopCondition "
+                             f"(TopCondition.parse('auto-driller'), ...)")
         if self.harmonic_source not in ("fmu", "master"):
             raise ValueError(f"harmonic_source = {self.harmonic_source!r}: allowed 'fmu', 'master'")
         for key, name in (("cosim.step", "step"), ("cosim.start", "start"), ("cosim.stop", "stop"),
@@ -348,6 +357,9 @@ class CosimResult:
         if "wob" in self.data.dtype.names:
             out["wob_mean_n"] = self.wob_mean(t_from)
             out["wob_amplitude_n"] = self.wob_amplitude(t_from)
+        out["top"] = self.config.top.to_dict()
+        if "auto_driller" in self.stats:
+            out["top"].update(self.stats["auto_driller"])
         out["counts"] = dict(self.counts)
         if self.estimate is not None:
             out["error_estimate"] = self.estimate.to_dict()

@@ -412,7 +412,7 @@ class _Lane:
         self.th[:] = (c.start, c.start - H_hist, c.start - 2 * H_hist)
         self.wh[:] = (self.out[0] - self.x_eq, self.out[1])
         self.sc[2] = self.string.f_xi()
-        F = side.wob + self.sc[2] - side.ki * self.wh[0, 0] - side.ci * self.wh[0, 1]
+        F = side.wob + self.sc[2] - side.ki * self.wh[0, 0] - side.ci * (self.wh[0, 1] - side.feed[0])
         self.sc[0] = F
         self.Fh[:] = F
         self.F_held = F
@@ -460,10 +460,10 @@ class _Lane:
         if s.modal:
             return [self.gs, self.order, h, True, _NONE_P, _NONE_F, _NONE_F, _NONE_F, d.m_d, d.m_G,
                     d.m_irow, d.m_icol, s.v, self.frow, side.ki, side.ci, side.wob,
-                    self.th, self.wh, self.Fh, 0.0, 0.0, 0.0, self.cbuf, self.sc]
+                    self.th, self.wh, self.Fh, 0.0, 0.0, 0.0, self.cbuf, self.sc, side.feed]
         return [self.gs, self.order, h, False, d.P, s.v, s.buf, s.tmp, _NONE_C, _NONE_2, _NONE_C,
                 _NONE_F, _NONE_C, self.frow, side.ki, side.ci, side.wob,
-                self.th, self.wh, self.Fh, 0.0, 0.0, 0.0, self.cbuf, self.sc]
+                self.th, self.wh, self.Fh, 0.0, 0.0, 0.0, self.cbuf, self.sc, side.feed]
 
     def snapshot(self):
         return self.hammer.get_state(), self.string.copy_state(), self.hist.copy(), self.out.copy()
@@ -605,7 +605,7 @@ class _Recorder:
             for i, k in cols["flag"]:
                 row[i] = fl[k]
         if self.need_string:
-            so = lane.string.outputs()
+            so = lane.string.outputs(t)
             for i, k in cols["str"]:
                 row[i] = so[k]
         self.j += 1
@@ -860,6 +860,8 @@ def _run(side: StringSide, c: CosimConfig, *, fmu, hammer, defect_tol) -> CosimR
         stats = watch.stats()
         stats["string_states"] = side.n
         stats["modal"] = bool(side.modal)
+        if side.gains is not None:
+            stats["auto_driller"] = side.gains.to_dict()
         stats.update({"hammer_steps": steps, "companion_steps": csteps, "rollbacks": rejected,
                       "state_saves": saves})
         if c.adaptive:
