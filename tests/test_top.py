@@ -6,7 +6,10 @@ import math
 import numpy as np
 import pytest
 
-from hammerbit.cosim.master import CosimConfig, StringSide, cosimulate, field_hammer, monolithic
+from hammerbit.cosim.config import CosimConfig, field_hammer
+from hammerbit.cosim.master import cosimulate
+from hammerbit.cosim.reference import monolithic
+from hammerbit.cosim.string_side import StringSide
 from hammerbit.drillstring import load_string
 from hammerbit.drillstring.top import M_PER_H, TopCondition, auto_driller_gains, series_stiffness
 
