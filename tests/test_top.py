@@ -187,3 +187,29 @@ def test_cli_top_bad_value_exits_2(capsys):
     code, out, err = run_cli(["cosim", "--string", "field-2200m", "--stop", "0.1", "--top", "feed:fast"], capsys)
     assert code == 2
     assert "--top feed:fast" in err and "Traceback" not in err
+
+
+def sustained_drilling(string, *, stop=60.0, step=1e-3):
+    """The sustained-drilling run: 60 s on the field string with the auto-driller (the drilling
+    case: A = 15 kN at 22.5 Hz), fixed 1 ms steps (also the benchmark's run)."""
+    rig = field_hammer().replace(frequency=22.5, amplitude=15e3)
+    cfg = CosimConfig(stop=stop, step=step, rig=rig, top=TopCondition.auto_driller(), estimate=False,
+                      record=("wob", "bit_position", "stick"), progress=False)
+    return cosimulate(string, cfg)
+
+
+@pytest.mark.slow
+def test_sustained_drilling_with_the_auto_driller(field):
+    r = sustained_drilling(field)
+    d = r.data
+    t = d["time"]
+    slip_starts = t[1:][(d["stick"][:-1] > 0.5) & (d["stick"][1:] < 0.5)]
+    # slips continue to the end: every second of the last ten has some
+    assert np.all(np.histogram(slip_starts, bins=np.arange(50.0, 60.01, 1.0))[0] > 0)
+    last = t >= 50.0
+    assert np.mean(d["wob"][last]) == pytest.approx(r.config.weight_on_bit, rel=0.02)
+    half = np.searchsorted(t, 30.0)
+    x = d["bit_position"]
+    rop1 = (x[half] - x[0]) / (t[half] - t[0])
+    rop2 = (x[-1] - x[half]) / (t[-1] - t[half])
+    assert rop2 > 0.0 and rop1 == pytest.approx(rop2, rel=0.1)

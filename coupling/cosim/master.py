@@ -205,7 +205,7 @@ ADAPTIVE_START_DIVISOR = 16.0
 #: Counts summed over the passes of an adaptive run.
 _SUMMED = ("rejected", "rollbacks", "hammer_steps", "companion_steps", "state_saves")
 #: Passes of the adaptive run at most (each tightens the defect tolerance by the estimate).
-MAX_PASSES = 3
+MAX_PASSES = 4
 
 
 def cosimulate_adaptive(string, config: CosimConfig = CosimConfig(), *, fmu=None, tol: Optional[float] = None,

@@ -139,6 +139,17 @@ def steady_rop(data: np.ndarray, t_from: float, slips: int = ROP_SLIPS) -> dict:
             "rop_steady": bool(change <= ROP_TOL)}
 
 
+#: Time constants ``1 / w_n`` of the auto-driller's loop before the ROP is measured (critical
+#: damping: the WOB is then within 2 % of its set point after a step in the ROP).
+SETTLE_TIME_CONSTANTS = 6.0
+
+
+def _settling_time(side) -> float:
+    """Time [s] the top condition needs to settle: 0 for a fixed hook or a feed."""
+    g = side.gains
+    return 0.0 if g is None else SETTLE_TIME_CONSTANTS / (2.0 * math.pi * g.natural_frequency_hz)
+
+
 def _sweep_one(string, f, config, fmu, window_periods, steady_tol, max_duration):
     rig = config.rig.replace(frequency=float(f))
     # at least three windows after the force ramp
@@ -147,9 +158,15 @@ def _sweep_one(string, f, config, fmu, window_periods, steady_tol, max_duration)
     while True:
         cfg = config.replace(rig=rig, stop=config.start + dur, record=("wob", "bit_position", "stick"),
                              record_every=1, progress=False)
-        r = cosimulate(string, cfg, fmu=fmu, side=_side_for(string, cfg, fmu))
+        side = _side_for(string, cfg, fmu)
+        settle = _settling_time(side)
+        if dur < settle + 3.0 * window_periods / f and dur < max_duration:
+            # an auto-driller settles over several of its time constants: measure after them
+            dur = min(max_duration, settle + 3.0 * window_periods / f)
+            continue
+        r = cosimulate(string, cfg, fmu=fmu, side=side)
         fig = steady_figures(r.data, f, window_periods, F_s)
-        rop = steady_rop(r.data, config.start + config.ramp + window_periods / f)
+        rop = steady_rop(r.data, config.start + max(config.ramp + window_periods / f, settle))
         fig["rop_m_per_h"] = rop["rop_m_per_h"]
         steady = fig["amplitude_change"] <= steady_tol and rop["rop_steady"]
         if steady or 2 * dur > max_duration + 1e-12:
