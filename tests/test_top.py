@@ -213,3 +213,20 @@ def test_sustained_drilling_with_the_auto_driller(field):
     rop1 = (x[half] - x[0]) / (t[half] - t[0])
     rop2 = (x[-1] - x[half]) / (t[-1] - t[half])
     assert rop2 > 0.0 and rop1 == pytest.approx(rop2, rel=0.1)
+
+
+def test_feed_is_an_exact_input_of_the_exchange(field):
+    """No harmonic force and a fast feed: the hammer is pushed quasi-statically through the
+    interface while the block moves. The string sees the feed as an exact polynomial over each
+    long step, so the interface force follows the reference to a small fraction of the load
+    the feed builds (a feed held constant over a step would be off by k_i V H / 2)."""
+    V = 0.1
+    rig = field_hammer().replace(amplitude=0.0)
+    cfg = CosimConfig(stop=0.5, step=5e-3, rig=rig, top=TopCondition.feed(V), f_max=60.0, estimate=False,
+                      check_step=False, record=("interface_force",))
+    ref = monolithic(field, cfg)
+    co = cosimulate(field, cfg)
+    built = np.ptp(ref.data["interface_force"])
+    err = np.max(np.abs(co.data["interface_force"] - ref.data["interface_force"]))
+    assert built > 1e4
+    assert err < 0.1 * cfg.interface_stiffness * V * cfg.step / 2
