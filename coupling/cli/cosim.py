@@ -191,7 +191,8 @@ def _print_text(out: dict, res, cfg, string) -> None:
                 f"extrapolation order {cfg.extrapolation}, hammer {out['hammer']})")
     print(head)
     print(f"  to t = {out['stop_s']:g} s; WOB mean {out['wob_mean_n'] / 1e3:.4g} kN, dynamic amplitude "
-          f"{out['wob_amplitude_n'] / 1e3:.4g} kN (from t = {out['steady_window_start_s']:g} s)")
+          f"{out['wob_amplitude_n'] / 1e3:.4g} kN (fundamental, from t = {out['steady_window_start_s']:g} s); "
+          f"max {out['wob_max_n'] / 1e3:.4g} kN, min {out['wob_min_n'] / 1e3:.4g} kN")
     c = out["counts"]
     print(f"  penetration {out['penetration_m'] * 1e3:.5g} mm; slips {c.get('slips', 0)}, impacts "
           f"{c.get('impacts', 0)}, bounce violations {c.get('bounce_violations', 0)}")
