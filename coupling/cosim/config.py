@@ -18,10 +18,12 @@ from hammerbit.model.validation import check as _check
 
 from hammerbit.cosim.error import CouplingErrorEstimate
 
-__all__ = ["SCHEMES", "RECORDABLE", "CouplingInstabilityError", "field_hammer", "CosimConfig", "CosimResult",
+__all__ = ["SCHEMES", "EXCHANGES", "RECORDABLE", "CouplingInstabilityError", "field_hammer", "CosimConfig", "CosimResult",
            "steady_start", "event_counts"]
 
 SCHEMES = ("jacobi", "gauss-seidel")
+#: How the string side computes the interface force at a communication point (``CosimConfig.exchange``).
+EXCHANGES = ("master", "fmi")
 
 #: Variables a run can record (all SI), in output order after ``time``.
 RECORDABLE = {
@@ -198,6 +200,11 @@ class CosimConfig:
     blowup: float = 50.0
     progress: Optional[bool] = None
     rtol: float = 1e-10
+    exchange: str = "master"
+    """``master``: the interface force at ``t_{n+1}`` takes the hammer's new position and
+    velocity; ``fmi``: it takes the hammer motion the string extrapolated over the step,
+    as the Drillstring FMU computes it in any fixed-step master (which sets the FMU's
+    inputs only before its next step); the held force is extrapolated the same way."""
     harmonic_source: str = "fmu"
     """``fmu``: the FMU's internal harmonic source (continuous in time);
     ``master``: the master computes the harmonic force and feeds its mean over
@@ -211,6 +218,8 @@ class CosimConfig:
             raise ValueError(f"extrapolation = {self.extrapolation!r}: allowed 0, 1, 2")
         if self.string_step not in ("auto", "dense"):
             raise ValueError(f"string_step = {self.string_step!r}: allowed 'auto', 'dense'")
+        if self.exchange not in EXCHANGES:
+            raise ValueError(f"exchange = {self.exchange!r}: allowed {', '.join(EXCHANGES)}")
         if self.harmonic_source not in ("fmu", "master"):
             raise ValueError(f"harmonic_source = {self.harmonic_source!r}: allowed 'fmu', 'master'")
         for key, name in (("cosim.step", "step"), ("cosim.start", "start"), ("cosim.stop", "stop"),

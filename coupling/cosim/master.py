@@ -400,6 +400,7 @@ class _Lane:
         self.side, self.hammer, self.c = side, hammer, c
         self.gs = c.scheme == "gauss-seidel"
         self.order = c.extrapolation
+        self.fmi = c.exchange == "fmi"
         self.string = _StringState(side)
         self.x_eq = hammer.x_eq
         self.out = hammer.read()
@@ -460,10 +461,10 @@ class _Lane:
         if s.modal:
             return [self.gs, self.order, h, True, _NONE_P, _NONE_F, _NONE_F, _NONE_F, d.m_d, d.m_G,
                     d.m_irow, d.m_icol, s.v, self.frow, side.ki, side.ci, side.wob,
-                    self.th, self.wh, self.Fh, 0.0, 0.0, 0.0, self.cbuf, self.sc]
+                    self.th, self.wh, self.Fh, 0.0, 0.0, 0.0, self.cbuf, self.sc, self.fmi]
         return [self.gs, self.order, h, False, d.P, s.v, s.buf, s.tmp, _NONE_C, _NONE_2, _NONE_C,
                 _NONE_F, _NONE_C, self.frow, side.ki, side.ci, side.wob,
-                self.th, self.wh, self.Fh, 0.0, 0.0, 0.0, self.cbuf, self.sc]
+                self.th, self.wh, self.Fh, 0.0, 0.0, 0.0, self.cbuf, self.sc, self.fmi]
 
     def snapshot(self):
         return self.hammer.get_state(), self.string.copy_state(), self.hist.copy(), self.out.copy()
