@@ -1,0 +1,204 @@
+"""Build ``Drillstring.fmu``: the FMI 2.0 co-simulation FMU of a drillstring and its hammer interface.
+
+The string is described by a TOML file (or a built-in example).  The build
+computes the library's string side (:class:`hammerbit.cosim.string_side.StringSide`)
+at the file's damping ratio, writes its arrays and the description into the
+FMU's resources, and ships :mod:`hammerbit.model` (the ``fmu_src`` runtime,
+whose :mod:`~hammerbit.model.string_step` is the master's exact string step)
+as the package ``hammerbit_string_runtime_<hash>``.  The pythonfmu flavour:
+the FMU runs in a host with Python, numpy, scipy, numba and pythonfmu.
+
+From Python::
+
+    from hammerbit.fmu.build_string import build_string_fmu
+    path = build_string_fmu("field-2200m", "dist/Drillstring.fmu")
+
+From the shell: ``hammerbit fmu build-string --string FILE [--out PATH]``.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import shutil
+import sys
+import tempfile
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Optional
+
+__all__ = ["MODEL_NAME", "StringBuild", "build_string_fmu", "default_rig", "string_build",
+           "default_string_output"]
+
+MODEL_NAME = "Drillstring"
+RUNTIME_PREFIX = "hammerbit_string_runtime"   # + "_<hash>": the runtime package inside the FMU
+ENTRY_PREFIX = "hammerbit_string_slave"       # + "_<hash>": pythonfmu's slave module
+_HASH_LEN = 12
+#: damping ratio of the second side when the file's is 0 (the derivative in the ratio from two sides)
+_DAMPING_PROBE = 0.5
+
+_ENTRY_SOURCE = '''"""Entry module of the {model} FMU (runtime build {hash}), imported by pythonfmu from resources/."""
+import ctypes as _ctypes
+
+# pythonfmu 0.7.0's native findClass() runs this file's code again in this module's globals on
+# every fmi2Instantiate and releases one reference to that dict it never owned: one extra
+# reference per execution balances it.
+_ctypes.pythonapi.Py_IncRef.argtypes = [_ctypes.py_object]
+_ctypes.pythonapi.Py_IncRef.restype = None
+_ctypes.pythonapi.Py_IncRef(globals())
+
+import {pkg}._numba_cache  # noqa: E402,F401  (picks the CPU target before numba is imported)
+from {pkg}.string_slave import {model}  # noqa: E402,F401
+'''
+
+
+def default_string_output() -> Path:
+    """``dist/Drillstring.fmu`` in the current directory."""
+    return Path("dist") / f"{MODEL_NAME}.fmu"
+
+
+def default_rig(buoyed_weight: float):
+    """The hammer a string gets by default: the field hammer when the string can carry its WOB
+    (55 kN), else the lab rig of the paper (WOB 29.7 N)."""
+    from hammerbit.cosim.config import field_hammer
+    from hammerbit.model.params import RigParameters
+    rig = field_hammer()
+    return rig if rig.preload <= buoyed_weight else RigParameters()
+
+
+@dataclass(frozen=True)
+class StringBuild:
+    """What a Drillstring FMU is built from: the string, its source text, the co-simulation config
+    (interface, WOB, hammer) and the string side's arrays."""
+
+    string: object
+    source_text: str
+    config: object
+    arrays: dict
+    info: dict
+
+
+def _source_text(string_arg) -> str:
+    from hammerbit.drillstring.description import example_names, example_path
+    p = Path(string_arg)
+    if p.is_file():
+        return p.read_text(encoding="utf-8")
+    if isinstance(string_arg, str) and string_arg in example_names():
+        return example_path(string_arg).read_text(encoding="utf-8")
+    return ""
+
+
+def string_build(string_arg, *, wob: Optional[float] = None, rig=None, interface_stiffness: float = 2.0e6,
+                 interface_damping: float = 2.0e3) -> StringBuild:
+    """The string side of ``string_arg`` (TOML path or example name) and its arrays.
+
+    ``wob`` defaults to the hammer's preload; ``rig`` to :func:`default_rig`."""
+    from hammerbit.cosim.config import CosimConfig
+    from hammerbit.cosim.string_side import StringSide
+    from hammerbit.drillstring import load_string
+    string = string_arg if not isinstance(string_arg, (str, Path)) else load_string(string_arg)
+    rig = default_rig(string.buoyed_weight) if rig is None else rig
+    config = CosimConfig(rig=rig, wob=wob, interface_stiffness=interface_stiffness,
+                         interface_damping=interface_damping, estimate=False)
+    side = StringSide(string, config)
+    zeta = float(string.modal_damping_ratio)
+    if zeta > 0.0:
+        other = StringSide(string.replace(modal_damping_ratio=0.0), config)
+        dA1 = (side.A1 - other.A1) / zeta
+    else:
+        other = StringSide(string.replace(modal_damping_ratio=_DAMPING_PROBE), config)
+        dA1 = (other.A1 - side.A1) / _DAMPING_PROBE
+    W = config.weight_on_bit
+    arrays = {"A1": side.A1, "dA1": dA1, "E": side.E, "frow": side.frow, "rows3": side.rows3,
+              "scalars": {"interface_stiffness": side.ki, "interface_damping": side.ci,
+                          "damping_ratio": zeta, "wob": W, "hook_load": side.hook_eq,
+                          "buoyed_weight": side.hook_eq + W}}
+    length = float(sum(s.length for s in string.sections))
+    sections = "; ".join(f"{s.name or 'section'} {s.length:g} m x {s.od * 1e3:g} mm" for s in string.sections)
+    info = {"name": string.name, "length_m": length, "sections": sections,
+            "states": int(side.n),
+            "hammer_position_at_rest": W / rig.stiffness,
+            "description": (f"Drillstring '{string.name}' ({length:g} m: {sections}) with its hammer "
+                            f"interface k_i = {side.ki:g} N/m, c_i = {side.ci:g} N s/m; top "
+                            f"{string.top.spec()}; "
+                            f"{side.n} states; geometry fixed at build time"),
+            "toml": _source_text(string_arg)}
+    return StringBuild(string, info["toml"], config, arrays, info)
+
+
+def _runtime_files() -> list:
+    from hammerbit import model
+    files = sorted(Path(model.__file__).resolve().parent.glob("*.py"))
+    names = {p.name for p in files}
+    for required in ("string_slave.py", "string_step.py", "string_model.py", "_numba_cache.py"):
+        if required not in names:
+            from hammerbit.fmu.build import FMUBuildError
+            raise FMUBuildError(f"the runtime package lacks {required}")
+    return files
+
+
+def _hash(files) -> str:
+    h = hashlib.sha256()
+    for f in files:
+        h.update(f.name.encode())
+        h.update(f.read_bytes())
+    return h.hexdigest()[:_HASH_LEN]
+
+
+def _forget(staging: Path, names) -> None:
+    """Undo what pythonfmu's builder left in this process (sys.path entry, imported modules)."""
+    for name in list(sys.modules):
+        if any(name == n or name.startswith(n + ".") for n in names):
+            del sys.modules[name]
+    for entry in list(sys.path):
+        try:
+            if Path(entry).resolve() == staging.resolve():
+                sys.path.remove(entry)
+        except (OSError, ValueError):
+            continue
+
+
+def build_string_fmu(string_arg, out=None, *, build: Optional[StringBuild] = None, **kw) -> Path:
+    """Build ``Drillstring.fmu`` of ``string_arg`` (TOML path or example name) and return its path.
+
+    ``out``: the ``.fmu`` file or a directory (default ``dist/Drillstring.fmu``); ``kw`` go to
+    :func:`string_build` (``wob``, ``rig``, ``interface_stiffness``, ``interface_damping``)."""
+    from pythonfmu import FmuBuilder
+    from hammerbit.model.string_model import INFO_FILE, MODEL_FILE, save_model
+    build = string_build(string_arg, **kw) if build is None else build
+    out = Path(out) if out is not None else default_string_output()
+    if out.suffix != ".fmu":
+        out = out / f"{MODEL_NAME}.fmu"
+    out = out.resolve()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    files = _runtime_files()
+    tag = _hash(files)
+    pkg_name, entry_name = f"{RUNTIME_PREFIX}_{tag}", f"{ENTRY_PREFIX}_{tag}"
+    with tempfile.TemporaryDirectory(prefix="hammerbit_string_fmu_") as tmp:
+        work = Path(tmp)
+        staging = work / "stage"
+        pkg = staging / pkg_name
+        pkg.mkdir(parents=True)
+        for f in files:
+            shutil.copy2(f, pkg / f.name)
+        save_model(staging / MODEL_FILE, build.arrays)
+        (staging / INFO_FILE).write_text(json.dumps(build.info, indent=1) + "\n")
+        (staging / "string.toml").write_text(build.source_text)
+        script = staging / f"{entry_name}.py"
+        script.write_text(_ENTRY_SOURCE.format(model=MODEL_NAME, hash=tag, pkg=pkg_name))
+        _forget(staging, (entry_name, pkg_name))
+        try:
+            raw = FmuBuilder.build_FMU(script, dest=work / f"{MODEL_NAME}.fmu",
+                                       project_files=[pkg, staging / MODEL_FILE, staging / INFO_FILE,
+                                                      staging / "string.toml"],
+                                       canHandleVariableCommunicationStepSize=True)
+        finally:
+            _forget(staging, (entry_name, pkg_name))
+        with zipfile.ZipFile(raw) as zf:
+            contents = {n: zf.read(n) for n in zf.namelist() if not n.endswith("/")}
+        tmp_out = out.with_name(out.name + ".tmp")
+        with zipfile.ZipFile(tmp_out, "w", zipfile.ZIP_DEFLATED) as zf:
+            for name in sorted(contents):
+                zf.writestr(name, contents[name])
+        tmp_out.replace(out)
+    return out
