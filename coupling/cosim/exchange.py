@@ -5,8 +5,8 @@ polynomial (Jacobi: extrapolated through the last communication points;
 Gauss–Seidel: interpolated through the new value), and the hammer holds the
 mean over the step of the interface force extrapolated the same way.  Both
 use the actual spacing of the communication points (a shorter last step,
-adaptive steps).  :func:`_exchange` builds the polynomial, steps the string
-exactly (:mod:`hammerbit.cosim.string_side`; the kernels live in
+adaptive steps).  :func:`exchange_step` builds the polynomial, steps the string
+exactly (:mod:`hammerbit.cosim.string_side`; the kernels are those of
 :mod:`hammerbit.model.string_step`, which the Drillstring FMU carries), and returns the interface force, the
 energy residual of the step and the force defect ``F_held - mean F_i``.
 """
@@ -14,9 +14,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from hammerbit.model.string_step import coefficients, exchange_step, held_force, held_weights
+from hammerbit.model.string_step import exchange_step, held_force, held_weights
 
-__all__ = ["extrapolation_weights"]
+__all__ = ["extrapolation_weights", "held_force", "exchange_step", "EXCHANGE_OUT_FORCE",
+           "EXCHANGE_OUT_ENERGY_RESIDUAL", "EXCHANGE_OUT_STRING_FORCE", "EXCHANGE_OUT_DEFECT"]
+
+#: Slots of :func:`exchange_step`'s ``out``: the interface force at the step's end [N], the
+#: energy residual of the step [J], ``frow . xi`` (the string's part of the interface force) [N]
+#: and the force defect ``F_held - mean F_i`` [N].
+EXCHANGE_OUT_FORCE, EXCHANGE_OUT_ENERGY_RESIDUAL, EXCHANGE_OUT_STRING_FORCE, EXCHANGE_OUT_DEFECT = 0, 1, 2, 3
 
 
 def extrapolation_weights(order: int, ratio: float = 1.0, ratio_past: float = 1.0) -> np.ndarray:
@@ -27,12 +33,6 @@ def extrapolation_weights(order: int, ratio: float = 1.0, ratio_past: float = 1.
     with uniform steps (both 1) these are the Adams–Bashforth weights.
     """
     w = np.zeros(3)
-    _held_weights(order, 1.0, ratio_past, ratio, w)
+    held_weights(order, 1.0, ratio_past, ratio, w)
     return w
 
-
-#: the exchange kernels (:mod:`hammerbit.model.string_step`, shared with the Drillstring FMU)
-_held_weights = held_weights
-_held_force = held_force
-_coefficients = coefficients
-_exchange = exchange_step

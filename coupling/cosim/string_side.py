@@ -14,7 +14,7 @@ When the eigenvectors of ``A'`` reproduce that step to 1e-10 the state is
 kept in modal coordinates (``eta <- exp(lam h) eta + G c``, one of each
 conjugate pair kept: O(n) per step); otherwise the dense mat-vec is used.
 :class:`StringSide` holds the model and the discretisations (cached per step
-length, shared by a run and its half-step companion); :class:`_StringState`
+length, shared by a run and its half-step companion); :class:`StringState`
 holds one run's state.  The step itself is
 :class:`hammerbit.model.string_step.ExactStep`, the one source the
 Drillstring FMU carries too; this module builds it from the string's model and
@@ -29,9 +29,10 @@ from typing import Optional
 
 import numpy as np
 
-from hammerbit.model.string_step import ExactStep, StringState, string_step_dense, string_step_modal
+from hammerbit.model.string_step import ExactStep, string_step_dense, string_step_modal
+from hammerbit.model.string_step import StringState as RunState
 
-__all__ = ["StringSide"]
+__all__ = ["StringSide", "StringState", "string_step_dense", "string_step_modal"]
 
 #: eigendecompositions and matrix exponentials of recent string models, shared by every side built
 #: from the same matrices (a sweep, a run and its reference, a study's repeated runs)
@@ -70,7 +71,7 @@ class StringSide(ExactStep):
 
     Holds the model and the discretisations (one per step length, cached;
     :class:`hammerbit.model.string_step.ExactStep`, the step the Drillstring FMU
-    takes too); the state of a run lives in :class:`_StringState` (a run and its
+    takes too); the state of a run lives in :class:`StringState` (a run and its
     companion share one side).
 
     Parameters
@@ -143,19 +144,15 @@ class StringSide(ExactStep):
         (6,) = (x, v, x', v', x'', v''); x as deviation from equilibrium.
         Returns the integral of (F_i - W) over the step [N s].  The same kernels
         as the master (modal form when available)."""
-        st = _StringState(self, self.xi)
+        st = StringState(self, self.xi)
         imp = st.advance(self.discretisation(h), np.asarray(coeffs, dtype=float))
         self.xi = st.xi()
         return imp
 
 
-class _StringState(StringState):
+class StringState(RunState):
     """The string's state in one run (the first step length of the config decides the form)."""
 
     def __init__(self, side: StringSide, xi0: Optional[np.ndarray] = None):
         super().__init__(side, side.config.step, xi0)
 
-
-#: the kernels under their names in this module (the master's exchange imports them from here)
-_string_step_dense = string_step_dense
-_string_step_modal = string_step_modal
