@@ -18,12 +18,14 @@ from hammerbit.model.validation import check as _check
 
 from hammerbit.cosim.error import CouplingErrorEstimate
 
-__all__ = ["SCHEMES", "EXCHANGES", "RECORDABLE", "CouplingInstabilityError", "field_hammer", "CosimConfig",
+__all__ = ["SCHEMES", "EXCHANGES", "HAMMER_INPUTS", "RECORDABLE", "CouplingInstabilityError", "field_hammer", "CosimConfig",
            "CosimResult", "steady_start", "event_counts", "record_dtype"]
 
 SCHEMES = ("jacobi", "gauss-seidel")
 #: How the string side computes the interface force at a communication point (``CosimConfig.exchange``).
 EXCHANGES = ("master", "fmi")
+#: Where an FMU hammer gets the held interface force (``CosimConfig.hammer_input``).
+HAMMER_INPUTS = ("preload", "harmonic_force")
 
 #: Variables a run can record (all SI), in output order after ``time``.
 RECORDABLE = {
@@ -205,6 +207,9 @@ class CosimConfig:
     velocity; ``fmi``: it takes the hammer motion the string extrapolated over the step,
     as the Drillstring FMU computes it in any fixed-step master (which sets the FMU's
     inputs only before its next step); the held force is extrapolated the same way."""
+    hammer_input: str = "preload"
+    """Where the FMU hammer gets the held interface force: ``preload``, or ``harmonic_force``
+    (its change from the WOB, with ``preload`` held at the WOB: the SSP package's wiring)."""
     harmonic_source: str = "fmu"
     """``fmu``: the FMU's internal harmonic source (continuous in time);
     ``master``: the master computes the harmonic force and feeds its mean over
@@ -220,6 +225,11 @@ class CosimConfig:
             raise ValueError(f"string_step = {self.string_step!r}: allowed 'auto', 'dense'")
         if self.exchange not in EXCHANGES:
             raise ValueError(f"exchange = {self.exchange!r}: allowed {', '.join(EXCHANGES)}")
+        if self.hammer_input not in HAMMER_INPUTS:
+            raise ValueError(f"hammer_input = {self.hammer_input!r}: allowed {', '.join(HAMMER_INPUTS)}")
+        if self.hammer_input == "harmonic_force" and (self.harmonic_source == "master" or self.ramp > 0.0):
+            raise ValueError("hammer_input = 'harmonic_force' takes the hammer's harmonic_force input: "
+                             "allowed only with harmonic_source = 'fmu' and ramp = 0")
         if self.harmonic_source not in ("fmu", "master"):
             raise ValueError(f"harmonic_source = {self.harmonic_source!r}: allowed 'fmu', 'master'")
         for key, name in (("cosim.step", "step"), ("cosim.start", "start"), ("cosim.stop", "stop"),

@@ -109,6 +109,23 @@ class StringSide(ExactStep):
                          dense=config.string_step == "dense")
         self.xi = np.zeros(self.n)    # state of :meth:`step` (the single-run helper)
 
+    @classmethod
+    def from_arrays(cls, arrays: dict, damping_ratio: float, config) -> "StringSide":
+        """The side of a Drillstring FMU's arrays (:mod:`hammerbit.model.string_model`) at
+        ``damping_ratio``: the matrices the FMU steps with (``ss`` is None)."""
+        from hammerbit.model.string_model import string_matrices
+        self = cls.__new__(cls)
+        self.config = config
+        self.wob = config.weight_on_bit
+        self.ss = None
+        A1, E, frow, rows3 = string_matrices(arrays, damping_ratio)
+        sc = arrays["scalars"]
+        self.Cu, self.Cv, self.Ct = (np.array(r) for r in rows3)
+        ExactStep.__init__(self, A1, E, frow, sc["interface_stiffness"], sc["interface_damping"], rows3,
+                           sc["buoyed_weight"] - self.wob, dense=config.string_step == "dense")
+        self.xi = np.zeros(self.n)
+        return self
+
     # -- the library remembers decompositions and exponentials across sides --
     def decompose(self):
         return _memo(_digest("eig", self.A1), super().decompose)
