@@ -3,8 +3,10 @@
 SSP 1.0: one system with two components (the Drillstring FMU and the
 HammerBitRock FMU), their connectors, their parameter values (inline
 ``ssd:ParameterBindings``), the connections, a ``ssd:DefaultExperiment``
-and the Open Simulation Platform's annotation that libcosim reads for its
-fixed step (``osp:FixedStepMaster stepSize``, in seconds).
+and, in the default experiment, the Open Simulation Platform's annotation
+that libcosim reads for its fixed step
+(``osp:Algorithm/osp:FixedStepAlgorithm baseStepSize``, in seconds); without it
+libcosimpy's ``CosimExecution.from_ssp_file`` needs the step as an argument.
 """
 from __future__ import annotations
 
@@ -22,8 +24,8 @@ NS = {
     "ssv": "http://ssp-standard.org/SSP1/SystemStructureParameterValues",
     "osp": "http://opensimulationplatform.com/SSP/OSPAnnotations",
 }
-#: the annotation type libcosim's SSP parser looks for
-OSP_ANNOTATION = "org.open-simulation-platform"
+#: the annotation type libcosim's SSP parser looks for (in ``ssd:DefaultExperiment``)
+OSP_ANNOTATION = "com.opensimulationplatform"
 _FMU_TYPE = "application/x-fmu-sharedlibrary"
 
 
@@ -108,13 +110,12 @@ def write_ssd(system: SystemDescription) -> bytes:
         ET.SubElement(conns, _q("ssd", "Connection"), {
             "startElement": cn.start_element, "startConnector": cn.start_connector,
             "endElement": cn.end_element, "endConnector": cn.end_connector})
-    ann = ET.SubElement(ET.SubElement(sysel, _q("ssd", "Annotations")), _q("ssc", "Annotation"),
+    exp = ET.SubElement(root, _q("ssd", "DefaultExperiment"), {"startTime": repr(float(system.start_time)),
+                                                               "stopTime": repr(float(system.stop_time))})
+    ann = ET.SubElement(ET.SubElement(exp, _q("ssd", "Annotations")), _q("ssc", "Annotation"),
                         {"type": OSP_ANNOTATION})
-    info = ET.SubElement(ann, _q("osp", "SimulationInformation"))
-    ET.SubElement(info, _q("osp", "FixedStepMaster"), {"description": "FixedStepAlgorithm",
-                                                       "stepSize": repr(float(system.step_size))})
-    ET.SubElement(root, _q("ssd", "DefaultExperiment"), {"startTime": repr(float(system.start_time)),
-                                                         "stopTime": repr(float(system.stop_time))})
+    algorithm = ET.SubElement(ann, _q("osp", "Algorithm"))
+    ET.SubElement(algorithm, _q("osp", "FixedStepAlgorithm"), {"baseStepSize": repr(float(system.step_size))})
     ET.indent(root)
     return ET.tostring(root, encoding="UTF-8", xml_declaration=True)
 
@@ -152,10 +153,10 @@ def read_ssd(xml: bytes) -> SystemDescription:
     connections = [Connection(x.get("startElement"), x.get("startConnector"), x.get("endElement"),
                               x.get("endConnector")) for x in sysel.findall("ssd:Connections/ssd:Connection", NS)]
     step = math.nan
-    fsm = sysel.find("ssd:Annotations/ssc:Annotation/osp:SimulationInformation/osp:FixedStepMaster", NS)
-    if fsm is not None:
-        step = float(fsm.get("stepSize"))
     exp = root.find("ssd:DefaultExperiment", NS)
+    fsa = None if exp is None else exp.find("ssd:Annotations/ssc:Annotation/osp:Algorithm/osp:FixedStepAlgorithm", NS)
+    if fsa is not None:
+        step = float(fsa.get("baseStepSize"))
     start = float(exp.get("startTime", 0.0)) if exp is not None else 0.0
     stop = float(exp.get("stopTime", math.nan)) if exp is not None else math.nan
     return SystemDescription(sysel.get("name"), comps, connections, start, stop, step)
