@@ -16,7 +16,7 @@ import time
 import warnings
 from pathlib import Path
 
-from hammerbit.cli.common import EXIT_INACCURATE, EXIT_OK, UsageError
+from hammerbit.cli.common import EXIT_INACCURATE, EXIT_OK, UsageError, add_set_argument
 
 __all__ = ["register", "cmd_ssp_build", "cosim_ssp", "check_positive", "SSP_EXCLUSIVE"]
 
@@ -56,13 +56,20 @@ def cmd_ssp_build(args) -> int:
     if args.wob is not None and not (math.isfinite(args.wob) and 0.0 <= args.wob <= weight):
         raise UsageError(f"--wob = {args.wob!r} N: allowed [0, {weight:.6g}] N (the buoyed weight of "
                          f"{string.name!r})")
+    rig = None
+    if args.set:
+        from hammerbit.cli.cosim import rig_from_args
+        rig = rig_from_args(args)
     out = Path(args.out)
     if out.is_dir():
         out = out / "drilling.ssp"
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        path = build_ssp(args.string, out, SSPOptions(hammer=args.hammer, stop=args.stop, step=args.step,
-                                                      wob=args.wob))
+        try:
+            path = build_ssp(args.string, out, SSPOptions(hammer=args.hammer, stop=args.stop, step=args.step,
+                                                          wob=args.wob, rig=rig))
+        except ValueError as e:          # the string cannot carry the hammer's WOB, ...
+            raise UsageError(f"--string {args.string}: {e}") from None
     for w in caught:
         print(f"hammerbit ssp build: warning: {w.message}", file=sys.stderr)
     print(path)
@@ -156,4 +163,5 @@ def register(sub) -> None:
                    help="fixed communication step of the package [s] (default 1e-3)")
     b.add_argument("--wob", type=float, default=None,
                    help="weight on bit [N] (default: the hammer's preload, 55 kN for field strings)")
+    add_set_argument(b)
     b.set_defaults(func=cmd_ssp_build)

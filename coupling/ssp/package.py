@@ -53,12 +53,14 @@ class SSPOptions:
 
     ``hammer``: an existing HammerBitRock FMU (default: built with the system's start values);
     ``stop``, ``step``: the default experiment and libcosim's fixed step [s]; ``wob``: weight on
-    bit [N] (default: the hammer's preload)."""
+    bit [N] (default: the hammer's preload); ``rig``: the hammer's ``RigParameters`` (default:
+    :func:`hammerbit.fmu.build_string.default_rig` of the string)."""
 
     hammer: Optional[str] = None
     stop: float = 2.0
     step: float = 1e-3
     wob: Optional[float] = None
+    rig: Optional[object] = None
 
     def __post_init__(self):
         for name in ("stop", "step"):
@@ -110,7 +112,7 @@ def build_ssp(string_arg, out, options: SSPOptions = SSPOptions()) -> Path:
     from hammerbit.fmu.build_string import MODEL_NAME, build_string_fmu, string_build
     out = Path(out).resolve()
     out.parent.mkdir(parents=True, exist_ok=True)
-    sb = string_build(string_arg, wob=options.wob)
+    sb = string_build(string_arg, wob=options.wob, rig=options.rig)
     rig, W = sb.config.rig, sb.config.weight_on_bit
     with tempfile.TemporaryDirectory(prefix="hammerbit_ssp_") as tmp:
         work = Path(tmp)

@@ -1,0 +1,110 @@
+"""The Drillstring FMU: the library's string side, step for step, through fmpy."""
+import math
+
+import numpy as np
+import pytest
+import scipy.linalg as sla
+
+from cli_run import run_cli
+
+STOP, H = 0.2, 1e-3
+
+
+@pytest.fixture(scope="module")
+def string_fmu(tmp_path_factory):
+    from hammerbit.fmu.build_string import build_string_fmu
+    return build_string_fmu("field-2200m", tmp_path_factory.mktemp("string_fmu") / "Drillstring.fmu")
+
+
+def _instance(path, *, integers=None, **reals):
+    from hammerbit.fmu.host import FMUInstance
+    fmu = FMUInstance(path, "string", reals=reals or None, init=False)
+    if integers:
+        fmu.fmu.setInteger([fmu.vr[k] for k in integers], list(integers.values()))
+    fmu.fmu.exitInitializationMode()
+    return fmu
+
+
+def test_string_fmu_equals_the_library_string_side_step_for_step(string_fmu):
+    """The master's run (exchange='fmi') recorded; the FMU fed the same hammer motion gives the same
+    interface force, held force and hook load at every communication point."""
+    from hammerbit.cosim.config import CosimConfig
+    from hammerbit.cosim.master import cosimulate
+    from hammerbit.drillstring import load_string
+    cfg = CosimConfig(stop=STOP, step=H, exchange="fmi", estimate=False,
+                      record=("hammer_position", "hammer_velocity", "interface_force", "hammer_force",
+                              "hook_load"))
+    d = cosimulate(load_string("field-2200m"), cfg).data
+    W = cfg.weight_on_bit
+    assert np.ptp(d["interface_force"]) > 0.1 * W          # the hammer drives the string
+    fmu = _instance(string_fmu)
+    try:
+        worst = 0.0
+        for n in range(len(d) - 1):
+            fmu.set(hammer_position=d["hammer_position"][n], hammer_velocity=d["hammer_velocity"][n])
+            fmu.step(H)
+            F, held, hook = fmu.get("interface_force", "held_force", "hook_load")
+            worst = max(worst, abs(F - d["interface_force"][n + 1]), abs(hook - d["hook_load"][n + 1]))
+            if n + 2 < len(d):                                 # the force the hammer held next
+                worst = max(worst, abs(held - d["hammer_force"][n + 2]))
+        assert worst <= 1e-12 * W
+    finally:
+        fmu.close()
+
+
+def test_one_step_of_any_length_is_the_closed_form(string_fmu):
+    """A step of 12.3 ms with the hammer held still (extrapolation 0) against the matrix exponential
+    of the string side's own matrices (dense, independent of the modal form the FMU steps with)."""
+    import zipfile, io
+    from hammerbit.model.string_model import ARRAYS, SCALARS
+    with zipfile.ZipFile(string_fmu) as z, np.load(io.BytesIO(z.read("resources/string_model.npz"))) as a:
+        arr = {k: np.array(a[k]) for k in ARRAYS}
+    sc = dict(zip(SCALARS, arr["scalars"]))
+    A1, E, frow, rows3 = arr["A1"], arr["E"], arr["frow"], arr["rows3"]
+    ki, W = sc["interface_stiffness"], sc["wob"]
+    fmu = _instance(string_fmu, integers={"extrapolation": 0})
+    try:
+        x_rest = fmu.get("hammer_position")[0]
+        fmu.step(H)                                   # the first step: the hammer at rest
+        assert fmu.get("interface_force")[0] == pytest.approx(W, rel=1e-14)
+        dx, h = 1e-4, 0.0123
+        fmu.set(hammer_position=x_rest + dx, hammer_velocity=0.0)
+        fmu.step(h)
+        F, hook = fmu.get("interface_force", "hook_load")
+    finally:
+        fmu.close()
+    n = A1.shape[0]
+    Z = np.zeros((n + 1, n + 1))
+    Z[:n, :n] = A1
+    Z[:n, n] = E[:, 0] * dx
+    xi = sla.expm(Z * h)[:n, n]
+    F_ref = W + frow @ xi - ki * dx
+    assert abs(F - F_ref) <= 1e-8 * ki * dx
+    assert abs(hook - (sc["hook_load"] + rows3[2] @ xi)) <= 1e-8 * ki * dx
+
+
+def test_bad_parameter_and_bad_input_are_refused_naming_them(string_fmu):
+    fmu = _instance(string_fmu, damping_ratio=1.5)
+    try:
+        assert any("damping_ratio" in m and "1.5" in m and "[0, 1)" in m for _s, m in fmu.messages)
+        with pytest.raises(Exception):
+            fmu.step(H)
+    finally:
+        fmu.close()
+    fmu = _instance(string_fmu)
+    try:
+        fmu.step(H)
+        before = fmu.get("interface_force", "held_force", "hook_load")
+        fmu.set(hammer_position=math.nan)
+        with pytest.raises(Exception):
+            fmu.step(H)
+        assert any("hammer_position" in m and "nan" in m for _s, m in fmu.messages)
+        assert fmu.get("interface_force", "held_force", "hook_load") == before
+    finally:
+        fmu.close()
+
+
+def test_cli_build_string_bad_string_exits_2_naming_it(capsys):
+    code, _out, err = run_cli(["fmu", "build-string", "--string", "no-such-string"], capsys)
+    assert code == 2
+    assert "no-such-string" in err and "field-2200m" in err
