@@ -108,3 +108,30 @@ def test_cli_build_string_bad_string_exits_2_naming_it(capsys):
     code, _out, err = run_cli(["fmu", "build-string", "--string", "no-such-string"], capsys)
     assert code == 2
     assert "no-such-string" in err and "field-2200m" in err
+
+
+def test_damping_ratio_parameter_equals_a_string_built_with_it(string_fmu):
+    """The FMU at damping_ratio 0.05 (built at the file's 0.02) against the library's string side
+    built from the file with 0.05: the same run to rounding."""
+    from hammerbit.cosim.config import CosimConfig
+    from hammerbit.cosim.master import cosimulate
+    from hammerbit.drillstring import load_string
+    zeta = 0.05
+    string = load_string("field-2200m")
+    assert string.modal_damping_ratio != zeta
+    cfg = CosimConfig(stop=0.1, step=H, exchange="fmi", estimate=False,
+                      record=("hammer_position", "hammer_velocity", "interface_force"))
+    d = cosimulate(string.replace(modal_damping_ratio=zeta), cfg).data
+    d0 = cosimulate(string, cfg).data
+    W = cfg.weight_on_bit
+    fmu = _instance(string_fmu, damping_ratio=zeta)
+    try:
+        worst = 0.0
+        for n in range(len(d) - 1):
+            fmu.set(hammer_position=d["hammer_position"][n], hammer_velocity=d["hammer_velocity"][n])
+            fmu.step(H)
+            worst = max(worst, abs(fmu.get("interface_force")[0] - d["interface_force"][n + 1]))
+    finally:
+        fmu.close()
+    assert np.max(np.abs(d["interface_force"] - d0["interface_force"])) > 1e3 * 1e-9 * W   # it matters
+    assert worst <= 1e-9 * W
