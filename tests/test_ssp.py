@@ -15,11 +15,13 @@ SAME_RUN_REL = 1e-9
 
 
 @pytest.fixture(scope="module")
-def drilling_ssp(tmp_path_factory):
-    from hammerbit.cosim.config import field_hammer
-    from hammerbit.ssp.package import SSPOptions, build_ssp
-    return build_ssp("field-2200m", tmp_path_factory.mktemp("ssp") / "drilling.ssp",
-                     SSPOptions(stop=2.0, step=H, rig=field_hammer().replace(frequency=DRILLING_HZ)))
+def drilling_ssp(built_ssp):
+    """The drilling case (``conftest.built_ssp``): 22.5 Hz, 2 s, H = 1 ms."""
+    from hammerbit.ssp.document import read_ssd
+    with zipfile.ZipFile(built_ssp) as z:
+        sd = read_ssd(z.read("SystemStructure.ssd"))
+    assert sd.component("hammer").parameters["frequency"] == DRILLING_HZ and sd.step_size == H
+    return built_ssp
 
 
 def _ours(path, stop, **kw):
