@@ -1,5 +1,4 @@
 """drilling.ssp: one package, three runners (libcosimpy, FMPy's SSP runner, hammerbit cosim --ssp)."""
-import math
 import zipfile
 
 import pytest

@@ -136,3 +136,19 @@ def test_damping_ratio_parameter_equals_a_string_built_with_it(string_fmu):
         fmu.close()
     assert np.max(np.abs(d["interface_force"] - d0["interface_force"])) > 1e3 * 1e-9 * W   # it matters
     assert worst <= 1e-9 * W
+
+
+def test_model_description_lists_the_geometry_and_the_parameters(string_fmu):
+    from fmpy import read_model_description
+    from hammerbit.drillstring import load_string
+    string = load_string("field-2200m")
+    md = read_model_description(str(string_fmu), validate=False)
+    var = {v.name: v for v in md.modelVariables}
+    length = sum(s.length for s in string.sections)
+    assert float(var["string_length"].start) == pytest.approx(length, rel=1e-15)
+    assert var["string_length"].variability == "constant"
+    assert f"{length:g} m" in md.description and string.name in md.description
+    for name in ("damping_ratio", "wob", "hammer_position_at_rest", "extrapolation"):
+        assert var[name].causality == "parameter", name
+    assert float(var["damping_ratio"].start) == string.modal_damping_ratio
+    assert {v.name for v in md.outputs} >= {"interface_force", "held_force", "held_force_change", "hook_load"}

@@ -16,7 +16,7 @@ import time
 import warnings
 from pathlib import Path
 
-from hammerbit.cli.common import EXIT_INACCURATE, EXIT_OK, UsageError, add_set_argument
+from hammerbit.cli.common import EXIT_INACCURATE, EXIT_OK, UsageError, add_set_argument, parse_settings
 
 __all__ = ["register", "cmd_ssp_build", "cosim_ssp", "check_positive", "SSP_EXCLUSIVE"]
 
@@ -57,9 +57,11 @@ def cmd_ssp_build(args) -> int:
         raise UsageError(f"--wob = {args.wob!r} N: allowed [0, {weight:.6g}] N (the buoyed weight of "
                          f"{string.name!r})")
     rig = None
-    if args.set:
-        from hammerbit.cli.cosim import rig_from_args
-        rig = rig_from_args(args)
+    settings = parse_settings(args.set)
+    if settings:                          # as hammerbit cosim --set: changes of the field hammer
+        from hammerbit.cosim.config import field_hammer
+        from hammerbit.model.params import apply_settings
+        rig = apply_settings(field_hammer().to_groups(), settings).to_rig()
     out = Path(args.out)
     if out.is_dir():
         out = out / "drilling.ssp"
