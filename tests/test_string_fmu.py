@@ -151,4 +151,4 @@ def test_model_description_lists_the_geometry_and_the_parameters(string_fmu):
     for name in ("damping_ratio", "wob", "hammer_position_at_rest", "extrapolation"):
         assert var[name].causality == "parameter", name
     assert float(var["damping_ratio"].start) == string.modal_damping_ratio
-    assert {v.name for v in md.outputs} >= {"interface_force", "held_force", "held_force_change", "hook_load"}
+    assert {v.variable.name for v in md.outputs} >= {"interface_force", "held_force", "held_force_change", "hook_load"}
