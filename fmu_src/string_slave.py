@@ -248,11 +248,11 @@ class Drillstring(Fmi2Slave):
         if st.modal:
             exchange_step(False, self._order, h, True, _EMPTY_P, _EMPTY_F, _EMPTY_F, _EMPTY_F, d.m_d, d.m_G,
                           d.m_irow, d.m_icol, st.v, side.m_frow, side.ki, side.ci, self._W, self._th,
-                          self._wh, self._Fh, 0.0, 0.0, self._F_held, self._c, self._sc, True)
+                          self._wh, self._Fh, 0.0, 0.0, self._F_held, self._c, self._sc, side.feed, True)
         else:
             exchange_step(False, self._order, h, False, d.P, st.v, st.buf, st.tmp, _EMPTY_C, _EMPTY_C2,
                           _EMPTY_C, _EMPTY_F, _EMPTY_C, side.frow, side.ki, side.ci, self._W, self._th,
-                          self._wh, self._Fh, 0.0, 0.0, self._F_held, self._c, self._sc, True)
+                          self._wh, self._Fh, 0.0, 0.0, self._F_held, self._c, self._sc, side.feed, True)
         self._F_held = held_force(self._order, self._th, self._Fh, h, self._w)
 
     def _set_outputs(self) -> None:

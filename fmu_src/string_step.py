@@ -24,6 +24,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Optional
 
+import contextlib
+
 import numpy as np
 from numba import njit
 
@@ -31,7 +33,7 @@ from . import _numba_cache  # noqa: F401  (registers the content-hash cache loca
 
 __all__ = ["ExactStep", "Discretisation", "StringState", "string_step_dense", "string_step_modal",
            "held_weights", "held_force", "coefficients", "exchange_step", "N_COEFFS",
-           "MODAL_TOLERANCE", "step_key"]
+           "MODAL_TOLERANCE", "step_key", "one_blas_thread"]
 
 #: Taylor coefficients of the hammer motion over a step: (x, v, x', v', x'', v'')
 N_COEFFS = 6
@@ -41,6 +43,17 @@ MODAL_TOLERANCE = 1e-10
 _KEY_DIGITS = 12
 #: squaring depth: a step h may be built from a cached step h / 2^k, k up to this
 _MAX_SQUARINGS = 12
+
+
+def one_blas_thread():
+    """The string's dense linear algebra on one BLAS thread (a context): a 441-state eigenproblem
+    is several times slower with the default thread pool on a loaded machine, and one thread
+    gives the same bits in every process."""
+    try:
+        from threadpoolctl import threadpool_limits  # noqa: PLC0415 -- optional in an FMU's host
+    except ImportError:
+        return contextlib.nullcontext()
+    return threadpool_limits(limits=1, user_api="blas")
 
 
 def step_key(h: float) -> float:
@@ -81,18 +94,23 @@ class ExactStep:
         Hook load of the equilibrium [N] (added to the tension row).
     dense : bool
         Never use the modal form.
+    feed : (2,) array, optional
+        ``(V, t0)`` of a feed top: the block moves down as ``V (t - t0)`` and the string's
+        state is relative to it (default: no feed).
 
     Subclasses may override :meth:`decompose` and :meth:`exponential` (the library
     remembers them across sides built from the same matrices).
     """
 
-    def __init__(self, A1, E, frow, ki: float, ci: float, rows3, hook_eq: float, *, dense: bool = False):
+    def __init__(self, A1, E, frow, ki: float, ci: float, rows3, hook_eq: float, *, dense: bool = False,
+                 feed=None):
         self.A1 = np.ascontiguousarray(A1, dtype=float)
         self.E = np.ascontiguousarray(E, dtype=float)
         self.frow = np.ascontiguousarray(frow, dtype=float)
         self.ki, self.ci = float(ki), float(ci)
         self.rows3 = np.ascontiguousarray(rows3, dtype=float)
         self.hook_eq = float(hook_eq)
+        self.feed = np.zeros(2) if feed is None else np.asarray(feed, dtype=float).copy()
         self.n = self.A1.shape[0]
         self._disc = {}
         self._phi = {}                # step length -> expm(Z h) (the squaring base of longer steps)
@@ -103,13 +121,15 @@ class ExactStep:
     # -- hooks -----------------------------------------------------------------
     def decompose(self):
         """``(lam, V, V^-1)`` of ``A1`` (raises ``LinAlgError`` when it has none)."""
-        lam, V = np.linalg.eig(self.A1)
-        return lam, V, np.linalg.inv(V)
+        with one_blas_thread():
+            lam, V = np.linalg.eig(self.A1)
+            return lam, V, np.linalg.inv(V)
 
     def exponential(self, Z: np.ndarray, h: float) -> np.ndarray:
         """``expm(Z h)``."""
         import scipy.linalg as sla  # noqa: PLC0415 -- a slow import, needed only here
-        return sla.expm(Z * h)
+        with one_blas_thread():
+            return sla.expm(Z * h)
 
     def eigen(self):
         """:meth:`decompose`, once; False when ``A1`` has no eigenbasis."""
@@ -126,7 +146,8 @@ class ExactStep:
         key = step_key(h)
         d = self._disc.get(key)
         if d is None:
-            d = self._disc[key] = self._discretise(key)
+            with one_blas_thread():
+                d = self._disc[key] = self._discretise(key)
         return d
 
     def _discretise(self, h: float) -> Discretisation:
@@ -230,12 +251,16 @@ class StringState:
             return float((s.m_frow @ self.v).real)
         return float(s.frow @ self.v)
 
-    def outputs(self) -> np.ndarray:
+    def outputs(self, t: Optional[float] = None) -> np.ndarray:
         """(displacement deviation [m], velocity [m/s]) of the string's bottom node and the
-        hook load [N], in one product."""
+        hook load [N] at time ``t`` [s] (it places a feed's block), in one product."""
         s = self.side
         o = (s.m_rows3 @ self.v).real if self.modal else s.rows3 @ self.v
         o[2] += s.hook_eq
+        V, t0 = s.feed
+        if V != 0.0 and t is not None:
+            o[0] += V * (t - t0)
+            o[1] += V
         return o
 
     def copy_state(self):
@@ -352,7 +377,7 @@ def coefficients(gs, order, a, a2, h, wh, x_new, v_new, c):
 
 @njit(cache=True)
 def exchange_step(gs, order, h, modal, P, xi, buf, tmp, d, G, irow, icol, eta, frow, ki, ci, W,
-                  th, wh, Fh, x_new, v_new, F_held, c, out, fmi):
+                  th, wh, Fh, x_new, v_new, F_held, c, out, feed, fmi):
     """One macro step of the string side after the hammer's step.
 
     ``th`` (3,): communication times t_n, t_{n-1}, t_{n-2}; ``wh`` (3, 2): hammer
@@ -360,7 +385,10 @@ def exchange_step(gs, order, h, modal, P, xi, buf, tmp, d, G, irow, icol, eta, f
     Taylor coefficients of the hammer motion, advances the string (modal ``eta``
     or dense ``xi``), shifts the histories and writes ``out = [F(t_{n+1}), energy
     residual of the step, frow.xi at t_{n+1}, force defect F_held - mean F_i]``;
-    ``out[2]`` on entry is ``frow.xi`` at ``t_n``.
+    ``out[2]`` on entry is ``frow.xi`` at ``t_n``.  ``feed = (V, t0)``: the block of a
+    feed top moves as ``V (t - t0)``; the string sees the hammer relative to it, an
+    exact polynomial whatever the extrapolation order (``V = 0``: a fixed hook, or an
+    auto-driller whose block is a state of the string side).
 
     ``fmi``: the interface force at ``t_{n+1}`` takes the hammer motion of the
     step's own polynomial at ``t_{n+1}`` instead of the new value ``(x_new, v_new)``:
@@ -370,6 +398,11 @@ def exchange_step(gs, order, h, modal, P, xi, buf, tmp, d, G, irow, icol, eta, f
     a = th[0] - th[1]
     a2 = th[1] - th[2]
     coefficients(gs, order, a, a2, h, wh, x_new, v_new, c)
+    V = feed[0]
+    u_top = V * (th[0] - feed[1])
+    c[0] -= u_top
+    c[1] -= V
+    c[2] -= V
     F_start = W + out[2] - ki * c[0] - ci * c[1]
     if modal:
         imp, f_xi = string_step_modal(d, G, irow, icol, eta, c, frow)
@@ -384,9 +417,9 @@ def exchange_step(gs, order, h, modal, P, xi, buf, tmp, d, G, irow, icol, eta, f
     xe = c[0] + c[2] * h + 0.5 * c[4] * h * h
     ve = c[1] + c[3] * h + 0.5 * c[5] * h * h
     F_end = W + f_xi - ki * xe - ci * ve
-    e_string = 0.5 * h * (F_start * c[1] + F_end * ve)
+    e_string = 0.5 * h * (F_start * (c[1] + V) + F_end * (ve + V))
     e_hammer = F_held * (x_new - wh[0, 0])
-    F = F_end if fmi else W + f_xi - ki * x_new - ci * v_new
+    F = F_end if fmi else W + f_xi - ki * (x_new - (u_top + V * h)) - ci * (v_new - V)
     for j in (2, 1):
         th[j] = th[j - 1]
         wh[j, 0] = wh[j - 1, 0]

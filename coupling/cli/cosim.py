@@ -1,7 +1,8 @@
 """``hammerbit cosim``: the co-simulation from the command line (``sweep``: :mod:`hammerbit.cli.studies`).
 
 ``hammerbit cosim --string FILE [--fmu dist/HammerBitRock.fmu] --stop T [--step H | --tol TOL]
-[--scheme jacobi|gauss-seidel] [--extrapolation 0|1|2] [--ramp S] [--monolithic] [--json] [--out results.csv]``
+[--scheme jacobi|gauss-seidel] [--extrapolation 0|1|2] [--ramp S] [--top fixed|feed:RATE|auto-driller]
+[--monolithic] [--json] [--out results.csv]``
 
 ``--string`` takes a TOML file or a built-in example name (``field-2200m``).
 Without ``--fmu`` the hammer runs in process (the FMU's own kernels,
@@ -27,7 +28,7 @@ import time
 
 from hammerbit.cli.common import EXIT_INACCURATE, EXIT_OK, UsageError, add_set_argument, parse_settings
 
-__all__ = ["register", "cmd_cosim", "add_hammer_options", "add_cosim_options", "config_from_args",
+__all__ = ["register", "cmd_cosim", "add_hammer_options", "add_cosim_options", "config_from_args", "top_from_args",
            "load_string_arg", "fmu_arg"]
 
 
@@ -58,7 +59,24 @@ def add_cosim_options(p, *, string_required: bool = True) -> None:
     p.add_argument("--harmonic-source", default="fmu", choices=["fmu", "master"],
                    help="harmonic force from the FMU's internal source (default) or computed by the "
                         "master and fed to the FMU's harmonic_force input (step mean, zero-order hold)")
+    p.add_argument("--top", dest="top_condition", default="fixed", metavar="CONDITION",
+                   help="how the hook moves: fixed (default), feed:RATE (the block lowered at RATE m/h) or "
+                        "auto-driller[:kp=KP,ki=KI] (a PI controller on the hook load that holds the WOB "
+                        "of --wob; gains in m/s per N and m/s per N s, default tuned from the string's "
+                        "stiffness)")
     add_hammer_options(p)
+
+
+def top_from_args(args):
+    """The :class:`~hammerbit.drillstring.top.TopCondition` of ``--top`` (errors exit 2)."""
+    from hammerbit.drillstring.top import TopCondition
+    text = getattr(args, "top_condition", None)
+    if text is None:
+        return TopCondition.fixed()
+    try:
+        return TopCondition.parse(text, where="--top")
+    except ValueError as e:
+        raise UsageError(str(e)) from None
 
 
 def rig_from_args(args):
@@ -80,7 +98,7 @@ def config_from_args(args, **extra):
     from hammerbit.model.validation import ParameterError
     from hammerbit.cosim.config import CosimConfig
     rig = rig_from_args(args)
-    kw = {"rig": rig, "wob": getattr(args, "wob", None)}
+    kw = {"rig": rig, "wob": getattr(args, "wob", None), "top": top_from_args(args)}
     for name in ("scheme", "extrapolation", "f_max", "harmonic_source", "ramp"):
         if getattr(args, name, None) is not None:
             kw[name] = getattr(args, name)

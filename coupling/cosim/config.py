@@ -17,6 +17,7 @@ from hammerbit.model.params import RIG, RigParameters, Scales
 from hammerbit.model.validation import check as _check
 
 from hammerbit.cosim.error import CouplingErrorEstimate
+from hammerbit.drillstring.top import TopCondition
 
 __all__ = ["SCHEMES", "EXCHANGES", "HAMMER_INPUTS", "RECORDABLE", "CouplingInstabilityError", "field_hammer", "CosimConfig",
            "CosimResult", "steady_start", "event_counts", "record_dtype"]
@@ -168,6 +169,10 @@ class CosimConfig:
         Progress bar on stderr (tqdm; None: only for runs above 20000 steps on a terminal).
     rtol : float
         Tolerance of the in-process hammer / the monolithic reference.
+    top : TopCondition
+        How the hook moves (:mod:`hammerbit.drillstring.top`): ``fixed`` (default),
+        a constant ``feed`` or the ``auto-driller`` (a PI controller on the hook
+        load holding the static WOB ``wob``).
     """
 
     stop: float = 1.0
@@ -210,6 +215,7 @@ class CosimConfig:
     hammer_input: str = "preload"
     """Where the FMU hammer gets the held interface force: ``preload``, or ``harmonic_force``
     (its change from the WOB, with ``preload`` held at the WOB: the SSP package's wiring)."""
+    top: TopCondition = field(default_factory=TopCondition)
     harmonic_source: str = "fmu"
     """``fmu``: the FMU's internal harmonic source (continuous in time);
     ``master``: the master computes the harmonic force and feeds its mean over
@@ -230,6 +236,9 @@ class CosimConfig:
         if self.hammer_input == "harmonic_force" and (self.harmonic_source == "master" or self.ramp > 0.0):
             raise ValueError("hammer_input = 'harmonic_force' takes the hammer's harmonic_force input: "
                              "allowed only with harmonic_source = 'fmu' and ramp = 0")
+        if not isinstance(self.top, TopCondition):
+            raise ValueError(f"top = {self.top!r}: a hammerbit.drillstring.top.TopCondition "
+                             f"(TopCondition.parse('auto-driller'), ...)")
         if self.harmonic_source not in ("fmu", "master"):
             raise ValueError(f"harmonic_source = {self.harmonic_source!r}: allowed 'fmu', 'master'")
         for key, name in (("cosim.step", "step"), ("cosim.start", "start"), ("cosim.stop", "stop"),
@@ -368,6 +377,9 @@ class CosimResult:
         if "wob" in self.data.dtype.names:
             out["wob_mean_n"] = self.wob_mean(t_from)
             out["wob_amplitude_n"] = self.wob_amplitude(t_from)
+        out["top"] = self.config.top.to_dict()
+        if "auto_driller" in self.stats:
+            out["top"].update(self.stats["auto_driller"])
         out["counts"] = dict(self.counts)
         if self.estimate is not None:
             out["error_estimate"] = self.estimate.to_dict()

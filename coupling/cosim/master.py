@@ -360,6 +360,8 @@ def _run(side: StringSide, c: CosimConfig, *, fmu, hammer, defect_tol) -> CosimR
         stats = watch.stats()
         stats["string_states"] = side.n
         stats["modal"] = bool(side.modal)
+        if side.gains is not None:
+            stats["auto_driller"] = side.gains.to_dict()
         stats.update({"hammer_steps": steps, "companion_steps": csteps, "rollbacks": rejected,
                       "state_saves": saves})
         if c.adaptive:

@@ -50,22 +50,27 @@ def monolithic(string, config=None):
     F0, x0, Om, v0 = s.friction_force, s.length, s.omega, s.velocity
     W = side.wob
     n = side.n
-    nq = n // 2
-    D = np.r_[np.full(nq, x0), np.full(n - nq, v0)]
+    scale = {"x": x0, "v": v0, "z": F0 / Om}
+    D = np.array([scale[k] for k in side.matrices.kinds])
     x1eq = W / F0  # hammer position [x0] with the bit at 0: spring compressed by W/K
-    # z = [xi / D, 1]
-    A = np.zeros((n + 1, n + 1))
+    V = float(side.feed[0])
+    # z = [xi / D, u_feed / x0, 1]: a feed's block is one more state, u' = V (exact for the solver)
+    iu, ic = n, n + 1
+    A = np.zeros((n + 2, n + 2))
     A[:n, :n] = (side.A1 * D[None, :]) / D[:, None] / Om
     Hm = (side.E * np.array([x0, v0])[None, :]) / D[:, None] / Om
-    A[:n, n] = -Hm[:, 0] * x1eq
-    Hz = np.zeros((n + 1, 2))
+    A[:n, ic] = -Hm[:, 0] * x1eq - Hm[:, 1] * V / v0   # the hammer relative to the block
+    A[:n, iu] = -Hm[:, 0]
+    A[iu, ic] = V / v0
+    Hz = np.zeros((n + 2, 2))
     Hz[:n] = Hm
-    G = np.zeros(n + 1)
+    G = np.zeros(n + 2)
     G[:n] = side.frow * D / F0
-    G[n] = (W + side.ki * x0 * x1eq) / F0
+    G[iu] = side.ki * x0 / F0
+    G[ic] = (W + side.ki * x0 * x1eq + side.ci * V) / F0
     g = np.array([-side.ki * x0 / F0, -side.ci * v0 / F0])
-    z0 = np.zeros(n + 1)
-    z0[n] = 1.0
+    z0 = np.zeros(n + 2)
+    z0[ic] = 1.0
     lin = LinearSubsystem(A=A, H=Hz, G=G, g=g, z0=z0)
     grp = rig.to_groups().replace(b=0.0)
     st = Stepper(grp, solver=SolverOptions(rtol=c.rtol, atol=c.rtol * 1e-2), linear=lin,

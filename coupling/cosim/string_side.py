@@ -29,7 +29,7 @@ from typing import Optional
 
 import numpy as np
 
-from hammerbit.model.string_step import ExactStep, string_step_dense, string_step_modal
+from hammerbit.model.string_step import ExactStep, one_blas_thread, string_step_dense, string_step_modal
 from hammerbit.model.string_step import StringState as RunState
 
 __all__ = ["StringSide", "StringState", "string_step_dense", "string_step_modal"]
@@ -91,22 +91,28 @@ class StringSide(ExactStep):
 
     def __init__(self, string, config):
         from hammerbit.drillstring import Boundary, state_space
+        from hammerbit.drillstring.top import top_matrices
         self.config = config
         ki, ci = config.interface_stiffness, config.interface_damping
         self.wob = config.weight_on_bit
-        ss = state_space(string, None, Boundary.hammer(ki, ci), mass=config.mass,
-                         wob=self.wob, f_max=config.f_max)
+        with one_blas_thread():
+            ss = state_space(string, None, Boundary.hammer(ki, ci), mass=config.mass,
+                             wob=self.wob, f_max=config.f_max)
         if ss.x0 is None:
             raise ValueError("the string has a rigid-body mode: the top must hold it (fixed or spring hook)")
         self.ss = ss
-        B = ss.B[:, 0]
-        self.Cu, self.Cv, self.Ct = ss.C[0].copy(), ss.C[1].copy(), ss.C[2].copy()
-        A1 = ss.A - np.outer(B, ki * self.Cu + ci * self.Cv)
-        E = np.column_stack((B * ki, B * ci))
-        frow = ki * self.Cu + ci * self.Cv      # F_i - W = frow.xi - ki x_dev - ci v
+        m = top_matrices(string, ss, config.top, interface_stiffness=ki, interface_damping=ci,
+                         hammer_stiffness=config.rig.stiffness, mass=config.mass)
+        self.matrices = m
+        self.top = m.top
+        self.gains = m.gains
+        self.Cu, self.Cv, self.Ct = m.Cu, m.Cv, m.Ct
         rows3 = np.vstack((self.Cu, self.Cv, self.Ct))  # bit u, v; top tension
-        super().__init__(A1, E, frow, ki, ci, rows3, float(ss.hook_load),
-                         dense=config.string_step == "dense")
+        # F_i - W = frow.xi - ki x_dev - ci v; the feed's (velocity [m/s], start time [s]): the block
+        # is at V (t - t0)
+        super().__init__(m.A1, m.E, m.frow, ki, ci, rows3, float(ss.hook_load),
+                         dense=config.string_step == "dense",
+                         feed=np.array([m.feed_velocity, float(config.start)]))
         self.xi = np.zeros(self.n)    # state of :meth:`step` (the single-run helper)
 
     @classmethod
@@ -121,6 +127,7 @@ class StringSide(ExactStep):
         A1, E, frow, rows3 = string_matrices(arrays, damping_ratio)
         sc = arrays["scalars"]
         self.Cu, self.Cv, self.Ct = (np.array(r) for r in rows3)
+        self.matrices, self.top, self.gains = None, config.top, None
         ExactStep.__init__(self, A1, E, frow, sc["interface_stiffness"], sc["interface_damping"], rows3,
                            sc["buoyed_weight"] - self.wob, dense=config.string_step == "dense")
         self.xi = np.zeros(self.n)
