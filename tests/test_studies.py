@@ -23,7 +23,10 @@ from hypothesis import strategies as st
 
 from cli_run import run_cli
 from hammerbit.scene.analysis import detect_period
-from hammerbit.model.params import ParameterError, apply_settings, preset, regime
+from hammerbit.model.presets import preset
+from hammerbit.model.regime import regime
+from hammerbit.model.settings import apply_settings
+from hammerbit.model.validation import ParameterError
 from hammerbit.scene.simulate import Record, simulate
 from hammerbit.studies.bifurcation import bifurcation, penetration_sweep
 from hammerbit.studies.executor import ExecutorOptions, chunk_bounds, chunk_plan
