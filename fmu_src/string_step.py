@@ -29,7 +29,7 @@ import contextlib
 import numpy as np
 from numba import njit
 
-from . import _numba_cache  # noqa: F401  (registers the content-hash cache locator)
+from . import numba_cache  # noqa: F401  (registers the content-hash cache locator)
 
 __all__ = ["ExactStep", "Discretisation", "StringState", "string_step_dense", "string_step_modal",
            "held_weights", "held_force", "coefficients", "exchange_step", "N_COEFFS",

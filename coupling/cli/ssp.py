@@ -60,7 +60,7 @@ def cmd_ssp_build(args) -> int:
     settings = parse_settings(args.set)
     if settings:                          # as hammerbit cosim --set: changes of the field hammer
         from hammerbit.cosim.config import field_hammer
-        from hammerbit.model.params import apply_settings
+        from hammerbit.model.settings import apply_settings
         rig = apply_settings(field_hammer().to_groups(), settings).to_rig()
     out = Path(args.out)
     if out.is_dir():

@@ -47,7 +47,7 @@ _ctypes.pythonapi.Py_IncRef.argtypes = [_ctypes.py_object]
 _ctypes.pythonapi.Py_IncRef.restype = None
 _ctypes.pythonapi.Py_IncRef(globals())
 
-import {pkg}._numba_cache  # noqa: E402,F401  (picks the CPU target before numba is imported)
+import {pkg}.numba_cache  # noqa: E402,F401  (picks the CPU target before numba is imported)
 from {pkg}.string_slave import {model}  # noqa: E402,F401
 '''
 
@@ -130,7 +130,7 @@ def _runtime_files() -> list:
     from hammerbit import model
     files = sorted(Path(model.__file__).resolve().parent.glob("*.py"))
     names = {p.name for p in files}
-    for required in ("string_slave.py", "string_step.py", "string_model.py", "_numba_cache.py"):
+    for required in ("string_slave.py", "string_step.py", "string_model.py", "numba_cache.py"):
         if required not in names:
             from hammerbit.fmu.build import FMUBuildError
             raise FMUBuildError(f"the runtime package lacks {required}")
