@@ -24,7 +24,10 @@ Causality (see ``docs/cosim.md``):
   zero-initialised connector is the equilibrium), and at the top
   ``hook_load``, ``top_position``, ``top_velocity``.
 * **Parameters** (fixed): ``damping_ratio`` of every string mode, ``wob`` of
-  the static equilibrium, ``hammer_position_at_rest``, ``extrapolation``.  The
+  the static equilibrium, ``hammer_position_at_rest``, ``extrapolation``, and
+  the top: ``top_condition`` (0 fixed hook, 1 constant feed at
+  ``feed_velocity``, 2 auto-driller with ``proportional_gain`` and
+  ``integral_gain``, a PI controller on the hook load holding ``wob``).  The
   geometry is fixed at build time (constants and the description).
 
 Bad parameters are refused at ``fmi2ExitInitializationMode`` and bad inputs
@@ -40,13 +43,19 @@ from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Initial, Fmi2Slave, 
     Real
 from pythonfmu.enums import Fmi2Status
 
-from .string_model import load_model, string_matrices
+from .string_model import TOP_CONDITIONS, form_of, load_model, string_matrices
 from .string_step import ExactStep, StringState, exchange_step, held_force
 
 __all__ = ["Drillstring", "INPUT_LIMIT"]
 
 #: largest input magnitude accepted (position [m], velocity [m/s])
 INPUT_LIMIT = 1e6
+#: largest feed velocity accepted [m/s] (1000 m/h, as the library's top conditions)
+MAX_FEED = 1000.0 / 3600.0
+#: largest auto-driller gain accepted (SI: m/s per N, m/s per N s), as the library's
+MAX_GAIN = 1.0
+#: rows of the string side's outputs
+ROW_HOOK, ROW_TOP_U, ROW_TOP_V = 2, 3, 4
 #: the extrapolation orders of the hammer motion and the held force
 ORDERS = (0, 1, 2)
 #: relative tolerance on the communication point (a master computing t0 + n h is fine)
@@ -68,12 +77,16 @@ class Drillstring(Fmi2Slave):
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
         self._arrays, self._info = load_model(str(self.resources))
-        sc = self._arrays["scalars"]
+        sc = self._info["scalars"]
         self.description = self._info.get("description", "")
         self.damping_ratio = sc["damping_ratio"]
         self.wob = sc["wob"]
         self.hammer_position_at_rest = float(self._info["hammer_position_at_rest"])
         self.extrapolation = 2
+        self.top_condition = int(self._info["top_condition"])
+        self.feed_velocity = float(self._info["feed_velocity"])
+        self.proportional_gain = float(self._info["proportional_gain"])
+        self.integral_gain = float(self._info["integral_gain"])
         self.hammer_position = self.hammer_position_at_rest
         self.hammer_velocity = 0.0
         self.interface_force = sc["wob"]
@@ -86,7 +99,7 @@ class Drillstring(Fmi2Slave):
         self.interface_stiffness = sc["interface_stiffness"]
         self.interface_damping = sc["interface_damping"]
         self.buoyed_weight = sc["buoyed_weight"]
-        self.string_states = int(self._arrays["A1"].shape[0])
+        self.string_states = int(sc["string_states"])
         self._t = 0.0
         self._t_start = 0.0
         self._ready = False
@@ -104,6 +117,16 @@ class Drillstring(Fmi2Slave):
                                     "static equilibrium [m] (the hammer's initial_hammer_position)", **fixed))
         self.register_variable(Integer("extrapolation", description="polynomial order of the hammer "
                                        "motion over a step and of the held force: 0, 1 or 2", **fixed))
+        self.register_variable(Integer("top_condition", description="the top: 0 fixed hook, 1 constant feed "
+                                       "(feed_velocity), 2 auto-driller (PI on the hook load holding wob)",
+                                       **fixed))
+        self.register_variable(Real("feed_velocity", description="top_condition 1: downward velocity of "
+                                    f"the block [m/s]; [-{MAX_FEED:.4g}, {MAX_FEED:.4g}] (1000 m/h)", **fixed))
+        self.register_variable(Real("proportional_gain", description="top_condition 2: k_p of the "
+                                    "auto-driller [m/s per N of hook-load error]; [0, 1] (default: the "
+                                    "build's tuning from the string's stiffness)", **fixed))
+        self.register_variable(Real("integral_gain", description="top_condition 2: k_i of the auto-driller "
+                                    "[m/s per N s]; [0, 1] (default: the build's tuning)", **fixed))
         for name, desc in (("hammer_position", "hammer position at the step's start [m], downward"),
                            ("hammer_velocity", "hammer velocity at the step's start [m/s], downward")):
             self.register_variable(Real(name, causality=Fmi2Causality.input,
@@ -163,6 +186,23 @@ class Drillstring(Fmi2Slave):
                 return f"parameter {name!r} = {value!r} is out of range: allowed {text}"
         if int(self.extrapolation) not in ORDERS:
             return f"parameter 'extrapolation' = {self.extrapolation!r} is out of range: allowed 0, 1, 2"
+        if not 0 <= int(self.top_condition) < len(TOP_CONDITIONS):
+            return (f"parameter 'top_condition' = {self.top_condition!r} is out of range: allowed 0 (fixed), "
+                    f"1 (feed), 2 (auto-driller)")
+        v = float(self.feed_velocity)
+        if not (math.isfinite(v) and abs(v) <= MAX_FEED):
+            return (f"parameter 'feed_velocity' = {self.feed_velocity!r} is out of range: allowed "
+                    f"[-{MAX_FEED:.4g}, {MAX_FEED:.4g}] m/s (1000 m/h)")
+        if v != 0.0 and TOP_CONDITIONS[int(self.top_condition)] != "feed":
+            return (f"parameter 'feed_velocity' = {self.feed_velocity!r}: only top_condition = 1 (feed) takes "
+                    f"a feed velocity; allowed 0 with top_condition = {int(self.top_condition)}")
+        for name in ("proportional_gain", "integral_gain"):
+            g = float(getattr(self, name))
+            if not (math.isfinite(g) and 0.0 <= g <= MAX_GAIN):
+                return f"parameter {name!r} = {getattr(self, name)!r} is out of range: allowed [0, {MAX_GAIN:g}]"
+        if form_of(self.top_condition) not in self._arrays["forms"]:
+            return (f"parameter 'top_condition' = {self.top_condition!r}: this string has no auto-driller "
+                    f"({self._info.get('auto_driller_refused')}); allowed 0 (fixed), 1 (feed)")
         return None
 
     # -- life cycle ----------------------------------------------------------------
@@ -177,22 +217,27 @@ class Drillstring(Fmi2Slave):
             self._error = f"initialisation failed: {bad}"
             self._fail(self._error)
             return
-        A1, E, frow, rows3 = string_matrices(self._arrays, self.damping_ratio)
-        sc = self._arrays["scalars"]
+        values = {"damping_ratio": float(self.damping_ratio), "proportional_gain": float(self.proportional_gain),
+                  "integral_gain": float(self.integral_gain)}
+        A1, E, frow, rows = string_matrices(self._arrays, form_of(self.top_condition), values)
+        sc = self._info["scalars"]
         self._W = float(self.wob)
         self._hook_eq = sc["buoyed_weight"] - self._W
-        self._side = ExactStep(A1, E, frow, sc["interface_stiffness"], sc["interface_damping"], rows3,
-                               self._hook_eq)
+        feed = float(self.feed_velocity) if TOP_CONDITIONS[int(self.top_condition)] == "feed" else 0.0
+        self._side = ExactStep(A1, E, frow, sc["interface_stiffness"], sc["interface_damping"], rows,
+                               self._hook_eq, feed=(feed, self._t_start))
         self._order = int(self.extrapolation)
         self._state = None                        # made at the first step (its length decides the form)
         self._hist = np.zeros(16)
         self._th, self._wh = self._hist[0:3], self._hist[3:9].reshape(3, 2)
         self._Fh, self._sc = self._hist[9:12], self._hist[12:16]
-        self._Fh[:] = self._W
-        self._sc[0] = self._W
+        # the string moves with a feed's block from the start, the hammer rests: the interface dashpot
+        F0 = self._W + sc["interface_damping"] * feed
+        self._Fh[:] = F0
+        self._sc[0] = F0
         self._w = np.zeros(3)
         self._c = np.zeros(6)
-        self._F_held = self._W
+        self._F_held = F0
         self._t = self._t_start
         self._ready = True
         self._error = None
@@ -237,7 +282,7 @@ class Drillstring(Fmi2Slave):
             self._wh[:] = (x, v)
         self._wh[0, 0], self._wh[0, 1] = x, v
         self._exchange(h)
-        self._t = self._t_start + (t + h - self._t_start) if first else t + h
+        self._t = t + h
         self._set_outputs()
         return True
 
@@ -259,7 +304,12 @@ class Drillstring(Fmi2Slave):
         self.interface_force = float(self._sc[0])
         self.held_force = float(self._F_held)
         self.held_force_change = float(self._F_held - self._W)
-        if self._state is None:
+        V, t0 = self._side.feed
+        if self._state is None:               # the static equilibrium (a feed's block at its start)
             self.hook_load = self._hook_eq
-        else:
-            self.hook_load = float(self._state.outputs()[2])
+            self.top_position, self.top_velocity = 0.0, float(V)
+            return
+        o = self._state.outputs(self._t)
+        self.hook_load = float(o[ROW_HOOK])
+        self.top_position = float(o[ROW_TOP_U] + V * (self._t - t0))
+        self.top_velocity = float(o[ROW_TOP_V] + V)

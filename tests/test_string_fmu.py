@@ -25,20 +25,31 @@ def _instance(path, *, integers=None, **reals):
     return fmu
 
 
-def test_string_fmu_equals_the_library_string_side_step_for_step(string_fmu):
-    """The master's run (exchange='fmi') recorded; the FMU fed the same hammer motion gives the same
-    interface force, held force and hook load at every communication point."""
+#: the top conditions as the FMU's parameters: (top_condition, feed_velocity [m/s])
+TOPS = {"fixed": (0, 0.0), "feed": (1, 60.0 / 3600.0), "auto-driller": (2, 0.0)}
+
+
+@pytest.mark.parametrize("top", list(TOPS))
+def test_string_fmu_equals_the_library_string_side_step_for_step(string_fmu, top):
+    """The master's run (exchange='fmi', the same top condition) recorded; the FMU fed the same hammer
+    motion gives the same interface force, held force and hook load at every communication point."""
     from hammerbit.cosim.config import CosimConfig
     from hammerbit.cosim.master import cosimulate
     from hammerbit.drillstring import load_string
-    cfg = CosimConfig(stop=STOP, step=H, exchange="fmi", estimate=False,
+    from hammerbit.drillstring.top import TopCondition
+    kind, V = TOPS[top]
+    fmu = _instance(string_fmu, feed_velocity=V, integers={"top_condition": kind})
+    kp, ki = fmu.get("proportional_gain", "integral_gain")     # the build's default tuning
+    condition = {"fixed": TopCondition.fixed(), "feed": TopCondition.feed(V),
+                 "auto-driller": TopCondition.auto_driller(kp, ki)}[top]
+    cfg = CosimConfig(stop=STOP, step=H, exchange="fmi", estimate=False, top=condition,
                       record=("hammer_position", "hammer_velocity", "interface_force", "hammer_force",
                               "hook_load"))
     d = cosimulate(load_string("field-2200m"), cfg).data
     W = cfg.weight_on_bit
     assert np.ptp(d["interface_force"]) > 0.1 * W          # the hammer drives the string
-    fmu = _instance(string_fmu)
     try:
+        assert fmu.get("interface_force")[0] == d["interface_force"][0]
         worst = 0.0
         for n in range(len(d) - 1):
             fmu.set(hammer_position=d["hammer_position"][n], hammer_velocity=d["hammer_velocity"][n])
@@ -48,19 +59,29 @@ def test_string_fmu_equals_the_library_string_side_step_for_step(string_fmu):
             if n + 2 < len(d):                                 # the force the hammer held next
                 worst = max(worst, abs(held - d["hammer_force"][n + 2]))
         assert worst <= 1e-12 * W
+        u_top, v_top = fmu.get("top_position", "top_velocity")
+        if top == "feed":
+            assert (u_top, v_top) == pytest.approx((V * STOP, V), rel=1e-12)
+        elif top == "fixed":
+            assert (u_top, v_top) == (0.0, 0.0)
+        else:                     # the auto-driller lowers the block as the bit drills and unloads
+            assert u_top > 0.0
     finally:
         fmu.close()
 
 
-def test_one_step_of_any_length_is_the_closed_form(string_fmu):
+def test_one_step_of_any_length_is_the_closed_form(string_fmu, tmp_path):
     """A step of 12.3 ms with the hammer held still (extrapolation 0) against the matrix exponential
     of the string side's own matrices (dense, independent of the modal form the FMU steps with)."""
-    import zipfile, io
-    from hammerbit.model.string_model import ARRAYS, SCALARS
-    with zipfile.ZipFile(string_fmu) as z, np.load(io.BytesIO(z.read("resources/string_model.npz"))) as a:
-        arr = {k: np.array(a[k]) for k in ARRAYS}
-    sc = dict(zip(SCALARS, arr["scalars"]))
-    A1, E, frow, rows3 = arr["A1"], arr["E"], arr["frow"], arr["rows3"]
+    import zipfile
+    from hammerbit.model.string_model import INFO_FILE, MODEL_FILE, load_model
+    with zipfile.ZipFile(string_fmu) as z:
+        for name in (MODEL_FILE, INFO_FILE):
+            z.extract(f"resources/{name}", tmp_path)
+    arrays, info = load_model(str(tmp_path / "resources"))
+    f = arrays["forms"]["fixed"]
+    sc = info["scalars"]
+    A1, E, frow, rows3 = f["A1"], f["E"], f["frow"], f["rows"]
     ki, W = sc["interface_stiffness"], sc["wob"]
     fmu = _instance(string_fmu, integers={"extrapolation": 0})
     try:

@@ -21,9 +21,14 @@ def cmd_fmu_build(args) -> int:
 
 def cmd_fmu_build_string(args) -> int:
     from hammerbit.drillstring import DrillStringError
+    from hammerbit.drillstring.top import TopCondition
     from hammerbit.fmu.build_string import build_string_fmu
     try:
-        path = build_string_fmu(args.string, args.out)
+        top = TopCondition.parse(args.top, where="--top")
+    except ValueError as e:
+        raise UsageError(str(e)) from None
+    try:
+        path = build_string_fmu(args.string, args.out, top=top)
     except DrillStringError:
         raise
     except (OSError, ValueError) as e:
@@ -42,6 +47,9 @@ def add_build_string(fsub) -> None:
     b.add_argument("--string", required=True, help="drillstring TOML file or example name (field-2200m, lab)")
     b.add_argument("--out", default=None, metavar="PATH",
                    help="the .fmu file to write, or a directory (default dist/Drillstring.fmu)")
+    b.add_argument("--top", default="fixed", metavar="CONDITION",
+                   help="start value of the top condition (a parameter of the FMU): fixed (default), "
+                        "feed:RATE (m/h, downward) or auto-driller[:kp=..,ki=..]")
     b.set_defaults(func=cmd_fmu_build_string)
 
 

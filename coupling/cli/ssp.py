@@ -62,6 +62,11 @@ def cmd_ssp_build(args) -> int:
         from hammerbit.cosim.config import field_hammer
         from hammerbit.model.settings import apply_settings
         rig = apply_settings(field_hammer().to_groups(), settings).to_rig()
+    from hammerbit.drillstring.top import TopCondition
+    try:
+        top = TopCondition.parse(args.top, where="--top")
+    except ValueError as e:
+        raise UsageError(str(e)) from None
     out = Path(args.out)
     if out.is_dir():
         out = out / "drilling.ssp"
@@ -69,7 +74,7 @@ def cmd_ssp_build(args) -> int:
         warnings.simplefilter("always")
         try:
             path = build_ssp(args.string, out, SSPOptions(hammer=args.hammer, stop=args.stop, step=args.step,
-                                                          wob=args.wob, rig=rig))
+                                                          wob=args.wob, rig=rig, top=top))
         except ValueError as e:          # the string cannot carry the hammer's WOB, ...
             raise UsageError(f"--string {args.string}: {e}") from None
     for w in caught:
@@ -165,5 +170,9 @@ def register(sub) -> None:
                    help="fixed communication step of the package [s] (default 1e-3)")
     b.add_argument("--wob", type=float, default=None,
                    help="weight on bit [N] (default: the hammer's preload, 55 kN for field strings)")
+    b.add_argument("--top", default="fixed", metavar="CONDITION",
+                   help="the string's top, the Drillstring FMU's start value: fixed (default), feed:RATE "
+                        "(m/h, downward) or auto-driller[:kp=..,ki=..] (a PI controller on the hook load "
+                        "holding the WOB; default gains from the string's stiffness)")
     add_set_argument(b)
     b.set_defaults(func=cmd_ssp_build)

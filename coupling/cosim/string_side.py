@@ -116,20 +116,23 @@ class StringSide(ExactStep):
         self.xi = np.zeros(self.n)    # state of :meth:`step` (the single-run helper)
 
     @classmethod
-    def from_arrays(cls, arrays: dict, damping_ratio: float, config) -> "StringSide":
-        """The side of a Drillstring FMU's arrays (:mod:`hammerbit.model.string_model`) at
-        ``damping_ratio``: the matrices the FMU steps with (``ss`` is None)."""
-        from hammerbit.model.string_model import string_matrices
+    def from_arrays(cls, arrays: dict, info: dict, values: dict, config) -> "StringSide":
+        """The side of a Drillstring FMU's arrays (:mod:`hammerbit.model.string_model`; ``info`` its
+        description) at the parameter ``values`` (damping ratio, gains) with ``config.top``: the
+        matrices the FMU steps with (``ss`` and ``matrices`` are None)."""
+        from hammerbit.model.string_model import TOP_CONDITIONS, form_of, string_matrices
         self = cls.__new__(cls)
         self.config = config
         self.wob = config.weight_on_bit
-        self.ss = None
-        A1, E, frow, rows3 = string_matrices(arrays, damping_ratio)
-        sc = arrays["scalars"]
+        self.ss = self.matrices = self.gains = None
+        self.top = config.top
+        A1, E, frow, rows = string_matrices(arrays, form_of(TOP_CONDITIONS.index(config.top.kind)), values)
+        rows3 = rows[:3]
+        sc = info["scalars"]
         self.Cu, self.Cv, self.Ct = (np.array(r) for r in rows3)
-        self.matrices, self.top, self.gains = None, config.top, None
         ExactStep.__init__(self, A1, E, frow, sc["interface_stiffness"], sc["interface_damping"], rows3,
-                           sc["buoyed_weight"] - self.wob, dense=config.string_step == "dense")
+                           sc["buoyed_weight"] - self.wob, dense=config.string_step == "dense",
+                           feed=np.array([config.top.feed_velocity, float(config.start)]))
         self.xi = np.zeros(self.n)
         return self
 

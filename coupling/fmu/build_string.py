@@ -27,6 +27,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
+import numpy as np
+
 __all__ = ["MODEL_NAME", "StringBuild", "build_string_fmu", "default_rig", "string_build",
            "default_string_output"]
 
@@ -88,41 +90,102 @@ def _source_text(string_arg) -> str:
     return ""
 
 
-def string_build(string_arg, *, wob: Optional[float] = None, rig=None, interface_stiffness: float = 2.0e6,
-                 interface_damping: float = 2.0e3) -> StringBuild:
+def _rows(m, n_string: int, cv_fixed) -> np.ndarray:
+    """Output rows of side matrices ``m``: bottom u, v, top tension, top position, top velocity
+    (the block's state and ``v_top = g . X`` for the auto-driller; zero rows otherwise)."""
+    n = m.A1.shape[0]
+    top_u, top_v = np.zeros(n), np.zeros(n)
+    if n > n_string:
+        top_u[n_string] = 1.0                      # the block's position is the state after the string's
+        top_v[:] = m.Cv
+        top_v[:n_string] -= cv_fixed               # cv = Cv + g: the controller's velocity row
+    return np.vstack((m.Cu, m.Cv, m.Ct, top_u, top_v))
+
+
+def _form(m, n_string, cv_fixed) -> dict:
+    return {"A1": m.A1, "E": m.E, "frow": m.frow, "rows": _rows(m, n_string, cv_fixed), "d": {}}
+
+
+def _derivative(form: dict, other, n_string, cv_fixed, dp: float) -> dict:
+    rows = _rows(other, n_string, cv_fixed)
+    return {"A1": (other.A1 - form["A1"]) / dp, "frow": (other.frow - form["frow"]) / dp,
+            "rows": (rows - form["rows"]) / dp}
+
+
+def string_build(string_arg, *, wob: Optional[float] = None, rig=None, top=None,
+                 interface_stiffness: float = 2.0e6, interface_damping: float = 2.0e3) -> StringBuild:
     """The string side of ``string_arg`` (TOML path or example name) and its arrays.
 
-    ``wob`` defaults to the hammer's preload; ``rig`` to :func:`default_rig`."""
+    ``wob`` defaults to the hammer's preload; ``rig`` to :func:`default_rig`; ``top`` (a
+    ``TopCondition``, default fixed) gives the FMU's start values of the top condition.  Both
+    forms are built (fixed hook, auto-driller at the default gains or the given ones), with
+    their derivatives in the damping ratio and the gains (:mod:`hammerbit.model.string_model`)."""
     from hammerbit.cosim.config import CosimConfig
     from hammerbit.cosim.string_side import StringSide
-    from hammerbit.drillstring import load_string
+    from hammerbit.drillstring import DrillStringError, load_string, state_space
+    from hammerbit.drillstring.description import Boundary
+    from hammerbit.drillstring.top import TopCondition, auto_driller_gains, top_matrices
+    from hammerbit.model.string_model import TOP_CONDITIONS
     string = string_arg if not isinstance(string_arg, (str, Path)) else load_string(string_arg)
     rig = default_rig(string.buoyed_weight) if rig is None else rig
+    top = TopCondition.fixed() if top is None else top
     config = CosimConfig(rig=rig, wob=wob, interface_stiffness=interface_stiffness,
                          interface_damping=interface_damping, estimate=False)
+    ki, ci, K = config.interface_stiffness, config.interface_damping, rig.stiffness
     side = StringSide(string, config)
+    n_string = side.n
+    cv_fixed = side.Cv
     zeta = float(string.modal_damping_ratio)
-    if zeta > 0.0:
-        other = StringSide(string.replace(modal_damping_ratio=0.0), config)
-        dA1 = (side.A1 - other.A1) / zeta
-    else:
-        other = StringSide(string.replace(modal_damping_ratio=_DAMPING_PROBE), config)
-        dA1 = (other.A1 - side.A1) / _DAMPING_PROBE
+    zeta_other = 0.0 if zeta > 0.0 else _DAMPING_PROBE
+    string_other = string.replace(modal_damping_ratio=zeta_other)
+    ss_other = state_space(string_other, None, Boundary.hammer(ki, ci), mass=config.mass,
+                           wob=config.weight_on_bit, f_max=config.f_max)
+
+    def matrices(s, ss, t):
+        return top_matrices(s, ss, t, interface_stiffness=ki, interface_damping=ci, hammer_stiffness=K,
+                            mass=config.mass)
+    forms = {"fixed": _form(side.matrices, n_string, cv_fixed)}
+    forms["fixed"]["d"]["damping_ratio"] = _derivative(
+        forms["fixed"], matrices(string_other, ss_other, TopCondition.fixed()), n_string, cv_fixed,
+        zeta_other - zeta)
+    gains = None
+    refused = None
+    try:
+        gains = auto_driller_gains(string, top if top.kind == "auto-driller" else TopCondition.auto_driller(),
+                                   interface_stiffness=ki, hammer_stiffness=K, mass=config.mass)
+        kp, kI = gains.proportional_gain, gains.integral_gain
+        auto_side = StringSide(string, config.replace(top=TopCondition.auto_driller(kp, kI)))
+        f = forms["auto"] = _form(auto_side.matrices, n_string, cv_fixed)
+        f["d"]["damping_ratio"] = _derivative(
+            f, matrices(string_other, ss_other, TopCondition.auto_driller(kp, kI)), n_string, cv_fixed,
+            zeta_other - zeta)
+        f["d"]["proportional_gain"] = _derivative(
+            f, matrices(string, side.ss, TopCondition.auto_driller(2.0 * kp, kI)), n_string, cv_fixed, kp)
+        f["d"]["integral_gain"] = _derivative(
+            f, matrices(string, side.ss, TopCondition.auto_driller(kp, 2.0 * kI)), n_string, cv_fixed, kI)
+    except DrillStringError as e:          # a top that moves needs a string without viscous drag
+        refused = str(e)
+        if top.moves:
+            raise
     W = config.weight_on_bit
-    arrays = {"A1": side.A1, "dA1": dA1, "E": side.E, "frow": side.frow, "rows3": side.rows3,
-              "scalars": {"interface_stiffness": side.ki, "interface_damping": side.ci,
-                          "damping_ratio": zeta, "wob": W, "hook_load": side.hook_eq,
-                          "buoyed_weight": side.hook_eq + W}}
+    build_values = {"damping_ratio": zeta,
+                    "proportional_gain": gains.proportional_gain if gains else 0.0,
+                    "integral_gain": gains.integral_gain if gains else 0.0}
+    scalars = {"interface_stiffness": ki, "interface_damping": ci, "damping_ratio": zeta, "wob": W,
+               "hook_load": side.hook_eq, "buoyed_weight": side.hook_eq + W, "string_states": n_string}
     length = float(sum(s.length for s in string.sections))
     sections = "; ".join(f"{s.name or 'section'} {s.length:g} m x {s.od * 1e3:g} mm" for s in string.sections)
-    info = {"name": string.name, "length_m": length, "sections": sections,
-            "states": int(side.n),
+    info = {"name": string.name, "length_m": length, "sections": sections, "scalars": scalars,
             "hammer_position_at_rest": W / rig.stiffness,
+            "top_condition": TOP_CONDITIONS.index(top.kind), "feed_velocity": float(top.feed_velocity),
+            "proportional_gain": build_values["proportional_gain"],
+            "integral_gain": build_values["integral_gain"],
+            "auto_driller": None if gains is None else gains.to_dict(), "auto_driller_refused": refused,
             "description": (f"Drillstring '{string.name}' ({length:g} m: {sections}) with its hammer "
-                            f"interface k_i = {side.ki:g} N/m, c_i = {side.ci:g} N s/m; top "
-                            f"{string.top.spec()}; "
-                            f"{side.n} states; geometry fixed at build time"),
+                            f"interface k_i = {ki:g} N/m, c_i = {ci:g} N s/m; top boundary "
+                            f"{string.top.spec()}; {n_string} states; geometry fixed at build time"),
             "toml": _source_text(string_arg)}
+    arrays = {"forms": forms, "build_values": build_values}
     return StringBuild(string, info["toml"], config, arrays, info)
 
 
@@ -162,7 +225,7 @@ def build_string_fmu(string_arg, out=None, *, build: Optional[StringBuild] = Non
     """Build ``Drillstring.fmu`` of ``string_arg`` (TOML path or example name) and return its path.
 
     ``out``: the ``.fmu`` file or a directory (default ``dist/Drillstring.fmu``); ``kw`` go to
-    :func:`string_build` (``wob``, ``rig``, ``interface_stiffness``, ``interface_damping``)."""
+    :func:`string_build` (``wob``, ``rig``, ``top``, ``interface_stiffness``, ``interface_damping``)."""
     from pythonfmu import FmuBuilder
     from hammerbit.model.string_model import INFO_FILE, MODEL_FILE, save_model
     build = string_build(string_arg, **kw) if build is None else build
@@ -181,7 +244,7 @@ def build_string_fmu(string_arg, out=None, *, build: Optional[StringBuild] = Non
         pkg.mkdir(parents=True)
         for f in files:
             shutil.copy2(f, pkg / f.name)
-        save_model(staging / MODEL_FILE, build.arrays)
+        save_model(staging / MODEL_FILE, build.arrays["forms"], build.arrays["build_values"])
         (staging / INFO_FILE).write_text(json.dumps(build.info, indent=1) + "\n")
         (staging / "string.toml").write_text(build.source_text)
         script = staging / f"{entry_name}.py"

@@ -54,13 +54,15 @@ class SSPOptions:
     ``hammer``: an existing HammerBitRock FMU (default: built with the system's start values);
     ``stop``, ``step``: the default experiment and libcosim's fixed step [s]; ``wob``: weight on
     bit [N] (default: the hammer's preload); ``rig``: the hammer's ``RigParameters`` (default:
-    :func:`hammerbit.fmu.build_string.default_rig` of the string)."""
+    :func:`hammerbit.fmu.build_string.default_rig` of the string); ``top``: the string's
+    ``TopCondition`` (default fixed)."""
 
     hammer: Optional[str] = None
     stop: float = 2.0
     step: float = 1e-3
     wob: Optional[float] = None
     rig: Optional[object] = None
+    top: Optional[object] = None
 
     def __post_init__(self):
         for name in ("stop", "step"):
@@ -112,7 +114,7 @@ def build_ssp(string_arg, out, options: SSPOptions = SSPOptions()) -> Path:
     from hammerbit.fmu.build_string import MODEL_NAME, build_string_fmu, string_build
     out = Path(out).resolve()
     out.parent.mkdir(parents=True, exist_ok=True)
-    sb = string_build(string_arg, wob=options.wob, rig=options.rig)
+    sb = string_build(string_arg, wob=options.wob, rig=options.rig, top=options.top)
     rig, W = sb.config.rig, sb.config.weight_on_bit
     with tempfile.TemporaryDirectory(prefix="hammerbit_ssp_") as tmp:
         work = Path(tmp)
@@ -131,9 +133,12 @@ def build_ssp(string_arg, out, options: SSPOptions = SSPOptions()) -> Path:
                 warnings.warn(f"--hammer {options.hammer}: its start values of {', '.join(differ)} differ "
                               f"from the system's; the SSD sets them, but a runner that ignores the SSD's "
                               f"parameter bindings (FMPy's simulate_ssp) runs the FMU's own", stacklevel=2)
-        string_params = {"damping_ratio": sb.arrays["scalars"]["damping_ratio"], "wob": W,
-                         "hammer_position_at_rest": sb.info["hammer_position_at_rest"],
-                         "extrapolation": STRING_EXTRAPOLATION}
+        info = sb.info
+        string_params = {"damping_ratio": info["scalars"]["damping_ratio"], "wob": W,
+                         "hammer_position_at_rest": info["hammer_position_at_rest"],
+                         "extrapolation": STRING_EXTRAPOLATION, "top_condition": int(info["top_condition"]),
+                         "feed_velocity": info["feed_velocity"], "proportional_gain": info["proportional_gain"],
+                         "integral_gain": info["integral_gain"]}
         system = SystemDescription(
             name="drilling",
             components=[Component(STRING, f"resources/{MODEL_NAME}.fmu", dict(_STRING_CONNECTORS), string_params),

@@ -56,6 +56,19 @@ def _rig(params: dict):
     return RigParameters(**kw)
 
 
+def _top(params: dict, info: dict):
+    """The string's top condition from its parameter values (the FMU's start values where absent)."""
+    from hammerbit.drillstring.top import TopCondition
+    from hammerbit.model.string_model import TOP_CONDITIONS
+    kind = TOP_CONDITIONS[int(params.get("top_condition", info["top_condition"]))]
+    if kind == "feed":
+        return TopCondition.feed(float(params.get("feed_velocity", info["feed_velocity"])))
+    if kind == "auto-driller":
+        return TopCondition.auto_driller(float(params.get("proportional_gain", info["proportional_gain"])),
+                                         float(params.get("integral_gain", info["integral_gain"])))
+    return TopCondition.fixed()
+
+
 def load_ssp(path, **config) -> SSPSystem:
     """Unpack ``path`` and make the system's :class:`~hammerbit.cosim.config.CosimConfig` (``config``
     overrides its fields: ``stop``, ``step``, ``adaptive``, ``tol``, ``record`` ...)."""
@@ -74,8 +87,9 @@ def load_ssp(path, **config) -> SSPSystem:
         string, hammer = desc.component(STRING), desc.component(HAMMER)
         arrays, info = _string_resources(root / string.source, root)
         sp, hp = string.parameters, hammer.parameters
-        sc = arrays["scalars"]
+        sc = info["scalars"]
         kw = dict(rig=_rig(hp), wob=float(sp["wob"]), interface_stiffness=sc["interface_stiffness"],
+                  top=_top(sp, info),
                   interface_damping=sc["interface_damping"], extrapolation=int(sp.get("extrapolation", 2)),
                   exchange="fmi", hammer_input="harmonic_force", scheme="jacobi", start=desc.start_time,
                   stop=desc.stop_time, step=desc.step_size, rtol=float(hp.get("tolerance", 1e-10)))
@@ -89,8 +103,11 @@ def load_ssp(path, **config) -> SSPSystem:
 
 def _side(system: SSPSystem):
     from hammerbit.cosim.string_side import StringSide
-    return StringSide.from_arrays(system.arrays, system.description.component(STRING).parameters["damping_ratio"],
-                                  system.config)
+    from hammerbit.model.string_model import PARAMETERS
+    params = system.description.component(STRING).parameters
+    values = {p: float(params.get(p, system.info[p] if p in system.info else system.info["scalars"][p]))
+              for p in PARAMETERS}
+    return StringSide.from_arrays(system.arrays, system.info, values, system.config)
 
 
 def cosimulate_ssp(path, **config):
