@@ -100,3 +100,22 @@ def test_cli_ssp_build_bad_step_exits_2_naming_it(capsys, tmp_path):
                                str(tmp_path / "x.ssp")], capsys)
     assert code == 2 and "--step" in err and "0.0" in err and "(0, 2]" in err
     assert not (tmp_path / "x.ssp").exists()
+
+
+def test_libcosim_runs_the_auto_driller_as_hammerbit_does(drilling_ssp, tmp_path):
+    """The same package with the string's top set to the auto-driller in the SSD (libcosim applies
+    the SSD's parameter values): libcosim and hammerbit cosim --ssp still agree, and the block moves."""
+    from hammerbit.ssp.document import read_ssd, write_ssd
+    from hammerbit.ssp.runners import run_libcosim
+    auto = tmp_path / "auto.ssp"
+    with zipfile.ZipFile(drilling_ssp) as z, zipfile.ZipFile(auto, "w") as out:
+        sd = read_ssd(z.read("SystemStructure.ssd"))
+        sd.component("string").parameters["top_condition"] = 2
+        for name in z.namelist():
+            out.writestr(name, write_ssd(sd) if name == "SystemStructure.ssd" else z.read(name))
+    lib = run_libcosim(auto, FAST_STOP)
+    ours = _ours(auto, FAST_STOP, estimate=False, record=("hook_load", "bit_position"))
+    fixed = _ours(drilling_ssp, FAST_STOP, estimate=False, record=("hook_load", "bit_position"))
+    assert ours.config.top.kind == "auto-driller"
+    assert _same(lib.penetration_m, ours.penetration_m, ours.penetration_m)
+    assert abs(ours.data["hook_load"][-1] - fixed.data["hook_load"][-1]) > 1.0   # the top acted
