@@ -173,3 +173,38 @@ def test_model_description_lists_the_geometry_and_the_parameters(string_fmu):
         assert var[name].causality == "parameter", name
     assert float(var["damping_ratio"].start) == string.modal_damping_ratio
     assert {v.variable.name for v in md.outputs} >= {"interface_force", "held_force", "held_force_change", "hook_load"}
+
+
+@pytest.mark.parametrize("gain", ["proportional_gain", "integral_gain"])
+def test_auto_driller_gain_parameter_equals_a_side_built_with_it(string_fmu, gain):
+    """The auto-driller at three times the build's gain against the library's side with that gain."""
+    from hammerbit.cosim.config import CosimConfig
+    from hammerbit.cosim.master import cosimulate
+    from hammerbit.drillstring import load_string
+    from hammerbit.drillstring.top import TopCondition
+    probe = _instance(string_fmu)
+    gains = dict(zip(("proportional_gain", "integral_gain"), probe.get("proportional_gain", "integral_gain")))
+    probe.close()
+    default = dict(gains)
+    gains[gain] *= 3.0
+    cfg = CosimConfig(stop=0.1, step=H, exchange="fmi", estimate=False,
+                      top=TopCondition.auto_driller(gains["proportional_gain"], gains["integral_gain"]),
+                      record=("hammer_position", "hammer_velocity", "interface_force", "hook_load"))
+    string = load_string("field-2200m")
+    d = cosimulate(string, cfg).data
+    d0 = cosimulate(string, cfg.replace(top=TopCondition.auto_driller(default["proportional_gain"],
+                                                                       default["integral_gain"]))).data
+    W = cfg.weight_on_bit
+    fmu = _instance(string_fmu, integers={"top_condition": 2}, **{gain: gains[gain]})
+    try:
+        worst = 0.0
+        for n in range(len(d) - 1):
+            fmu.set(hammer_position=d["hammer_position"][n], hammer_velocity=d["hammer_velocity"][n])
+            fmu.step(H)
+            F, hook = fmu.get("interface_force", "hook_load")
+            worst = max(worst, abs(F - d["interface_force"][n + 1]), abs(hook - d["hook_load"][n + 1]))
+    finally:
+        fmu.close()
+    tol = 1e-11 * W
+    assert np.max(np.abs(d["hook_load"] - d0["hook_load"])) > 100 * tol     # the gain matters
+    assert worst <= tol

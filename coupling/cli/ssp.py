@@ -23,7 +23,7 @@ __all__ = ["register", "cmd_ssp_build", "cosim_ssp", "check_positive", "SSP_EXCL
 #: ``hammerbit cosim`` options the system of an SSP package fixes (refused with ``--ssp``)
 SSP_EXCLUSIVE = ("string", "fmu", "wob", "interface_stiffness", "interface_damping", "f_max", "set")
 #: ``hammerbit cosim`` options that must keep their default with ``--ssp`` (the package fixes them)
-SSP_DEFAULTS = {"ramp": 0.0, "harmonic_source": "fmu", "extrapolation": 2}
+SSP_DEFAULTS = {"ramp": 0.0, "harmonic_source": "fmu", "extrapolation": 2, "top_condition": "fixed"}
 
 
 def check_positive(option: str, value, *, upper: float = math.inf, unit: str = "s") -> None:
@@ -93,9 +93,9 @@ def _refuse_fixed_options(args) -> None:
     for name, default in SSP_DEFAULTS.items():
         value = getattr(args, name, default)
         if value != default:
-            opt = "--" + name.replace("_", "-")
-            raise UsageError(f"{opt} = {value!r}: not allowed with --ssp (allowed only {default!r}, "
-                             f"as the package is wired)")
+            opt = "--top" if name == "top_condition" else "--" + name.replace("_", "-")
+            raise UsageError(f"{opt} = {value!r}: not allowed with --ssp (allowed only {default!r}; the "
+                             f"package sets it: rebuild it with `hammerbit ssp build`)")
 
 
 def cosim_ssp(args) -> int:
