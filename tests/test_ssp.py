@@ -118,4 +118,5 @@ def test_libcosim_runs_the_auto_driller_as_hammerbit_does(drilling_ssp, tmp_path
     fixed = _ours(drilling_ssp, FAST_STOP, estimate=False, record=("hook_load", "bit_position"))
     assert ours.config.top.kind == "auto-driller"
     assert _same(lib.penetration_m, ours.penetration_m, ours.penetration_m)
-    assert abs(ours.data["hook_load"][-1] - fixed.data["hook_load"][-1]) > 1.0   # the top acted
+    # the top acted: the hook load moved off the fixed hook's (0.25 N in 0.2 s; rounding is below 1e-4 N)
+    assert abs(ours.data["hook_load"][-1] - fixed.data["hook_load"][-1]) > 0.05
