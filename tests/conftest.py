@@ -19,6 +19,16 @@ def built_fmu(tmp_path_factory):
     return build_fmu(tmp_path_factory.mktemp("fmu") / "HammerBitRock.fmu")
 
 
+@pytest.fixture(scope="session")
+def built_ssp(tmp_path_factory):
+    """``drilling.ssp`` built once per session, as the docs build it:
+    ``hammerbit ssp build --string field-2200m --set frequency=22.5`` (2 s, H = 1 ms)."""
+    from hammerbit.cosim.config import field_hammer
+    from hammerbit.ssp.package import SSPOptions, build_ssp
+    return build_ssp("field-2200m", tmp_path_factory.mktemp("ssp") / "drilling.ssp",
+                     SSPOptions(stop=2.0, step=1e-3, rig=field_hammer().replace(frequency=22.5)))
+
+
 # ---------------------------------------------------------------------------
 # The slow set.  The README's test command, ``python -m pytest -q``, leaves it
 # out (``addopts = -m 'not slow' ...`` in pyproject.toml); ``-m slow`` runs only

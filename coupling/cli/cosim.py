@@ -41,9 +41,10 @@ def add_hammer_options(p) -> None:
     add_set_argument(p)
 
 
-def add_cosim_options(p) -> None:
+def add_cosim_options(p, *, string_required: bool = True) -> None:
     """``--string``, ``--fmu``, the exchange options and :func:`add_hammer_options`."""
-    p.add_argument("--string", required=True, help="drillstring TOML file or example name (field-2200m)")
+    p.add_argument("--string", required=string_required,
+                   help="drillstring TOML file or example name (field-2200m)")
     p.add_argument("--fmu", default=None, help="HammerBitRock.fmu (default: the same model in process)")
     p.add_argument("--step", type=float, default=None,
                    help="fixed macro step H [s] (default: adaptive, see --tol)")
@@ -208,6 +209,12 @@ def _print_text(out: dict, res, cfg, string) -> None:
 
 
 def cmd_cosim(args) -> int:
+    if args.ssp is not None:
+        from hammerbit.cli.ssp import cosim_ssp
+        return cosim_ssp(args)
+    for name in ("string", "stop"):
+        if getattr(args, name) is None:
+            raise UsageError(f"--{name} is required (or --ssp PACKAGE)")
     portable_target_for_fmu(args)
     from hammerbit.cosim.master import cosimulate
     from hammerbit.cosim.reference import monolithic
@@ -276,8 +283,13 @@ def register(subparsers) -> None:
                               description="Co-simulation: the drillstring stepped exactly by the master, "
                                           "the hammer as an FMU, from static equilibrium; every run "
                                           "estimates its own coupling error (exit code 5 when above --tol).")
-    add_cosim_options(p)
-    p.add_argument("--stop", type=float, required=True, help="simulated time [s]")
+    add_cosim_options(p, string_required=False)
+    p.add_argument("--stop", type=float, default=None,
+                   help="simulated time [s] (required; with --ssp default the package's stop time)")
+    p.add_argument("--ssp", default=None, metavar="PACKAGE",
+                   help="run the system of an SSP package from `hammerbit ssp build` (drilling.ssp): "
+                        "its FMUs and parameter values; --step H gives the fixed-step Jacobi run of "
+                        "libcosim and FMPy, without it the adaptive step and the error estimate")
     p.add_argument("--tol", type=float, default=1e-3,
                    help="relative tolerance of the coupling error on the WOB amplitude and the "
                         "penetration (default 1e-3); drives the adaptive step, checked for --step")

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from hammerbit.cli.common import UsageError, add_set_argument, parse_settings
 
-__all__ = ["register", "cmd_fmu_build"]
+__all__ = ["register", "cmd_fmu_build", "cmd_fmu_build_string"]
 
 
 def cmd_fmu_build(args) -> int:
@@ -17,6 +17,40 @@ def cmd_fmu_build(args) -> int:
         raise UsageError(f"--set {e}") from None
     print(path)
     return 0
+
+
+def cmd_fmu_build_string(args) -> int:
+    from hammerbit.drillstring import DrillStringError
+    from hammerbit.drillstring.top import TopCondition
+    from hammerbit.fmu.build_string import build_string_fmu
+    try:
+        top = TopCondition.parse(args.top, where="--top")
+    except ValueError as e:
+        raise UsageError(str(e)) from None
+    try:
+        path = build_string_fmu(args.string, args.out, top=top)
+    except DrillStringError:
+        raise
+    except (OSError, ValueError) as e:
+        raise UsageError(f"--string {args.string}: {e}") from None
+    print(path)
+    return 0
+
+
+def add_build_string(fsub) -> None:
+    """``hammerbit fmu build-string``: the Drillstring FMU of a string."""
+    b = fsub.add_parser("build-string", help="build Drillstring.fmu of a drillstring (pythonfmu)",
+                        description="Build Drillstring.fmu: the string of a TOML file and its hammer "
+                                    "interface, stepped exactly over any communication step (inputs: "
+                                    "hammer position and velocity; outputs: the interface force, the "
+                                    "force to hold, the hook load).")
+    b.add_argument("--string", required=True, help="drillstring TOML file or example name (field-2200m, lab)")
+    b.add_argument("--out", default=None, metavar="PATH",
+                   help="the .fmu file to write, or a directory (default dist/Drillstring.fmu)")
+    b.add_argument("--top", default="fixed", metavar="CONDITION",
+                   help="start value of the top condition (a parameter of the FMU): fixed (default), "
+                        "feed:RATE (m/h, downward) or auto-driller[:kp=..,ki=..]")
+    b.set_defaults(func=cmd_fmu_build_string)
 
 
 def register(sub) -> None:
@@ -35,3 +69,4 @@ def register(sub) -> None:
                    help="do not ship compiled kernels (the FMU compiles them on first use)")
     b.add_argument("--no-native-front", action="store_true",
                    help="keep pythonfmu's binary only (runs only in a Python host)")
+    add_build_string(fsub)

@@ -29,6 +29,7 @@ COMMAND_MODULES = [
     "hammerbit.cli.cosim",
     "hammerbit.cli.studies",
     "hammerbit.cli.fmu",
+    "hammerbit.cli.ssp",
 ]
 
 #: Most samples ``simulate --csv`` writes (about 1 GB of text).

@@ -21,11 +21,14 @@ from hammerbit.model.validation import check as _check
 from hammerbit.cosim.error import CouplingErrorEstimate
 from hammerbit.drillstring.top import TopCondition
 
-__all__ = ["SCHEMES", "RECORDABLE", "CouplingInstabilityError", "field_hammer", "default_hammer", "CosimConfig",
-           "CosimResult",
-           "steady_start", "event_counts", "record_dtype"]
+__all__ = ["SCHEMES", "EXCHANGES", "HAMMER_INPUTS", "RECORDABLE", "CouplingInstabilityError", "field_hammer",
+           "default_hammer", "CosimConfig", "CosimResult", "steady_start", "event_counts", "record_dtype"]
 
 SCHEMES = ("jacobi", "gauss-seidel")
+#: How the string side computes the interface force at a communication point (``CosimConfig.exchange``).
+EXCHANGES = ("master", "fmi")
+#: Where an FMU hammer gets the held interface force (``CosimConfig.hammer_input``).
+HAMMER_INPUTS = ("preload", "harmonic_force")
 
 #: Variables a run can record (all SI), in output order after ``time``.
 RECORDABLE = {
@@ -221,6 +224,14 @@ class CosimConfig:
     blowup: float = 50.0
     progress: Optional[bool] = None
     rtol: float = 1e-10
+    exchange: str = "master"
+    """``master``: the interface force at ``t_{n+1}`` takes the hammer's new position and
+    velocity; ``fmi``: it takes the hammer motion the string extrapolated over the step,
+    as the Drillstring FMU computes it in any fixed-step master (which sets the FMU's
+    inputs only before its next step); the held force is extrapolated the same way."""
+    hammer_input: str = "preload"
+    """Where the FMU hammer gets the held interface force: ``preload``, or ``harmonic_force``
+    (its change from the WOB, with ``preload`` held at the WOB: the SSP package's wiring)."""
     top: TopCondition = field(default_factory=TopCondition)
     harmonic_source: str = "fmu"
     """``fmu``: the FMU's internal harmonic source (continuous in time);
@@ -235,6 +246,13 @@ class CosimConfig:
             raise ValueError(f"extrapolation = {self.extrapolation!r}: allowed 0, 1, 2")
         if self.string_step not in ("auto", "dense"):
             raise ValueError(f"string_step = {self.string_step!r}: allowed 'auto', 'dense'")
+        if self.exchange not in EXCHANGES:
+            raise ValueError(f"exchange = {self.exchange!r}: allowed {', '.join(EXCHANGES)}")
+        if self.hammer_input not in HAMMER_INPUTS:
+            raise ValueError(f"hammer_input = {self.hammer_input!r}: allowed {', '.join(HAMMER_INPUTS)}")
+        if self.hammer_input == "harmonic_force" and (self.harmonic_source == "master" or self.ramp > 0.0):
+            raise ValueError("hammer_input = 'harmonic_force' takes the hammer's harmonic_force input: "
+                             "allowed only with harmonic_source = 'fmu' and ramp = 0")
         if not isinstance(self.top, TopCondition):
             raise ValueError(f"top = {self.top!r}: a hammerbit.drillstring.top.TopCondition "
                              f"(TopCondition.parse('auto-driller'), ...)")

@@ -13,7 +13,7 @@ from hammerbit.model.params import RigParameters
 from hammerbit.cosim.hammer_interface import (OUT_BIT_POSITION, OUT_BIT_VELOCITY, OUT_HAMMER_POSITION,
                                               OUT_HAMMER_VELOCITY, OUT_WOB)
 
-__all__ = ["FMUHammer", "FMU_NAMES", "check_fmu_file"]
+__all__ = ["FMUHammer", "FMU_NAMES", "check_fmu_file", "fmu_start_values"]
 
 
 def check_fmu_file(path) -> None:
@@ -28,6 +28,30 @@ def check_fmu_file(path) -> None:
     with zipfile.ZipFile(p) as z:
         if "modelDescription.xml" not in z.namelist():
             raise ValueError(f"fmu {str(path)!r}: the archive has no modelDescription.xml: not an FMU")
+
+
+def fmu_start_values(causality: dict, rig: RigParameters, wob: float, rtol: float) -> tuple:
+    """``(reals, booleans)``: the start values the master gives a hammer FMU with the variables
+    ``causality`` ({name: causality}): every ``RigParameters`` field the FMU has as a parameter,
+    the gap and ``impact_enabled``, ``tolerance = rtol``, the hammer's start position ``W/K`` (the
+    static equilibrium) and ``preload = W``."""
+    reals, booleans = {}, {}
+    for f in fields(RigParameters):
+        if f.name in ("preload", "gap") or causality.get(f.name) != "parameter":
+            continue
+        reals[f.name] = float(getattr(rig, f.name))
+    if "gap" in causality and math.isfinite(rig.gap):
+        reals["gap"] = float(rig.gap)
+    if "tolerance" in causality:
+        reals["tolerance"] = float(rtol)
+    if "impact_enabled" in causality:
+        booleans["impact_enabled"] = bool(math.isfinite(rig.gap))
+    for nm in FMU_NAMES["hammer_position_start"]:
+        if nm in causality:
+            reals[nm] = wob / rig.stiffness
+            break
+    reals["preload"] = float(wob)
+    return reals, booleans
 
 
 #: Candidate variable names of the FMU (first match wins).
@@ -53,10 +77,14 @@ class FMUHammer:
     start value of the hammer position (``hammer_position_start`` or the
     names in :data:`FMU_NAMES`), the run starts in equilibrium
     (``W/K``); otherwise the initial preload step is the FMU's own start-up.
+
+    ``force_input="harmonic_force"``: ``preload`` stays at the WOB and the held
+    force's change from it goes to ``harmonic_force`` (the wiring of the SSP
+    package, where the Drillstring FMU's ``held_force_change`` feeds it).
     """
 
     def __init__(self, path, rig: RigParameters, wob: float, *, t0: float = 0.0, rtol: float = 1e-8,
-                 instance: str = "hammer"):
+                 instance: str = "hammer", force_input: str = "preload"):
         from hammerbit.fmu.host import FMUInstance
         self.path = str(path)
         self._host = FMUInstance(self.path, instance, start_time=t0, init=False)
@@ -64,31 +92,16 @@ class FMUHammer:
         self.md = md
         self.vr = dict(self._host.vr)
         self.causality = {v.name: v.causality for v in md.modelVariables}
-        # parameters by name
-        names, vals = [], []
-        for f in fields(RigParameters):
-            if f.name in ("preload", "gap") or f.name not in self.vr:
-                continue
-            if self.causality[f.name] == "parameter":
-                names.append(self.vr[f.name])
-                vals.append(float(getattr(rig, f.name)))
-        if "gap" in self.vr and math.isfinite(rig.gap):
-            names.append(self.vr["gap"])
-            vals.append(float(rig.gap))
-        if "tolerance" in self.vr:
-            names.append(self.vr["tolerance"])
-            vals.append(float(rtol))
-        if names:
-            self.fmu.setReal(names, vals)
-        if "impact_enabled" in self.vr:
-            self.fmu.setBoolean([self.vr["impact_enabled"]], [bool(math.isfinite(rig.gap))])
-        self.equilibrium_start = False
-        vs = self._find("hammer_position_start", required=False)
-        if vs is not None:
-            self.fmu.setReal([vs], [wob / rig.stiffness])
-            self.equilibrium_start = True
+        reals, booleans = fmu_start_values(self.causality, rig, wob, rtol)
+        self.equilibrium_start = any(nm in reals for nm in FMU_NAMES["hammer_position_start"])
+        if reals:
+            self.fmu.setReal([self.vr[k] for k in reals], list(reals.values()))
+        if booleans:
+            self.fmu.setBoolean([self.vr[k] for k in booleans], list(booleans.values()))
         self.vr_in = self._find("preload")
-        self.fmu.setReal([self.vr_in], [wob])
+        self.force_input = force_input
+        self.wob = wob
+        self.vr_force = self.vr_in if force_input == "preload" else self.vr["harmonic_force"]
         self.fmu.exitInitializationMode()
         out = [self._find(k) for k in ("hammer_position", "hammer_velocity", "bit_position", "bit_velocity")]
         self.vr_rock = self._find("rock_force", required=False)
@@ -115,8 +128,10 @@ class FMUHammer:
         if self.master_harmonic is not None:
             self.fmu.setReal([self.vr_in, self.vr["harmonic_force"]],
                              [force, self.master_harmonic.mean(t, H)])
-        else:
+        elif self.force_input == "preload":
             self.fmu.setReal([self.vr_in], [force])
+        else:
+            self.fmu.setReal([self.vr_force], [force - self.wob])
         self.fmu.doStep(t, H)
 
     def get_state(self):

@@ -22,7 +22,7 @@ def hammer_side(fmu, rig: RigParameters, W: float, c: CosimConfig, instance: str
         rig = rig.replace(amplitude=0.0)       # the FMU's internal source off
     if fmu is not None:
         check_fmu_file(fmu)
-        h = FMUHammer(fmu, rig, W, t0=c.start, rtol=c.rtol, instance=instance)
+        h = FMUHammer(fmu, rig, W, t0=c.start, rtol=c.rtol, instance=instance, force_input=c.hammer_input)
     else:
         h = StepperHammer(rig, W, rtol=c.rtol, t0=c.start, ramp=c if (c.ramp > 0.0 and master is None) else None)
     h.master_harmonic = master

@@ -38,6 +38,7 @@ class Lane:
         self.side, self.hammer, self.c = side, hammer, c
         self.gs = c.scheme == "gauss-seidel"
         self.order = c.extrapolation
+        self.fmi = c.exchange == "fmi"
         self.string = StringState(side)
         self.x_eq = hammer.x_eq
         self.out = hammer.read()
@@ -99,10 +100,10 @@ class Lane:
         if s.modal:
             return [self.gs, self.order, h, True, _NONE_P, _NONE_F, _NONE_F, _NONE_F, d.m_d, d.m_G,
                     d.m_irow, d.m_icol, s.v, self.frow, side.ki, side.ci, side.wob,
-                    self.th, self.wh, self.Fh, 0.0, 0.0, 0.0, self.cbuf, self.sc, side.feed]
+                    self.th, self.wh, self.Fh, 0.0, 0.0, 0.0, self.cbuf, self.sc, side.feed, self.fmi]
         return [self.gs, self.order, h, False, d.P, s.v, s.buf, s.tmp, _NONE_C, _NONE_2, _NONE_C,
                 _NONE_F, _NONE_C, self.frow, side.ki, side.ci, side.wob,
-                self.th, self.wh, self.Fh, 0.0, 0.0, 0.0, self.cbuf, self.sc, side.feed]
+                self.th, self.wh, self.Fh, 0.0, 0.0, 0.0, self.cbuf, self.sc, side.feed, self.fmi]
 
     def snapshot(self):
         return self.hammer.get_state(), self.string.copy_state(), self.hist.copy(), self.out.copy()
