@@ -99,7 +99,10 @@ F_V4_PEAK = 7     # peak bit velocity of the current slip (error scale of x4)
 F_X3_SLIP = 8     # bit position at the start of the current slip
 F_HACC = 9        # last accepted step of the current regime (predictive controller)
 F_ERRACC = 10     # its error, floored at ERRACC_FLOOR (0: no history since the last event)
-N_FSTATE = 11
+F_DRIVE_MIN = 11  # lowest drive on the bit f_k + f_c so far (inf before the first call)
+F_T_STICK = 12    # last time the bit was stuck: its last stick event (-1: never stuck)
+F_PEAK_RUN = 13   # peak contact force of the contacts ended so far (the run's, start-up included)
+N_FSTATE = 14
 
 # options
 O_RTOL = 0
@@ -138,6 +141,7 @@ MIN_FACTOR = 0.2
 MAX_FACTOR = 10.0
 ERRACC_FLOOR = 1e-4  # floor of the remembered error in the predictive controller
 LAYER_TARGET = 0.3   # friction-layer error norm a proposed step may reach (friction_layer_err)
+DRIVE_GATE = 1e-2    # drive_low: the exact search runs when the Hermite minimum is this close (x |rate| h)
 
 
 # ---------------------------------------------------------------------------
@@ -865,6 +869,8 @@ def apply_event(kind, y, istate, fstate, p):
         fstate[F_PEAK] = 0.0
     elif kind == EV_SEPARATION:
         istate[I_CONTACT] = FREE
+        if fstate[F_PEAK] > fstate[F_PEAK_RUN]:
+            fstate[F_PEAK_RUN] = fstate[F_PEAK]
     elif kind == EV_CLAMP:
         istate[I_CONTACT] = CLAMPED
     elif kind == EV_UNCLAMP:
@@ -1091,6 +1097,42 @@ def peak_in_step(t0, t1, y0, h, interp, act, n_act, ys, fs, p, ms, mc, nz, ne, A
 
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
+def drive_end(y0, y1, f0, f1, h, p, mc, fstate):
+    """The drive on the bit at the end of an accepted step into ``fstate[F_DRIVE_MIN]``.
+
+    Returns True when the step holds an interior minimum worth locating: the
+    drive's rate turns from - to + and the cubic Hermite estimate of that
+    minimum comes near the lowest drive so far (``drive_inside`` locates it).
+    """
+    d0 = force_on_bit(y0, p, mc)
+    d1 = force_on_bit(y1, p, mc)
+    if d1 < fstate[F_DRIVE_MIN]:
+        fstate[F_DRIVE_MIN] = d1
+    s0 = watch_slope(EV_SLIP_START, y0, f0, p, mc) * h
+    s1 = watch_slope(EV_SLIP_START, y1, f1, p, mc) * h
+    if not (s0 < 0.0 and s1 > 0.0):
+        return False
+    low = -hermite_peak(-d0, -d1, -s0, -s1)
+    return low <= fstate[F_DRIVE_MIN] + DRIVE_GATE * (abs(s0) + abs(s1))
+
+
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
+def drive_inside(t0, t1, y0, h, how, interp, act, n_act, ys, fs,
+                 p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, fstate):
+    """The drive's minimum inside a step (its rate turns from - to +) into ``fstate[F_DRIVE_MIN]``,
+    on the dense output or the exact stick solution."""
+    tm = find_extremum(plain(EV_BOUNCE, n_act), t0, t1, y0, h, how, interp, act, n_act, ys, fs,
+                       p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
+    if how == HOW_STICK:
+        stick_state(tm, y0, interp, p, ys)
+    else:
+        dense_eval((tm - t0) / h, y0, interp, act, n_act, ys)
+    d = force_on_bit(ys, p, mc)
+    if d < fstate[F_DRIVE_MIN]:
+        fstate[F_DRIVE_MIN] = d
+
+
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
 def hermite_peak(w0, w1, m0, m1):
     """Maximum over [0, 1] of the cubic Hermite interpolant of (w0, m0), (w1, m1).
 
@@ -1306,6 +1348,9 @@ def advance(y, istate, fstate, t_end, p, opts,
     n_act = set_active(istate, n, act)
     ms = istate[I_STICK]
     mc = istate[I_CONTACT]
+    d_start = force_on_bit(y, p, mc)
+    if d_start < fstate[F_DRIVE_MIN]:
+        fstate[F_DRIVE_MIN] = d_start
     rhs(t, y, p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, stages[0])
     istate[I_RHS] += 1
     steps_here = 0
@@ -1386,6 +1431,9 @@ def advance(y, istate, fstate, t_end, p, opts,
                     hit_kind = kd
                     t_hit = te
             if hit_kind < 0:
+                if drive_end(y, ynew, stages[0], fs, h_chunk, p, mc, fstate):
+                    drive_inside(t, t1, y, h_chunk, how_stick, interp, act, n_act, ys, ytmp,
+                                 p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, fstate)
                 if needs_record(t1, istate, opts, poin, samp_t):
                     record_until(t1, ynew, t, y, h_chunk, how_stick, interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ys,
                                  p, istate, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, opts, poin, samp_t, samp)
@@ -1399,6 +1447,9 @@ def advance(y, istate, fstate, t_end, p, opts,
                     sc_c = cs1
                 continue
             stick_state(t_hit, y, interp, p, ys)
+            d_hit = force_on_bit(ys, p, mc)
+            if d_hit < fstate[F_DRIVE_MIN]:
+                fstate[F_DRIVE_MIN] = d_hit
             if needs_record(t_hit, istate, opts, poin, samp_t):
                 record_until(t_hit, ys, t, y, h_chunk, how_stick, interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ynew,
                              p, istate, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, opts, poin, samp_t, samp)
@@ -1543,6 +1594,11 @@ def advance(y, istate, fstate, t_end, p, opts,
                     f_contact1 = contact_force_at(ynew, p, mc)
                     if f_contact1 > fstate[F_PEAK]:
                         fstate[F_PEAK] = f_contact1
+                if drive_end(y, ynew, stages[0], stages[ns], h, p, mc, fstate) and not fixed:
+                    dense_ok = interpolant(dense_ok, fixed, t, y, ynew, h, rk_a, rk_c, dense_w, ns, n_ext, stages, stages2, interp, ytmp, act, n_act,
+                                           istate, p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
+                    drive_inside(t, t1, y, h, how_dense, interp, act, n_act, ys, fs,
+                                 p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, fstate)
                 for i in range(n):
                     y[i] = ynew[i]
                     stages[0, i] = stages[ns, i]
@@ -1582,6 +1638,9 @@ def advance(y, istate, fstate, t_end, p, opts,
             if mc == CONTACT and not fixed and y[V_HAMMER] - y[V_BIT] > 0.0 and ys[V_HAMMER] - ys[V_BIT] <= 0.0 and dense_ok:
                 peak_in_step(t, t_hit, y, h, interp, act, n_act, ynew, fs, p, ms, mc, nz, ne,
                              Ap, Ai, Ax, sub_in, sub_out, link_x, fstate)
+            d_hit = force_on_bit(ys, p, mc)
+            if d_hit < fstate[F_DRIVE_MIN]:
+                fstate[F_DRIVE_MIN] = d_hit
             if needs_record(t_hit, istate, opts, poin, samp_t):
                 record_until(t_hit, ys, t, y, h, how_rk, interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ynew,
                              p, istate, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, opts, poin, samp_t, samp)
@@ -1607,6 +1666,11 @@ def advance(y, istate, fstate, t_end, p, opts,
             fstate[F_H_MODE + step_slot(ms, mc)] = h
         taken = apply_event(hit_kind, y, istate, fstate, p)
         fstate[F_ERRACC] = 0.0  # the new regime starts its own step-size history
+        if taken == EV_STICK:
+            fstate[F_T_STICK] = t
+        d_reset = force_on_bit(y, p, istate[I_CONTACT])
+        if d_reset < fstate[F_DRIVE_MIN]:
+            fstate[F_DRIVE_MIN] = d_reset
         if log_cap > 0:
             r = istate[I_NLOG]
             log[r, L_T] = t

@@ -310,6 +310,8 @@ class Stepper:
         else:
             ist[K.I_CONTACT] = K.FREE
         ist[K.I_WIN] = -1
+        self.fstate[K.F_DRIVE_MIN] = np.inf
+        self.fstate[K.F_T_STICK] = self.fstate[K.F_T] if ist[K.I_STICK] == K.STICK else -1.0
 
     # ------------------------------------------------------------------
     @property
