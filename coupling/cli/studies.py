@@ -170,7 +170,7 @@ def cmd_sweep(args) -> int:
 # map
 # ---------------------------------------------------------------------------
 def cmd_map(args) -> int:
-    from hammerbit.studies.map import Axis, map_to_json, regime_map
+    from hammerbit.studies.map import FLAG_FIELDS, Axis, best_valid_cell, map_to_json, regime_map
     if not args.axis:
         raise UsageError("map needs at least one --axis NAME=LO:HI:N")
     if len(args.axis) > 3:
@@ -207,16 +207,23 @@ def cmd_map(args) -> int:
               + f": {n} cells x {args.periods} periods in {ds.attrs['wall_time_s']:.2f} s "
               f"({tp / ds.attrs['wall_time_s']:,.0f} periods/s, {ds.attrs['workers']} worker(s))")
         print("period-n: " + ", ".join(f"{k} {counts[k]}" for k in order))
-        rop = ds["rop_m_per_h"].values
-        if np.any(np.isfinite(rop)):
-            i = np.unravel_index(np.nanargmax(rop), rop.shape)
-            where = ", ".join(f"{a.name}={a.values[k]:g}" for a, k in zip(axes, i))
-            print(f"highest ROP {rop[i]:.4g} m/h ({ds['rop_mm_per_period'].values[i]:.4g} mm per period) "
-                  f"at {where}")
-        for f in ("bounce", "overload", "runaway"):
+        best = best_valid_cell(ds)
+        valid = int(ds["valid"].values.sum())
+        if best is not None:
+            where = ", ".join(f"{k}={v:g}" for k, v in best["values"].items())
+            print(f"highest ROP of the {valid} valid cell(s) {best['rop_m_per_h']:.4g} m/h "
+                  f"({best['rop_mm_per_period']:.4g} mm per period) at {where}")
+        else:
+            print("no valid cell (every cell runs away, bounces or did not run)")
+        for f in FLAG_FIELDS:
             k = int(ds[f].values.sum())
             if k:
                 print(f"flag {f}: {k} cell(s)")
+        for f, rule in (("domain_a_ge_b", "a >= b"), ("domain_a_plus_b_gt_1", "a + b > 1"),
+                        ("domain_b_gt_mu", "b > mu")):
+            k = int(ds[f].values.sum())
+            if k:
+                print(f"outside the paper's domain ({rule}): {k} cell(s)")
         if args.out:
             print(f"wrote {args.out}")
         if args.plot:
@@ -286,7 +293,7 @@ def cmd_optimize(args) -> int:
                 "at_bounds": res.at_bounds(bounds)})
     if res.optimum is None:
         msg = (f"no feasible operating point on the {'x'.join(map(str, res.grid_shape))} grid within the "
-               f"bounds (no bounce, a + b <= 1, no runaway"
+               f"bounds (no bounce, a + b <= 1, no runaway in the scene's dynamics"
                + (", frequency check" if string is not None else "")
                + (", contact force" if args.max_contact_force is not None else "") + ")")
         if args.json:
@@ -310,8 +317,10 @@ def cmd_optimize(args) -> int:
     for name, side in out["at_bounds"].items():
         print(f"  {name} sits on its {side} bound: widen --bounds to look further")
     for k, m in o["margins"].items():
-        if m["margin"] is None:
+        if m["ok"] is None:
             print(f"  constraint {k}: not checked")
+        elif m["margin"] is None:
+            print(f"  constraint {k}: {'ok' if m['ok'] else 'VIOLATED'} (the scene's own dynamics)")
         else:
             unit = "" if m["unit"] == "relative" else f" {m['unit']}"
             if m["unit"] == "relative":
@@ -378,7 +387,8 @@ def register(subparsers) -> None:
                               description="One scene per cell of a grid over 1 to 3 parameters (groups "
                                           "or SI names): period-n, rate of penetration (x0 per period, "
                                           "mm per period, m/h), impacts per period, peak contact "
-                                          "force, and the bounce/overload/runaway flags.")
+                                          "force, the scene's runaway/bounce/tension/transient flags and "
+                                          "the paper's domain.")
     _add_scene_args(p)
     p.add_argument("--axis", action="append", default=[], metavar="NAME=LO:HI:N",
                    help="an axis (repeat for 2 or 3), e.g. a=0.05:0.25:81 or f=1.0:2.0:41")
@@ -404,7 +414,8 @@ def register(subparsers) -> None:
     p.add_argument("--max-contact-force", type=float, default=None, metavar="N",
                    help="largest allowed hammer-bit contact force [N]")
     p.add_argument("--periods", type=int, default=200, help="forcing periods per evaluation (default 200)")
-    p.add_argument("--grid", type=int, default=21, help="grid points per variable (default 21)")
+    p.add_argument("--grid", type=int, default=None,
+                   help="grid points per variable (default 41 for one or two variables, 15 for three)")
     p.add_argument("--confirm", action="store_true",
                    help="co-simulate the optimum on the string (dynamic WOB amplitude, bounce margin)")
     p.add_argument("--confirm-periods", type=int, default=20, help="forcing periods of --confirm (default 20)")
