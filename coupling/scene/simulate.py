@@ -249,7 +249,7 @@ def simulate(groups: Groups, periods: float, *, record: Record = Record(),
     counts = st.counts
     if counts["bounce"] > 0:
         warnings.warn(f"bit bounce: the drive on the bit fell below -F_s {counts['bounce']} time(s) "
-                      f"(a={groups.a:g} >= b={groups.b:g}?); the bit was held stuck, outside the "
+                      f"while the bit was stuck; it was held stuck, outside the "
                       f"model's validity", BounceWarning, stacklevel=2)
     res = SimResult(
         groups=groups, periods=periods, final=st.y[:4].copy(), counts=counts,
