@@ -296,9 +296,10 @@ class _Problem:
         F0 = g.scales.friction_force
         fl = cell.flags
         ran = fl is not None
-        m = {"bounce": None, "threshold": (1.0 - g.a - g.b) * F0, "runaway": None, "frequency": None,
+        # the rule of params.regime (overload: a + b > 1), so that a cell on the line counts as inside
+        m = {"bounce": None, "threshold": (1.0 - (g.a + g.b)) * F0, "runaway": None, "frequency": None,
              "contact_force": None}
-        ok = {"ran": ran, "bounce": None if not ran else not fl.bounce, "threshold": m["threshold"] >= 0,
+        ok = {"ran": ran, "bounce": None if not ran else not fl.bounce, "threshold": not (g.a + g.b > 1.0),
               "runaway": None if not ran else not fl.runaway, "frequency": None, "contact_force": None}
         if ran:
             low = (fl.min_drive + 1.0) * F0        # lowest drive above -F_s; a dip while slipping is no bounce
