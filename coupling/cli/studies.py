@@ -402,8 +402,10 @@ def register(subparsers) -> None:
     p = subparsers.add_parser("optimize", help="operating point of the highest ROP under the drilling "
                                                "constraints",
                               description="Maximise the ROP [m/h] over bounded parameters subject to no "
-                                          "bounce, a + b <= 1, no runaway, the string's frequency check "
-                                          "and a contact-force limit: a grid, then local refinement.")
+                                          "bounce and no runaway in the scene's dynamics, a + b <= 1, the "
+                                          "string's frequency check and a limit on the peak contact force "
+                                          "over the whole run: a grid, then a refinement that follows "
+                                          "active constraints.")
     _add_scene_args(p, default_preset="lab")
     p.add_argument("--string", default=None, help="drillstring TOML file or example name (frequency check)")
     p.add_argument("--bounds", nargs="+", default=None, metavar="NAME=LO:HI",
