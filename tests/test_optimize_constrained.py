@@ -83,3 +83,36 @@ def test_static_threshold_binding_over_amplitude_and_preload():
     assert o.rop_m_per_h >= best
     assert o.margins["threshold"] < 0.02 * g.scales.friction_force     # on the line a + b = 1
     assert all(r.drilling and r.period != o.period for r in res.runners_up)
+
+
+def test_runaway_binding_over_the_preload():
+    """paper-fig9 at a = 0.1 over b: the ROP grows with the preload until the drift runs away
+    just above mu = 0.85; the runaway cells drill fastest and must be left out.  Runaway is judged
+    here by the momentum criterion on dense samples: over the last quarter the bit slides
+    faster than v* everywhere, with no stop over the last half, and its mean speed grows."""
+    from hammerbit.scene.flags import slip_speed_limit
+    g = preset("paper-fig9").replace(a=0.1)
+    bounds = (Bound("b", 0.5, 0.95),)
+    periods = 100
+    res = optimize(g, OptimizeConfig(bounds=bounds, periods=periods), options=IN_PROCESS)
+    best, cut = -math.inf, False
+    for b in np.linspace(0.5, 0.95, 41):
+        s = g.replace(b=float(b))
+        t = np.linspace(0.0, periods * s.period, periods * 200 + 1)
+        r = simulate(s, periods, record=Record(times=t, poincare=True))
+        x3, smp = r.poincare["bit_position"], r.samples
+        rop = s.rop((x3[periods] - x3[periods // 2]) / (periods - periods // 2))["m_per_h"]
+        n = len(smp)
+        q3, q4 = smp[n // 2: 3 * n // 4], smp[3 * n // 4:]
+        m3 = (q3["bit_position"][-1] - q3["bit_position"][0]) / (q3["time"][-1] - q3["time"][0])
+        m4 = (q4["bit_position"][-1] - q4["bit_position"][0]) / (q4["time"][-1] - q4["time"][0])
+        runaway = bool(np.all(smp["slip"][n // 2:] == 1) and q4["bit_velocity"].min() > slip_speed_limit(s)
+                       and m4 > m3)
+        if s.a + s.b <= 1.0 and r.counts["bounce"] == 0 and not runaway:
+            best = max(best, rop)
+        elif rop > best:
+            cut = True
+    assert cut
+    o = res.optimum
+    assert o.feasible and not o.flags["runaway"]
+    assert o.rop_m_per_h >= best
