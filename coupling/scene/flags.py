@@ -82,7 +82,7 @@ def slip_speed_limit(groups: Groups) -> float:
 
 
 @njit(cache=True, nogil=True)
-def runaway_rows(poin, n_poin, period, t_end, t_stuck, v_star):
+def runaway_rows(poin, n_poin, t_end, t_stuck, v_star):
     """1 when the Poincaré rows ``poin[:n_poin]`` (``[tau, x1, x2, x3, x4]``) show a runaway drift.
 
     ``t_stuck`` is the last time the bit was stuck (``t_end`` if it is stuck
@@ -283,7 +283,7 @@ def scene_flags(groups: Groups, poincare_rows: np.ndarray, *, t_end: float, min_
     rows = np.ascontiguousarray(poincare_rows, dtype=np.float64)
     n = rows.shape[0]
     last_stuck = t_end if stuck_now else t_stuck
-    run = bool(runaway_rows(rows, n, groups.period, t_end, last_stuck, slip_speed_limit(groups)))
+    run = bool(runaway_rows(rows, n, t_end, last_stuck, slip_speed_limit(groups)))
     rel = np.empty((n, 3))
     relative_rows(rows, n, rel)
     out = np.zeros(N_SETTLING)

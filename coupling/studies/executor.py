@@ -152,6 +152,7 @@ def warm_worker() -> str:
     loading (or compiling) the kernels or importing the chunk functions.
     """
     import hammerbit.studies.bifurcation  # noqa: F401  (the chunk functions' modules)
+    import hammerbit.studies.optimize  # noqa: F401
     import hammerbit.studies.sweep  # noqa: F401
     from hammerbit.model.cpu_target import runs_portable
     from hammerbit.model.params import preset
