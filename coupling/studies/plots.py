@@ -118,6 +118,12 @@ def plot_map(ds, path, *, rop_levels: int = 8):
     if flagged.any():
         handles.append(Patch(facecolor="none", hatch="//", edgecolor="k", label="runaway or bounce (not valid)"))
     handles.append(plt.Line2D([], [], color="k", lw=0.7, label="ROP contours [m/h], valid cells"))
+    trans = sel["transient"].values == 1
+    if trans.any():
+        ti, tj = np.nonzero(trans)
+        ax.plot(x[tj], y[ti], ls="none", marker=".", ms=3, color="k")
+        handles.append(plt.Line2D([], [], ls="none", marker=".", ms=5, color="k",
+                                  label="period not settled (transient)"))
     if np.isfinite(rop).any():
         i, j = np.unravel_index(int(np.nanargmax(rop)), rop.shape)
         ax.plot([x[j]], [y[i]], marker="*", ms=16, mfc="gold", mec="k", ls="none")
