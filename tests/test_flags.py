@@ -12,7 +12,7 @@ import warnings
 import numpy as np
 import pytest
 
-from hammerbit.model.params import preset
+from hammerbit.model.presets import preset
 from hammerbit.scene.analysis import relative_coordinates, PERIOD_TOL
 from hammerbit.scene.flags import slip_speed_limit
 from hammerbit.scene.simulate import Record, simulate

@@ -16,7 +16,8 @@ import warnings
 import numpy as np
 import pytest
 
-from hammerbit.model.params import apply_settings, preset
+from hammerbit.model.presets import preset
+from hammerbit.model.settings import apply_settings
 from hammerbit.scene.simulate import Record, simulate
 from hammerbit.studies.executor import ExecutorOptions
 from hammerbit.studies.optimize import Bound, OptimizeConfig, optimize

@@ -26,7 +26,7 @@ from what the scene did:
 
 ``runaway`` and ``bounce`` make a scene unusable as a drilling point
 (:attr:`SceneFlags.unusable`).  The minimum drive and the last stuck time are
-tracked by the solver itself (``kernels.F_DRIVE_MIN``, ``kernels.F_T_STICK``);
+tracked by the solver itself (``kernel_layouts.F_DRIVE_MIN``, ``kernel_layouts.F_T_STICK``);
 the rest comes from the Poincaré rows in one compiled pass.
 """
 from __future__ import annotations
@@ -38,8 +38,9 @@ from typing import Optional
 import numpy as np
 from numba import njit
 
-from hammerbit.model import kernels as K
-from hammerbit.model.params import Groups, regime
+from hammerbit.model import kernel_layouts as KL
+from hammerbit.model.params import Groups
+from hammerbit.model.regime import regime
 
 from .analysis import PERIOD_MAX, PERIOD_TOL, period_n, relative_rows
 
@@ -272,11 +273,11 @@ def scene_flags(groups: Groups, poincare_rows: np.ndarray, *, t_end: float, min_
     t_end : float
         End of the run [tau].
     min_drive : float
-        Lowest drive on the bit [F0] (``kernels.F_DRIVE_MIN``).
+        Lowest drive on the bit [F0] (``kernel_layouts.F_DRIVE_MIN``).
     bounces : int
         Bounce violations (``counts["bounce"]``).
     t_stuck : float
-        Last time the bit was stuck [tau] (``kernels.F_T_STICK``; -1 never).
+        Last time the bit was stuck [tau] (``kernel_layouts.F_T_STICK``; -1 never).
     stuck_now : bool
         The bit is stuck at ``t_end``.
     """
@@ -303,7 +304,7 @@ def scene_flags(groups: Groups, poincare_rows: np.ndarray, *, t_end: float, min_
 def stepper_flags(groups: Groups, stepper, poincare_rows: np.ndarray) -> SceneFlags:
     """:func:`scene_flags` of a :class:`~hammerbit.model.stepping.Stepper` after its run."""
     return scene_flags(groups, poincare_rows, t_end=stepper.time,
-                       min_drive=float(stepper.fstate[K.F_DRIVE_MIN]),
-                       bounces=int(stepper.istate[K.I_COUNT0 + K.EV_BOUNCE]),
-                       t_stuck=float(stepper.fstate[K.F_T_STICK]),
-                       stuck_now=bool(stepper.istate[K.I_STICK] == K.STICK))
+                       min_drive=float(stepper.fstate[KL.F_DRIVE_MIN]),
+                       bounces=int(stepper.istate[KL.I_COUNT0 + KL.EV_BOUNCE]),
+                       t_stuck=float(stepper.fstate[KL.F_T_STICK]),
+                       stuck_now=bool(stepper.istate[KL.I_STICK] == KL.STICK))

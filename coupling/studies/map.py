@@ -1,7 +1,7 @@
 """Regime maps: period-n, rate of penetration, impacts and the scene's own flags on a grid.
 
 :func:`regime_map` runs one scene per cell of a grid over 1 to 3 parameters
-(any group or SI name, applied with :func:`hammerbit.model.params.apply_settings`,
+(any group or SI name, applied with :func:`hammerbit.model.settings.apply_settings`,
 which carries each cell's own scales) and returns an :class:`xarray.Dataset`.
 Per cell, from rest over ``periods`` forcing periods:
 
@@ -31,7 +31,7 @@ Per cell, from rest over ``periods`` forcing periods:
 ``valid``
     1 when the cell is a drilling point: it ran, neither runaway nor bounce;
 ``domain_a_ge_b``, ``domain_a_plus_b_gt_1``, ``domain_b_gt_mu``
-    the paper's static rules it breaks (:func:`hammerbit.model.params.regime`);
+    the paper's static rules it breaks (:func:`hammerbit.model.regime.regime`);
 ``status``
     0 when the scene ran, 1 when the solver stopped (the message is in the
     dataset's ``errors`` attribute), 2 when the cell's parameters are invalid.
@@ -54,9 +54,14 @@ from typing import Optional, Sequence
 import numpy as np
 from numba import njit
 
-from hammerbit.model import kernels as K
-from hammerbit.model.params import Groups, ParameterError, apply_settings, regime, setting_target
-from hammerbit.model.stepping import MaxStepsError, SolverError, SolverOptions, Stepper
+from hammerbit.model import kernel_layouts as KL
+from hammerbit.model.params import Groups
+from hammerbit.model.regime import regime
+from hammerbit.model.settings import apply_settings, setting_target
+from hammerbit.model.validation import ParameterError
+from hammerbit.model.solver_errors import MaxStepsError, SolverError
+from hammerbit.model.solver_options import SolverOptions
+from hammerbit.model.stepping import Stepper
 
 from hammerbit.scene.contact import peak_of_run, steady_peak
 from hammerbit.scene.flags import SceneFlags, stepper_flags
@@ -202,7 +207,7 @@ class _Buffers:
 
     def __init__(self, periods: int):
         self.poin = np.zeros((periods + 1, 5))
-        self.log = np.zeros((max(64, 8 * periods), K.N_LOG_COLS))
+        self.log = np.zeros((max(64, 8 * periods), KL.N_LOG_COLS))
         self.figures = np.zeros(_N_FIGURES)
 
 
@@ -227,7 +232,7 @@ def cell_figures(poin, n_poin, y_bit, log, n_log, periods, t_half, current_peak,
     out[_FIG_ROP] = (x3_end - poin[half, 3]) / (periods - half)
     impacts = 0
     for i in range(n_log):
-        if log[i, K.L_T] >= t_half and log[i, K.L_KIND] == K.EV_IMPACT:
+        if log[i, KL.L_T] >= t_half and log[i, KL.L_KIND] == KL.EV_IMPACT:
             impacts += 1
     out[_FIG_IMPACTS] = impacts
     out[_FIG_PEAK_STEADY] = steady_peak(log, n_log, t_half, current_peak)
@@ -251,14 +256,14 @@ def run_cell(groups: Groups, periods: int, solver: SolverOptions = SolverOptions
         status = st.advance(periods * T, poincare=poin, log=log)
         if status == "max_steps":
             raise MaxStepsError(f"more than max_steps={solver.max_steps} steps in one call", time=st.time,
-                                status=K.ST_MAX_STEPS)
+                                status=KL.ST_MAX_STEPS)
         if status != "log_full":
             break
         buf.log = log = np.concatenate([log, np.zeros_like(log)])
-    n_poin = int(st.istate[K.I_POIN_NEXT])
+    n_poin = int(st.istate[KL.I_POIN_NEXT])
     fig = buf.figures
-    current = float(st.fstate[K.F_PEAK]) if st.istate[K.I_CONTACT] != K.FREE else 0.0
-    cell_figures(poin, n_poin, st.y[2], log, int(st.istate[K.I_NLOG]), periods, (periods // 2) * T,
+    current = float(st.fstate[KL.F_PEAK]) if st.istate[KL.I_CONTACT] != KL.FREE else 0.0
+    cell_figures(poin, n_poin, st.y[2], log, int(st.istate[KL.I_NLOG]), periods, (periods // 2) * T,
                  current, fig)
     rop = float(fig[_FIG_ROP])
     flags = stepper_flags(groups, st, poin[:n_poin])

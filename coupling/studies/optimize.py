@@ -33,8 +33,11 @@ from typing import Optional
 
 import numpy as np
 
-from hammerbit.model.params import Groups, ParameterError, apply_settings, setting_target
-from hammerbit.model.stepping import SolverError, SolverOptions
+from hammerbit.model.params import Groups
+from hammerbit.model.settings import apply_settings, setting_target
+from hammerbit.model.validation import ParameterError
+from hammerbit.model.solver_errors import SolverError
+from hammerbit.model.solver_options import SolverOptions
 
 from .executor import Executor, ExecutorOptions
 from .map import Axis, MapCell, axis_unit, run_cell
