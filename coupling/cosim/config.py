@@ -19,8 +19,10 @@ from hammerbit.model.scales import Scales
 from hammerbit.model.validation import check as _check
 
 from hammerbit.cosim.error import CouplingErrorEstimate
+from hammerbit.drillstring.top import TopCondition
 
-__all__ = ["SCHEMES", "RECORDABLE", "CouplingInstabilityError", "field_hammer", "CosimConfig", "CosimResult",
+__all__ = ["SCHEMES", "RECORDABLE", "CouplingInstabilityError", "field_hammer", "default_hammer", "CosimConfig",
+           "CosimResult",
            "steady_start", "event_counts", "record_dtype"]
 
 SCHEMES = ("jacobi", "gauss-seidel")
@@ -100,6 +102,21 @@ def field_hammer(*, hammer_mass: float = 400.0, natural_frequency: float = 20.0,
     return g.to_rig(Scales(hammer_mass, K, friction_force), mu_static=RIG.mu_static)
 
 
+#: A string carries the field hammer by default when its buoyed weight is at least this many times
+#: the field hammer's WOB (the rest hangs from the hook, as on a rig).
+FIELD_WEIGHT_RATIO = 2.0
+
+
+def default_hammer(string) -> RigParameters:
+    """The hammer a string gets unless told otherwise: the field hammer (:func:`field_hammer`, a
+    55 kN WOB) on a string whose buoyed weight is at least twice that, else the rig of the paper
+    (``RigParameters()``: m1 = 25.3 kg, 1.47 Hz, a 29.7 N WOB), the hammer of the lab string."""
+    from hammerbit.drillstring.statics import static_equilibrium
+    field = field_hammer()
+    weight = static_equilibrium(string).buoyed_weight
+    return field if weight >= FIELD_WEIGHT_RATIO * field.preload else RIG
+
+
 # ---------------------------------------------------------------------------
 # configuration
 # ---------------------------------------------------------------------------
@@ -166,6 +183,10 @@ class CosimConfig:
         Progress bar on stderr (tqdm; None: only for runs above 20000 steps on a terminal).
     rtol : float
         Tolerance of the in-process hammer / the monolithic reference.
+    top : TopCondition
+        How the hook moves (:mod:`hammerbit.drillstring.top`): ``fixed`` (default),
+        a constant ``feed`` or the ``auto-driller`` (a PI controller on the hook
+        load holding the static WOB ``wob``).
     """
 
     stop: float = 1.0
@@ -200,6 +221,7 @@ class CosimConfig:
     blowup: float = 50.0
     progress: Optional[bool] = None
     rtol: float = 1e-10
+    top: TopCondition = field(default_factory=TopCondition)
     harmonic_source: str = "fmu"
     """``fmu``: the FMU's internal harmonic source (continuous in time);
     ``master``: the master computes the harmonic force and feeds its mean over
@@ -213,6 +235,9 @@ class CosimConfig:
             raise ValueError(f"extrapolation = {self.extrapolation!r}: allowed 0, 1, 2")
         if self.string_step not in ("auto", "dense"):
             raise ValueError(f"string_step = {self.string_step!r}: allowed 'auto', 'dense'")
+        if not isinstance(self.top, TopCondition):
+            raise ValueError(f"top = {self.top!r}: a hammerbit.drillstring.top.TopCondition "
+                             f"(TopCondition.parse('auto-driller'), ...)")
         if self.harmonic_source not in ("fmu", "master"):
             raise ValueError(f"harmonic_source = {self.harmonic_source!r}: allowed 'fmu', 'master'")
         for key, name in (("cosim.step", "step"), ("cosim.start", "start"), ("cosim.stop", "stop"),
@@ -319,6 +344,9 @@ class CosimResult:
     method: str = "cosim"
     counts: dict = field(default_factory=dict)
     estimate: Optional[CouplingErrorEstimate] = None
+    dense: Optional[np.ndarray] = None
+    """``time``, ``wob`` sampled finely (the monolithic reference's dense output); the WOB
+    figures are taken from it when present."""
 
     @property
     def stop_s(self) -> float:
@@ -332,9 +360,20 @@ class CosimResult:
         return self.data[self.data["time"] >= t_from - 1e-12]
 
     def wob_amplitude(self, t_from: Optional[float] = None) -> float:
-        """Dynamic WOB amplitude (max - min)/2 over the window [N]."""
-        w = self.window(t_from)["wob"]
-        return float(0.5 * (w.max() - w.min()))
+        """Dynamic WOB amplitude [N]: the fundamental harmonic at the forcing frequency over the
+        last whole forcing periods of the window (:mod:`hammerbit.cosim.amplitude`)."""
+        from hammerbit.cosim.amplitude import fundamental
+        d = self.dense if self.dense is not None else self.data
+        t0 = steady_start(self.config) if t_from is None else t_from
+        return fundamental(d["time"], d["wob"], self.config.rig.frequency, t0)[0]
+
+    def wob_peaks(self, t_from: Optional[float] = None) -> tuple:
+        """``(max, min)`` of the WOB over the window [N]: the contact peaks and the lowest WOB
+        (sampled: a contact spike between two samples is missed)."""
+        from hammerbit.cosim.amplitude import peak
+        d = self.dense if self.dense is not None else self.data
+        t0 = steady_start(self.config) if t_from is None else t_from
+        return peak(d["time"], d["wob"], t0)
 
     def wob_mean(self, t_from: Optional[float] = None) -> float:
         """Mean WOB over the window [N]."""
@@ -351,7 +390,13 @@ class CosimResult:
         if "wob" in self.data.dtype.names:
             out["wob_mean_n"] = self.wob_mean(t_from)
             out["wob_amplitude_n"] = self.wob_amplitude(t_from)
+            out["wob_max_n"], out["wob_min_n"] = self.wob_peaks(t_from)
+        out["top"] = self.config.top.to_dict()
+        if "auto_driller" in self.stats:
+            out["top"].update(self.stats["auto_driller"])
         out["counts"] = dict(self.counts)
+        bounce = int(self.counts.get("bounce_violations", 0))
+        out["bounce"] = {"violations": bounce, "flagged": bounce > 0}
         if self.estimate is not None:
             out["error_estimate"] = self.estimate.to_dict()
         out.update({k: v for k, v in self.stats.items() if isinstance(v, (int, float, str))})

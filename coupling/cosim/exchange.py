@@ -102,7 +102,7 @@ def _coefficients(gs, order, a, a2, h, wh, x_new, v_new, c):
 
 @_njit(cache=True)
 def exchange_step(gs, order, h, modal, P, xi, buf, tmp, d, G, irow, icol, eta, frow, ki, ci, W,
-                  th, wh, Fh, x_new, v_new, F_held, c, out):
+                  th, wh, Fh, x_new, v_new, F_held, c, out, feed):
     """One macro step of the string side after the hammer's step.
 
     ``th`` (3,): communication times t_n, t_{n-1}, t_{n-2}; ``wh`` (3, 2): hammer
@@ -110,11 +110,19 @@ def exchange_step(gs, order, h, modal, P, xi, buf, tmp, d, G, irow, icol, eta, f
     Taylor coefficients of the hammer motion, advances the string (modal ``eta``
     or dense ``xi``), shifts the histories and writes ``out = [F(t_{n+1}), energy
     residual of the step, frow.xi at t_{n+1}, force defect F_held - mean F_i]``;
-    ``out[2]`` on entry is ``frow.xi`` at ``t_n``.
+    ``out[2]`` on entry is ``frow.xi`` at ``t_n``.  ``feed = (V, t0)``: the block of a
+    feed top moves as ``V (t - t0)``; the string sees the hammer relative to it, an
+    exact polynomial whatever the extrapolation order (``V = 0``: a fixed hook, or an
+    auto-driller whose block is a state of the string side).
     """
     a = th[0] - th[1]
     a2 = th[1] - th[2]
     _coefficients(gs, order, a, a2, h, wh, x_new, v_new, c)
+    V = feed[0]
+    u_top = V * (th[0] - feed[1])
+    c[0] -= u_top
+    c[1] -= V
+    c[2] -= V
     F_start = W + out[2] - ki * c[0] - ci * c[1]
     if modal:
         imp, f_xi = string_step_modal(d, G, irow, icol, eta, c, frow)
@@ -129,9 +137,9 @@ def exchange_step(gs, order, h, modal, P, xi, buf, tmp, d, G, irow, icol, eta, f
     xe = c[0] + c[2] * h + 0.5 * c[4] * h * h
     ve = c[1] + c[3] * h + 0.5 * c[5] * h * h
     F_end = W + f_xi - ki * xe - ci * ve
-    e_string = 0.5 * h * (F_start * c[1] + F_end * ve)
+    e_string = 0.5 * h * (F_start * (c[1] + V) + F_end * (ve + V))
     e_hammer = F_held * (x_new - wh[0, 0])
-    F = W + f_xi - ki * x_new - ci * v_new
+    F = W + f_xi - ki * (x_new - (u_top + V * h)) - ci * (v_new - V)
     for j in (2, 1):
         th[j] = th[j - 1]
         wh[j, 0] = wh[j - 1, 0]

@@ -50,7 +50,8 @@ class Lane:
         self.th[:] = (c.start, c.start - H_hist, c.start - 2 * H_hist)
         self.wh[:] = (self.out[OUT_HAMMER_POSITION] - self.x_eq, self.out[OUT_HAMMER_VELOCITY])
         self.sc[EXCHANGE_OUT_STRING_FORCE] = self.string.f_xi()
-        F = side.wob + self.sc[EXCHANGE_OUT_STRING_FORCE] - side.ki * self.wh[0, 0] - side.ci * self.wh[0, 1]
+        F = (side.wob + self.sc[EXCHANGE_OUT_STRING_FORCE] - side.ki * self.wh[0, 0]
+             - side.ci * (self.wh[0, 1] - side.feed[0]))
         self.sc[EXCHANGE_OUT_FORCE] = F
         self.Fh[:] = F
         self.F_held = F
@@ -98,10 +99,10 @@ class Lane:
         if s.modal:
             return [self.gs, self.order, h, True, _NONE_P, _NONE_F, _NONE_F, _NONE_F, d.m_d, d.m_G,
                     d.m_irow, d.m_icol, s.v, self.frow, side.ki, side.ci, side.wob,
-                    self.th, self.wh, self.Fh, 0.0, 0.0, 0.0, self.cbuf, self.sc]
+                    self.th, self.wh, self.Fh, 0.0, 0.0, 0.0, self.cbuf, self.sc, side.feed]
         return [self.gs, self.order, h, False, d.P, s.v, s.buf, s.tmp, _NONE_C, _NONE_2, _NONE_C,
                 _NONE_F, _NONE_C, self.frow, side.ki, side.ci, side.wob,
-                self.th, self.wh, self.Fh, 0.0, 0.0, 0.0, self.cbuf, self.sc]
+                self.th, self.wh, self.Fh, 0.0, 0.0, 0.0, self.cbuf, self.sc, side.feed]
 
     def snapshot(self):
         return self.hammer.get_state(), self.string.copy_state(), self.hist.copy(), self.out.copy()

@@ -70,7 +70,7 @@ class Recorder:
             for i, k in cols["flag"]:
                 row[i] = fl[k]
         if self.need_string:
-            so = lane.string.outputs()
+            so = lane.string.outputs(t)
             for i, k in cols["str"]:
                 row[i] = so[k]
         self.j += 1

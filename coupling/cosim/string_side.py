@@ -53,6 +53,13 @@ def _memo(key: bytes, compute):
     return value
 
 
+def _one_blas_thread():
+    """The string's dense linear algebra on one BLAS thread: a 441-state eigenproblem is several
+    times slower with the default thread pool on a loaded machine than on one thread."""
+    from threadpoolctl import threadpool_limits
+    return threadpool_limits(limits=1, user_api="blas")
+
+
 def _digest(tag: str, *arrays, extra=()) -> bytes:
     h = hashlib.sha1(tag.encode())
     for a in arrays:
@@ -87,22 +94,29 @@ class StringSide:
 
     def __init__(self, string, config):
         from hammerbit.drillstring import Boundary, state_space
+        from hammerbit.drillstring.top import top_matrices
         self.config = config
         ki, ci = config.interface_stiffness, config.interface_damping
         self.ki, self.ci = ki, ci
         self.wob = config.weight_on_bit
-        ss = state_space(string, None, Boundary.hammer(ki, ci), mass=config.mass,
-                         wob=self.wob, f_max=config.f_max)
+        with _one_blas_thread():
+            ss = state_space(string, None, Boundary.hammer(ki, ci), mass=config.mass,
+                             wob=self.wob, f_max=config.f_max)
         if ss.x0 is None:
             raise ValueError("the string has a rigid-body mode: the top must hold it (fixed or spring hook)")
         self.ss = ss
-        B = ss.B[:, 0]
-        self.Cu, self.Cv, self.Ct = ss.C[0].copy(), ss.C[1].copy(), ss.C[2].copy()
-        self.A1 = ss.A - np.outer(B, ki * self.Cu + ci * self.Cv)
-        self.E = np.column_stack((B * ki, B * ci))
-        self.n = ss.A.shape[0]
-        self.frow = ki * self.Cu + ci * self.Cv   # F_i - W = frow.xi - ki x_dev - ci v
+        m = top_matrices(string, ss, config.top, interface_stiffness=ki, interface_damping=ci,
+                         hammer_stiffness=config.rig.stiffness, mass=config.mass)
+        self.matrices = m
+        self.top = m.top
+        self.gains = m.gains
+        self.Cu, self.Cv, self.Ct = m.Cu, m.Cv, m.Ct
+        self.A1, self.E = m.A1, m.E
+        self.n = m.A1.shape[0]
+        self.frow = m.frow                 # F_i - W = frow.xi - ki x_dev - ci v
         self.rows3 = np.ascontiguousarray(np.vstack((self.Cu, self.Cv, self.Ct)))  # bit u, v; top tension
+        #: the feed's (velocity [m/s], start time [s]): the block is at V (t - t0)
+        self.feed = np.array([m.feed_velocity, float(config.start)])
         self.hook_eq = float(ss.hook_load)
         self._disc = {}
         self._phi = {}                # step length -> expm(Z h) (the squaring base of longer steps)
@@ -115,8 +129,9 @@ class StringSide:
     def _eigen(self):
         if self._eig is None:
             def decompose():
-                lam, V = np.linalg.eig(self.A1)
-                return lam, V, np.linalg.inv(V)
+                with _one_blas_thread():
+                    lam, V = np.linalg.eig(self.A1)
+                    return lam, V, np.linalg.inv(V)
             try:
                 self._eig = _memo(_digest("eig", self.A1), decompose)
             except np.linalg.LinAlgError:
@@ -149,7 +164,8 @@ class StringSide:
         key = float(f"{h:.12g}")
         d = self._disc.get(key)
         if d is None:
-            d = self._disc[key] = self._discretise(key)
+            with _one_blas_thread():
+                d = self._disc[key] = self._discretise(key)
         return d
 
     def _discretise(self, h: float) -> "_Discretisation":
@@ -173,7 +189,10 @@ class StringSide:
             Z[n + 2:n + 4, n + 4:n + 6] = np.eye(2)
             Z[N - 1, :n] = self.frow
             Z[N - 1, n:n + 2] = (-self.ki, -self.ci)
-            Phi = _memo(_digest("expm", Z, extra=h), lambda: sla.expm(Z * h))
+            def expm():
+                with _one_blas_thread():
+                    return sla.expm(Z * h)
+            Phi = _memo(_digest("expm", Z, extra=h), expm)
         self._phi[float(f"{h:.12g}")] = Phi
         rows = np.r_[np.arange(n), N - 1]
         d = _Discretisation(h=h, P=np.ascontiguousarray(Phi[np.ix_(rows, np.arange(n + 6))]))
@@ -280,12 +299,16 @@ class StringState:
             return float((s.m_frow @ self.v).real)
         return float(s.frow @ self.v)
 
-    def outputs(self) -> np.ndarray:
+    def outputs(self, t: Optional[float] = None) -> np.ndarray:
         """(displacement deviation [m], velocity [m/s]) of the string's bottom node and the
-        hook load [N], in one product."""
+        hook load [N] at time ``t`` [s] (it places a feed's block), in one product."""
         s = self.side
         o = (s.m_rows3 @ self.v).real if self.modal else s.rows3 @ self.v
         o[2] += s.hook_eq
+        V, t0 = s.feed
+        if V != 0.0 and t is not None:
+            o[0] += V * (t - t0)
+            o[1] += V
         return o
 
     def copy_state(self):

@@ -10,7 +10,8 @@ One concept per module:
 * :mod:`.damping` -- the damping model of the frequency response (hysteretic
   loss factor, viscous per unit length) and the bit receptance;
 * :mod:`.statics` -- the hanging string with a weight on bit;
-* :mod:`.state_space` -- the linear model the co-simulation master steps.
+* :mod:`.state_space` -- the linear model the co-simulation master steps;
+* :mod:`.top` -- the top conditions (fixed hook, feed, auto-driller) of that model.
 
 Displacements are positive **downward**; depth ``z`` is 0 at the top node.
 
@@ -43,6 +44,7 @@ _SOURCES = {name: module for module, names in {
     ),
     "state_space": ("StateSpace", "state_space"),
     "statics": ("StaticState", "static_compliance", "static_equilibrium"),
+    "top": ("TopCondition", "AutoDrillerGains", "auto_driller_gains", "SideMatrices", "top_matrices"),
 }.items() for name in names}
 
 __all__ = [
@@ -52,7 +54,8 @@ __all__ = [
     "loads_string", "string_from_dict", "example_names", "example_path", "assemble", "modes",
     "exact_frequencies", "impedance_factor", "corrected_eigenvalues", "static_equilibrium",
     "static_compliance", "state_space", "dispersion_error", "bit_receptance", "bit_dynamic_stiffness",
-    "exact_dynamic_stiffness", "exact_receptance", "reference_impedance",
+    "exact_dynamic_stiffness", "exact_receptance", "reference_impedance", "TopCondition",
+    "AutoDrillerGains", "auto_driller_gains", "SideMatrices", "top_matrices",
 ]
 
 
