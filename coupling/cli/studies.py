@@ -250,38 +250,11 @@ def _default_bounds(g):
 
 
 def _confirm(groups, string, args) -> dict:
-    """Co-simulate the optimum on the string; dynamic WOB amplitude and bounce margin."""
+    """Co-simulate the optimum on the string with the auto-driller (:func:`hammerbit.studies.confirm.confirm`)."""
     from hammerbit.cli.cosim import fmu_arg
-    from hammerbit.cosim.config import CosimConfig
-    from hammerbit.cosim.master import cosimulate
-    rig = groups.to_rig()
-    T = 1.0 / rig.frequency
-    periods = args.confirm_periods
-    kw = {}
-    if args.interface_stiffness is not None:
-        kw["interface_stiffness"] = args.interface_stiffness
-    if args.interface_damping is not None:
-        kw["interface_damping"] = args.interface_damping
-    base = CosimConfig(rig=rig, **kw)
-    # the hammer on the interface spring is the fastest coupled motion; the string is truncated
-    # above twice its frequency (and 50 x the hammer's) and the step resolves the truncation 20 x
-    f_i = math.sqrt((base.interface_stiffness + rig.stiffness) / rig.hammer_mass) / (2 * math.pi)
-    f_max = max(2.0 * f_i, 50.0 * rig.frequency)
-    step = min(T / 200.0, 1.0 / (20.0 * f_max))
-    cfg = base.replace(stop=periods * T, step=step, f_max=f_max, record=("wob", "bit_position"), progress=False)
-    t0 = time.perf_counter()
-    r = cosimulate(string, cfg, fmu=fmu_arg(args))
-    w = r.window()
-    F_s = rig.scales.friction_force
-    wmin = float(w["wob"].min())
-    tb, xb = w["time"], w["bit_position"]
-    return {"periods": periods, "step_s": step, "f_max_hz": f_max,
-            "interface_stiffness_n_per_m": cfg.interface_stiffness,
-            "hammer": "fmu" if args.fmu else "in-process",
-            "wob_mean_n": r.wob_mean(), "wob_amplitude_n": r.wob_amplitude(), "wob_min_n": wmin,
-            "bounce_margin": 1.0 + wmin / F_s,
-            "rop_m_per_h": float((xb[-1] - xb[0]) / (tb[-1] - tb[0]) * 3600.0),
-            "wall_time_s": time.perf_counter() - t0}
+    from hammerbit.studies.confirm import confirm
+    return confirm(groups, string, periods=args.confirm_periods, interface_stiffness=args.interface_stiffness,
+                   interface_damping=args.interface_damping, fmu=fmu_arg(args))
 
 
 def cmd_optimize(args) -> int:
@@ -343,9 +316,11 @@ def cmd_optimize(args) -> int:
               f"preload {r['preload_n']:.4g} N")
     if "confirm" in out:
         cf = out["confirm"]
-        print(f"  co-simulation on {string.name} ({cf['hammer']} hammer, {cf['periods']} periods): "
-              f"dynamic WOB amplitude {cf['wob_amplitude_n']:.4g} N, bounce margin "
-              f"{cf['bounce_margin']:.3g}, ROP {cf['rop_m_per_h']:.4g} m/h")
+        print(f"  co-simulation on {string.name} ({cf['hammer']} hammer, hook on the auto-driller, "
+              f"{cf['periods']} periods after {cf['settle_s']:.3g} s of settling): sustained ROP "
+              f"{cf['rop_m_per_h']:.4g} m/h{'' if cf['rop_steady'] else ' (not steady)'} against the "
+              f"optimizer's {o['rop_m_per_h']:.4g} m/h; dynamic WOB amplitude {cf['wob_amplitude_n']:.4g} N, "
+              f"bounce margin {cf['bounce_margin']:.3g}")
     return 0
 
 
@@ -427,8 +402,10 @@ def register(subparsers) -> None:
     p.add_argument("--grid", type=int, default=None,
                    help="grid points per variable (default 41 for one or two variables, 15 for three)")
     p.add_argument("--confirm", action="store_true",
-                   help="co-simulate the optimum on the string (dynamic WOB amplitude, bounce margin)")
-    p.add_argument("--confirm-periods", type=int, default=20, help="forcing periods of --confirm (default 20)")
+                   help="co-simulate the optimum on the string with the hook on the auto-driller: the "
+                        "sustained ROP beside the optimizer's, the dynamic WOB amplitude, the bounce margin")
+    p.add_argument("--confirm-periods", type=int, default=20,
+                   help="forcing periods of --confirm measured after the auto-driller settles (default 20)")
     p.add_argument("--fmu", default=None, help="--confirm with this hammer FMU (default: in process)")
     p.add_argument("--interface-stiffness", type=float, default=None,
                    help="--confirm: k_i between the string and the hammer [N/m] (default: the "
