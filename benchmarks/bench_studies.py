@@ -206,8 +206,8 @@ def measure_sweep(cfg, log) -> dict:
 
 
 #: The README's optimize example (lab rig on the lab string).
-README_OPTIMIZE = ["optimize", "--preset", "lab", "--string", "lab", "--confirm", "--interface-stiffness", "700",
-                   "--interface-damping", "10", "--workers", "2", "--json"]
+README_OPTIMIZE = ["optimize", "--preset", "lab", "--string", "lab", "--confirm", "--interface-stiffness", "30",
+                   "--interface-damping", "1", "--workers", "2", "--json"]
 
 
 def measure_readme_optimize(log) -> dict:

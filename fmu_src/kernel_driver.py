@@ -18,24 +18,26 @@ from . import numba_cache  # noqa: F401  (registers the content-hash cache locat
 from . import tableaux as _T
 from .numba_partial import bind
 from .kernel_events import watch_tol, watch_value, watched
-from .kernel_forces import contact_force_at, overlap, rhs
-from .kernel_layouts import (CHUNK_SLIVER, CONTACT, CONTACT_STABILITY_LIMIT, ERRACC_FLOOR,
-                             EV_SEPARATION, EV_STICK, FREE, F_ERRACC, F_H, F_HACC, F_H_MODE, F_PEAK, F_T,
-                             F_V4_PEAK, HOW_DENSE, HOW_RESTEP, HOW_STICK, I_CONTACT, I_NLOG, I_REJECTS,
-                             I_RHS, I_STEPS, I_STICK, I_SWIN, I_SWIN_STEPS, I_WIN, I_WIN_EVENTS,
-                             LAYER_TARGET, L_KIND, L_PEAK, L_T, L_VREL, L_X1, L_X2, L_X3, L_X4, MAX_FACTOR,
+from .kernel_forces import contact_force_at, overlap, rhs, force_on_bit
+from .kernel_layouts import (CHUNK_SLIVER, CONTACT, CONTACT_STABILITY_LIMIT, EPS, ERRACC_FLOOR, EV_SEPARATION,
+                             EV_STICK, F_DRIVE_MIN, F_ERRACC, F_H, F_H_MODE, F_HACC, F_PEAK, F_T, F_T_STICK,
+                             F_V4_PEAK, FREE, HOW_DENSE, HOW_RESTEP, HOW_STICK, I_CONTACT, I_NLOG, I_REJECTS,
+                             I_RHS, I_STEPS, I_STICK, I_SWIN, I_SWIN_STEPS, I_WIN, I_WIN_EVENTS, L_KIND,
+                             L_PEAK, L_T, L_VREL, L_X1, L_X2, L_X3, L_X4, LAYER_TARGET, MAX_FACTOR,
                              MIN_FACTOR, O_ATOL, O_BISECT, O_EVCAP, O_GRAZE, O_HFIXED, O_HMAX, O_MAXSTEPS,
                              O_RTOL, O_STEPCAP, P_ETA, P_KC, P_LAM, P_MU, P_N, P_RHO, P_XI, SAFETY, SLIP,
-                             SLIVER_FLOORS, STICK, STICK_CHUNKS_PER_PERIOD, STOP_OVERSHOOT,
-                             STOP_SHRINK_FLOOR, ST_BAD_INPUT, ST_DONE, ST_EVENT_STORM, ST_LOG_FULL,
-                             ST_MAX_STEPS, ST_NONFINITE, ST_STEP_STORM, ST_STEP_TOO_SMALL, TIME_RESOLUTION,
-                             TINY, V_BIT, V_HAMMER, X_BIT, X_HAMMER)
-from .kernel_localise import locate_event, peak_in_step, plain, sign_change, state_at
+                             SLIVER_FLOORS, ST_BAD_INPUT, ST_DONE, ST_EVENT_STORM, ST_LOG_FULL, ST_MAX_STEPS,
+                             ST_NONFINITE, ST_STEP_STORM, ST_STEP_TOO_SMALL, STICK, STICK_CHUNKS_PER_PERIOD,
+                             STOP_OVERSHOOT, STOP_SHRINK_FLOOR, TIME_RESOLUTION, TINY, V_BIT, V_HAMMER, X_BIT,
+                             X_HAMMER)
+from .kernel_localise import (locate_event, peak_in_step, plain, sign_change, state_at, drive_end,
+                              drive_inside)
 from .kernel_recording import needs_record, record_until
 from .kernel_reset import apply_event
 from .kernel_runge_kutta import dense_eval, error_norm, friction_layer_err, interpolant, rk_step
 from .kernel_stick import (stick_chunk_consts, stick_closed_form_ok, stick_prepare, stick_prepare_phase,
                            stick_rate, stick_state, stick_state_chunk)
+
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
 def err_root(x, e):
@@ -180,6 +182,9 @@ def advance(y, istate, fstate, t_end, p, opts,
     n_act = set_active(istate, n, act)
     ms = istate[I_STICK]
     mc = istate[I_CONTACT]
+    d_start = force_on_bit(y, p, mc)
+    if d_start < fstate[F_DRIVE_MIN]:
+        fstate[F_DRIVE_MIN] = d_start
     rhs(t, y, p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, stages[0])
     istate[I_RHS] += 1
     steps_here = 0
@@ -260,6 +265,9 @@ def advance(y, istate, fstate, t_end, p, opts,
                     hit_kind = kd
                     t_hit = te
             if hit_kind < 0:
+                if drive_end(y, ynew, stages[0], fs, h_chunk, p, mc, fstate):
+                    drive_inside(t, t1, y, h_chunk, how_stick, interp, act, n_act, ys, ytmp,
+                                 p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, fstate)
                 if needs_record(t1, istate, opts, poin, samp_t):
                     record_until(t1, ynew, t, y, h_chunk, how_stick, interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ys,
                                  p, istate, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, opts, poin, samp_t, samp)
@@ -273,6 +281,9 @@ def advance(y, istate, fstate, t_end, p, opts,
                     sc_c = cs1
                 continue
             stick_state(t_hit, y, interp, p, ys)
+            d_hit = force_on_bit(ys, p, mc)
+            if d_hit < fstate[F_DRIVE_MIN]:
+                fstate[F_DRIVE_MIN] = d_hit
             if needs_record(t_hit, istate, opts, poin, samp_t):
                 record_until(t_hit, ys, t, y, h_chunk, how_stick, interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ynew,
                              p, istate, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, opts, poin, samp_t, samp)
@@ -417,6 +428,11 @@ def advance(y, istate, fstate, t_end, p, opts,
                     f_contact1 = contact_force_at(ynew, p, mc)
                     if f_contact1 > fstate[F_PEAK]:
                         fstate[F_PEAK] = f_contact1
+                if drive_end(y, ynew, stages[0], stages[ns], h, p, mc, fstate) and not fixed:
+                    dense_ok = interpolant(dense_ok, fixed, t, y, ynew, h, rk_a, rk_c, dense_w, ns, n_ext, stages, stages2, interp, ytmp, act, n_act,
+                                           istate, p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
+                    drive_inside(t, t1, y, h, how_dense, interp, act, n_act, ys, fs,
+                                 p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, fstate)
                 for i in range(n):
                     y[i] = ynew[i]
                     stages[0, i] = stages[ns, i]
@@ -456,6 +472,9 @@ def advance(y, istate, fstate, t_end, p, opts,
             if mc == CONTACT and not fixed and y[V_HAMMER] - y[V_BIT] > 0.0 and ys[V_HAMMER] - ys[V_BIT] <= 0.0 and dense_ok:
                 peak_in_step(t, t_hit, y, h, interp, act, n_act, ynew, fs, p, ms, mc, nz, ne,
                              Ap, Ai, Ax, sub_in, sub_out, link_x, fstate)
+            d_hit = force_on_bit(ys, p, mc)
+            if d_hit < fstate[F_DRIVE_MIN]:
+                fstate[F_DRIVE_MIN] = d_hit
             if needs_record(t_hit, istate, opts, poin, samp_t):
                 record_until(t_hit, ys, t, y, h, how_rk, interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ynew,
                              p, istate, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, opts, poin, samp_t, samp)
@@ -481,6 +500,11 @@ def advance(y, istate, fstate, t_end, p, opts,
             fstate[F_H_MODE + step_slot(ms, mc)] = h
         taken = apply_event(hit_kind, y, istate, fstate, p)
         fstate[F_ERRACC] = 0.0  # the new regime starts its own step-size history
+        if taken == EV_STICK:
+            fstate[F_T_STICK] = t
+        d_reset = force_on_bit(y, p, istate[I_CONTACT])
+        if d_reset < fstate[F_DRIVE_MIN]:
+            fstate[F_DRIVE_MIN] = d_reset
         if log_cap > 0:
             r = istate[I_NLOG]
             log[r, L_T] = t

@@ -88,7 +88,10 @@ F_V4_PEAK = 7     # peak bit velocity of the current slip (error scale of x4)
 F_X3_SLIP = 8     # bit position at the start of the current slip
 F_HACC = 9        # last accepted step of the current regime (predictive controller)
 F_ERRACC = 10     # its error, floored at ERRACC_FLOOR (0: no history since the last event)
-N_FSTATE = 11
+F_DRIVE_MIN = 11  # lowest drive on the bit f_k + f_c so far (inf before the first call)
+F_T_STICK = 12    # last time the bit was stuck: its last stick event (-1: never stuck)
+F_PEAK_RUN = 13   # peak contact force of the contacts ended so far (the run's, start-up included)
+N_FSTATE = 14
 
 # options
 O_RTOL = 0
@@ -149,6 +152,7 @@ STOP_SHRINK_FLOOR = 1e-3
 #: polynomial (a trial stage past the stop cannot blow up), and exp(-FRICTION_TAYLOR_FROM)
 FRICTION_TAYLOR_FROM = -4.0
 EXP_FRICTION_TAYLOR = 54.598150033144236  # = math.exp(4.0), exactly (a literal: numba folds it)
+DRIVE_GATE = 1e-2    # drive_end: the exact search runs when the Hermite minimum is this close (x |rate| h)
 
 
 # how a state inside the current step is evaluated

@@ -6,7 +6,7 @@ from . import numba_cache  # noqa: F401  (registers the content-hash cache locat
 from .kernel_forces import contact_mode_at_impact, force_on_bit
 from .kernel_layouts import (CLAMPED, CONTACT, EV_BOUNCE, EV_BOUNCE_END, EV_CLAMP, EV_IMPACT, EV_SEPARATION,
                              EV_SLIP_ON, EV_SLIP_START, EV_STICK, EV_UNCLAMP, FREE, F_IMPACT_V, F_PEAK,
-                             F_V4_PEAK, F_X3_SLIP, I_BOUNCE, I_CONTACT, I_COUNT0, I_STICK, SLIP, STICK,
+                             F_PEAK_RUN, F_V4_PEAK, F_X3_SLIP, I_BOUNCE, I_CONTACT, I_COUNT0, I_STICK, SLIP, STICK,
                              V_BIT, V_HAMMER, X_BIT)
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
@@ -40,6 +40,8 @@ def apply_event(kind, y, istate, fstate, p):
         fstate[F_PEAK] = 0.0
     elif kind == EV_SEPARATION:
         istate[I_CONTACT] = FREE
+        if fstate[F_PEAK] > fstate[F_PEAK_RUN]:
+            fstate[F_PEAK_RUN] = fstate[F_PEAK]
     elif kind == EV_CLAMP:
         istate[I_CONTACT] = CLAMPED
     elif kind == EV_UNCLAMP:

@@ -211,6 +211,8 @@ class Stepper:
         else:
             ist[KL.I_CONTACT] = KL.FREE
         ist[KL.I_WIN] = -1
+        self.fstate[KL.F_DRIVE_MIN] = np.inf
+        self.fstate[KL.F_T_STICK] = self.fstate[KL.F_T] if ist[KL.I_STICK] == KL.STICK else -1.0
 
     # ------------------------------------------------------------------
     @property

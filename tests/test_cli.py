@@ -95,7 +95,8 @@ def test_simulate_json_si_against_hand_scales(capsys):
     p150, p300 = simulate(g, 150).penetration, simulate(g, 300).penetration
     assert rop["x0_per_period"] == pytest.approx((p300 - p150) / 150, rel=1e-7)
     assert d["period"] == 3
-    assert d["regime"] == {"bounce": False, "overload": False, "runaway": False} and d["flags"] == []
+    assert d["flags"] == [] and d["paper_domain"] == {"inside": True, "outside": []}
+    assert not d["regime"]["runaway"] and not d["regime"]["bounce"]
     assert d["scales"]["length_m"] == pytest.approx(X0_M, rel=1e-14)
 
 
@@ -121,20 +122,21 @@ def test_simulate_text_is_si(capsys):
 
 
 # --------------------------------------------------------------------------- validity domain
-@pytest.mark.parametrize("settings, flags", [
-    (["--preset", "chaos", "--set", "b=0.8", "--set", "eta=0.3", "--set", "a=0"], ["runaway"]),
-    (["--preset", "paper-fig9", "--set", "a=0.6"], ["bounce", "overload"]),
-    (["--preset", "paper-fig9", "--set", "a=0.5"], ["overload"]),
+@pytest.mark.parametrize("settings, outside", [
+    (["--preset", "chaos", "--set", "b=0.8", "--set", "eta=0.3", "--set", "a=0"], ["b > mu"]),
+    (["--preset", "paper-fig9", "--set", "a=0.6"], ["a >= b", "a + b > 1"]),
+    (["--preset", "paper-fig9", "--set", "a=0.5"], ["a + b > 1"]),
     (["--preset", "chaos", "--set", "b=0.59"], []),
 ])
-def test_regime_flags_warn_and_reach_the_json(settings, flags, capsys):
+def test_paper_domain_and_scene_flags_reach_the_json_and_warn(settings, outside, capsys):
     code, out, err = run_cli(["simulate", *settings, "--periods", "100", "--json"], capsys)
     assert code == 0
     d = json.loads(out)
-    assert d["flags"] == flags
-    assert all(d["regime"][f] == (f in flags) for f in ("bounce", "overload", "runaway"))
-    for f in ("bounce", "overload", "runaway"):
-        assert (f"warning: {f}" in err) == (f in flags), err
+    assert d["paper_domain"] == {"inside": not outside, "outside": outside}
+    assert d["flags"] == [f for f in ("runaway", "bounce", "tension", "transient") if d["regime"][f]]
+    for f in ("runaway", "bounce", "tension", "transient"):
+        assert (f"warning: {f}" in err) == (f in d["flags"]), err
+    assert ("outside the paper's domain" in err) == bool(outside)
     assert "Traceback" not in err
 
 

@@ -114,7 +114,7 @@ def test_map_cells_equal_simulate_bit_for_bit():
             r = simulate(s, periods, record=Record(poincare=True, events=True))
             x3 = r.poincare["bit_position"]
             rop = (x3[periods] - x3[half]) / (periods - half)
-            assert ds["rop"].values[i, j] == rop                       # bit for bit
+            assert ds["rop_x0_per_period"].values[i, j] == rop         # bit for bit
             assert ds["rop_m_per_h"].values[i, j] == s.rop(rop)["m_per_h"]
             n = detect_period(r.poincare)
             assert (math.isnan(ds["period"].values[i, j]) if n is None else ds["period"].values[i, j] == n)
@@ -123,31 +123,42 @@ def test_map_cells_equal_simulate_bit_for_bit():
             assert ds["impacts_per_period"].values[i, j] == imp / (periods - half)
             seps = late[late["kind"] == "separation"]
             peak = seps["peak_contact_force"].max() if len(seps) else 0.0
-            assert ds["peak_contact_force_n"].values[i, j] == peak * s.scales.friction_force
-            assert list(ds[f].values[i, j] for f in ("bounce", "overload", "runaway")) == \
-                [int(v) for v in regime(s).to_dict().values()]
+            if r.events["kind"][-1] != "impact":            # no contact still open at the end
+                assert ds["peak_contact_force_steady_n"].values[i, j] == peak * s.scales.friction_force
+            # the whole-run peak: every contact's, start-up included; the same figure as simulate's
+            all_seps = r.events[r.events["kind"] == "separation"]["peak_contact_force"]
+            assert ds["peak_contact_force_n"].values[i, j] >= (all_seps.max() if len(all_seps) else 0.0) \
+                * s.scales.friction_force
+            assert ds["peak_contact_force_n"].values[i, j] == r.peak_contact_force_n()
+            f = r.flags
+            assert [ds[k].values[i, j] for k in ("runaway", "bounce", "tension", "transient")] == \
+                [int(f.runaway), int(f.bounce), int(f.tension), int(f.transient)]
+            assert ds["min_drive_f0"].values[i, j] == f.min_drive
+            assert ds["valid"].values[i, j] == int(not (f.runaway or f.bounce))
+            rg = regime(s)
+            assert [ds[k].values[i, j] for k in ("domain_a_ge_b", "domain_a_plus_b_gt_1", "domain_b_gt_mu")] \
+                == [int(rg.bounce), int(rg.overload), int(rg.runaway)]
     assert np.nansum(ds["impacts_per_period"].values) > 0        # the case has impacts
 
 
 @settings(max_examples=300, deadline=None)
 @given(n_rows=st.integers(1, 140), period=st.integers(1, 40), scale=st.sampled_from([0.0, 1e-7, 1e-5, 1e-3]),
        seed=st.integers(0, 2**32 - 1), nan=st.booleans())
-def test_cell_figures_period_equals_detect_period(n_rows, period, scale, seed, nan):
-    """The map's compiled period detection against analysis.detect_period: period-n rows with
+def test_cell_period_equals_detect_period(n_rows, period, scale, seed, nan):
+    """The map's compiled period (scene flags) against analysis.detect_period: period-n rows with
     perturbations around the tolerance, short arrays, NaN."""
-    from hammerbit.studies.map import cell_figures
+    from hammerbit.scene.flags import N_SETTLING, S_PERIOD, settling_rows
+    from hammerbit.scene.analysis import relative_coordinates
     rng = np.random.default_rng(seed)
     base = rng.normal(size=(period, 5)) * rng.choice([1e-3, 1.0, 1e3])
     rows = base[np.arange(n_rows) % period] + scale * rng.normal(size=(n_rows, 5))
     rows[:, 0] = np.arange(n_rows)
     if nan:
         rows[rng.integers(n_rows), rng.integers(1, 5)] = np.nan
-    out = np.zeros(4)
-    periods = n_rows - 1 if n_rows > 1 else 1
-    buf = np.vstack([rows, np.zeros((periods + 1 - n_rows + 1, 5))])
-    cell_figures(buf, n_rows, 0.0, np.zeros((0, 8)), 0, periods, 0.0, 32, 1e-5, out)
+    out = np.zeros(N_SETTLING)
+    settling_rows(relative_coordinates(rows), 32, 1e-5, out)
     n = detect_period(rows)
-    assert out[3] == (0 if n is None else n)
+    assert out[S_PERIOD] == (0 if n is None else n)
 
 
 def test_map_si_axis_uses_cell_scales():
@@ -156,8 +167,8 @@ def test_map_si_axis_uses_cell_scales():
     ds = regime_map(g, [Axis.parse("K=2000:4000:2")], periods=30, options=IN_PROCESS)
     for k, K_ in enumerate(ds["K"].values):
         s = apply_settings(g, {"K": float(K_)})
-        assert ds["rop_mm_per_period"].values[k] == pytest.approx(ds["rop"].values[k] * s.scales.length * 1e3,
-                                                                  rel=1e-15)
+        assert ds["rop_mm_per_period"].values[k] == pytest.approx(
+            ds["rop_x0_per_period"].values[k] * s.scales.length * 1e3, rel=1e-15)
     assert ds["K"].attrs["units"] == "N/m"
 
 
@@ -181,25 +192,41 @@ def test_map_json_nested_lists():
     d = map_to_json(ds)
     assert [a["name"] for a in d["axes"]] == ["a", "b"]
     assert len(d["period"]) == 2 and len(d["period"][0]) == 2
-    # a=0.6 >= b: bounce, and a + b > 1: overload
-    assert set(d["flags"][1][0]) >= {"bounce", "overload"}
-    assert d["flags"][0][1] == ["runaway"] or "bounce" not in d["flags"][0][1]
+    # a = 0.6 >= b and a + b > 1: outside the paper's domain; the flags come from the dynamics
+    assert set(d["paper_domain_outside"][1][0]) == {"a >= b", "a + b > 1"}
+    assert "rop" not in d and "rop_x0_per_period" in d and "min_drive_f0" in d
+    for i in range(2):
+        for j in range(2):
+            assert d["flags"][i][j] == [f for f in ("runaway", "bounce", "tension", "transient")
+                                        if int(ds[f].values[i, j])]
 
 
 #: The kinetic friction ratio the runaway tests are written for (the floor b crosses).
 RUNAWAY_MU = 0.85
 
 
-@pytest.mark.parametrize("flag,base,setting,below,above", [
-    ("bounce", {"b": 0.3}, "a", 0.3 - 1e-9, 0.3),                     # a >= b
-    ("overload", {"b": 0.5}, "a", 0.5 - 1e-9, 0.5 + 1e-9),            # a + b > 1
-    ("runaway", {"a": 0.0}, "b", 0.85 - 1e-9, 0.85 + 1e-9),           # b > mu (gamma_hat > 0)
-    ("runaway", {"a": 0.0, "gamma_hat": 0.0}, "b", 1.0, 1.0 + 1e-9),  # b > 1 (no velocity weakening)
+@pytest.mark.parametrize("field,base,setting,below,above", [
+    ("domain_a_ge_b", {"b": 0.3}, "a", 0.3 - 1e-9, 0.3),                     # a >= b
+    ("domain_a_plus_b_gt_1", {"b": 0.5}, "a", 0.5 - 1e-9, 0.5 + 1e-9),       # a + b > 1
+    ("domain_b_gt_mu", {"a": 0.0}, "b", 0.85 - 1e-9, 0.85 + 1e-9),           # b > mu (gamma_hat > 0)
+    ("domain_b_gt_mu", {"a": 0.0, "gamma_hat": 0.0}, "b", 1.0, 1.0 + 1e-9),  # b > 1 (no velocity weakening)
 ])
-def test_map_flags_on_both_sides(flag, base, setting, below, above):
+def test_map_paper_domain_on_both_sides(field, base, setting, below, above):
     g = preset("paper-fig9").replace(mu=RUNAWAY_MU).replace(**base)
     ds = regime_map(g, [Axis(setting, (below, above))], periods=4, options=IN_PROCESS)
-    assert ds[flag].values.tolist() == [0, 1]
+    assert ds[field].values.tolist() == [0, 1]
+
+
+def test_map_headline_and_best_cell_use_valid_cells_only():
+    """A map whose fastest cells run away: the best valid cell is the fastest of the others."""
+    from hammerbit.studies.map import best_valid_cell
+    ds = regime_map(preset("paper-fig9").replace(a=0.02), [Axis.parse("b=0.6:0.95:8")], periods=60,
+                    options=IN_PROCESS)
+    rop = ds["rop_m_per_h"].values
+    run = ds["runaway"].values == 1
+    assert run.any() and np.nanmax(rop[run]) > np.nanmax(rop[~run])
+    best = best_valid_cell(ds)
+    assert best["rop_m_per_h"] == np.nanmax(rop[~run])
 
 
 def _window_drifts(b, *, gamma_hat=None):
@@ -383,24 +410,26 @@ def test_cli_map_interrupted_leaves_no_processes(tmp_path):
 # ---------------------------------------------------------------------------
 # optimizer
 # ---------------------------------------------------------------------------
-def test_optimizer_known_optimum_on_the_bounce_boundary():
-    """b = 0.4, amplitude free: ROP grows with a, so the optimum is a -> b (no bounce binds
-    before a + b <= 1)."""
+def test_optimizer_known_optimum_on_the_threshold_not_the_papers_bounce_rule():
+    """b = 0.4, amplitude free: the ROP grows with a and the drive never falls below -F_s while
+    stuck for a <= 0.6, so the optimum is on a + b = 1, beyond the paper's static rule a < b."""
     g = preset("paper-fig9").replace(b=0.4)
     F0 = g.scales.friction_force
     res = optimize(g, OptimizeConfig(bounds=(Bound("A", 0.1 * F0, 0.6 * F0),), periods=60), options=IN_PROCESS)
     o = res.optimum
-    assert o.feasible and o.margins["bounce"] > 0
-    assert o.groups.a == pytest.approx(0.4, abs=2e-3)
-    # oracle: the ROP is monotone in a, so nothing feasible on a fine scan beats it
-    for a in np.linspace(0.1, 0.3999, 12):
-        x3 = simulate(g.replace(a=float(a)), 60, record=Record(poincare=True)).poincare["bit_position"]
+    assert o.feasible and o.margins["bounce"] >= 0 and o.margins["threshold"] >= 0
+    assert o.groups.a == pytest.approx(0.6, abs=2e-3) and o.groups.a > o.groups.b
+    # oracle: nothing on a fine scan without bounce beats it
+    for a in np.linspace(0.1, 0.6, 12):
+        r = simulate(g.replace(a=float(a)), 60, record=Record(poincare=True))
+        x3 = r.poincare["bit_position"]
+        assert r.counts["bounce"] == 0
         assert g.replace(a=float(a)).rop((x3[60] - x3[30]) / 30)["m_per_h"] <= o.rop_m_per_h * (1 + 1e-12)
 
 
 def test_optimizer_beats_every_feasible_cell_of_a_21x21_grid():
     """lab preset over (frequency, amplitude): the optimum is at least every feasible cell
-    of a 21 x 21 grid evaluated here with simulate and params.regime."""
+    of a 21 x 21 grid evaluated here with simulate (a + b <= 1, no bounce)."""
     g = preset("lab")
     rig = g.to_rig()
     F0 = g.scales.friction_force
@@ -412,15 +441,18 @@ def test_optimizer_beats_every_feasible_cell_of_a_21x21_grid():
     for f in np.linspace(bounds[0].lo, bounds[0].hi, 21):
         for A in np.linspace(bounds[1].lo, bounds[1].hi, 21):
             s = apply_settings(g, {"frequency": float(f), "amplitude": float(A)})
-            rg = regime(s)
-            if rg.bounce or rg.overload or rg.runaway:
+            if s.a + s.b > 1.0:             # lab: b = 0.55 < mu = 0.90, runaway cannot happen
                 continue
-            x3 = simulate(s, periods, record=Record(poincare=True)).poincare["bit_position"]
+            r = simulate(s, periods, record=Record(poincare=True))
+            if r.counts["bounce"]:
+                continue
+            x3 = r.poincare["bit_position"]
             best = max(best, s.rop((x3[periods] - x3[periods // 2]) / (periods - periods // 2))["m_per_h"])
     assert res.optimum.rop_m_per_h >= best
     assert res.best_grid.rop_m_per_h == pytest.approx(best, rel=1e-12)
     periods_seen = {r.period for r in res.runners_up}
     assert res.optimum.period not in periods_seen and len(periods_seen) == len(res.runners_up)
+    assert all(r.drilling and r.period is not None and r.rop_m_per_h > 0 for r in res.runners_up)
 
 
 def test_optimizer_frequency_check_excludes_unsafe_frequencies():
@@ -508,7 +540,7 @@ def test_cli_map_json_and_files(tmp_path, capsys):
     assert rc == 0
     d = json.loads(capsys.readouterr().out)
     assert [len(d["period"]), len(d["period"][0])] == [4, 3]
-    assert {"axes", "rop", "flags", "rop_m_per_h", "rop_mm_per_period"} <= set(d)
+    assert {"axes", "rop_x0_per_period", "flags", "rop_m_per_h", "rop_mm_per_period", "best_valid_cell"} <= set(d)
     assert out.exists() and png.exists()
 
 

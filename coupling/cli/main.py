@@ -132,25 +132,28 @@ def check_output_path(path: str, option: str, *, formats=None) -> str:
     return full
 
 
-def regime_warnings(g, bounces: int = 0) -> list:
-    """Plain-language warnings for a scene outside the model's validity domain (SI figures)."""
-    from hammerbit.model.regime import regime
-    reg = regime(g)
+def regime_warnings(g, flags) -> list:
+    """Plain-language warnings from a scene's own flags and the paper's domain (SI figures).
+
+    ``flags`` is the run's :class:`hammerbit.scene.flags.SceneFlags`.
+    """
     F0 = g.scales.friction_force
     out = []
-    if reg.bounce or bounces:
-        out.append(f"bounce: a = {g.a:g} >= b = {g.b:g}: the harmonic force (amplitude {g.a * F0:.4g} N) "
-                   f"can exceed the preload ({g.b * F0:.4g} N) and the rock would have to pull the bit "
-                   f"back; the model holds the bit instead ({bounces} time(s) in this run)")
-    if reg.overload:
-        out.append(f"overload: a + b = {g.a + g.b:g} > 1: preload plus amplitude "
-                   f"({(g.a + g.b) * F0:.4g} N) exceed the static friction threshold F0 = {F0:.4g} N, "
-                   f"outside the paper's domain a + b <= 1")
-    if reg.runaway:
-        floor = g.mu if g.gamma_hat > 0.0 else 1.0
-        out.append(f"runaway: b = {g.b:g} > {'mu' if g.gamma_hat > 0.0 else '1'} = {floor:g}: the preload "
-                   f"({g.b * F0:.4g} N) exceeds the kinetic friction at high speed ({floor * F0:.4g} N), so "
-                   f"the drift grows without bound; the penetration is not a rate of penetration")
+    if flags.runaway:
+        out.append(f"runaway: the bit never stuck over the last half and its drift keeps accelerating "
+                   f"(preload {g.b * F0:.4g} N above the kinetic friction at high speed "
+                   f"{g.mu * F0:.4g} N); the penetration is not a rate of penetration")
+    if flags.bounce:
+        out.append(f"bounce: the drive on the bit fell below -F_s = {-F0:.4g} N while the bit was stuck, "
+                   f"{flags.bounces} time(s): the rock would have to pull the bit back; the model held it")
+    if flags.tension:
+        out.append(f"tension: the drive on the bit fell below zero (lowest {flags.min_drive * F0:.4g} N)")
+    if flags.transient:
+        more = (f"; it settles into period-{flags.settling_period} after about {flags.settled_after} periods"
+                if flags.settling_period and flags.settled_after is not None else "")
+        out.append(f"transient: the period-n has not settled within the horizon{more}")
+    if not flags.domain["inside"]:
+        out.append("outside the paper's domain (" + ", ".join(flags.domain["outside"]) + ")")
     return out
 
 
@@ -171,7 +174,6 @@ def cmd_simulate(args) -> int:
 
 
 def _simulate(args, worker) -> int:
-    from hammerbit.model.regime import regime
     from hammerbit.model.stepping import Stepper
     from hammerbit.model.validation import check
 
@@ -214,7 +216,7 @@ def _simulate(args, worker) -> int:
         if not issubclass(w.category, BounceWarning):
             warnings.showwarning(w.message, w.category, w.filename, w.lineno)
     period = detect_period(res.poincare) if res.poincare is not None and len(res.poincare) > 8 else None
-    reg = regime(g)
+    reg = res.flags
     rop = res.rop()
     peak = res.peak_contact_force_n() if g.has_gap else None
     per_period = res.penetration / args.periods
@@ -237,8 +239,9 @@ def _simulate(args, worker) -> int:
         "penetration_per_period_mm": g.length_m(per_period) * 1e3,
         "rop": rop,
         "period": period,
-        "regime": reg.to_dict(),
-        "flags": reg.flags,
+        "regime": reg.to_dict(g.scales.friction_force) if reg else None,
+        "flags": reg.flags if reg else None,
+        "paper_domain": reg.domain if reg else None,
         "events": res.counts,
         "peak_contact_force_n": peak,
         "steps": res.stats,
@@ -246,7 +249,7 @@ def _simulate(args, worker) -> int:
         "csv": args.csv,
         "plot": args.plot,
     }
-    for msg in regime_warnings(g, res.counts.get("bounce", 0)):
+    for msg in regime_warnings(g, reg) if reg else []:
         print(f"hammerbit: warning: {msg}", file=sys.stderr)
     if args.csv:
         write_samples_csv(res, args.csv)
@@ -268,8 +271,11 @@ def _simulate(args, worker) -> int:
         if peak is not None:
             print(f"peak contact force: {peak:.4g} N")
         print(f"solver: {solver.method}, {res.stats['steps']} steps, {res.wall_time_s * 1e3:.3g} ms")
-        if reg.flags:
-            print("regime: " + ", ".join(reg.flags) + " (outside the model's validity domain; see stderr)")
+        if reg and reg.flags:
+            print("flags: " + ", ".join(reg.flags) + (" (not a drilling point; see stderr)" if reg.unusable
+                                                       else " (see stderr)"))
+        if reg and not reg.domain["inside"]:
+            print("outside the paper's domain: " + ", ".join(reg.domain["outside"]))
         if args.csv:
             print(f"time series: {args.csv}")
     if args.plot:

@@ -177,7 +177,7 @@ def cmd_sweep(args) -> int:
 # map
 # ---------------------------------------------------------------------------
 def cmd_map(args) -> int:
-    from hammerbit.studies.map import Axis, map_to_json, regime_map
+    from hammerbit.studies.map import FLAG_FIELDS, Axis, best_valid_cell, map_to_json, regime_map
     if not args.axis:
         raise UsageError("map needs at least one --axis NAME=LO:HI:N")
     if len(args.axis) > 3:
@@ -214,16 +214,23 @@ def cmd_map(args) -> int:
               + f": {n} cells x {args.periods} periods in {ds.attrs['wall_time_s']:.2f} s "
               f"({tp / ds.attrs['wall_time_s']:,.0f} periods/s, {ds.attrs['workers']} worker(s))")
         print("period-n: " + ", ".join(f"{k} {counts[k]}" for k in order))
-        rop = ds["rop_m_per_h"].values
-        if np.any(np.isfinite(rop)):
-            i = np.unravel_index(np.nanargmax(rop), rop.shape)
-            where = ", ".join(f"{a.name}={a.values[k]:g}" for a, k in zip(axes, i))
-            print(f"highest ROP {rop[i]:.4g} m/h ({ds['rop_mm_per_period'].values[i]:.4g} mm per period) "
-                  f"at {where}")
-        for f in ("bounce", "overload", "runaway"):
+        best = best_valid_cell(ds)
+        valid = int(ds["valid"].values.sum())
+        if best is not None:
+            where = ", ".join(f"{k}={v:g}" for k, v in best["values"].items())
+            print(f"highest ROP of the {valid} valid cell(s) {best['rop_m_per_h']:.4g} m/h "
+                  f"({best['rop_mm_per_period']:.4g} mm per period) at {where}")
+        else:
+            print("no valid cell (every cell runs away, bounces or did not run)")
+        for f in FLAG_FIELDS:
             k = int(ds[f].values.sum())
             if k:
                 print(f"flag {f}: {k} cell(s)")
+        for f, rule in (("domain_a_ge_b", "a >= b"), ("domain_a_plus_b_gt_1", "a + b > 1"),
+                        ("domain_b_gt_mu", "b > mu")):
+            k = int(ds[f].values.sum())
+            if k:
+                print(f"outside the paper's domain ({rule}): {k} cell(s)")
         if args.out:
             print(f"wrote {args.out}")
         if args.plot:
@@ -243,38 +250,11 @@ def _default_bounds(g):
 
 
 def _confirm(groups, string, args) -> dict:
-    """Co-simulate the optimum on the string; dynamic WOB amplitude and bounce margin."""
+    """Co-simulate the optimum on the string with the auto-driller (:func:`hammerbit.studies.confirm.confirm`)."""
     from hammerbit.cli.cosim import fmu_arg
-    from hammerbit.cosim.config import CosimConfig
-    from hammerbit.cosim.master import cosimulate
-    rig = groups.to_rig()
-    T = 1.0 / rig.frequency
-    periods = args.confirm_periods
-    kw = {}
-    if args.interface_stiffness is not None:
-        kw["interface_stiffness"] = args.interface_stiffness
-    if args.interface_damping is not None:
-        kw["interface_damping"] = args.interface_damping
-    base = CosimConfig(rig=rig, **kw)
-    # the hammer on the interface spring is the fastest coupled motion; the string is truncated
-    # above twice its frequency (and 50 x the hammer's) and the step resolves the truncation 20 x
-    f_i = math.sqrt((base.interface_stiffness + rig.stiffness) / rig.hammer_mass) / (2 * math.pi)
-    f_max = max(2.0 * f_i, 50.0 * rig.frequency)
-    step = min(T / 200.0, 1.0 / (20.0 * f_max))
-    cfg = base.replace(stop=periods * T, step=step, f_max=f_max, record=("wob", "bit_position"), progress=False)
-    t0 = time.perf_counter()
-    r = cosimulate(string, cfg, fmu=fmu_arg(args))
-    w = r.window()
-    F_s = rig.scales.friction_force
-    wmin = float(w["wob"].min())
-    tb, xb = w["time"], w["bit_position"]
-    return {"periods": periods, "step_s": step, "f_max_hz": f_max,
-            "interface_stiffness_n_per_m": cfg.interface_stiffness,
-            "hammer": "fmu" if args.fmu else "in-process",
-            "wob_mean_n": r.wob_mean(), "wob_amplitude_n": r.wob_amplitude(), "wob_min_n": wmin,
-            "bounce_margin": 1.0 + wmin / F_s,
-            "rop_m_per_h": float((xb[-1] - xb[0]) / (tb[-1] - tb[0]) * 3600.0),
-            "wall_time_s": time.perf_counter() - t0}
+    from hammerbit.studies.confirm import confirm
+    return confirm(groups, string, periods=args.confirm_periods, interface_stiffness=args.interface_stiffness,
+                   interface_damping=args.interface_damping, fmu=fmu_arg(args))
 
 
 def cmd_optimize(args) -> int:
@@ -294,7 +274,7 @@ def cmd_optimize(args) -> int:
                 "at_bounds": res.at_bounds(bounds)})
     if res.optimum is None:
         msg = (f"no feasible operating point on the {'x'.join(map(str, res.grid_shape))} grid within the "
-               f"bounds (no bounce, a + b <= 1, no runaway"
+               f"bounds (no bounce, a + b <= 1, no runaway in the scene's dynamics"
                + (", frequency check" if string is not None else "")
                + (", contact force" if args.max_contact_force is not None else "") + ")")
         if args.json:
@@ -318,8 +298,10 @@ def cmd_optimize(args) -> int:
     for name, side in out["at_bounds"].items():
         print(f"  {name} sits on its {side} bound: widen --bounds to look further")
     for k, m in o["margins"].items():
-        if m["margin"] is None:
+        if m["ok"] is None:
             print(f"  constraint {k}: not checked")
+        elif m["margin"] is None:
+            print(f"  constraint {k}: {'ok' if m['ok'] else 'VIOLATED'} (the scene's own dynamics)")
         else:
             unit = "" if m["unit"] == "relative" else f" {m['unit']}"
             if m["unit"] == "relative":
@@ -334,9 +316,11 @@ def cmd_optimize(args) -> int:
               f"preload {r['preload_n']:.4g} N")
     if "confirm" in out:
         cf = out["confirm"]
-        print(f"  co-simulation on {string.name} ({cf['hammer']} hammer, {cf['periods']} periods): "
-              f"dynamic WOB amplitude {cf['wob_amplitude_n']:.4g} N, bounce margin "
-              f"{cf['bounce_margin']:.3g}, ROP {cf['rop_m_per_h']:.4g} m/h")
+        print(f"  co-simulation on {string.name} ({cf['hammer']} hammer, hook on the auto-driller, "
+              f"{cf['periods']} periods after {cf['settle_s']:.3g} s of settling): sustained ROP "
+              f"{cf['rop_m_per_h']:.4g} m/h{'' if cf['rop_steady'] else ' (not steady)'} against the "
+              f"optimizer's {o['rop_m_per_h']:.4g} m/h; dynamic WOB amplitude {cf['wob_amplitude_n']:.4g} N, "
+              f"bounce margin {cf['bounce_margin']:.3g}")
     return 0
 
 
@@ -386,7 +370,8 @@ def register(subparsers) -> None:
                               description="One scene per cell of a grid over 1 to 3 parameters (groups "
                                           "or SI names): period-n, rate of penetration (x0 per period, "
                                           "mm per period, m/h), impacts per period, peak contact "
-                                          "force, and the bounce/overload/runaway flags.")
+                                          "force, the scene's runaway/bounce/tension/transient flags and "
+                                          "the paper's domain.")
     _add_scene_args(p)
     p.add_argument("--axis", action="append", default=[], metavar="NAME=LO:HI:N",
                    help="an axis (repeat for 2 or 3), e.g. a=0.05:0.25:81 or f=1.0:2.0:41")
@@ -400,8 +385,10 @@ def register(subparsers) -> None:
     p = subparsers.add_parser("optimize", help="operating point of the highest ROP under the drilling "
                                                "constraints",
                               description="Maximise the ROP [m/h] over bounded parameters subject to no "
-                                          "bounce, a + b <= 1, no runaway, the string's frequency check "
-                                          "and a contact-force limit: a grid, then local refinement.")
+                                          "bounce and no runaway in the scene's dynamics, a + b <= 1, the "
+                                          "string's frequency check and a limit on the peak contact force "
+                                          "over the whole run: a grid, then a refinement that follows "
+                                          "active constraints.")
     _add_scene_args(p, default_preset="lab")
     p.add_argument("--string", default=None, help="drillstring TOML file or example name (frequency check)")
     p.add_argument("--bounds", nargs="+", default=None, metavar="NAME=LO:HI",
@@ -412,10 +399,13 @@ def register(subparsers) -> None:
     p.add_argument("--max-contact-force", type=float, default=None, metavar="N",
                    help="largest allowed hammer-bit contact force [N]")
     p.add_argument("--periods", type=int, default=200, help="forcing periods per evaluation (default 200)")
-    p.add_argument("--grid", type=int, default=21, help="grid points per variable (default 21)")
+    p.add_argument("--grid", type=int, default=None,
+                   help="grid points per variable (default 41 for one or two variables, 15 for three)")
     p.add_argument("--confirm", action="store_true",
-                   help="co-simulate the optimum on the string (dynamic WOB amplitude, bounce margin)")
-    p.add_argument("--confirm-periods", type=int, default=20, help="forcing periods of --confirm (default 20)")
+                   help="co-simulate the optimum on the string with the hook on the auto-driller: the "
+                        "sustained ROP beside the optimizer's, the dynamic WOB amplitude, the bounce margin")
+    p.add_argument("--confirm-periods", type=int, default=20,
+                   help="forcing periods of --confirm measured after the auto-driller settles (default 20)")
     p.add_argument("--fmu", default=None, help="--confirm with this hammer FMU (default: in process)")
     p.add_argument("--interface-stiffness", type=float, default=None,
                    help="--confirm: k_i between the string and the hammer [N/m] (default: the "

@@ -23,8 +23,16 @@ from hammerbit.model.solver_options import SolverOptions
 from hammerbit.model.stepping import EVENT_NAMES, Stepper
 from hammerbit.model.validation import RANGES, check
 
+from .contact import peak_of_run
+from .flags import SceneFlags, stepper_flags
+
 __all__ = ["Record", "SimResult", "simulate", "BounceWarning", "POINCARE_DTYPE",
-           "SAMPLE_DTYPE", "EVENT_DTYPE", "SI_SAMPLE_COLUMNS", "samples_si", "write_samples_csv"]
+           "SAMPLE_DTYPE", "EVENT_DTYPE", "SI_SAMPLE_COLUMNS", "samples_si", "write_samples_csv",
+           "FLAG_MAX_PERIODS"]
+
+
+#: Longest horizon [forcing periods] whose Poincaré rows a scene keeps for its flags.
+FLAG_MAX_PERIODS = 1_000_000
 
 
 class BounceWarning(UserWarning):
@@ -101,6 +109,13 @@ class SimResult:
         ``friction`` and the residual ``balance`` of the energy equation.
     wall_time_s : float
         Solver time, excluding compilation and set-up.
+    flags : SceneFlags or None
+        What the scene's dynamics say about it (:mod:`hammerbit.scene.flags`):
+        runaway, bounce, tension, a settled period; None beyond
+        ``FLAG_MAX_PERIODS`` periods.
+    peak_contact_force : float
+        Largest hammer-bit contact force over the whole run, start-up
+        included [F0] (:func:`hammerbit.scene.contact.peak_contact_force`).
     """
 
     groups: Groups
@@ -113,6 +128,8 @@ class SimResult:
     samples: Optional[np.ndarray] = None
     events: Optional[np.ndarray] = None
     energy: Optional[dict] = None
+    flags: Optional[SceneFlags] = None
+    peak_contact_force: float = 0.0
 
     @property
     def penetration(self) -> float:
@@ -154,12 +171,9 @@ class SimResult:
             return None
         return self.groups.rop(float((p["bit_position"][-1] - p["bit_position"][k0]) / dt))
 
-    def peak_contact_force_n(self) -> Optional[float]:
-        """Largest contact force of the run [N] (from the event log), None without ``Record(events=True)``."""
-        if self.events is None:
-            return None
-        peaks = self.events["peak_contact_force"][self.events["kind"] == "separation"]
-        return float(peaks.max() * self.groups.scales.friction_force) if peaks.size else 0.0
+    def peak_contact_force_n(self) -> float:
+        """Largest hammer-bit contact force over the whole run, start-up included [N]."""
+        return float(self.peak_contact_force * self.groups.scales.friction_force)
 
 
 def _energy_terms(y, ne_start, g: Groups) -> dict:
@@ -217,7 +231,8 @@ def simulate(groups: Groups, periods: float, *, record: Record = Record(),
     st = Stepper(groups, solver=solver, energy=record.energy, y0=y0)
     st.opts[kernel_layouts.O_POIN_T0] = record.poincare_phase * T
     poin = samp_t = samp = None
-    if record.poincare:
+    if record.poincare or periods <= FLAG_MAX_PERIODS:
+        # the flags read the Poincaré rows too: recorded whenever they are affordable
         n_poin = int(math.floor(periods - record.poincare_phase + 1e-9)) + 1
         poin = np.zeros((n_poin, 5))
     if record.times is not None:
@@ -236,7 +251,7 @@ def simulate(groups: Groups, periods: float, *, record: Record = Record(),
     counts = st.counts
     if counts["bounce"] > 0:
         warnings.warn(f"bit bounce: the drive on the bit fell below -F_s {counts['bounce']} time(s) "
-                      f"(a={groups.a:g} >= b={groups.b:g}?); the bit was held stuck, outside the "
+                      f"while the bit was stuck; it was held stuck, outside the "
                       f"model's validity", BounceWarning, stacklevel=2)
     res = SimResult(
         groups=groups, periods=periods, final=st.y[:4].copy(), counts=counts,
@@ -244,9 +259,12 @@ def simulate(groups: Groups, periods: float, *, record: Record = Record(),
                "rhs": int(st.istate[kernel_layouts.I_RHS])},
         wall_time_s=wall,
     )
+    res.peak_contact_force = peak_of_run(st)
     if poin is not None:
         k = int(st.istate[kernel_layouts.I_POIN_NEXT])
-        res.poincare = np.rec.fromarrays(poin[:k].T, dtype=POINCARE_DTYPE).view(np.ndarray)
+        res.flags = stepper_flags(groups, st, poin[:k])
+        if record.poincare:
+            res.poincare = np.rec.fromarrays(poin[:k].T, dtype=POINCARE_DTYPE).view(np.ndarray)
     if samp is not None:
         out = np.zeros(samp_t.shape[0], dtype=SAMPLE_DTYPE)
         out["time"] = samp_t

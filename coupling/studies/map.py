@@ -1,4 +1,4 @@
-"""Regime maps: period-n, rate of penetration, impacts and regime flags on a grid.
+"""Regime maps: period-n, rate of penetration, impacts and the scene's own flags on a grid.
 
 :func:`regime_map` runs one scene per cell of a grid over 1 to 3 parameters
 (any group or SI name, applied with :func:`hammerbit.model.settings.apply_settings`,
@@ -8,25 +8,40 @@ Per cell, from rest over ``periods`` forcing periods:
 ``period``
     period-n of the bounded motion (:func:`hammerbit.scene.analysis.detect_period`
     on the Poincaré samples of the second half), NaN when none up to 32;
-``rop``
+``transient``, ``settled_after``
+    1 when that period has not settled (:mod:`hammerbit.scene.flags`), and
+    the forcing periods the orbit needed (or, still settling, an
+    extrapolation; NaN: unknown);
+``rop_x0_per_period``
     rate of penetration, the mean penetration per forcing period over the
-    second half of the horizon [x0 per period], with ``rop_mm_per_period``
-    and ``rop_m_per_h`` in SI (the cell's own scales, :meth:`Groups.rop`);
+    second half of the horizon, nondimensional [x0 per period], with
+    ``rop_mm_per_period`` and ``rop_m_per_h`` in SI (the cell's own scales,
+    :meth:`Groups.rop`);
 ``impacts_per_period``
     hammer-bit impacts per forcing period over the second half;
 ``peak_contact_force_n``
-    largest hammer-bit contact force over the second half [N];
-``bounce``, ``overload``, ``runaway``
-    the flags of :func:`hammerbit.model.regime.regime` (1 = set);
+    largest hammer-bit contact force over the whole run, start-up included
+    [N] (:func:`hammerbit.scene.contact.peak_of_run`, the figure of
+    ``simulate`` and ``optimize``); ``peak_contact_force_steady_n`` the
+    largest over the second half only;
+``min_drive_f0``, ``min_drive_n``
+    lowest drive on the bit, nondimensional [F0] and [N];
+``runaway``, ``bounce``, ``bounces``, ``tension``
+    the scene's own flags (:mod:`hammerbit.scene.flags`, 1 = set);
+``valid``
+    1 when the cell is a drilling point: it ran, neither runaway nor bounce;
+``domain_a_ge_b``, ``domain_a_plus_b_gt_1``, ``domain_b_gt_mu``
+    the paper's static rules it breaks (:func:`hammerbit.model.regime.regime`);
 ``status``
     0 when the scene ran, 1 when the solver stopped (the message is in the
     dataset's ``errors`` attribute), 2 when the cell's parameters are invalid.
 
 A cell is exactly the scene ``simulate(groups, periods)`` of the same
 parameters: the same stepper from rest, one call to the end of the horizon.
-The figures of a cell come out of one compiled pass over its Poincaré rows
-and event log (:func:`cell_figures`), so the Python work per cell is the
-scene's set-up and validation; the solver's own time dominates.
+The figures of a cell come out of compiled passes over its Poincaré rows
+and event log (:func:`cell_figures`, :func:`hammerbit.scene.flags.scene_flags`),
+so the Python work per cell is the scene's set-up and validation; the
+solver's own time dominates.
 """
 from __future__ import annotations
 
@@ -39,7 +54,7 @@ from typing import Optional, Sequence
 import numpy as np
 from numba import njit
 
-from hammerbit.model import kernel_layouts
+from hammerbit.model import kernel_layouts as KL
 from hammerbit.model.params import Groups
 from hammerbit.model.regime import regime
 from hammerbit.model.settings import apply_settings, setting_target
@@ -48,19 +63,29 @@ from hammerbit.model.solver_errors import MaxStepsError, SolverError
 from hammerbit.model.solver_options import SolverOptions
 from hammerbit.model.stepping import Stepper
 
-from hammerbit.scene.analysis import PERIOD_MAX, PERIOD_TOL, period_n, relative_rows
+from hammerbit.scene.contact import peak_of_run, steady_peak
+from hammerbit.scene.flags import SceneFlags, stepper_flags
 from .bifurcation import SECONDS_PER_PERIOD
 from .executor import Executor, ExecutorOptions
 
 __all__ = ["Axis", "CELL_DTYPE", "MapCell", "run_cell", "cell_figures", "regime_map", "map_to_json", "axis_unit",
-           "STATUS_OK", "STATUS_SOLVER", "STATUS_INVALID", "map_chunk"]
+           "best_valid_cell", "FLAG_FIELDS", "DOMAIN_FIELDS", "STATUS_OK", "STATUS_SOLVER", "STATUS_INVALID",
+           "map_chunk"]
 
 STATUS_OK, STATUS_SOLVER, STATUS_INVALID = 0, 1, 2
 
-CELL_DTYPE = np.dtype([("period", "f8"), ("rop", "f8"), ("rop_mm_per_period", "f8"),
+CELL_DTYPE = np.dtype([("period", "f8"), ("transient", "i1"), ("settled_after", "f8"),
+                       ("rop_x0_per_period", "f8"), ("rop_mm_per_period", "f8"),
                        ("rop_m_per_h", "f8"), ("impacts_per_period", "f8"),
-                       ("peak_contact_force_n", "f8"), ("bounce", "i1"), ("overload", "i1"),
-                       ("runaway", "i1"), ("status", "i1")])
+                       ("peak_contact_force_n", "f8"), ("peak_contact_force_steady_n", "f8"),
+                       ("min_drive_f0", "f8"), ("min_drive_n", "f8"),
+                       ("runaway", "i1"), ("bounce", "i1"), ("bounces", "f8"), ("tension", "i1"),
+                       ("valid", "i1"), ("domain_a_ge_b", "i1"), ("domain_a_plus_b_gt_1", "i1"),
+                       ("domain_b_gt_mu", "i1"), ("status", "i1")])
+
+#: The scene flags and the paper's rules of a cell (1 = set), in ``CELL_DTYPE`` order.
+FLAG_FIELDS = ("runaway", "bounce", "tension", "transient")
+DOMAIN_FIELDS = {"bounce": "domain_a_ge_b", "overload": "domain_a_plus_b_gt_1", "runaway": "domain_b_gt_mu"}
 
 #: Units of SI names (spec symbols and RigParameters/FMU names).
 _SI_UNITS = {
@@ -71,15 +96,25 @@ _SI_UNITS = {
 }
 
 _VARS = {
-    "period": ("period-n of the bounded motion (NaN: none up to 32)", "1"),
-    "rop": ("rate of penetration over the second half, nondimensional", "x0 per forcing period"),
+    "period": ("period-n of the bounded motion over the second half (NaN: none up to 32)", "1"),
+    "transient": ("flag: the period has not settled within the horizon", "1"),
+    "settled_after": ("forcing periods the orbit needed to settle (extrapolated when transient)", "1"),
+    "rop_x0_per_period": ("rate of penetration over the second half, nondimensional", "x0 per forcing period"),
     "rop_mm_per_period": ("rate of penetration over the second half", "mm per forcing period"),
     "rop_m_per_h": ("rate of penetration over the second half", "m/h"),
     "impacts_per_period": ("hammer-bit impacts per forcing period over the second half", "1"),
-    "peak_contact_force_n": ("largest hammer-bit contact force over the second half", "N"),
-    "bounce": ("flag: a >= b, the harmonic force can exceed the preload (bit bounce)", "1"),
-    "overload": ("flag: a + b > 1, outside the paper's domain a + b <= mu_e F_N", "1"),
-    "runaway": ("flag: b above the kinetic friction floor, the drift grows without bound", "1"),
+    "peak_contact_force_n": ("largest hammer-bit contact force over the whole run, start-up included", "N"),
+    "peak_contact_force_steady_n": ("largest hammer-bit contact force over the second half", "N"),
+    "min_drive_f0": ("lowest drive on the bit, nondimensional", "F0"),
+    "min_drive_n": ("lowest drive on the bit", "N"),
+    "runaway": ("flag: the drift accelerates without bound (the scene's own dynamics)", "1"),
+    "bounce": ("flag: the drive fell below -F_s while the bit was stuck", "1"),
+    "bounces": ("bounce violations (drive below -F_s while stuck)", "1"),
+    "tension": ("flag: the drive on the bit fell below zero", "1"),
+    "valid": ("1: a drilling point (ran, no runaway, no bounce)", "1"),
+    "domain_a_ge_b": ("paper's domain broken: a >= b", "1"),
+    "domain_a_plus_b_gt_1": ("paper's domain broken: a + b > 1", "1"),
+    "domain_b_gt_mu": ("paper's domain broken: b above the kinetic friction floor", "1"),
     "status": ("0 ran, 1 solver stopped (see attribute errors), 2 invalid parameters", "1"),
 }
 
@@ -133,19 +168,38 @@ class MapCell:
 
     period: Optional[int]
     rop: float
+    """Rate of penetration, nondimensional [x0 per forcing period]."""
     rop_mm_per_period: float
     rop_m_per_h: float
     impacts_per_period: float
     peak_contact_force_n: float
-    regime: object
+    """Over the whole run, start-up included [N]."""
+    peak_contact_force_steady_n: float
+    """Over the second half [N]."""
+    flags: Optional[SceneFlags]
+    groups: Optional[Groups]
     status: int = STATUS_OK
     error: str = ""
 
+    @property
+    def valid(self) -> bool:
+        """A drilling point: the scene ran and its dynamics neither run away nor bounce."""
+        return self.status == STATUS_OK and self.flags is not None and not self.flags.unusable
+
     def row(self) -> tuple:
-        r = self.regime
-        return (np.nan if self.period is None else float(self.period), self.rop, self.rop_mm_per_period,
-                self.rop_m_per_h, self.impacts_per_period, self.peak_contact_force_n,
-                int(r.bounce) if r else 0, int(r.overload) if r else 0, int(r.runaway) if r else 0,
+        f = self.flags
+        nan = float("nan")
+        dom = regime(self.groups) if self.groups is not None else None
+        F0 = self.groups.scales.friction_force if self.groups is not None else nan
+        return (np.nan if self.period is None else float(self.period),
+                int(f.transient) if f else 0,
+                float(f.settled_after) if f and f.settled_after is not None else nan,
+                self.rop, self.rop_mm_per_period, self.rop_m_per_h, self.impacts_per_period,
+                self.peak_contact_force_n, self.peak_contact_force_steady_n,
+                f.min_drive if f else nan, f.min_drive * F0 if f else nan,
+                int(f.runaway) if f else 0, int(f.bounce) if f else 0, float(f.bounces) if f else nan,
+                int(f.tension) if f else 0, int(self.valid),
+                int(dom.bounce) if dom else 0, int(dom.overload) if dom else 0, int(dom.runaway) if dom else 0,
                 self.status)
 
 
@@ -154,50 +208,35 @@ class _Buffers:
 
     def __init__(self, periods: int):
         self.poin = np.zeros((periods + 1, 5))
-        self.log = np.zeros((max(64, 8 * periods), kernel_layouts.N_LOG_COLS))
+        self.log = np.zeros((max(64, 8 * periods), KL.N_LOG_COLS))
         self.figures = np.zeros(_N_FIGURES)
 
 
 #: Slots of :func:`cell_figures`'s ``out``.
-_FIG_ROP, _FIG_IMPACTS, _FIG_PEAK, _FIG_PERIOD = range(4)
-_N_FIGURES = 4
+_FIG_ROP, _FIG_IMPACTS, _FIG_PEAK_STEADY = range(3)
+_N_FIGURES = 3
 
 
 @njit(cache=True, nogil=True)
-def cell_figures(poin, n_poin, y_bit, log, n_log, periods, t_half, max_period, tol, out):
+def cell_figures(poin, n_poin, y_bit, log, n_log, periods, t_half, current_peak, out):
     """A cell's figures from its Poincaré rows and event log, into ``out``.
 
     ``out[0]`` the rate of penetration [x0 per period] over the second half
     (``periods // 2`` to ``periods``; ``y_bit`` is the bit position at the end
-    when the last sample is missing), ``out[1]`` impacts and ``out[2]`` the
-    peak contact force [F0] of the separations at or after ``t_half``,
-    ``out[3]`` the period-n (0: none up to ``max_period``) by
-    :func:`hammerbit.scene.analysis.period_n`, the rule of ``detect_period``.
+    when the last sample is missing), ``out[1]`` the impacts at or after
+    ``t_half``, ``out[2]`` the steady peak contact force [F0]
+    (:func:`hammerbit.scene.contact.steady_peak`, ``current_peak`` for a
+    contact still going at the end).
     """
     half = periods // 2
     x3_end = poin[periods, 3] if n_poin > periods else y_bit
     out[_FIG_ROP] = (x3_end - poin[half, 3]) / (periods - half)
     impacts = 0
-    peak = 0.0
-    seen = False
     for i in range(n_log):
-        if log[i, kernel_layouts.L_T] >= t_half:
-            kind = log[i, kernel_layouts.L_KIND]
-            if kind == kernel_layouts.EV_IMPACT:
-                impacts += 1
-            elif kind == kernel_layouts.EV_SEPARATION:
-                v = log[i, kernel_layouts.L_PEAK]
-                if not seen or v > peak or v != v:      # as numpy's max: a NaN wins
-                    if seen and peak != peak:
-                        continue
-                    peak = v
-                    seen = True
+        if log[i, KL.L_T] >= t_half and log[i, KL.L_KIND] == KL.EV_IMPACT:
+            impacts += 1
     out[_FIG_IMPACTS] = impacts
-    out[_FIG_PEAK] = peak
-    # period-n on the relative coordinates (x1 - x3, x2 - x4, x4) of the rows
-    rel = np.empty((n_poin, 3))
-    relative_rows(poin, n_poin, rel)
-    out[_FIG_PERIOD] = period_n(rel, max_period, tol)
+    out[_FIG_PEAK_STEADY] = steady_peak(log, n_log, t_half, current_peak)
 
 
 def run_cell(groups: Groups, periods: int, solver: SolverOptions = SolverOptions(),
@@ -218,29 +257,28 @@ def run_cell(groups: Groups, periods: int, solver: SolverOptions = SolverOptions
         status = st.advance(periods * T, poincare=poin, log=log)
         if status == "max_steps":
             raise MaxStepsError(f"more than max_steps={solver.max_steps} steps in one call", time=st.time,
-                                status=kernel_layouts.ST_MAX_STEPS)
+                                status=KL.ST_MAX_STEPS)
         if status != "log_full":
             break
         buf.log = log = np.concatenate([log, np.zeros_like(log)])
-    n_poin = int(st.istate[kernel_layouts.I_POIN_NEXT])
+    n_poin = int(st.istate[KL.I_POIN_NEXT])
     fig = buf.figures
-    cell_figures(poin, n_poin, st.y[2], log, int(st.istate[kernel_layouts.I_NLOG]), periods, (periods // 2) * T,
-                 PERIOD_MAX, PERIOD_TOL, fig)
+    current = float(st.fstate[KL.F_PEAK]) if st.istate[KL.I_CONTACT] != KL.FREE else 0.0
+    cell_figures(poin, n_poin, st.y[2], log, int(st.istate[KL.I_NLOG]), periods, (periods // 2) * T,
+                 current, fig)
     rop = float(fig[_FIG_ROP])
-    peak = float(fig[_FIG_PEAK])
-    if st.istate[kernel_layouts.I_CONTACT] != kernel_layouts.FREE:
-        peak = max(peak, float(st.fstate[kernel_layouts.F_PEAK]))
+    flags = stepper_flags(groups, st, poin[:n_poin])
     si = groups.rop(rop)
-    n = int(fig[_FIG_PERIOD])
-    return MapCell(period=n if n > 0 else None, rop=rop, rop_mm_per_period=si["mm_per_period"],
+    F0 = groups.scales.friction_force
+    return MapCell(period=flags.period, rop=rop, rop_mm_per_period=si["mm_per_period"],
                    rop_m_per_h=si["m_per_h"], impacts_per_period=fig[_FIG_IMPACTS] / (periods - periods // 2),
-                   peak_contact_force_n=peak * groups.scales.friction_force, regime=regime(groups))
+                   peak_contact_force_n=peak_of_run(st) * F0,
+                   peak_contact_force_steady_n=float(fig[_FIG_PEAK_STEADY]) * F0, flags=flags, groups=groups)
 
 
 def _failed(status: int, message: str, groups: Optional[Groups]) -> MapCell:
     nan = float("nan")
-    return MapCell(None, nan, nan, nan, nan, nan, regime(groups) if groups is not None else None,
-                   status, message)
+    return MapCell(None, nan, nan, nan, nan, nan, nan, None, groups, status, message)
 
 
 def map_chunk(cells, base, names, periods, solver):
@@ -354,28 +392,46 @@ def _nested(a: np.ndarray, *, integer: bool = False):
     return [_nested(x, integer=integer) for x in a]
 
 
+def best_valid_cell(ds) -> Optional[dict]:
+    """The valid cell (a drilling point) of the highest ROP: ``{"index", "values", "rop_m_per_h"}``, or None."""
+    rop = np.where(ds["valid"].values == 1, ds["rop_m_per_h"].values, np.nan)
+    if not np.isfinite(rop).any():
+        return None
+    i = np.unravel_index(int(np.nanargmax(rop)), rop.shape)
+    names = list(ds["period"].dims)
+    return {"index": [int(k) for k in i], "values": {n: float(ds[n].values[k]) for n, k in zip(names, i)},
+            "rop_m_per_h": float(rop[i]), "rop_mm_per_period": float(ds["rop_mm_per_period"].values[i]),
+            "period": None if not np.isfinite(ds["period"].values[i]) else int(ds["period"].values[i])}
+
+
 def map_to_json(ds) -> dict:
-    """The JSON form: ``axes`` and nested lists (one level per axis)."""
+    """The JSON form: ``axes`` and nested lists (one level per axis); nondimensional fields say so."""
     names = [d for d in ds["period"].dims]
     flags = np.empty(ds["period"].shape, dtype=object)
+    domain = np.empty(ds["period"].shape, dtype=object)
+    rules = {"domain_a_ge_b": "a >= b", "domain_a_plus_b_gt_1": "a + b > 1", "domain_b_gt_mu": "b > mu"}
     for idx in np.ndindex(*flags.shape):
-        flags[idx] = [f for f in ("bounce", "overload", "runaway") if int(ds[f].values[idx])]
+        flags[idx] = [f for f in FLAG_FIELDS if int(ds[f].values[idx])]
+        domain[idx] = [rule for f, rule in rules.items() if int(ds[f].values[idx])]
 
-    def nest_flags(a):
-        return [nest_flags(x) for x in a] if a.ndim > 1 else [list(x) for x in a]
+    def nest(a):
+        return [nest(x) for x in a] if a.ndim > 1 else [list(x) for x in a]
 
     out = {
         "axes": [{"name": n, "unit": ds[n].attrs.get("units", ""), "values": [float(v) for v in ds[n].values]}
                  for n in names],
         "period": _nested(ds["period"].values, integer=True),
-        "rop": _nested(ds["rop"].values),
-        "flags": nest_flags(flags),
-        "rop_mm_per_period": _nested(ds["rop_mm_per_period"].values),
-        "rop_m_per_h": _nested(ds["rop_m_per_h"].values),
-        "impacts_per_period": _nested(ds["impacts_per_period"].values),
-        "peak_contact_force_n": _nested(ds["peak_contact_force_n"].values),
-        "status": _nested(ds["status"].values.astype(float), integer=True),
+        "flags": nest(flags),
+        "paper_domain_outside": nest(domain),
+        "best_valid_cell": best_valid_cell(ds),
     }
+    for name in CELL_DTYPE.names:
+        if name in ("period",) + FLAG_FIELDS or name in rules:
+            continue
+        out[name] = _nested(ds[name].values.astype(float),
+                            integer=name in ("status", "valid", "bounces", "settled_after"))
+    for f in FLAG_FIELDS:
+        out[f] = _nested(ds[f].values.astype(float), integer=True)
     for k in ("periods", "method", "rtol", "failed_cells", "wall_time_s", "workers", "total_periods"):
         out[k] = ds.attrs.get(k)
     out["errors"] = json.loads(ds.attrs.get("errors", "[]"))

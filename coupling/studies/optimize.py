@@ -3,22 +3,27 @@
 :func:`optimize` maximises the ROP in SI [m/h] over bounded parameters
 (typically the hammer's frequency, amplitude and preload) subject to
 
-* **no bounce**: ``a < b`` (the harmonic force never exceeds the preload);
+* **a drilling point**: the scene's own dynamics neither run away nor bounce
+  (:mod:`hammerbit.scene.flags`: the drift does not accelerate without bound,
+  the drive never falls below ``-F_s`` while the bit is stuck);
 * **static threshold**: ``a + b <= 1`` (preload plus amplitude below
   ``F0 = mu_e F_N``, the paper's domain);
-* **no runaway**: the preload stays below the kinetic friction floor
-  (:func:`hammerbit.model.regime.regime`);
 * **frequency check**: with a drillstring, the hammer frequency lies in a
   window where :func:`hammerbit.check.frequency.check` passes robustly (bit on
   and off bottom, over the check's damping range);
-* **contact force**: the peak hammer-bit contact force stays below a limit.
+* **contact force**: the peak hammer-bit contact force over the whole run,
+  start-up included (:func:`hammerbit.scene.contact.peak_of_run`, the figure
+  of ``simulate`` and ``map``), stays below a limit.
 
 The ROP landscape is piecewise smooth, with steps where the period-n of the
-motion changes.  A global stage evaluates a grid (``grid`` points per
-variable) through the study executor; a local stage (Nelder-Mead, bounded,
-:func:`scipy.optimize.minimize`) refines from the best feasible cells.  A
-refined point replaces its start only when it is feasible and better, so
-the optimum is never below the best feasible grid cell.
+motion changes.  A global stage evaluates a grid (41 points per variable for
+one or two variables, 15 for three) through the study executor; a local
+stage (:func:`hammerbit.studies.refine.pattern_search`) refines from the best
+feasible cells along the grid directions and bisects back to the feasible
+boundary where a constraint blocks a faster point, so it follows active
+constraints.  The optimum is the best feasible point evaluated, never below
+the best feasible grid cell.  Runners-up are the best drilling points
+(a period found, a positive ROP) of other periods.
 """
 from __future__ import annotations
 
@@ -29,14 +34,14 @@ from typing import Optional
 import numpy as np
 
 from hammerbit.model.params import Groups
-from hammerbit.model.regime import regime
 from hammerbit.model.settings import apply_settings, setting_target
 from hammerbit.model.validation import ParameterError
 from hammerbit.model.solver_errors import SolverError
 from hammerbit.model.solver_options import SolverOptions
 
 from .executor import Executor, ExecutorOptions
-from .map import STATUS_OK, Axis, map_chunk, axis_unit, run_cell
+from .map import Axis, MapCell, axis_unit, run_cell
+from .refine import pattern_search
 from .bifurcation import SECONDS_PER_PERIOD
 
 __all__ = ["Bound", "OptimizeConfig", "Candidate", "OptimizeResult", "optimize", "frequency_windows"]
@@ -72,6 +77,10 @@ class Bound:
         return axis_unit(self.name)
 
 
+#: Grid points per variable of the global stage, by the number of variables.
+DEFAULT_GRID = {1: 41, 2: 41, 3: 15}
+
+
 @dataclass(frozen=True, kw_only=True)
 class OptimizeConfig:
     """Options of :func:`optimize` (keyword-only).
@@ -87,8 +96,9 @@ class OptimizeConfig:
     periods : int
         Forcing periods per evaluation, from rest; the ROP is the mean over
         the second half.
-    grid : int
-        Grid points per variable of the global stage (default 21).
+    grid : int, optional
+        Grid points per variable of the global stage (default
+        :data:`DEFAULT_GRID`: 41 for one or two variables, 15 for three).
     starts : int
         Best feasible grid cells refined locally.
     max_evaluations : int
@@ -100,9 +110,9 @@ class OptimizeConfig:
     margin: float = 0.15
     max_contact_force: float = math.inf
     periods: int = 200
-    grid: int = 21
+    grid: Optional[int] = None
     starts: int = 3
-    max_evaluations: int = 60
+    max_evaluations: int = 80
     solver: SolverOptions = field(default_factory=SolverOptions)
 
     def __post_init__(self):
@@ -119,8 +129,12 @@ class OptimizeConfig:
             raise ParameterError("max_contact_force", self.max_contact_force, "> 0 N")
         if not (isinstance(self.periods, int) and 4 <= self.periods <= 100_000):
             raise ParameterError("periods", self.periods, "an integer in [4, 100000]")
+        if self.grid is None:
+            object.__setattr__(self, "grid", DEFAULT_GRID[len(b)])
         if not (isinstance(self.grid, int) and 2 <= self.grid <= 201):
             raise ParameterError("grid", self.grid, "an integer in [2, 201]")
+        if not (isinstance(self.max_evaluations, int) and self.max_evaluations >= 0):
+            raise ParameterError("max_evaluations", self.max_evaluations, "an integer >= 0")
         if not (isinstance(self.starts, int) and self.starts >= 0):
             raise ParameterError("starts", self.starts, "an integer >= 0")
 
@@ -136,9 +150,22 @@ class Candidate:
     rop_m_per_h: float
     rop_mm_per_period: float
     peak_contact_force_n: float
+    """Over the whole run, start-up included [N]."""
     margins: dict
-    """Constraint -> margin (>= 0 feasible; units in :data:`MARGIN_UNITS`); None when not checked."""
-    feasible: bool
+    """Constraint -> margin (units in :data:`MARGIN_UNITS`; None: not checked or a flag)."""
+    checks: dict
+    """Constraint -> passed (None: not checked)."""
+    flags: Optional[dict] = None
+    """The scene's own flags (:meth:`hammerbit.scene.flags.SceneFlags.to_dict`)."""
+
+    @property
+    def feasible(self) -> bool:
+        return bool(self.checks) and all(v for v in self.checks.values() if v is not None)
+
+    @property
+    def drilling(self) -> bool:
+        """A drilling point: feasible, a period found and a positive ROP."""
+        return self.feasible and self.period is not None and self.rop_m_per_h > 0.0
 
     def to_dict(self) -> dict:
         rig = self.groups.to_rig()
@@ -147,17 +174,17 @@ class Candidate:
                 "period": self.period, "rop_m_per_h": self.rop_m_per_h,
                 "rop_mm_per_period": self.rop_mm_per_period,
                 "peak_contact_force_n": self.peak_contact_force_n,
-                "margins": {k: _margin_dict(k, v) for k, v in self.margins.items()},
-                "feasible": self.feasible}
+                "margins": {k: _margin_dict(k, v, self.checks.get(k)) for k, v in self.margins.items()},
+                "flags": self.flags, "feasible": self.feasible}
 
 
-#: Units of the constraint margins.
-MARGIN_UNITS = {"bounce": "N", "threshold": "N", "runaway": "N", "frequency": "relative",
+#: Units of the constraint margins (runaway is a flag of the scene's dynamics: no margin).
+MARGIN_UNITS = {"bounce": "N", "threshold": "N", "runaway": "flag", "frequency": "relative",
                 "contact_force": "N"}
 
 
-def _margin_dict(name, v):
-    return {"margin": v, "unit": MARGIN_UNITS[name], "ok": None if v is None else bool(v >= 0)}
+def _margin_dict(name, v, ok):
+    return {"margin": v, "unit": MARGIN_UNITS[name], "ok": ok}
 
 
 @dataclass
@@ -169,7 +196,8 @@ class OptimizeResult:
     optimum : Candidate or None
         The best feasible point (None when no grid cell is feasible).
     runners_up : list of Candidate
-        The best feasible points of up to two other regimes (period-n).
+        The best drilling points (feasible, a period found, ROP > 0) of up to
+        two other periods.
     best_grid : Candidate or None
         The best feasible grid cell.
     grid_feasible : int
@@ -261,74 +289,78 @@ class _Problem:
         self.hi = np.array([b.hi for b in config.bounds])
         self.windows = windows
         self.evaluations = 0
+        self.seen = {}
 
-    def margins(self, g: Groups, peak_n: float) -> dict:
+    def candidate(self, values: dict, cell: Optional[MapCell]) -> Candidate:
+        """The candidate of a cell (None: invalid parameters)."""
+        if cell is None or cell.groups is None:
+            return Candidate(values, self.groups, None, math.nan, math.nan, math.nan, {}, {"ran": False})
+        g = cell.groups
         F0 = g.scales.friction_force
-        floor = g.mu if g.gamma_hat > 0.0 else 1.0
-        m = {"bounce": (g.b - g.a) * F0, "threshold": (1.0 - g.a - g.b) * F0,
-             "runaway": (floor - g.b) * F0, "frequency": None, "contact_force": None}
+        fl = cell.flags
+        ran = fl is not None
+        # the rule of params.regime (overload: a + b > 1), so that a cell on the line counts as inside
+        m = {"bounce": None, "threshold": (1.0 - (g.a + g.b)) * F0, "runaway": None, "frequency": None,
+             "contact_force": None}
+        ok = {"ran": ran, "bounce": None if not ran else not fl.bounce, "threshold": not (g.a + g.b > 1.0),
+              "runaway": None if not ran else not fl.runaway, "frequency": None, "contact_force": None}
+        if ran:
+            low = (fl.min_drive + 1.0) * F0        # lowest drive above -F_s; a dip while slipping is no bounce
+            m["bounce"] = low if fl.bounce else max(low, 0.0)
         if self.windows is not None:
             m["frequency"] = _frequency_margin(g.to_rig().frequency, self.windows)
+            ok["frequency"] = m["frequency"] >= 0
         if math.isfinite(self.c.max_contact_force):
-            m["contact_force"] = self.c.max_contact_force - peak_n
-        return m
-
-    @staticmethod
-    def feasible(g: Groups, m: dict) -> bool:
-        """The regime flags decide bounce, threshold and runaway (one definition,
-        :func:`regime`); the frequency and contact-force margins must be >= 0."""
-        r = regime(g)
-        if r.bounce or r.overload or r.runaway:
-            return False
-        return all(m[k] >= 0 for k in ("frequency", "contact_force") if m[k] is not None)
-
-    def candidate(self, values: dict, g: Optional[Groups], period, rop_h, rop_mm, peak_n, ok: bool) -> Candidate:
-        if g is None:
-            return Candidate(values, self.groups, None, math.nan, math.nan, math.nan, {}, False)
-        m = self.margins(g, peak_n)
-        return Candidate(values, g, period, rop_h, rop_mm, peak_n, m, ok and self.feasible(g, m))
+            m["contact_force"] = self.c.max_contact_force - cell.peak_contact_force_n
+            ok["contact_force"] = bool(m["contact_force"] >= 0)       # NaN (did not run): False
+        return Candidate(values, g, cell.period, cell.rop_m_per_h, cell.rop_mm_per_period,
+                         cell.peak_contact_force_n, m, ok, None if fl is None else fl.to_dict(F0))
 
     def evaluate(self, x: np.ndarray) -> Candidate:
-        values = {n: float(v) for n, v in zip(self.names, x)}
+        key = tuple(float(v) for v in x)
+        if key in self.seen:
+            return self.seen[key]
+        values = dict(zip(self.names, key))
         self.evaluations += 1
         try:
             g = apply_settings(self.groups, values)
         except ParameterError:
-            return self.candidate(values, None, None, math.nan, math.nan, math.nan, False)
+            c = self.candidate(values, None)
+        else:
+            try:
+                c = self.candidate(values, run_cell(g, self.c.periods, self.c.solver))
+            except SolverError:
+                c = self.candidate(values, MapCell(None, *(math.nan,) * 6, None, g, 1))
+        self.seen[key] = c
+        return c
+
+
+def _grid_chunk(cells, base, names, periods, solver):
+    """Chunk function of the global stage: the :class:`MapCell` of each cell (None: invalid)."""
+    out = []
+    for values in cells:
         try:
-            c = run_cell(g, self.c.periods, self.c.solver)
+            g = apply_settings(base, dict(zip(names, values)))
+        except ParameterError:
+            out.append(None)
+            continue
+        try:
+            out.append(run_cell(g, periods, solver))
         except SolverError:
-            return self.candidate(values, g, None, math.nan, math.nan, math.nan, False)
-        return self.candidate(values, g, c.period, c.rop_m_per_h, c.rop_mm_per_period,
-                              c.peak_contact_force_n, True)
+            out.append(MapCell(None, *(math.nan,) * 6, None, g, 1))
+    return out
 
 
-def _refine(prob: _Problem, start: Candidate, step: np.ndarray) -> Candidate:
-    """Bounded Nelder-Mead from a feasible cell; returns the best feasible point seen."""
-    from scipy.optimize import minimize
-    span = prob.hi - prob.lo
-    best = [start]
-
-    def f(u):
-        x = prob.lo + np.clip(u, 0.0, 1.0) * span
-        c = prob.evaluate(x)
-        if c.feasible and math.isfinite(c.rop_m_per_h):
-            if c.rop_m_per_h > best[0].rop_m_per_h:
-                best[0] = c
-            return -c.rop_m_per_h
-        viol = sum(-v for v in c.margins.values() if v is not None and v < 0) if c.margins else 1.0
-        return abs(start.rop_m_per_h) + 1.0 + viol
-
-    u0 = (np.array([start.values[n] for n in prob.names]) - prob.lo) / span
-    k = u0.size
-    simplex = np.tile(u0, (k + 1, 1))
-    for i in range(k):
-        d = step[i] / span[i]
-        simplex[i + 1, i] = u0[i] + d if u0[i] + d <= 1.0 else u0[i] - d
-    minimize(f, u0, method="Nelder-Mead", bounds=[(0.0, 1.0)] * k,
-             options={"initial_simplex": simplex, "maxfev": prob.c.max_evaluations,
-                      "xatol": 1e-4, "fatol": 1e-6})
-    return best[0]
+def _starts(feasible: list, k: int, step: np.ndarray, names) -> list:
+    """Up to ``k`` best feasible cells, each more than one grid step from the ones before."""
+    out = []
+    for c in feasible:
+        x = np.array([c.values[n] for n in names])
+        if all(np.any(np.abs(x - np.array([o.values[n] for n in names])) > 1.5 * step) for o in out):
+            out.append(c)
+        if len(out) == k:
+            break
+    return out
 
 
 def optimize(groups: Groups, config: OptimizeConfig, *, string=None, executor: Optional[Executor] = None,
@@ -373,33 +405,30 @@ def optimize(groups: Groups, config: OptimizeConfig, *, string=None, executor: O
     own = executor is None
     ex = Executor(options) if own else executor
     try:
-        rows = ex.run(map_chunk, cells, fixed=(groups, names, c.periods, c.solver),
+        rows = ex.run(_grid_chunk, cells, fixed=(groups, names, c.periods, c.solver),
                       cost_s=c.periods * SECONDS_PER_PERIOD, label="optimize: grid")
     finally:
         if own:
             ex.close()
     prob.evaluations += len(cells)
-    cands = []
-    for vals, (row, _msg) in zip(cells, rows):
-        values = dict(zip(names, vals))
-        status = int(row[-1])
-        g = apply_settings(groups, values) if status != 2 else None
-        period = None if not math.isfinite(row[0]) else int(row[0])
-        cands.append(prob.candidate(values, g, period, float(row[3]), float(row[2]), float(row[5]),
-                                    status == STATUS_OK))
-    feasible = [x for x in cands if x.feasible and math.isfinite(x.rop_m_per_h)]
+    for vals, cell in zip(cells, rows):
+        prob.seen[vals] = prob.candidate(dict(zip(names, vals)), cell)
+    feasible = [x for x in prob.seen.values() if x.feasible and math.isfinite(x.rop_m_per_h)]
     feasible.sort(key=lambda x: -x.rop_m_per_h)
     if not feasible:
         return OptimizeResult(None, [], None, 0, grid.shape[:-1], prob.evaluations, windows,
                               _time.perf_counter() - t0)
     best_grid = feasible[0]
     step = (prob.hi - prob.lo) / max(c.grid - 1, 1)
-    refined = [_refine(prob, s, step) for s in feasible[: c.starts]]
-    optimum = max([best_grid] + refined, key=lambda x: x.rop_m_per_h)
-    pool = sorted(feasible + refined, key=lambda x: -x.rop_m_per_h)
+    for s0 in _starts(feasible, c.starts, step, names):
+        x0 = np.array([s0.values[n] for n in names])
+        pattern_search(prob.evaluate, x0, s0, prob.lo, prob.hi, step, c.max_evaluations)
+    pool = sorted((x for x in prob.seen.values() if x.feasible and math.isfinite(x.rop_m_per_h)),
+                  key=lambda x: -x.rop_m_per_h)
+    optimum = pool[0]
     runners, seen = [], {optimum.period}
     for x in pool:
-        if x.period not in seen:
+        if x.drilling and x.period not in seen:
             runners.append(x)
             seen.add(x.period)
         if len(runners) == 2:

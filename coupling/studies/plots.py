@@ -8,9 +8,10 @@ import numpy as np
 
 __all__ = ["plot_map", "PERIOD_COLORS"]
 
-#: Colours of period-n: period-1 (the paper's "regions with period-1 behaviour") stands out.
-PERIOD_COLORS = {1: "#2ca02c", 2: "#9ecae1", 3: "#fdd0a2", 4: "#c6dbef", 5: "#fdae6b", 6: "#bcbddc"}
-_HIGHER = "#e6550d"      # period-n above 6
+#: Colours of period-n, one hue each: period-1 (the paper's "regions with period-1 behaviour")
+#: green, then blue, orange, purple, brown, pink (tab10, no two alike).
+PERIOD_COLORS = {1: "#2ca02c", 2: "#1f77b4", 3: "#ff7f0e", 4: "#9467bd", 5: "#8c564b", 6: "#e377c2"}
+_HIGHER = "#bcbd22"      # period-n above 6
 _NONE = "#525252"        # no period up to 32 (quasi-periodic, chaotic, not settled)
 _FAILED = "#ffffff"
 _STUCK = "#d9f0d3"       # period-1 with the bit stuck: no penetration
@@ -62,8 +63,9 @@ def plot_map(ds, path, *, rop_levels: int = 8):
     """Period map coloured by period-n (period-1 green) with ROP contours [m/h].
 
     One axis: period-n and ROP against it.  Two axes: the map.  Three axes:
-    the map over the first two at the middle value of the third.  Cells with
-    a regime flag (bounce, overload, runaway) are hatched.
+    the map over the first two at the middle value of the third.  Cells the
+    scene's dynamics make invalid (runaway, bounce) are hatched; the ROP
+    contours and the star of the best cell use valid cells only.
     """
     import matplotlib
     matplotlib.use("Agg")
@@ -87,7 +89,7 @@ def plot_map(ds, path, *, rop_levels: int = 8):
         per = sel["period"].values
         ax[0].plot(x, per, "k.")
         ax[0].set_ylabel("period-n")
-        ax[1].plot(x, sel["rop_m_per_h"].values, ".-")
+        ax[1].plot(x, np.where(sel["valid"].values == 1, sel["rop_m_per_h"].values, np.nan), ".-")
         ax[1].set_ylabel("ROP [m/h]")
         ax[1].set_xlabel(_label(sel, dims[0]))
         ax[0].set_title(title, fontsize=10)
@@ -103,17 +105,30 @@ def plot_map(ds, path, *, rop_levels: int = 8):
     fig, ax = plt.subplots(figsize=(9, 6.5))
     ax.pcolormesh(x, y, code, cmap=ListedColormap(colors), vmin=-0.5, vmax=len(colors) - 0.5,
                   shading="nearest")
-    flagged = (sel["bounce"].values + sel["overload"].values + sel["runaway"].values) > 0
+    valid = sel["valid"].values == 1
+    flagged = ~valid & (status == 0)
     if flagged.any():
         ax.contourf(x, y, flagged.astype(float), levels=[0.5, 1.5], colors="none", hatches=["//"])
-    rop = sel["rop_m_per_h"].values
+    # contours and the best cell from valid cells only: a runaway cell's ROP is no drilling rate
+    rop = np.where(valid, sel["rop_m_per_h"].values, np.nan)
     if np.isfinite(rop).sum() > 3 and np.nanmax(rop) > np.nanmin(rop):
         cs = ax.contour(x, y, rop, levels=rop_levels, colors="k", linewidths=0.7)
         ax.clabel(cs, fmt="%.3g m/h", fontsize=7)
     handles = [Patch(facecolor=c, edgecolor="0.5", label=l) for c, l in zip(colors, labels)]
     if flagged.any():
-        handles.append(Patch(facecolor="none", hatch="//", edgecolor="k", label="bounce/overload/runaway"))
-    handles.append(plt.Line2D([], [], color="k", lw=0.7, label="ROP contours [m/h]"))
+        handles.append(Patch(facecolor="none", hatch="//", edgecolor="k", label="runaway or bounce (not valid)"))
+    handles.append(plt.Line2D([], [], color="k", lw=0.7, label="ROP contours [m/h], valid cells"))
+    trans = sel["transient"].values == 1
+    if trans.any():
+        ti, tj = np.nonzero(trans)
+        ax.plot(x[tj], y[ti], ls="none", marker=".", ms=3, color="k")
+        handles.append(plt.Line2D([], [], ls="none", marker=".", ms=5, color="k",
+                                  label="period not settled (transient)"))
+    if np.isfinite(rop).any():
+        i, j = np.unravel_index(int(np.nanargmax(rop)), rop.shape)
+        ax.plot([x[j]], [y[i]], marker="*", ms=16, mfc="gold", mec="k", ls="none")
+        handles.append(plt.Line2D([], [], marker="*", ms=12, mfc="gold", mec="k", ls="none",
+                                  label=f"best valid cell, {rop[i, j]:.3g} m/h"))
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.12, 1.0), fontsize=8)
     ax.set_xlabel(_label(sel, xn))
     ax.set_ylabel(_label(sel, yn))
