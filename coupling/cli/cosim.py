@@ -62,12 +62,12 @@ def add_cosim_options(p) -> None:
 
 def rig_from_args(args):
     """The field hammer with ``--set`` applied (groups, SI symbols, RigParameters/FMU names)."""
-    from hammerbit.model.params import apply_settings
+    from hammerbit.cli.preflight import apply_user_settings
     from hammerbit.cosim.master import field_hammer
     rig = field_hammer()
     settings = parse_settings(getattr(args, "set", None))
     if settings:
-        rig = apply_settings(rig.to_groups(), settings).to_rig()
+        rig = apply_user_settings(rig.to_groups(), settings).to_rig()
     return rig
 
 

@@ -18,7 +18,9 @@ import warnings
 
 import numpy as np
 
-from hammerbit.cli.common import UsageError, add_set_argument, parse_settings, run_command
+from hammerbit.cli.common import (UsageError, add_set_argument, interruptible, output_errors, parse_settings,
+                                  run_command)
+from hammerbit.cli.preflight import apply_user_settings, in_user_words, preflight
 
 __all__ = ["main", "console", "build_parser", "COMMAND_MODULES", "HelpFormatter", "version"]
 
@@ -74,8 +76,8 @@ def _parse_settings(pairs):
 
 
 def _groups_from_args(args):
-    from hammerbit.model.params import apply_settings, preset
-    return apply_settings(preset(args.preset), _parse_settings(args.set))
+    from hammerbit.model.params import preset
+    return apply_user_settings(preset(args.preset), _parse_settings(args.set))
 
 
 def _solver_from_args(args):
@@ -206,8 +208,9 @@ def _simulate(args, worker) -> int:
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", BounceWarning)
-        res = simulate(g, args.periods, record=Record(poincare=True, events=g.has_gap, times=times),
-                       solver=solver)
+        # in a thread: a Ctrl-C interrupts a long run at once (the kernel releases the GIL)
+        res = interruptible(simulate, g, args.periods,
+                            record=Record(poincare=True, events=g.has_gap, times=times), solver=solver)
     for w in caught:
         if not issubclass(w.category, BounceWarning):
             warnings.showwarning(w.message, w.category, w.filename, w.lineno)
@@ -247,7 +250,8 @@ def _simulate(args, worker) -> int:
     for msg in regime_warnings(g, res.counts.get("bounce", 0)):
         print(f"hammerbit: warning: {msg}", file=sys.stderr)
     if args.csv:
-        write_samples_csv(res, args.csv)
+        with output_errors("--csv", args.csv):
+            write_samples_csv(res, args.csv)
     if args.json:
         print(json.dumps(out))
     else:
@@ -320,7 +324,7 @@ def main(argv=None) -> int:
     """Run the command line ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
     ap = build_parser()
     args = ap.parse_args(argv)
-    return run_command(args.func, args)
+    return run_command(args.func, args, before=preflight, rephrase=in_user_words)
 
 
 def console(argv=None) -> None:

@@ -56,8 +56,9 @@ def _add_scene_args(p, *, default_preset="paper-fig9") -> None:
 
 
 def _groups(args):
-    from hammerbit.model.params import apply_settings, preset
-    return apply_settings(preset(args.preset), parse_settings(args.set))
+    from hammerbit.cli.preflight import apply_user_settings
+    from hammerbit.model.params import preset
+    return apply_user_settings(preset(args.preset), parse_settings(args.set))
 
 
 def _solver(args):
