@@ -16,7 +16,7 @@ Exit codes (the same for every command; ``docs/cli.md`` lists them):
 No input gives a Python traceback; set ``HAMMERBIT_DEBUG=1`` to see one.
 
 Outputs are checked before any work (:func:`check_output`): the format
-(figures: :data:`FIGURE_FORMATS`), a path that is an existing directory or
+(figures: those matplotlib saves), a path that is an existing directory or
 not a regular file is refused, and missing parent directories are created
 (the one policy of every command), after which the file is probed for
 writing.  Requests that cannot fit are refused before allocating
@@ -33,7 +33,7 @@ import traceback
 
 __all__ = ["EXIT_OK", "EXIT_FAILURE", "EXIT_BAD_INPUT", "EXIT_UNSTABLE", "EXIT_CHECK_FAILED",
            "EXIT_INACCURATE", "EXIT_INTERRUPTED", "UsageError", "RunFailure", "parse_settings",
-           "add_set_argument", "SET_HELP", "run_command", "error", "FIGURE_FORMATS", "NETCDF_SUFFIXES",
+           "add_set_argument", "SET_HELP", "run_command", "error", "NETCDF_SUFFIXES",
            "MAX_WORKERS_PER_CORE", "MEMORY_FRACTION", "MAX_CPU_SECONDS", "max_workers", "check_workers",
            "check_output", "check_input_file", "output_errors", "available_memory", "check_fits",
            "interruptible", "human_bytes", "human_seconds"]
@@ -151,10 +151,6 @@ def run_command(func, args, *, prog: str = "hammerbit", before=None, rephrase=No
 # ---------------------------------------------------------------------------
 # outputs, inputs and sizes, checked before the run
 # ---------------------------------------------------------------------------
-#: File extensions matplotlib's Agg canvas saves (``tests/test_careless_input.py`` checks the list
-#: against matplotlib); a constant, so that checking a path does not import matplotlib.
-FIGURE_FORMATS = frozenset({"eps", "jpeg", "jpg", "pdf", "pgf", "png", "ps", "raw", "rgba", "svg", "svgz",
-                            "tif", "tiff", "webp"})
 #: Extensions of a netCDF file (``map --out``).
 NETCDF_SUFFIXES = frozenset({"nc", "nc4", "cdf", "netcdf"})
 #: ``--workers`` may be at most this many times the cores: more processes only share the same cores.

@@ -18,7 +18,7 @@ import warnings
 
 import numpy as np
 
-from hammerbit.cli.common import (UsageError, add_set_argument, interruptible, output_errors, parse_settings,
+from hammerbit.cli.common import (EXIT_INTERRUPTED, UsageError, add_set_argument, interruptible, output_errors, parse_settings,
                                   run_command)
 from hammerbit.cli.preflight import apply_user_settings, in_user_words, preflight
 
@@ -336,7 +336,11 @@ def console(argv=None) -> None:
     short command's exit.  Everything else of the shutdown runs as usual
     (exit handlers, files flushed and closed).
     """
-    code = main(argv)
+    try:
+        code = main(argv)
+    except KeyboardInterrupt:       # before or after the command ran (imports, argument parsing)
+        print("hammerbit: interrupted", file=sys.stderr)
+        code = EXIT_INTERRUPTED
     gc.freeze()
     sys.exit(code)
 

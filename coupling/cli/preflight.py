@@ -17,14 +17,17 @@ from __future__ import annotations
 import math
 import os
 
-from hammerbit.cli.common import (FIGURE_FORMATS, NETCDF_SUFFIXES, UsageError, check_fits, check_input_file,
+from hammerbit.cli.common import (NETCDF_SUFFIXES, UsageError, check_fits, check_input_file,
                                   check_output, check_workers)
 
-__all__ = ["OUTPUTS", "preflight", "apply_user_settings", "in_user_words", "known_name",
+__all__ = ["OUTPUTS", "FIGURE_FORMATS", "preflight", "apply_user_settings", "in_user_words", "known_name",
            "BYTES_PER_MAP_CELL", "CPU_SECONDS_PER_PERIOD", "BYTES_PER_POINCARE_POINT",
            "BYTES_PER_COSIM_SAMPLE", "CPU_SECONDS_PER_MACRO_STEP"]
 
-#: (command, dest) -> (option as typed, allowed extensions or None for any).
+#: Stands for the figure formats of this install's matplotlib (imported only when a figure is asked for).
+FIGURE_FORMATS = "figure"
+
+#: (command, dest) -> (option as typed, allowed extensions, :data:`FIGURE_FORMATS`, or None for any).
 OUTPUTS = {
     ("simulate", "plot"): ("--plot", FIGURE_FORMATS),
     ("simulate", "csv"): ("--csv", None),
@@ -49,6 +52,8 @@ BYTES_PER_POINCARE_POINT = 80
 BYTES_PER_COSIM_SAMPLE = 2 * 10 * 8
 #: CPU time of one co-simulation macro step (hammer and string, with the error companion).
 CPU_SECONDS_PER_MACRO_STEP = 1e-4
+#: How :func:`hammerbit.model.params.setting_target` starts the list of the names it takes.
+_UNKNOWN = "a known name: "
 #: The sampling interval of ``cosim`` when --step is not given [s] (its first step, 1 ms).
 DEFAULT_COSIM_STEP = 1e-3
 
@@ -65,8 +70,7 @@ def known_name(name: str, option: str) -> None:
     try:
         setting_target(name)
     except ParameterError as e:
-        raise UsageError(f"{option} {name}: unknown name; allowed: {e.allowed[len('a known name: '):]}") \
-            from None
+        raise UsageError(f"{option} {name}: unknown name; allowed: {e.allowed[len(_UNKNOWN):]}") from None
 
 
 def preflight(args) -> None:
@@ -80,11 +84,22 @@ def preflight(args) -> None:
     for (command, dest), (option, formats) in OUTPUTS.items():
         value = getattr(args, dest, None)
         if command == cmd and value is not None:
-            check_output(value, option, formats=formats)
+            check_output(value, option, formats=_formats(formats, cmd))
     check_workers(getattr(args, "workers", None))
     check = _CHECKS.get(cmd)
     if check is not None:
         check(args)
+
+
+def _formats(formats, cmd):
+    """The allowed extensions; figures: matplotlib's, except for ``simulate``, whose figure
+    process reports them while this one loads the solver (it checks them itself before the run)."""
+    if formats != FIGURE_FORMATS:
+        return formats
+    if cmd == "simulate":
+        return None
+    from hammerbit.scene.figure_worker import figure_formats
+    return frozenset(figure_formats())
 
 
 def _fmu_out(out) -> None:
@@ -109,6 +124,9 @@ def _map(args) -> None:
         if len(spec) == 3 and spec[2].strip().isdigit():
             counts.append(int(spec[2]))
             cells *= max(1, int(spec[2]))
+    for text in args.axis or []:
+        if "=" in text:
+            known_name(text.split("=", 1)[0].strip(), "--axis")
     if not counts:
         return
     typed = " ".join(f"--axis {a}" for a in args.axis)
@@ -128,7 +146,16 @@ def _cosim(args) -> None:
 
 
 def _bifurcation(args) -> None:
+    from hammerbit.cli.common import parse_settings
+    from hammerbit.model.params import preset
+    from hammerbit.model.validation import ParameterError
     known_name(args.param, "--param")
+    base = apply_user_settings(preset(args.preset), parse_settings(args.set))
+    for v in args.range:
+        try:
+            apply_user_settings(base, {args.param: v})
+        except ParameterError as e:
+            raise ParameterError(f"--param {args.param} --range", v, e.allowed) from None
 
 
 def _optimize(args) -> None:
@@ -260,6 +287,12 @@ def in_user_words(exc: BaseException, args) -> BaseException:
             return UsageError(f"{option}: needs {exc.value:,} finite elements in {exc.where}, above the "
                               f"limit ({exc.allowed}); ask for less (fewer or lower modes, a narrower "
                               f"range) or a looser --rtol")
+    from hammerbit.model.validation import ParameterError
+    if isinstance(exc, ParameterError):
+        if str(exc.allowed).startswith(_UNKNOWN):
+            return UsageError(f"unknown name {exc.name!r}; allowed: {exc.allowed[len(_UNKNOWN):]}")
+        if getattr(args, str(exc.name), None) is not None:      # a config field set by its option
+            return exc.renamed("--" + str(exc.name).replace("_", "-"))
     if isinstance(exc, UnicodeDecodeError):
         return UsageError(f"an input file is not UTF-8 text: {exc.reason} at offset {exc.start}")
     return exc
