@@ -232,3 +232,34 @@ def test_ctrl_c_prints_one_line_and_exits_130(tmp_path):
         assert p.returncode == 130, (name, p.returncode, err[-2000:])
         assert "Traceback" not in err and "Status.init" not in err, (name, err[-2000:])
         assert len(err.strip().splitlines()) <= 2, (name, err[-2000:])
+
+
+@pytest.mark.slow
+def test_ctrl_c_in_a_map_on_a_local_cluster_prints_one_line(tmp_path):
+    """The same with the workers of a local cluster (they ignore SIGINT, so only the command
+    speaks).  A Ctrl-C while the cluster starts is ignored, so it is sent again, as a user would,
+    every few seconds until the command ends."""
+    p = subprocess.Popen(_hammerbit() + ["map", "--axis", "a=0.05:0.25:400", "--axis", "eta=0.6:1.4:400",
+                                         "--workers", "2"], cwd=tmp_path, stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True, start_new_session=True)
+    time.sleep(8.0)
+    out = err = None
+    for _ in range(int(CTRL_C_GUARD_S / 5.0)):
+        os.killpg(p.pid, signal.SIGINT)
+        try:
+            out, err = p.communicate(timeout=5.0)
+            break
+        except subprocess.TimeoutExpired:
+            continue
+    else:
+        p.kill()
+        pytest.fail("map did not end after Ctrl-C")
+    assert p.returncode == 130, err[-2000:]
+    assert "Traceback" not in err and "Status.init" not in err, err[-2000:]
+    assert len(err.strip().splitlines()) <= 2, err[-2000:]
+    for _ in range(60):             # the resource tracker ends shortly after its parent
+        left = subprocess.run(["pgrep", "-s", str(p.pid)], capture_output=True, text=True).stdout.split()
+        if not left:
+            break
+        time.sleep(0.5)
+    assert not left, left

@@ -255,12 +255,14 @@ class Executor:
         """Close the client and the local cluster (its worker processes end)."""
         client, cluster = self.client, self.cluster
         self.client = self.cluster = None
-        try:
-            if client is not None:
-                client.close(timeout=10)
-        finally:
-            if cluster is not None:
-                cluster.close(timeout=10)
+        # a second Ctrl-C (an impatient user) must not cut the shutdown short and leave workers behind
+        with _sigint_ignored() if cluster is not None else contextlib.nullcontext():
+            try:
+                if client is not None:
+                    client.close(timeout=10)
+            finally:
+                if cluster is not None:
+                    cluster.close(timeout=10)
 
     # -- running ----------------------------------------------------------
     def _progress(self, total: int, label: str):
