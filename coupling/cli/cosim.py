@@ -51,7 +51,7 @@ def add_cosim_options(p) -> None:
                         "(the hammer steps first, the string interpolates its new motion)")
     p.add_argument("--extrapolation", type=int, default=2, choices=[0, 1, 2],
                    help="polynomial order of the exchanged signals (default 2)")
-    p.add_argument("--f-max", type=float, default=None, help="modal truncation of the string [Hz]")
+    p.add_argument("--f-max", type=float, default=None, help="modal truncation of the string [Hz] (default: none, every nodal degree of freedom)")
     p.add_argument("--ramp", type=float, default=0.0, metavar="SECONDS",
                    help="raise the harmonic force linearly from 0 over SECONDS (default 0: full at once)")
     p.add_argument("--harmonic-source", default="fmu", choices=["fmu", "master"],

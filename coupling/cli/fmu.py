@@ -26,7 +26,8 @@ def register(sub) -> None:
                         description="Build HammerBitRock.fmu: the runtime of this install, its kernels "
                                     "compiled once for the portable CPU target, the native front library.")
     b.add_argument("--out", default=None, metavar="PATH",
-                   help="the .fmu file to write, or a directory (default dist/HammerBitRock.fmu)")
+                   help="the .fmu file to write (ending in .fmu), or an existing directory to write "
+                        "HammerBitRock.fmu into (default dist/HammerBitRock.fmu)")
     b.set_defaults(func=cmd_fmu_build)
     add_set_argument(b)
     b._actions[-1].help = ("start value of an FMU parameter or input, NAME=VALUE with the FMU variable "

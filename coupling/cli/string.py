@@ -87,7 +87,7 @@ def register(subparsers: "argparse._SubParsersAction") -> tuple[argparse.Argumen
     exc.add_argument("--rpm", type=float, metavar="RPM", help="rotary speed [rev/min], > 0")
     pc.add_argument("--factor", type=float, default=None, metavar="K",
                     help="excitation per revolution with --rpm: 3 tricone, blade count PDC (default 1)")
-    pc.add_argument("--margin", type=float, default=0.15, help="band half-width (default 0.15 = +-15 %%)")
+    pc.add_argument("--margin", type=float, default=0.15, help="band half-width as a fraction of each natural frequency (default 0.15, i.e. ±15 %%)")
     pc.add_argument("--top", default=None, metavar="SPEC", help=f"top boundary (default from file): {_BOUNDARY_HELP}")
     pc.add_argument("--on-bottom", default=None, metavar="SPEC",
                     help="bit-on-bottom boundary (default from file, else fixed)")

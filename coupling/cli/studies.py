@@ -396,14 +396,15 @@ def register(subparsers) -> None:
                                           "bounce, a + b <= 1, no runaway, the string's frequency check "
                                           "and a contact-force limit: a grid, then local refinement.")
     _add_scene_args(p, default_preset="lab")
-    p.add_argument("--string", default=None, help="drillstring TOML file or example name (frequency check)")
+    p.add_argument("--string", default=None, help="drillstring TOML file or example name (frequency check; "
+                                                  "default: none, no frequency check)")
     p.add_argument("--bounds", nargs="+", default=None, metavar="NAME=LO:HI",
                    help="bounded variables, e.g. frequency=1.0:2.0 amplitude=3:30 (SI: Hz, N) or groups "
                         "(default: frequency 0.7-1.3 x the preset's, amplitude 0.05-0.6 F0)")
     p.add_argument("--margin", type=float, default=0.15,
                    help="frequency check: band half-width around each natural frequency (default 0.15)")
     p.add_argument("--max-contact-force", type=float, default=None, metavar="N",
-                   help="largest allowed hammer-bit contact force [N]")
+                   help="largest allowed hammer-bit contact force [N] (default: no limit)")
     p.add_argument("--periods", type=int, default=200, help="forcing periods per evaluation (default 200)")
     p.add_argument("--grid", type=int, default=21, help="grid points per variable (default 21)")
     p.add_argument("--confirm", action="store_true",
@@ -414,7 +415,8 @@ def register(subparsers) -> None:
                    help="--confirm: k_i between the string and the hammer [N/m] (default: the "
                         "co-simulation's)")
     p.add_argument("--interface-damping", type=float, default=None,
-                   help="--confirm: c_i between the string and the hammer [N s/m]")
+                   help="--confirm: c_i between the string and the hammer [N s/m] (default: the "
+                        "co-simulation's, 2e3)")
     _add_executor_args(p)
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.set_defaults(func=cmd_optimize)
