@@ -170,7 +170,8 @@ def measure_maps(cfg, log) -> dict:
 def measure_sweep(cfg, log) -> dict:
     repo_on_path()
     from build_fmu import build_fmu
-    from hammerbit.cosim.master import CosimConfig, cosimulate
+    from hammerbit.cosim.config import CosimConfig
+    from hammerbit.cosim.master import cosimulate
     from hammerbit.drillstring import load_string
     from hammerbit.studies.executor import ExecutorOptions
     from hammerbit.studies.sweep import sweep

@@ -112,7 +112,7 @@ def _classify(exc: BaseException) -> int:
     except ImportError:  # pragma: no cover
         pass
     try:
-        from hammerbit.cosim.master import CouplingInstabilityError
+        from hammerbit.cosim.config import CouplingInstabilityError
         if isinstance(exc, CouplingInstabilityError):
             return EXIT_UNSTABLE
     except ImportError:  # pragma: no cover

@@ -115,7 +115,7 @@ def cmd_sweep(args) -> int:
     from hammerbit.cli.cosim import config_from_args, fmu_arg, load_string_arg, portable_target_for_fmu
     portable_target_for_fmu(args)
     import numpy as np
-    from hammerbit.cosim.master import coupled_modes
+    from hammerbit.cosim.linear_modes import coupled_modes
     from hammerbit.studies.sweep import plot_sweep, sweep, write_sweep_csv
     lo, hi, n = args.frequencies
     if not (0 < lo < hi) or n < 1 or n != int(n):
@@ -239,7 +239,8 @@ def _default_bounds(g):
 def _confirm(groups, string, args) -> dict:
     """Co-simulate the optimum on the string; dynamic WOB amplitude and bounce margin."""
     from hammerbit.cli.cosim import fmu_arg
-    from hammerbit.cosim.master import CosimConfig, cosimulate
+    from hammerbit.cosim.config import CosimConfig
+    from hammerbit.cosim.master import cosimulate
     rig = groups.to_rig()
     T = 1.0 / rig.frequency
     periods = args.confirm_periods

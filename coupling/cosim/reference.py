@@ -13,6 +13,9 @@ import time as _time
 
 import numpy as np
 
+from hammerbit.cosim.config import CosimConfig, CosimResult, event_counts, record_dtype
+from hammerbit.cosim.string_side import StringSide
+
 __all__ = ["monolithic"]
 
 
@@ -39,8 +42,6 @@ def monolithic(string, config=None):
     """
     from hammerbit.model import kernels as K
     from hammerbit.model.stepping import LinearSubsystem, SolverOptions, Stepper
-
-    from hammerbit.cosim.master import CosimConfig, CosimResult, StringSide, _dtype, event_counts
     c = CosimConfig() if config is None else config
     ts = _time.perf_counter()
     side = StringSide(string, c)
@@ -91,7 +92,7 @@ def monolithic(string, config=None):
         st.p[K.P_A] = a
     st.advance(Om * c.stop, sample_times=Om * t_s, samples=samples)
     wall = _time.perf_counter() - t_loop
-    data = np.full(len(t_s), np.nan, dtype=_dtype(c.record))
+    data = np.full(len(t_s), np.nan, dtype=record_dtype(c.record))
     data["time"] = t_s
     x1, x2, x3, x4, fc, fl = (samples[:, i] for i in range(6))
     p = st.p
