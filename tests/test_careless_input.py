@@ -141,9 +141,9 @@ def scratch(tmp_path, monkeypatch):
                       (sweep, "sweep"), (fmu_build, "build_fmu")):
         monkeypatch.setattr(mod, name, no_run)
     monkeypatch.setattr(cli_main, "interruptible", no_run)
-    from hammerbit.cosim import master
+    from hammerbit.cosim import master, reference
     monkeypatch.setattr(master, "cosimulate", no_run)
-    monkeypatch.setattr(master, "monolithic", no_run)
+    monkeypatch.setattr(reference, "monolithic", no_run)
     return tmp_path, (cli_cosim, cli_studies)
 
 
