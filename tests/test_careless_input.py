@@ -18,6 +18,7 @@ import subprocess
 import sys
 import time
 
+import numpy as np
 import pytest
 
 from cli_run import run_cli
@@ -263,3 +264,29 @@ def test_ctrl_c_in_a_map_on_a_local_cluster_prints_one_line(tmp_path):
             break
         time.sleep(0.5)
     assert not left, left
+
+
+# --------------------------------------------------------------------------- files for people
+def test_bifurcation_csv_is_si_with_each_values_own_scales(tmp_path, capsys):
+    """Over the SI stiffness K, x0 = 54 N / K changes with each value: the mm columns follow it
+    (by hand, against the nondimensional points of the same sweep run in the library)."""
+    from hammerbit.model.params import preset
+    from hammerbit.studies.bifurcation import bifurcation
+    from hammerbit.studies.executor import ExecutorOptions
+    csv = tmp_path / "bif.csv"
+    code, out, err = run_cli(["bifurcation", "--preset", "paper-fig9", "--param", "K", "--range", "2170", "4340",
+                              "--num", "2", "--periods", "20", "--keep", "4", "--workers", "1",
+                              "--out", str(tmp_path / "b.png"), "--csv", str(csv)], capsys)
+    assert code == 0, err
+    head = csv.read_text().splitlines()[0]
+    assert head == "K [N/m],time [s],x_b - x_s [mm],v_b - v_s [m/s],bit velocity v_s [m/s],bit position x_s [mm]"
+    rows = np.loadtxt(csv, delimiter=",", skiprows=1)
+    res = bifurcation(preset("paper-fig9"), "K", np.array([2170.0, 4340.0]), periods=20, keep=4,
+                      options=ExecutorOptions(workers=1))
+    for i, K in enumerate((2170.0, 4340.0)):
+        x0_mm = 54.0 / K * 1e3
+        mine = rows[rows[:, 0] == K]
+        P = res.points[i]
+        assert np.allclose(mine[:, 2], (P[:, 1] - P[:, 3]) * x0_mm, rtol=1e-12)
+        assert np.allclose(mine[:, 5], P[:, 3] * x0_mm, rtol=1e-12)
+    assert "SI" in out

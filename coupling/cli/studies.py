@@ -94,7 +94,7 @@ def cmd_bifurcation(args) -> int:
     values = np.linspace(lo, hi, args.num)
     res = bifurcation(g, args.param, values, periods=args.periods, keep=args.keep, solver=_solver(args),
                       options=_executor_options(args))
-    plot_bifurcation(res, args.out)
+    plot_bifurcation(res, args.out, preset=args.preset)
     if args.csv:
         res.to_csv(args.csv)
     summary = {"param": args.param, "num": args.num, "periods": args.periods,
@@ -104,7 +104,8 @@ def cmd_bifurcation(args) -> int:
         print(_dump(summary))
     else:
         print(f"{args.num} values x {args.periods} periods in {res.wall_time_s:.2f} s "
-              f"({res.periods_per_second:,.0f} periods/s, {res.workers} worker(s)); figure: {args.out}")
+              f"({res.periods_per_second:,.0f} periods/s, {res.workers} worker(s)); figure: {args.out}"
+              + (f"; Poincaré points in SI (s, mm, m/s): {args.csv}" if args.csv else ""))
     return 0
 
 
