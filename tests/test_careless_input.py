@@ -290,3 +290,18 @@ def test_bifurcation_csv_is_si_with_each_values_own_scales(tmp_path, capsys):
         assert np.allclose(mine[:, 2], (P[:, 1] - P[:, 3]) * x0_mm, rtol=1e-12)
         assert np.allclose(mine[:, 5], P[:, 3] * x0_mm, rtol=1e-12)
     assert "SI" in out
+
+
+def test_a_contact_open_to_the_end_reports_its_peak_force():
+    """r = 0: the hammer rests on the bit and never separates; the peak contact force is that of
+    the open contact (no separation logs it), checked against densely sampled contact forces."""
+    from hammerbit.model.params import preset
+    from hammerbit.scene.simulate import Record, simulate
+    g = preset("paper-fig9").replace(r=0.0)
+    P = 20
+    t = np.linspace(0.0, P * g.period, P * 2000 + 1)
+    res = simulate(g, P, record=Record(events=True, times=t))
+    assert res.counts["impact"] == res.counts["separation"] + 1          # open at the end
+    sampled = res.samples["contact_force"].max() * g.scales.friction_force
+    assert sampled > 0
+    assert sampled * (1 - 1e-9) <= res.peak_contact_force_n() <= sampled * 1.01
