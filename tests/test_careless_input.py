@@ -305,3 +305,17 @@ def test_a_contact_open_to_the_end_reports_its_peak_force():
     sampled = res.samples["contact_force"].max() * g.scales.friction_force
     assert sampled > 0
     assert sampled * (1 - 1e-9) <= res.peak_contact_force_n() <= sampled * 1.01
+
+
+def test_hammer_modes_warn_when_the_exact_frequencies_show_the_tolerance_missed(capsys):
+    """The warning's figure is the worst relative error of the table, recomputed here from the
+    finite-element and exact frequencies the JSON reports."""
+    argv = ["modes", "--string", "field-2200m", "--hammer-on-bottom", "--fmax", "40", "--exact"]
+    code, out, err = run_cli(argv + ["--json"], capsys)
+    assert code == 0, err
+    d = __import__("json").loads(out)
+    worst = max(abs(f / e - 1.0) for f, e in zip(d["frequencies_hz"], d["exact_hz"]))
+    assert worst > 1e-5                                   # this case misses the default --rtol
+    assert "warning" in err and "--rtol 1e-05" in err and f"{worst:.2e}" in err
+    code, _, err = run_cli(argv + ["--rtol", f"{2 * worst:g}"], capsys)
+    assert code == 0 and "warning" not in err

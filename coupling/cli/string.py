@@ -314,4 +314,26 @@ def _cmd_hammer_modes(args: argparse.Namespace) -> int:
             if exact is not None and i <= len(exact):
                 line += f"   exact {exact[i - 1]:>12.6g} Hz  ({x / exact[i - 1] - 1.0:+.2e})"
             print(line)
+    if args.csv:
+        _write_rows(args.csv, [{"mode": i + 1, "frequency_hz": float(x),
+                                **({"exact_hz": out["exact_hz"][i], "relative_error": out["relative_error"][i]}
+                                   if exact is not None and i < len(out["relative_error"]) else {})}
+                               for i, x in enumerate(f)])
+    worst = max((abs(e) for e in out.get("relative_error", [])), default=0.0)
+    if worst > args.rtol:
+        k = [abs(e) for e in out["relative_error"]].index(worst) + 1
+        print(f"hammerbit modes: warning: with --hammer-on-bottom the finite-element frequencies miss "
+              f"--rtol {args.rtol:g}: relative error up to {worst:.2e} (mode {k}); the mesh follows --fmax, "
+              f"so use the exact column", file=sys.stderr)
     return 0
+
+
+def _write_rows(path, rows) -> None:
+    """The rows (dicts) as CSV; a failed write names ``--csv``."""
+    from hammerbit.cli.common import output_errors
+    names = list(rows[0]) if rows else ["mode", "frequency_hz"]
+    with output_errors("--csv", path), open(path, "w", newline="", encoding="utf-8") as fh:
+        w = csv.DictWriter(fh, fieldnames=names)
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: ("" if v is None else v) for k, v in r.items()})
