@@ -319,3 +319,19 @@ def test_hammer_modes_warn_when_the_exact_frequencies_show_the_tolerance_missed(
     assert "warning" in err and "--rtol 1e-05" in err and f"{worst:.2e}" in err
     code, _, err = run_cli(argv + ["--rtol", f"{2 * worst:g}"], capsys)
     assert code == 0 and "warning" not in err
+
+
+def test_fmu_build_says_what_it_does_before_the_long_build(tmp_path, capsys, monkeypatch):
+    """The progress line is on stderr before the build starts (the build itself is stubbed)."""
+    import hammerbit.fmu.build as fmu_build
+    seen = {}
+
+    def fake_build(out, options):
+        seen["err"] = capsys.readouterr().err               # what the user saw while it builds
+        return out
+
+    monkeypatch.setattr(fmu_build, "build_fmu", fake_build)
+    code, out, err = run_cli(["fmu", "build", "--out", str(tmp_path / "H.fmu")], capsys)
+    assert code == 0, err
+    assert "building HammerBitRock.fmu" in seen["err"] and "kernels" in seen["err"]
+    assert "done in" in err and out.strip() == str(tmp_path / "H.fmu")
