@@ -335,3 +335,14 @@ def test_fmu_build_says_what_it_does_before_the_long_build(tmp_path, capsys, mon
     assert code == 0, err
     assert "building HammerBitRock.fmu" in seen["err"] and "kernels" in seen["err"]
     assert "done in" in err and out.strip() == str(tmp_path / "H.fmu")
+
+
+def test_isolated_modes_against_a_brute_force_of_band_overlaps():
+    from hammerbit.check.plots import isolated_modes
+    rng = np.random.default_rng(24)
+    for _ in range(200):
+        f = np.sort(rng.uniform(1.0, 50.0, rng.integers(1, 12)))
+        m = rng.uniform(0.01, 0.3)
+        want = [all(not (f[i] * (1 - m) <= f[j] * (1 + m) and f[j] * (1 - m) <= f[i] * (1 + m))
+                    for j in range(f.size) if j != i) for i in range(f.size)]
+        assert isolated_modes(f, m).tolist() == want
