@@ -36,7 +36,7 @@ __all__ = ["EXIT_OK", "EXIT_FAILURE", "EXIT_BAD_INPUT", "EXIT_UNSTABLE", "EXIT_C
            "add_set_argument", "SET_HELP", "run_command", "error", "NETCDF_SUFFIXES",
            "MAX_WORKERS_PER_CORE", "MEMORY_FRACTION", "MAX_CPU_SECONDS", "max_workers", "check_workers",
            "check_output", "check_input_file", "output_errors", "available_memory", "check_fits",
-           "interruptible", "human_bytes", "human_seconds"]
+           "interruptible", "human_bytes", "human_seconds", "one_blas_thread"]
 
 EXIT_OK = 0
 EXIT_FAILURE = 1
@@ -327,3 +327,23 @@ def interruptible(fn, *args, **kwargs):
     if "error" in box:
         raise box["error"]
     return box["value"]
+
+
+def one_blas_thread(func):
+    """``func`` with BLAS/LAPACK limited to one thread (threadpoolctl).
+
+    The eigenproblems of ``modes`` and ``check`` are small (hundreds to a few
+    thousand degrees of freedom): their threads hand work over more than they
+    share it, and on a busy machine each hand-over waits for a core.
+    """
+    import functools
+
+    @functools.wraps(func)
+    def wrapper(*args, **kwargs):
+        try:
+            from threadpoolctl import threadpool_limits
+        except ImportError:  # pragma: no cover -- an optional speed-up
+            return func(*args, **kwargs)
+        with threadpool_limits(limits=1, user_api="blas"):
+            return func(*args, **kwargs)
+    return wrapper

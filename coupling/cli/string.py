@@ -17,7 +17,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from hammerbit.cli.common import EXIT_CHECK_FAILED, EXIT_OK, UsageError
+from hammerbit.cli.common import EXIT_CHECK_FAILED, EXIT_OK, UsageError, one_blas_thread
 from hammerbit.drillstring import (
     DEFAULT_MASS,
     DEFAULT_RTOL,
@@ -138,6 +138,7 @@ def _writable(path: str | None, option: str, suffixes: tuple[str, ...] | None = 
         raise UsageError(f"{option} {path}: allowed formats {', '.join(suffixes)}")
 
 
+@one_blas_thread
 def cmd_modes(args: argparse.Namespace) -> int:
     """Handler of ``hammerbit modes``."""
     from hammerbit.drillstring import exact_frequencies, modes
@@ -223,6 +224,7 @@ def _check_config(args: argparse.Namespace) -> CheckConfig:
         raise err.renamed(_OPTION.get(err.name, err.name)) from None
 
 
+@one_blas_thread
 def cmd_check(args: argparse.Namespace) -> int:
     """Handler of ``hammerbit check``."""
     from hammerbit.check.frequency import check, plot_check
