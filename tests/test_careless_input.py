@@ -243,7 +243,14 @@ def test_ctrl_c_in_a_map_on_a_local_cluster_prints_one_line(tmp_path):
     p = subprocess.Popen(_hammerbit() + ["map", "--axis", "a=0.05:0.25:400", "--axis", "eta=0.6:1.4:400",
                                          "--workers", "2"], cwd=tmp_path, stdout=subprocess.PIPE,
                          stderr=subprocess.PIPE, text=True, start_new_session=True)
-    time.sleep(8.0)
+    # wait for the cluster: the command (which runs the nannies), the resource tracker, two workers
+    for _ in range(int(CTRL_C_GUARD_S / 0.5)):
+        group = subprocess.run(["pgrep", "-s", str(p.pid)], capture_output=True, text=True).stdout.split()
+        if len(group) >= 4 or p.poll() is not None:
+            break
+        time.sleep(0.5)
+    time.sleep(3.0)                 # the workers load the kernels and run tasks
+    assert p.poll() is None, "the map ended before the test could interrupt it"
     out = err = None
     for _ in range(int(CTRL_C_GUARD_S / 5.0)):
         os.killpg(p.pid, signal.SIGINT)
