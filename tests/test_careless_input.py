@@ -111,6 +111,10 @@ MORE = [
     (["optimize", "--string", "adir"], ["--string adir", "directory"]),
     (["optimize", "--workers", "1000"], ["--workers 1000"]),
     (["fmu", "build", "--out", "afile/x.fmu"], ["--out afile/x.fmu", "not a directory"]),
+    (["bifurcation", "--range", "0", "1", "--out", "b.png", "--num", "1000000000000"], ["--num 1000000000000",
+                                                                                      "memory"]),
+    (["optimize", "--grid", "10000000"], ["--grid 10000000", "cells", "limit"]),
+    (["sweep", *FIELD, "--frequencies", "15", "30", "1e12"], ["--frequencies 15 30 1000000000000", "limit"]),
 ]
 
 

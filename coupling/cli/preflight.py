@@ -150,6 +150,11 @@ def _bifurcation(args) -> None:
     from hammerbit.model.params import preset
     from hammerbit.model.validation import ParameterError
     known_name(args.param, "--param")
+    if args.num > 0 and args.periods > 0 and args.keep > 0:
+        check_fits(f"--num {args.num} --periods {args.periods} --keep {args.keep}",
+                   bytes_needed=args.num * (args.keep * BYTES_PER_POINCARE_POINT + BYTES_PER_MAP_CELL),
+                   cpu_seconds=args.num * args.periods * CPU_SECONDS_PER_PERIOD,
+                   hint="use fewer values (--num), periods or kept points (--keep)")
     base = apply_user_settings(preset(args.preset), parse_settings(args.set))
     for v in args.range:
         try:
@@ -162,6 +167,12 @@ def _optimize(args) -> None:
     from hammerbit.cli.common import parse_settings
     from hammerbit.model.params import preset
     from hammerbit.model.validation import ParameterError
+    if args.grid > 0 and args.periods > 0:
+        cells = args.grid ** max(1, len(args.bounds or ()) or 2)
+        check_fits(f"--grid {args.grid} ({cells:,} cells over the bounded variables)",
+                   bytes_needed=cells * BYTES_PER_MAP_CELL,
+                   cpu_seconds=cells * args.periods * CPU_SECONDS_PER_PERIOD,
+                   hint="use a coarser --grid (the local refinement finds the optimum between cells)")
     base = None
     for text in args.bounds or []:
         if "=" not in text:
@@ -181,8 +192,19 @@ def _optimize(args) -> None:
                 raise ParameterError(f"--bounds {name}", v, e.allowed) from None
 
 
+def _sweep(args) -> None:
+    lo, hi, n = args.frequencies
+    step = args.step or DEFAULT_COSIM_STEP
+    if not (n >= 1 and n == int(n) and 0 < lo < hi and step > 0 and args.max_duration > 0):
+        return                                  # the command's own check names the range
+    steps = int(n) * args.max_duration / step
+    check_fits(f"--frequencies {lo:g} {hi:g} {int(n)} --max-duration {args.max_duration:g}",
+               bytes_needed=int(n) * BYTES_PER_MAP_CELL, cpu_seconds=steps * CPU_SECONDS_PER_MACRO_STEP,
+               hint="use fewer frequencies or a shorter --max-duration")
+
+
 _CHECKS = {"simulate": _simulate, "map": _map, "cosim": _cosim, "bifurcation": _bifurcation,
-           "optimize": _optimize}
+           "optimize": _optimize, "sweep": _sweep}
 
 
 # ---------------------------------------------------------------------------
