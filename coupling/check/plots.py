@@ -170,7 +170,7 @@ def plot_frequency_map(result: CheckResult, ax=None, path: "str | Path | None" =
             if iso:
                 ax.fill_between([fn * (1 - c.margin), fn * (1 + c.margin)], r0, r1, color=col, alpha=0.15, lw=0)
         ax.vlines(f[sel], r0 + 0.05, r1 - 0.05, color=col, lw=1.0,
-                  label=f"{_LABELS.get(cfg.name, cfg.name)}: {int(sel.sum())} modes")
+                  label=f"{_LABELS.get(cfg.name, cfg.name)}: {int(sel.sum())} mode{'' if sel.sum() == 1 else 's'}")
     ax.axvline(result.excitation_hz, color="tab:red" if result.verdict == "fail" else "k", lw=2,
                label=f"hammer {result.excitation_hz:g} Hz: {result.verdict_label}")
     ax.set_xlim(f_lo, f_hi)
