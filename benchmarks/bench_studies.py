@@ -91,7 +91,7 @@ def _kernel_share(cfg) -> dict:
     from hammerbit.model import kernel_driver
     from hammerbit.model.presets import preset
     from hammerbit.model.solver_options import SolverOptions
-    from hammerbit.studies.map import _map_chunk
+    from hammerbit.studies.map import map_chunk
     g = preset("paper-fig9")
     solver = SolverOptions(rtol=RTOL, atol=RTOL * 1e-2)
     cells = [(float(a), float(e)) for a in _axes(cfg)[0].values for e in _axes(cfg)[1].values]
@@ -111,7 +111,7 @@ def _kernel_share(cfg) -> dict:
         for _ in range(cfg["repeats"]):
             spent[0] = 0.0
             t0 = time.perf_counter()
-            _map_chunk(cells, g, ("a", "eta"), cfg["periods"], solver)
+            map_chunk(cells, g, ("a", "eta"), cfg["periods"], solver)
             total = time.perf_counter() - t0
             if best is None or total < best[0]:
                 best = (total, spent[0])

@@ -47,20 +47,29 @@ def reference() -> str:
     from hammerbit.cli.main import build_parser
     ap = build_parser()
     sub = next(a for a in ap._actions if isinstance(a, argparse._SubParsersAction))
-    helps = {c.dest: c.help for c in sub._choices_actions}
     lines = []
+    _commands(sub, "hammerbit", lines)
+    return "\n".join(lines).rstrip() + "\n"
+
+
+def _commands(sub, prefix: str, lines: list) -> None:
+    """The sections of every command of ``sub``, and of the commands nested in them (``fmu build``)."""
+    helps = {c.dest: c.help for c in sub._choices_actions}
     for name, p in sub.choices.items():
-        lines += [f"### `hammerbit {name}`", "", _cell(helps.get(name) or p.description or ""), ""]
+        lines += [f"### `{prefix} {name}`", "", _cell(helps.get(name) or p.description or ""), ""]
         if p.description and p.description != helps.get(name):
             lines += [_cell(p.description), ""]
+        nested = [a for a in p._actions if isinstance(a, argparse._SubParsersAction)]
         lines += ["| option | default | help |", "|---|---|---|"]
         for a in p._actions:
             if isinstance(a, argparse._HelpAction):
                 continue
             req = "required" if a.required else _default(a)
-            lines.append(f"| {_option(a)} | {req} | {_cell(a.help or '')} |")
+            # argparse writes a percent sign as %% in help strings
+            lines.append(f"| {_option(a)} | {req} | {_cell((a.help or '').replace('%%', '%'))} |")
         lines.append("")
-    return "\n".join(lines).rstrip() + "\n"
+        for a in nested:
+            _commands(a, f"{prefix} {name}", lines)
 
 
 def current(doc: pathlib.Path = DOC) -> str:

@@ -3,13 +3,13 @@
     python examples/paper_figures.py [--num 120] [--periods 300] [--workers N] [--out DIR]
     python examples/paper_figures.py --update      # into docs/figures/ (tracked)
 
-Without ``--update`` or ``--out`` the figures go to ``hammerbit-figures`` in
-the system's temp dir; nothing tracked changes unless asked.
+Without ``--update`` or ``--out`` the figures go to a new scratch directory
+(``hammerbit-figures-*`` in the system's temp dir), which the script prints;
+nothing tracked changes unless asked.  It prints one line per figure, in SI.
 """
 import argparse
 import json
 import pathlib
-import sys
 import tempfile
 import time
 
@@ -21,7 +21,6 @@ from hammerbit.model.presets import preset
 from hammerbit.scene.plots import plot_bifurcation, plot_penetration, plot_scene
 
 TRACKED = pathlib.Path(__file__).resolve().parent.parent / "docs" / "figures"
-SCRATCH = pathlib.Path(tempfile.gettempdir()) / "hammerbit-figures"
 
 
 def main(argv=None):
@@ -32,27 +31,42 @@ def main(argv=None):
     ap.add_argument("--workers", type=int, default=None, help="local worker processes (default: one per CPU)")
     where = ap.add_mutually_exclusive_group()
     where.add_argument("--out", type=pathlib.Path, default=None,
-                       help=f"output directory (default {SCRATCH})")
+                       help="output directory (default: a new scratch directory in the system's temp "
+                            "dir, printed)")
     where.add_argument("--update", action="store_true", help=f"write into {TRACKED} (tracked files)")
     args = ap.parse_args(argv)
-    OUT = TRACKED if args.update else (args.out or SCRATCH)
+    if args.update:
+        OUT = TRACKED
+    elif args.out is not None:
+        OUT = args.out
+    else:
+        OUT = pathlib.Path(tempfile.mkdtemp(prefix="hammerbit-figures-"))
     OUT.mkdir(parents=True, exist_ok=True)
+    print(f"writing the figures into {OUT}", flush=True)
     summary = {}
     options = ExecutorOptions(workers=args.workers)
     for name, lo, hi in (("paper-fig9", 0.0, 0.25), ("paper-fig12", 0.0, 0.25)):
         t0 = time.perf_counter()
         res = bifurcation(preset(name), "a", np.linspace(lo, hi, args.num), periods=args.periods, keep=48,
                           options=options)
-        plot_bifurcation(res, OUT / f"bifurcation_{name}.png", scales=preset(name).scales)
+        path = plot_bifurcation(res, OUT / f"bifurcation_{name}.png", scales=preset(name).scales, preset=name)
         summary[name] = {"periods_per_second": res.periods_per_second, "wall_s": time.perf_counter() - t0,
                          "period_n": dict(zip([round(v, 4) for v in res.values.tolist()], res.periods))}
+        found = sorted({n for n in res.periods if n})
+        print(f"  {path.name}: {name}, bifurcation over a = {lo:g}..{hi:g} ({args.num} values x "
+              f"{args.periods} periods, {summary[name]['wall_s']:.1f} s); periods found: "
+              + (", ".join(f"P{n}" for n in found) or "no period found"), flush=True)
     a = np.linspace(0.0, 0.25, 51)     # the range of the paper's Fig. 14
     p9 = penetration_sweep(preset("paper-fig9"), a, periods=100, options=options)
     p12 = penetration_sweep(preset("paper-fig12"), a, periods=100, options=options)
     plot_penetration(a, {"no impact (paper-fig9)": p9, "impact r=0.84 (paper-fig12)": p12},
                      OUT / "penetration_fig14.png", periods=100, scales=preset("paper-fig9").scales)
+    mm = preset("paper-fig9").scales.length * 1e3
+    print(f"  penetration_fig14.png: penetration after 100 periods against a = 0..0.4; at a = 0.4 "
+          f"{p9[-1] * mm:.4g} mm without impact, {p12[-1] * mm:.4g} mm with impact", flush=True)
     plot_scene(preset("paper-fig9").replace(a=0.083), 300, OUT / "scene_fig9_a0.083.png", preset="paper-fig9")
     plot_scene(preset("paper-fig12").replace(a=0.06), 300, OUT / "scene_fig12_a0.06.png", preset="paper-fig12")
+    print("  scene_fig9_a0.083.png, scene_fig12_a0.06.png: two scenes of 300 periods (mm against s)", flush=True)
     from hammerbit.scene.analysis import largest_lyapunov
     from hammerbit.scene.plots import plot_attractor
     from hammerbit.scene.simulate import Record, simulate
@@ -63,9 +77,10 @@ def main(argv=None):
                    title=f"strange attractor: eta=0.8, b=0.3, r=0.84, mu=0.6, a=0.1967\n"
                          f"lambda_max = {lam['lambda_per_period']:.3f}/period")
     summary["chaos"] = {"lambda_per_period": lam["lambda_per_period"]}
+    print(f"  chaos_fig15.png: the strange attractor of the preset chaos, largest Lyapunov exponent "
+          f"{lam['lambda_per_period']:+.3f} per forcing period", flush=True)
     (OUT / "paper_figures.json").write_text(json.dumps(summary, indent=1))
-    print(json.dumps({k: v.get("periods_per_second", v.get("lambda_per_period")) for k, v in summary.items()}))
-    print(f"figures written to {OUT}", file=sys.stderr)
+    print(f"done: the figures and paper_figures.json (timings, period-n per value) are in {OUT}")
 
 
 if __name__ == "__main__":

@@ -32,7 +32,7 @@ from numba import njit
 from . import numba_cache  # noqa: F401  (registers the content-hash cache locator)
 
 __all__ = ["ExactStep", "Discretisation", "StringState", "string_step_dense", "string_step_modal",
-           "held_weights", "held_force", "coefficients", "exchange_step", "N_COEFFS",
+           "held_weights", "held_force", "taylor_coefficients", "exchange_step", "N_COEFFS",
            "MODAL_TOLERANCE", "step_key", "one_blas_thread"]
 
 #: Taylor coefficients of the hammer motion over a step: (x, v, x', v', x'', v'')

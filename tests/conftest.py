@@ -11,6 +11,16 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import pytest  # noqa: E402
 
+try:
+    from hypothesis import settings as _hypothesis_settings
+except ImportError:  # pragma: no cover -- the property tests are skipped without hypothesis
+    _hypothesis_settings = None
+if _hypothesis_settings is not None:
+    # no Hypothesis deadline anywhere: an example may compile a kernel (tens of seconds under load),
+    # and the fast set asserts no wall time (timings live in benchmarks/)
+    _hypothesis_settings.register_profile("hammerbit", deadline=None)
+    _hypothesis_settings.load_profile("hammerbit")
+
 
 @pytest.fixture(scope="session")
 def built_fmu(tmp_path_factory):

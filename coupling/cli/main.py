@@ -18,7 +18,9 @@ import warnings
 
 import numpy as np
 
-from hammerbit.cli.common import UsageError, add_set_argument, parse_settings, run_command
+from hammerbit.cli.common import (EXIT_INTERRUPTED, UsageError, add_set_argument, interruptible, output_errors, parse_settings,
+                                  run_command)
+from hammerbit.cli.preflight import apply_user_settings, in_user_words, preflight
 
 __all__ = ["main", "console", "build_parser", "COMMAND_MODULES", "HelpFormatter", "version"]
 
@@ -76,8 +78,7 @@ def _parse_settings(pairs):
 
 def _groups_from_args(args):
     from hammerbit.model.presets import preset
-    from hammerbit.model.settings import apply_settings
-    return apply_settings(preset(args.preset), _parse_settings(args.set))
+    return apply_user_settings(preset(args.preset), _parse_settings(args.set))
 
 
 def _solver_from_args(args):
@@ -210,8 +211,9 @@ def _simulate(args, worker) -> int:
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", BounceWarning)
-        res = simulate(g, args.periods, record=Record(poincare=True, events=g.has_gap, times=times),
-                       solver=solver)
+        # in a thread: a Ctrl-C interrupts a long run at once (the kernel releases the GIL)
+        res = interruptible(simulate, g, args.periods,
+                            record=Record(poincare=True, events=g.has_gap, times=times), solver=solver)
     for w in caught:
         if not issubclass(w.category, BounceWarning):
             warnings.showwarning(w.message, w.category, w.filename, w.lineno)
@@ -252,7 +254,8 @@ def _simulate(args, worker) -> int:
     for msg in regime_warnings(g, reg) if reg else []:
         print(f"hammerbit: warning: {msg}", file=sys.stderr)
     if args.csv:
-        write_samples_csv(res, args.csv)
+        with output_errors("--csv", args.csv):
+            write_samples_csv(res, args.csv)
     if args.json:
         print(json.dumps(out))
     else:
@@ -328,7 +331,7 @@ def main(argv=None) -> int:
     """Run the command line ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
     ap = build_parser()
     args = ap.parse_args(argv)
-    return run_command(args.func, args)
+    return run_command(args.func, args, before=preflight, rephrase=in_user_words)
 
 
 def console(argv=None) -> None:
@@ -340,7 +343,11 @@ def console(argv=None) -> None:
     short command's exit.  Everything else of the shutdown runs as usual
     (exit handlers, files flushed and closed).
     """
-    code = main(argv)
+    try:
+        code = main(argv)
+    except KeyboardInterrupt:       # before or after the command ran (imports, argument parsing)
+        print("hammerbit: interrupted", file=sys.stderr)
+        code = EXIT_INTERRUPTED
     gc.freeze()
     sys.exit(code)
 

@@ -17,7 +17,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from hammerbit.cli.common import EXIT_CHECK_FAILED, EXIT_OK, UsageError
+from hammerbit.cli.common import EXIT_CHECK_FAILED, EXIT_OK, UsageError, one_blas_thread
 from hammerbit.drillstring import (
     DEFAULT_MASS,
     DEFAULT_RTOL,
@@ -87,7 +87,7 @@ def register(subparsers: "argparse._SubParsersAction") -> tuple[argparse.Argumen
     exc.add_argument("--rpm", type=float, metavar="RPM", help="rotary speed [rev/min], > 0")
     pc.add_argument("--factor", type=float, default=None, metavar="K",
                     help="excitation per revolution with --rpm: 3 tricone, blade count PDC (default 1)")
-    pc.add_argument("--margin", type=float, default=0.15, help="band half-width (default 0.15 = +-15 %%)")
+    pc.add_argument("--margin", type=float, default=0.15, help="band half-width as a fraction of each natural frequency (default 0.15, i.e. ±15 %%)")
     pc.add_argument("--top", default=None, metavar="SPEC", help=f"top boundary (default from file): {_BOUNDARY_HELP}")
     pc.add_argument("--on-bottom", default=None, metavar="SPEC",
                     help="bit-on-bottom boundary (default from file, else fixed)")
@@ -138,6 +138,7 @@ def _writable(path: str | None, option: str, suffixes: tuple[str, ...] | None = 
         raise UsageError(f"{option} {path}: allowed formats {', '.join(suffixes)}")
 
 
+@one_blas_thread
 def cmd_modes(args: argparse.Namespace) -> int:
     """Handler of ``hammerbit modes``."""
     from hammerbit.drillstring import exact_frequencies, modes
@@ -223,6 +224,7 @@ def _check_config(args: argparse.Namespace) -> CheckConfig:
         raise err.renamed(_OPTION.get(err.name, err.name)) from None
 
 
+@one_blas_thread
 def cmd_check(args: argparse.Namespace) -> int:
     """Handler of ``hammerbit check``."""
     from hammerbit.check.frequency import check, plot_check
@@ -322,4 +324,26 @@ def _cmd_hammer_modes(args: argparse.Namespace) -> int:
             if exact is not None and i <= len(exact):
                 line += f"   exact {exact[i - 1]:>12.6g} Hz  ({x / exact[i - 1] - 1.0:+.2e})"
             print(line)
+    if args.csv:
+        _write_rows(args.csv, [{"mode": i + 1, "frequency_hz": float(x),
+                                **({"exact_hz": out["exact_hz"][i], "relative_error": out["relative_error"][i]}
+                                   if exact is not None and i < len(out["relative_error"]) else {})}
+                               for i, x in enumerate(f)])
+    worst = max((abs(e) for e in out.get("relative_error", [])), default=0.0)
+    if worst > args.rtol:
+        k = [abs(e) for e in out["relative_error"]].index(worst) + 1
+        print(f"hammerbit modes: warning: with --hammer-on-bottom the finite-element frequencies miss "
+              f"--rtol {args.rtol:g}: relative error up to {worst:.2e} (mode {k}); the mesh follows --fmax, "
+              f"so use the exact column", file=sys.stderr)
     return 0
+
+
+def _write_rows(path, rows) -> None:
+    """The rows (dicts) as CSV; a failed write names ``--csv``."""
+    from hammerbit.cli.common import output_errors
+    names = list(rows[0]) if rows else ["mode", "frequency_hz"]
+    with output_errors("--csv", path), open(path, "w", newline="", encoding="utf-8") as fh:
+        w = csv.DictWriter(fh, fieldnames=names)
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: ("" if v is None else v) for k, v in r.items()})

@@ -57,8 +57,8 @@ def _add_scene_args(p, *, default_preset="paper-fig9") -> None:
 
 def _groups(args):
     from hammerbit.model.presets import preset
-    from hammerbit.model.settings import apply_settings
-    return apply_settings(preset(args.preset), parse_settings(args.set))
+    from hammerbit.cli.preflight import apply_user_settings
+    return apply_user_settings(preset(args.preset), parse_settings(args.set))
 
 
 def _solver(args):
@@ -94,7 +94,7 @@ def cmd_bifurcation(args) -> int:
     values = np.linspace(lo, hi, args.num)
     res = bifurcation(g, args.param, values, periods=args.periods, keep=args.keep, solver=_solver(args),
                       options=_executor_options(args))
-    plot_bifurcation(res, args.out)
+    plot_bifurcation(res, args.out, preset=args.preset)
     if args.csv:
         res.to_csv(args.csv)
     summary = {"param": args.param, "num": args.num, "periods": args.periods,
@@ -104,7 +104,8 @@ def cmd_bifurcation(args) -> int:
         print(_dump(summary))
     else:
         print(f"{args.num} values x {args.periods} periods in {res.wall_time_s:.2f} s "
-              f"({res.periods_per_second:,.0f} periods/s, {res.workers} worker(s)); figure: {args.out}")
+              f"({res.periods_per_second:,.0f} periods/s, {res.workers} worker(s)); figure: {args.out}"
+              + (f"; Poincaré points in SI (s, mm, m/s): {args.csv}" if args.csv else ""))
     return 0
 
 
@@ -390,14 +391,15 @@ def register(subparsers) -> None:
                                           "over the whole run: a grid, then a refinement that follows "
                                           "active constraints.")
     _add_scene_args(p, default_preset="lab")
-    p.add_argument("--string", default=None, help="drillstring TOML file or example name (frequency check)")
+    p.add_argument("--string", default=None, help="drillstring TOML file or example name (frequency check; "
+                                                  "default: none, no frequency check)")
     p.add_argument("--bounds", nargs="+", default=None, metavar="NAME=LO:HI",
                    help="bounded variables, e.g. frequency=1.0:2.0 amplitude=3:30 (SI: Hz, N) or groups "
                         "(default: frequency 0.7-1.3 x the preset's, amplitude 0.05-0.6 F0)")
     p.add_argument("--margin", type=float, default=0.15,
                    help="frequency check: band half-width around each natural frequency (default 0.15)")
     p.add_argument("--max-contact-force", type=float, default=None, metavar="N",
-                   help="largest allowed hammer-bit contact force [N]")
+                   help="largest allowed hammer-bit contact force [N] (default: no limit)")
     p.add_argument("--periods", type=int, default=200, help="forcing periods per evaluation (default 200)")
     p.add_argument("--grid", type=int, default=None,
                    help="grid points per variable (default 41 for one or two variables, 15 for three)")
@@ -411,7 +413,8 @@ def register(subparsers) -> None:
                    help="--confirm: k_i between the string and the hammer [N/m] (default: the "
                         "co-simulation's)")
     p.add_argument("--interface-damping", type=float, default=None,
-                   help="--confirm: c_i between the string and the hammer [N s/m]")
+                   help="--confirm: c_i between the string and the hammer [N s/m] (default: the "
+                        "co-simulation's, 2e3)")
     _add_executor_args(p)
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.set_defaults(func=cmd_optimize)

@@ -421,13 +421,22 @@ class CosimResult:
         return out
 
     def to_csv(self, path) -> Path:
-        """Write the recorded array as CSV (header = field names)."""
+        """Write the recorded array as CSV, with a header of ``name [unit]`` (:func:`record_unit`)."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         names = self.data.dtype.names
         arr = np.column_stack([self.data[n] for n in names]) if len(self.data) else np.zeros((0, len(names)))
-        np.savetxt(path, arr, delimiter=",", header=",".join(names), comments="", fmt="%.17g")
+        header = ",".join(f"{n} [{record_unit(n)}]" for n in names)
+        np.savetxt(path, arr, delimiter=",", header=header, comments="", fmt="%.17g")
         return path
+
+
+def record_unit(name: str) -> str:
+    """The SI unit of a recorded variable (``time``: s; the others: the bracket of :data:`RECORDABLE`)."""
+    if name == "time":
+        return "s"
+    text = RECORDABLE[name]
+    return text[text.index("[") + 1:text.index("]")]
 
 
 def steady_start(config: CosimConfig) -> float:

@@ -81,7 +81,7 @@ class StringBuild:
 
 
 def _source_text(string_arg) -> str:
-    from hammerbit.drillstring.description import example_names, example_path
+    from hammerbit.drillstring.loading import example_names, example_path
     p = Path(string_arg)
     if p.is_file():
         return p.read_text(encoding="utf-8")
@@ -123,7 +123,7 @@ def string_build(string_arg, *, wob: Optional[float] = None, rig=None, top=None,
     from hammerbit.cosim.config import CosimConfig
     from hammerbit.cosim.string_side import StringSide
     from hammerbit.drillstring import DrillStringError, load_string, state_space
-    from hammerbit.drillstring.description import Boundary
+    from hammerbit.drillstring.boundary import Boundary
     from hammerbit.drillstring.top import TopCondition, auto_driller_gains, top_matrices
     from hammerbit.model.string_model import TOP_CONDITIONS
     string = string_arg if not isinstance(string_arg, (str, Path)) else load_string(string_arg)

@@ -112,10 +112,11 @@ def _si_top_axis(ax, param: str, scales):
         top.set_xlabel(("amplitude A" if param == "a" else "preload B") + " [N]")
 
 
-def plot_bifurcation(res, path, *, scales=None):
+def plot_bifurcation(res, path, *, scales=None, preset: str | None = None):
     """Bifurcation diagram (relative displacement at the Poincaré section [mm]) and drift per period [mm].
 
-    ``scales`` (default: the scene's, else the paper's rig) turn lengths into mm.
+    ``scales`` (default: the scene's, else the paper's rig) turn lengths into mm; ``preset``
+    names the scene in the title.
     """
     plt = _plt()
     sc = _scales(scales, res)
@@ -125,7 +126,8 @@ def plot_bifurcation(res, path, *, scales=None):
         P = res.points[i]
         ax[0].plot(np.full(P.shape[0], v), (P[:, 1] - P[:, 3]) * mm, "k.", ms=1.5)
     ax[0].set_ylabel("x_b − x_s at the Poincaré section [mm]")
-    ax[0].set_title(f"bifurcation diagram over {res.param} (x0 = {mm:.4g} mm)")
+    ax[0].set_title((f"{preset}: " if preset else "") + f"bifurcation diagram over {res.param} "
+                    f"(x0 = {mm:.4g} mm)")
     _si_top_axis(ax[0], res.param, sc)
     ax[1].plot(res.values, np.asarray(res.drift) * mm, "b.-", ms=3)
     ax[1].set_ylabel("penetration per period [mm]")

@@ -123,7 +123,7 @@ def cosimulate_ssp(path, **config):
 def monolithic_ssp(path, **config):
     """The monolithic reference of the system of ``path`` (the string from the TOML the FMU carries)."""
     from hammerbit.cosim.reference import monolithic
-    from hammerbit.drillstring.description import loads_string
+    from hammerbit.drillstring.loading import loads_string
     system = load_ssp(path, **config)
     try:
         zeta = system.description.component(STRING).parameters["damping_ratio"]

@@ -16,7 +16,7 @@ import numpy as np
 from hammerbit.model import kernel_layouts
 from hammerbit.model.params import Groups
 from hammerbit.model.settings import apply_settings, setting_target
-from hammerbit.model.validation import ParameterError
+from hammerbit.model.validation import RANGES, ParameterError
 from hammerbit.model.solver_options import SolverOptions
 from hammerbit.model.stepping import Stepper
 
@@ -71,13 +71,32 @@ class BifurcationResult:
         return self.total_periods / self.wall_time_s if self.wall_time_s > 0 else float("nan")
 
     def to_csv(self, path) -> None:
-        """One row per Poincaré point: value, tau, x1-x3, x2-x4, x4, x3."""
+        """One row per Poincaré point, in SI with each value's own scales (header ``name [unit]``):
+        the parameter, time [s], relative displacement x_b - x_s [mm], relative velocity
+        v_b - v_s [m/s], bit velocity [m/s] and bit position (penetration) [mm].
+
+        Without ``groups`` (no scales known) the columns stay nondimensional, named so:
+        tau [1/Omega], lengths [x0], velocities [x0 Omega].
+        """
+        kind, target = setting_target(self.param)
+        unit = "1" if kind == "group" else RANGES[target].unit
         rows = []
         for i, v in enumerate(self.values):
-            for r in self.points[i]:
-                rows.append((v, r[0], r[1] - r[3], r[2] - r[4], r[4], r[3]))
-        np.savetxt(path, np.array(rows), delimiter=",",
-                   header=f"{self.param},tau,x1_minus_x3,x2_minus_x4,x4,x3", comments="")
+            P = self.points[i]
+            if self.groups is not None:
+                sc = apply_settings(self.groups, {self.param: float(v)}).scales
+                t, L, V = sc.time, sc.length * 1e3, sc.velocity
+            else:
+                t = L = V = 1.0
+            for r in P:
+                rows.append((v, r[0] * t, (r[1] - r[3]) * L, (r[2] - r[4]) * V, r[4] * V, r[3] * L))
+        if self.groups is not None:
+            names = ("time [s]", "x_b - x_s [mm]", "v_b - v_s [m/s]", "bit velocity v_s [m/s]",
+                     "bit position x_s [mm]")
+        else:
+            names = ("tau [1/Omega]", "x1 - x3 [x0]", "x2 - x4 [x0 Omega]", "x4 [x0 Omega]", "x3 [x0]")
+        np.savetxt(path, np.array(rows).reshape(-1, 6), delimiter=",",
+                   header=",".join((f"{self.param} [{unit}]",) + names), comments="")
 
 
 def poincare_tail(groups: Groups, periods: int, keep: int, solver: SolverOptions,

@@ -27,10 +27,13 @@ worker process outlives it.
 """
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import os
+import signal
 import sys
+import threading
 import time
 from dataclasses import dataclass
 from typing import Callable, Optional, Sequence
@@ -165,6 +168,27 @@ def warm_worker() -> str:
     return "ok"
 
 
+@contextlib.contextmanager
+def _sigint_ignored():
+    """SIGINT ignored while a local cluster starts its processes.
+
+    The nannies and workers inherit the ignored signal (``SIG_IGN`` survives
+    ``exec``, and Python then leaves it alone), so a Ctrl-C in the terminal,
+    sent to the whole process group, interrupts only this process: it cancels
+    the tasks and closes the cluster, instead of every worker printing its own
+    ``KeyboardInterrupt`` traceback.  The price: a Ctrl-C during these seconds
+    of start-up is ignored (the next one interrupts).
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
+
+
 def _run_chunk(fn, items, fixed):
     """Run one chunk; its results and the CPU time [s] it took in this worker."""
     c0 = time.process_time()
@@ -216,7 +240,8 @@ class Executor:
         else:
             # ":0": the scheduler's HTTP server on a free port (8787 may be taken by another study)
             import dask
-            with dask.config.set(LOCAL_CLUSTER_CONFIG):     # the nannies hand it to their workers
+            with dask.config.set(LOCAL_CLUSTER_CONFIG), _sigint_ignored():
+                # the nannies hand the config to their workers; a Ctrl-C reaches this process only
                 self.cluster = LocalCluster(n_workers=self.options.local_workers, threads_per_worker=1,
                                             processes=True, dashboard_address=":0",
                                             silence_logs=logging.CRITICAL)
@@ -229,12 +254,14 @@ class Executor:
         """Close the client and the local cluster (its worker processes end)."""
         client, cluster = self.client, self.cluster
         self.client = self.cluster = None
-        try:
-            if client is not None:
-                client.close(timeout=10)
-        finally:
-            if cluster is not None:
-                cluster.close(timeout=10)
+        # a second Ctrl-C (an impatient user) must not cut the shutdown short and leave workers behind
+        with _sigint_ignored() if cluster is not None else contextlib.nullcontext():
+            try:
+                if client is not None:
+                    client.close(timeout=10)
+            finally:
+                if cluster is not None:
+                    cluster.close(timeout=10)
 
     # -- running ----------------------------------------------------------
     def _progress(self, total: int, label: str):
