@@ -57,7 +57,7 @@ typedef struct {
 
 static const char *const TYPE_NAMES[] = {"Real", "Integer", "Boolean", "String"};
 
-static pthread_mutex_t g_lock = PTHREAD_MUTEX_INITIALIZER;   /* Python start, wrapper load */
+static pthread_mutex_t g_lock = PTHREAD_MUTEX_INITIALIZER;   /* backend load (Python start) */
 
 /* allowed states per function (FMI 2.0.4, section 4.2.4; Error: only inquiries and recovery) */
 #define M_ANY_LIVE (ST_INSTANTIATED | ST_INIT | ST_STEP_COMPLETE | ST_TERMINATED | ST_ERROR)
@@ -338,8 +338,7 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, 
         return NULL;
     }
     pthread_mutex_lock(&g_lock);
-    int ok = hb_ensure_python(HB_PYTHON_MODULES, err, sizeof err) &&
-             hb_load_wrapper(HB_WRAPPER_FILE, err, sizeof err);
+    int ok = hb_backend_load(err, sizeof err);
     pthread_mutex_unlock(&g_lock);
     if (!ok) {
         log_to(functions, name, fmi2Error, "fmi2Instantiate: %s", err);
@@ -363,8 +362,8 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, 
     snprintf(uri, sizeof uri, "file://%s", path);   /* what pythonfmu strips: plain path */
     I->w = hb_W.Instantiate(instanceName, fmi2CoSimulation, fmuGUID, uri, &I->inner, visible, fmi2True);
     if (!I->w) {
-        LOG(I, fmi2Error, "fmi2Instantiate: the Python slave could not be created (see the "
-                          "messages above)");
+        LOG(I, fmi2Error, "fmi2Instantiate: the model could not be created (see the messages "
+                          "above)");
         free_inst(I);
         return NULL;
     }
