@@ -85,6 +85,7 @@ class FrontSpec:
     variables: tuple[Variable, ...]
     log_categories: tuple[str, ...]
     status_vr: int | None     #: value reference of ``last_status`` (None: the slave has none)
+    model_exchange: bool = False   #: the description has <ModelExchange> (the native flavour)
 
 
 def _default_initial(causality: str, variability: str) -> str | None:
@@ -131,7 +132,8 @@ def read_model_description(xml) -> FrontSpec:
         raise FrontBuildError(f"{STATUS_VARIABLE!r} must be an Integer variable, not {status[0].type}")
     cats = tuple(c.get("name") for c in root.iter("Category") if c.get("name"))
     return FrontSpec(guid=guid, model_identifier=cs.get("modelIdentifier"), variables=tuple(variables),
-                     log_categories=cats, status_vr=status[0].value_reference if status else None)
+                     log_categories=cats, status_vr=status[0].value_reference if status else None,
+                     model_exchange=root.find("ModelExchange") is not None)
 
 
 def c_string(s: str) -> str:
@@ -162,6 +164,7 @@ def generate_header(spec: FrontSpec, *, wrapper_file: str, python_modules=PYTHON
         f"#define HB_WRAPPER_FILE {c_string(wrapper_file)}",
         f"#define HB_HAS_STATUS_VR {0 if spec.status_vr is None else 1}",
         f"#define HB_STATUS_VR {0 if spec.status_vr is None else spec.status_vr}u",
+        f"#define HB_HAS_ME {int(spec.model_exchange)}",
         f"#define HB_PYTHON_MODULES {c_string(' '.join(python_modules))}",
         f"#define HB_NVARS {len(order)}u",
         f"static const hb_var HB_VARS[{max(len(order), 1)}] = {{",

@@ -66,6 +66,14 @@ typedef struct {
     fmi2DeSerializeFMUstateFn DeSerializeFMUstate;
     fmi2DoStepFn DoStep;
     void (*finalize)(void);
+    /* Model Exchange (NULL in the Python flavour) */
+    fmi2ComponentFn EnterEventMode, EnterContinuousTimeMode;
+    fmi2NewDiscreteStatesFn NewDiscreteStates;
+    fmi2SetTimeFn SetTime;
+    fmi2SetStatesFn SetContinuousStates;
+    fmi2StatesFn GetDerivatives, GetEventIndicators, GetContinuousStates,
+        GetNominalsOfContinuousStates;
+    fmi2CompletedIntegratorStepFn CompletedIntegratorStep;
 } hb_wrapper;
 
 /* the loaded library (all NULL before hb_load_wrapper succeeded) */

@@ -26,42 +26,7 @@
 #include "kernel_api.h"
 #include "model_native.h"
 
-#include "hb_native.h"
-
 #define TWO_PI 6.283185307179586   /* 2.0 * math.pi, as Python rounds it */
-
-/* ------------------------------------------------------------------------------------------ */
-/* State                                                                                       */
-/* ------------------------------------------------------------------------------------------ */
-#define MODEL_STATE_MAGIC 0x48424e31u   /* "HBN1": layout version of model_state */
-
-typedef struct {
-    uint32_t magic;
-    uint32_t size;                 /* sizeof(model_state): a state of another build is refused */
-    double value[HB_NSTORED];      /* parameters and inputs as set (SI) */
-    int32_t impact_enabled;
-    double committed[HB_NSTORED];  /* the validated values in use */
-    int32_t committed_impact;
-    int32_t ready, terminated, dirty, stale, has_commit;
-    int32_t last_status;
-    double t_start, t;
-    /* solver state and parameters (kernel layout) */
-    double y[4];
-    int64_t ist[HBK_N_ISTATE];
-    double fst[HBK_N_FSTATE];
-    double p[HBK_N_P];
-    double opts[HBK_N_OPTS];
-    double x0, v0, F0, omega, x3_start;
-    double applied_preload, applied_force;   /* inputs last written into p (NaN: none yet) */
-    char error[512];               /* why fmi2DoStep is refused (not initialised, ...) */
-} model_state;
-
-typedef struct {
-    model_state s;
-    char *name;
-    fmi2CallbackFunctions cb;
-    double me_time;                /* Model Exchange: the time set by fmi2SetTime */
-} model;
 
 /* ------------------------------------------------------------------------------------------ */
 /* Messages                                                                                    */
@@ -95,7 +60,7 @@ void hb_repr(double v, char *out, size_t n) {
     if (!strchr(out, '.')) strncat(out, ".0", n - strlen(out) - 1);
 }
 
-static void mlog(model *m, fmi2Status st, const char *fmt, ...) {
+void hb_mlog(model *m, fmi2Status st, const char *fmt, ...) {
     if (!m->cb.logger) return;
     char msg[2048];
     va_list ap;
@@ -109,14 +74,14 @@ static void mlog(model *m, fmi2Status st, const char *fmt, ...) {
     m->cb.logger(m->cb.componentEnvironment, m->name, st, cat, "%s", msg);
 }
 
-static fmi2Status fail(model *m, fmi2Status st, const char *fmt, ...) {
+fmi2Status hb_fail(model *m, fmi2Status st, const char *fmt, ...) {
     char msg[2048];
     va_list ap;
     va_start(ap, fmt);
     vsnprintf(msg, sizeof msg, fmt, ap);
     va_end(ap);
     if ((int32_t)st > m->s.last_status) m->s.last_status = (int32_t)st;
-    mlog(m, st, "%s", msg);
+    hb_mlog(m, st, "%s", msg);
     return st;
 }
 
@@ -297,7 +262,7 @@ static fmi2Status n_setup_experiment(fmi2Component c, fmi2Boolean tol_defined, f
         char rv[40], old[40];
         hb_repr(start, rv, sizeof rv);
         hb_repr(m->s.t_start, old, sizeof old);
-        return fail(m, fmi2Error, "fmi2SetupExperiment: startTime = %s s is not finite; refused, the "
+        return hb_fail(m, fmi2Error, "fmi2SetupExperiment: startTime = %s s is not finite; refused, the "
                     "start time stays %s s", rv, old);
     }
     m->s.t_start = m->s.t = start;
@@ -310,7 +275,7 @@ static fmi2Status n_setup_experiment(fmi2Component c, fmi2Boolean tol_defined, f
             char rv[40], have[40];
             hb_repr(tol, rv, sizeof rv);
             hb_repr(m->s.value[HBS_tolerance], have, sizeof have);
-            return fail(m, fmi2Warning, "fmi2SetupExperiment: tolerance = %s is outside %s; the FMU's "
+            return hb_fail(m, fmi2Warning, "fmi2SetupExperiment: tolerance = %s is outside %s; the FMU's "
                         "tolerance %s is used", rv, r->text, have);
         }
     }
@@ -331,7 +296,7 @@ static fmi2Status n_exit_init(fmi2Component c) {
     if (!commit(s, s->value, s->impact_enabled, 0, err, sizeof err)) {
         s->ready = 0;
         snprintf(s->error, sizeof s->error, "initialisation failed: %s", err);
-        return fail(m, fmi2Error, "%s", s->error);
+        return hb_fail(m, fmi2Error, "%s", s->error);
     }
     s->t = s->t_start;
     s->ready = 1;
@@ -349,7 +314,6 @@ static fmi2Status n_terminate(fmi2Component c) {
 static fmi2Status n_reset(fmi2Component c) {
     model *m = c;
     set_start_values(&m->s);
-    m->me_time = 0.0;
     return fmi2OK;
 }
 
@@ -385,6 +349,13 @@ static double real_output(model *m, fmi2ValueReference vr) {
         double dt = s->t - s->t_start;
         return dt <= 0.0 ? 0.0 : (s->y[2] - s->x3_start) * s->x0 / dt;
     }
+    default: break;
+    }
+    switch (vr) {
+    case HB_VR_der_hammer_position: return hb_derivative(m, 0);
+    case HB_VR_der_hammer_velocity: return hb_derivative(m, 1);
+    case HB_VR_der_bit_position: return hb_derivative(m, 2);
+    case HB_VR_der_bit_velocity: return hb_derivative(m, 3);
     default: break;
     }
     hb_forces(s->y, s->ist, s->p, f);
@@ -443,7 +414,7 @@ static fmi2Status n_get_string(fmi2Component c, const fmi2ValueReference vr[], s
                                fmi2String value[]) {
     (void)vr;
     for (size_t i = 0; i < nvr; i++) value[i] = "";
-    return fail(c, fmi2Error, "fmi2GetString: the model has no String variables");
+    return hb_fail(c, fmi2Error, "fmi2GetString: the model has no String variables");
 }
 
 /* One value of a Real variable checked; the status it earns (the message logged). */
@@ -456,27 +427,27 @@ static fmi2Status check_real(model *m, int k, double v) {
         if (contains(&d->range, v)) return fmi2OK;
         char have[40];
         hb_repr(s->value[k], have, sizeof have);
-        return fail(m, fmi2Error, "input '%s' = %s is out of range: allowed %s (the documented "
+        return hb_fail(m, fmi2Error, "input '%s' = %s is out of range: allowed %s (the documented "
                     "physical range); refused, %s N stays", d->name, rv, d->range.text, have);
     }
     if (s->ready) {
         if (d->kind != HB_TUNABLE) {
             char used[40];
             hb_repr(s->committed[k], used, sizeof used);
-            return fail(m, fmi2Error, "parameter '%s' = %s was set after initialisation, but it is "
+            return hb_fail(m, fmi2Error, "parameter '%s' = %s was set after initialisation, but it is "
                         "fixed (causality=parameter, variability=fixed); refused, the value %s stays "
                         "in use", d->name, rv, used);
         }
         if (range_error(d->name, v, &d->range, err, sizeof err)) {
             char have[40];
             hb_repr(s->value[k], have, sizeof have);
-            return fail(m, fmi2Error, "invalid tunable %s; refused, the tolerance %s stays in use", err,
+            return hb_fail(m, fmi2Error, "invalid tunable %s; refused, the tolerance %s stays in use", err,
                         have);
         }
         return fmi2OK;
     }
     if (range_error(d->name, v, &d->range, err, sizeof err))
-        return fail(m, fmi2Warning, "%s; fmi2ExitInitializationMode will fail unless it is corrected",
+        return hb_fail(m, fmi2Warning, "%s; fmi2ExitInitializationMode will fail unless it is corrected",
                     err);
     return fmi2OK;
 }
@@ -490,7 +461,7 @@ static fmi2Status n_set_real(fmi2Component c, const fmi2ValueReference vr[], siz
     fmi2Status st = fmi2OK;
     for (size_t i = 0; i < nvr; i++) {
         int k = stored_slot(vr[i]);
-        if (k < 0) return fail(m, fmi2Error, "fmi2SetReal: value reference %u is not settable", vr[i]);
+        if (k < 0) return hb_fail(m, fmi2Error, "fmi2SetReal: value reference %u is not settable", vr[i]);
         fmi2Status si = check_real(m, k, value[i]);
         if (si > st) st = si;
     }
@@ -511,7 +482,7 @@ static fmi2Status n_set_real(fmi2Component c, const fmi2ValueReference vr[], siz
 static fmi2Status n_set_integer(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                                 const fmi2Integer value[]) {
     (void)value, (void)nvr;
-    return fail(c, fmi2Error, "fmi2SetInteger: value reference %u is not settable", vr[0]);
+    return hb_fail(c, fmi2Error, "fmi2SetInteger: value reference %u is not settable", vr[0]);
 }
 
 static fmi2Status n_set_boolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
@@ -521,9 +492,9 @@ static fmi2Status n_set_boolean(fmi2Component c, const fmi2ValueReference vr[], 
     s->last_status = fmi2OK;
     for (size_t i = 0; i < nvr; i++) {
         if (vr[i] != HB_VR_impact_enabled)
-            return fail(m, fmi2Error, "fmi2SetBoolean: value reference %u is not settable", vr[i]);
+            return hb_fail(m, fmi2Error, "fmi2SetBoolean: value reference %u is not settable", vr[i]);
         if (s->ready)
-            return fail(m, fmi2Error, "parameter 'impact_enabled' = %s was set after initialisation, "
+            return hb_fail(m, fmi2Error, "parameter 'impact_enabled' = %s was set after initialisation, "
                         "but it is fixed (causality=parameter, variability=fixed); refused, the value "
                         "%s stays in use", value[i] ? "True" : "False",
                         s->committed_impact ? "True" : "False");
@@ -536,7 +507,7 @@ static fmi2Status n_set_boolean(fmi2Component c, const fmi2ValueReference vr[], 
 static fmi2Status n_set_string(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                                const fmi2String value[]) {
     (void)vr, (void)nvr, (void)value;
-    return fail(c, fmi2Error, "fmi2SetString: the model has no String variables; nothing changed");
+    return hb_fail(c, fmi2Error, "fmi2SetString: the model has no String variables; nothing changed");
 }
 
 /* ------------------------------------------------------------------------------------------ */
@@ -569,11 +540,21 @@ static int apply_tolerance(model *m) {
     char err[1024];
     if (!commit(&trial, s->value, s->impact_enabled, 1, err, sizeof err)) {
         s->value[HBS_tolerance] = s->committed[HBS_tolerance];
-        fail(m, fmi2Error, "invalid tunable parameter: %s", err);
+        hb_fail(m, fmi2Error, "invalid tunable parameter: %s", err);
         return 0;
     }
     *s = trial;
     return 1;
+}
+
+void hb_apply_inputs(model_state *s) {
+    double preload = s->value[HBS_preload], fh = s->value[HBS_harmonic_force];
+    if (preload != s->applied_preload || fh != s->applied_force) {
+        s->p[HBK_P_B] = preload / s->F0;   /* exactly as RigParameters.to_groups() */
+        s->p[HBK_P_FEXT] = fh / s->F0;
+        s->applied_preload = preload;
+        s->applied_force = fh;
+    }
 }
 
 static fmi2Status n_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_prior) {
@@ -582,30 +563,24 @@ static fmi2Status n_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
     model_state *s = &m->s;
     s->last_status = fmi2OK;
     if (s->terminated)
-        return fail(m, fmi2Error, "fmi2DoStep refused: the FMU was terminated (fmi2Terminate)");
-    if (!s->ready) return fail(m, fmi2Error, "fmi2DoStep refused: %s", s->error);
+        return hb_fail(m, fmi2Error, "fmi2DoStep refused: the FMU was terminated (fmi2Terminate)");
+    if (!s->ready) return hb_fail(m, fmi2Error, "fmi2DoStep refused: %s", s->error);
     if (s->dirty && !apply_tolerance(m)) return fmi2Error;
     char a[40], b[40];
     if (!(0.0 < h && h < INFINITY)) {
         hb_repr(h, a, sizeof a);
-        return fail(m, fmi2Error, "communication step size h = %s s is invalid: it must be > 0 and "
+        return hb_fail(m, fmi2Error, "communication step size h = %s s is invalid: it must be > 0 and "
                     "finite; step refused, state unchanged", a);
     }
     if (t != s->t && !(fabs(t - s->t) <= 1e-9 * fmax(fabs(s->t), h))) {
         hb_repr(t, a, sizeof a);
         hb_repr(s->t, b, sizeof b);
-        return fail(m, fmi2Error, "currentCommunicationPoint = %s s is not the current time of the "
+        return hb_fail(m, fmi2Error, "currentCommunicationPoint = %s s is not the current time of the "
                     "FMU, %s s; step refused, state unchanged", a, b);
     }
-    double preload = s->value[HBS_preload], fh = s->value[HBS_harmonic_force];
     double old_b = s->p[HBK_P_B], old_f = s->p[HBK_P_FEXT];
     double old_ap = s->applied_preload, old_af = s->applied_force;
-    if (preload != s->applied_preload || fh != s->applied_force) {
-        s->p[HBK_P_B] = preload / s->F0;
-        s->p[HBK_P_FEXT] = fh / s->F0;
-        s->applied_preload = preload;
-        s->applied_force = fh;
-    }
+    hb_apply_inputs(s);
     double y[4], fst[HBK_N_FSTATE];
     int64_t ist[HBK_N_ISTATE];
     memcpy(y, s->y, sizeof y);
@@ -625,7 +600,7 @@ static fmi2Status n_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
         s->applied_force = old_af;
         hb_repr(t, a, sizeof a);
         hb_repr(h, b, sizeof b);
-        return fail(m, fmi2Discard, "solver failure in the step from t = %s s with h = %s s: %s at "
+        return hb_fail(m, fmi2Discard, "solver failure in the step from t = %s s with h = %s s: %s at "
                     "tau = %.9g; state restored to t = %s s (retry with a shorter step)", a, b,
                     raised ? "a kernel raised an exception" : solver_failure(status), tau, a);
     }
@@ -639,7 +614,7 @@ static fmi2Status n_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
 static fmi2Status n_get_state(fmi2Component c, fmi2FMUstate *state) {
     model *m = c;
     model_state *copy = malloc(sizeof *copy);
-    if (!copy) return fail(m, fmi2Error, "fmi2GetFMUstate: out of memory");
+    if (!copy) return hb_fail(m, fmi2Error, "fmi2GetFMUstate: out of memory");
     m->s.last_status = fmi2OK;
     *copy = m->s;
     *state = copy;
@@ -669,7 +644,7 @@ static fmi2Status n_set_state(fmi2Component c, fmi2FMUstate state) {
     model *m = c;
     const model_state *s = state;
     const char *why = state_invalid(s);
-    if (why) return fail(m, fmi2Error, "fmi2SetFMUstate: %s; state unchanged", why);
+    if (why) return hb_fail(m, fmi2Error, "fmi2SetFMUstate: %s; state unchanged", why);
     m->s = *s;
     m->s.last_status = fmi2OK;
     return fmi2OK;
@@ -690,7 +665,7 @@ static fmi2Status n_state_size(fmi2Component c, fmi2FMUstate state, size_t *size
 
 static fmi2Status n_serialize(fmi2Component c, fmi2FMUstate state, fmi2Byte out[], size_t size) {
     if (size != sizeof(model_state))
-        return fail(c, fmi2Error, "fmi2SerializeFMUstate: size = %zu, the state needs %zu bytes", size,
+        return hb_fail(c, fmi2Error, "fmi2SerializeFMUstate: size = %zu, the state needs %zu bytes", size,
                     sizeof(model_state));
     memcpy(out, state, sizeof(model_state));
     return fmi2OK;
@@ -701,15 +676,15 @@ static fmi2Status n_deserialize(fmi2Component c, const fmi2Byte in[], size_t siz
     model *m = c;
     m->s.last_status = fmi2OK;
     if (size != sizeof(model_state))
-        return fail(m, fmi2Error, "fmi2DeSerializeFMUstate: %zu bytes, but a state of this build has "
+        return hb_fail(m, fmi2Error, "fmi2DeSerializeFMUstate: %zu bytes, but a state of this build has "
                     "%zu; state unchanged", size, sizeof(model_state));
     model_state *copy = malloc(sizeof *copy);
-    if (!copy) return fail(m, fmi2Error, "fmi2DeSerializeFMUstate: out of memory");
+    if (!copy) return hb_fail(m, fmi2Error, "fmi2DeSerializeFMUstate: out of memory");
     memcpy(copy, in, sizeof *copy);
     const char *why = state_invalid(copy);
     if (why) {
         free(copy);
-        return fail(m, fmi2Error, "fmi2DeSerializeFMUstate: the bytes are corrupt (%s); state "
+        return hb_fail(m, fmi2Error, "fmi2DeSerializeFMUstate: the bytes are corrupt (%s); state "
                     "unchanged", why);
     }
     *state = copy;
@@ -745,6 +720,7 @@ int hb_backend_load(char *err, size_t n) {
     hb_W.SerializeFMUstate = n_serialize;
     hb_W.DeSerializeFMUstate = n_deserialize;
     hb_W.DoStep = n_do_step;
+    hb_me_fill(&hb_W);
     hb_W.Instantiate = n_instantiate;
     return 1;
 }
