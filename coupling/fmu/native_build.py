@@ -33,7 +33,8 @@ from hammerbit.fmu.native import SOURCE_DIR, FrontBuildError, c_string, find_com
     read_model_description
 from hammerbit.fmu.native_kernels import TARGETS, ALLOWED_UNDEFINED, build_objects, undefined_symbols
 
-__all__ = ["MINGW_CC", "NATIVE_SOURCES", "NativeBuildError", "native_header", "build_binaries",
+__all__ = ["MINGW_CC", "NATIVE_SOURCES", "STATES", "NativeBuildError", "native_header",
+           "select_platforms", "build_binaries",
            "native_model_description", "assemble_native_fmu"]
 
 #: the cross-compiler of the win64 binary (Debian package gcc-mingw-w64-x86-64)
@@ -145,6 +146,17 @@ def _link(platform: str, cc: str, obj: Path, include: Path, out: Path) -> None:
     _run(cmd, f"linking the {platform} binary")
 
 
+def select_platforms(log=print) -> list:
+    """linux64, and win64 when ``x86_64-w64-mingw32-gcc`` is on PATH (else ``log`` says why not)."""
+    platforms = ["linux64"]
+    if shutil.which(MINGW_CC):
+        platforms.append("win64")
+    else:
+        log(f"hammerbit fmu build: no {MINGW_CC} on PATH: the FMU gets no binaries/win64 (install "
+            f"the mingw-w64 cross-compiler, Debian: apt-get install gcc-mingw-w64-x86-64)")
+    return platforms
+
+
 def build_binaries(model_description_xml, out_dir, *, start_values=None, platforms=None,
                    log=print) -> dict:
     """Build ``<out_dir>/<platform>/<modelIdentifier>.<so|dll>``; return ``{platform: path}``.
@@ -154,12 +166,7 @@ def build_binaries(model_description_xml, out_dir, *, start_values=None, platfor
     """
     spec = read_model_description(model_description_xml)
     if platforms is None:
-        platforms = ["linux64"]
-        if shutil.which(MINGW_CC):
-            platforms.append("win64")
-        else:
-            log(f"hammerbit fmu build: no {MINGW_CC} on PATH: the FMU gets no binaries/win64 "
-                f"(install the mingw-w64 cross-compiler, Debian: apt-get install gcc-mingw-w64-x86-64)")
+        platforms = select_platforms(log)
     compilers = {}
     for plat in platforms:
         if plat not in TARGETS:

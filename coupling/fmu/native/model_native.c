@@ -70,8 +70,8 @@ void hb_mlog(model *m, fmi2Status st, const char *fmt, ...) {
     const char *cat = st == fmi2OK ? "logAll"
                       : st == fmi2Warning ? "logStatusWarning"
                       : st == fmi2Discard ? "logStatusDiscard" : "logStatusError";
-    /* the front escapes '%' of messages it passes on */
-    m->cb.logger(m->cb.componentEnvironment, m->name, st, cat, "%s", msg);
+    /* the message is the format: the front (inner_logger) escapes its '%' for the host */
+    m->cb.logger(m->cb.componentEnvironment, m->name, st, cat, msg);
 }
 
 fmi2Status hb_fail(model *m, fmi2Status st, const char *fmt, ...) {
