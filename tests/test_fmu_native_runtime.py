@@ -28,8 +28,11 @@ from fmpy.fmi2 import (FMU2Model, FMU2Slave, fmi2CallbackAllocateMemoryTYPE,  # 
 
 from hammerbit.fmu.native import FrontBuildError, find_compiler  # noqa: E402
 from hammerbit.fmu.native_build import MINGW_CC, select_platforms  # noqa: E402
-from hammerbit.model.params import P_B, P_FEXT, RigParameters, preset  # noqa: E402
-from hammerbit.model.stepping import SolverOptions, Stepper  # noqa: E402
+from hammerbit.model.kernel_layouts import P_B, P_FEXT  # noqa: E402
+from hammerbit.model.params import RigParameters  # noqa: E402
+from hammerbit.model.presets import preset  # noqa: E402
+from hammerbit.model.solver_options import SolverOptions  # noqa: E402
+from hammerbit.model.stepping import Stepper  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 HOST_SOURCE = HERE / "fmu_native_host.c"

@@ -72,7 +72,7 @@ def native_header(model_description_xml, start_values: dict, layout: dict) -> st
 
     from hammerbit.model.fmu_variables import INPUTS, PARAMETERS, variable_range
     from hammerbit.model.fmu_variables import start_values as all_start_values
-    from hammerbit.model.stepping import SolverOptions
+    from hammerbit.model.solver_options import SolverOptions
     from hammerbit.model.validation import RANGES
 
     spec = read_model_description(model_description_xml)
@@ -221,7 +221,7 @@ def native_model_description(xml: bytes) -> bytes:
     """The Python flavour's model description for the native binaries: Co-Simulation and Model
     Exchange in one description (the state derivatives ``der(<state>)``, one event indicator per
     event kind of the kernels)."""
-    from hammerbit.model.kernels import N_EVENT_KINDS
+    from hammerbit.model.kernel_layouts import N_EVENT_KINDS
     root = ET.fromstring(xml)
     root.set("generationTool", "hammerbit fmu build --runtime native")
     root.set("numberOfEventIndicators", str(N_EVENT_KINDS))

@@ -1,7 +1,7 @@
 """The model's numba kernels as object files for the native FMU: C entry points, LLVM IR, objects.
 
 The native flavour of ``HammerBitRock.fmu`` runs the library's own kernels
-(:mod:`hammerbit.model.kernels`), compiled ahead of time for each target
+(``hammerbit.model.kernel_*``), compiled ahead of time for each target
 platform, so the FMU needs neither Python nor numba.  The steps:
 
 1. numba ``cfunc`` entry points with a C ABI (pointers to the state, option
@@ -108,10 +108,8 @@ WATCH_SLOTS = 4
 
 def layout() -> dict:
     """``{name: int}``: the kernels' array layout (offsets, modes, event kinds, status codes)."""
-    from hammerbit.model import kernels as K
-    from hammerbit.model import params as P
-    out = {name: int(getattr(K, name)) for name in LAYOUT_NAMES}
-    out.update({name: int(getattr(P, name)) for name in _PARAM_NAMES})
+    from hammerbit.model import kernel_layouts as KL
+    out = {name: int(getattr(KL, name)) for name in LAYOUT_NAMES + _PARAM_NAMES}
     out["WATCH_SLOTS"] = WATCH_SLOTS
     return out
 
@@ -125,19 +123,22 @@ def compile_entry_points() -> dict:
     from numba import carray, cfunc, types
     from numba.core.types import CPointer, float64, int64
 
-    from hammerbit.model import kernels as K
-    from hammerbit.model.params import N_P
+    from hammerbit.model import kernel_driver as KD
+    from hammerbit.model import kernel_events as KE
+    from hammerbit.model import kernel_forces as KF
+    from hammerbit.model import kernel_layouts as KL
+    from hammerbit.model import kernel_reset as KR
 
     f64p, i64p = CPointer(float64), CPointer(int64)
-    NI, NF, NO = K.N_ISTATE, K.N_FSTATE, K.N_OPTS
-    NS, NL = K.N_SAMPLE_COLS, K.N_LOG_COLS
+    NI, NF, NO, N_P = KL.N_ISTATE, KL.N_FSTATE, KL.N_OPTS, KL.N_P
+    NS, NL = KL.N_SAMPLE_COLS, KL.N_LOG_COLS
     NY = 4                                     # x1..x4: the FMU has no subsystem, no energy block
-    advance_hammer, rhs, watched, watch_value = K.advance_hammer, K.rhs, K.watched, K.watch_value
-    apply_event, overlap, impact_mode = K.apply_event, K.overlap, K.contact_mode_at_impact
-    spring, on_bit, contact, kinetic = (K.spring_damper_force, K.force_on_bit, K.contact_force,
-                                        K.kinetic_friction)
-    I_STICK, I_CONTACT, I_WIN, P_CONTACT = K.I_STICK, K.I_CONTACT, K.I_WIN, K.P_CONTACT
-    STICK, SLIP, FREE, CONTACT, V_BIT = K.STICK, K.SLIP, K.FREE, K.CONTACT, K.V_BIT
+    advance_hammer, rhs, watched, watch_value = KD.advance_hammer, KF.rhs, KE.watched, KE.watch_value
+    apply_event, overlap, impact_mode = KR.apply_event, KF.overlap, KF.contact_mode_at_impact
+    spring, on_bit, contact, kinetic = (KF.spring_damper_force, KF.force_on_bit, KF.contact_force,
+                                        KF.kinetic_friction)
+    I_STICK, I_CONTACT, I_WIN, P_CONTACT = KL.I_STICK, KL.I_CONTACT, KL.I_WIN, KL.P_CONTACT
+    STICK, SLIP, FREE, CONTACT, V_BIT = KL.STICK, KL.SLIP, KL.FREE, KL.CONTACT, KL.V_BIT
     no_ap, no_ai, no_ax = np.zeros(1, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0)
     no_h, no_g, no_g2 = np.zeros((0, 2)), np.zeros(0), np.zeros(2)
 
@@ -295,7 +296,7 @@ def build_objects(out_dir, platforms=("linux64", "win64"), *, python: str = sys.
     CPU (``NUMBA_CPU_NAME=generic``) into an empty cache directory, so the IR
     of every kernel is at hand.  Raises :class:`KernelBuildError`.
     """
-    from hammerbit.model.cpu_target import PORTABLE_ENV
+    from hammerbit.model.numba_target import PORTABLE_ENV
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix="hammerbit_kernels_") as cache:

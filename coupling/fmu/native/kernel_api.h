@@ -1,7 +1,7 @@
 /* The model's compiled numba kernels as C functions (the native flavour of the FMU).
  *
  * The objects kernels_<platform>.o are emitted by hammerbit.fmu.native_kernels from the
- * library's own kernels (hammerbit.model.kernels); the array layouts (HBK_* offsets) are
+ * library's own kernels (hammerbit.model.kernel_*); the array layouts (HBK_* offsets) are
  * written into hb_native.h by the build from the same module.  Arrays: y[4] = x1..x4,
  * ist[HBK_N_ISTATE] (int64), fst[HBK_N_FSTATE], p[HBK_N_P], opts[HBK_N_OPTS]. */
 #ifndef HAMMERBIT_KERNEL_API_H
