@@ -422,9 +422,9 @@ static fmi2Status check_real(model *m, int k, double v) {
     model_state *s = &m->s;
     const hb_stored *d = &HB_STORED[k];
     char rv[40], err[1024];
+    if (d->kind == HB_INPUT && contains(&d->range, v)) return fmi2OK;   /* the hot path: no text */
     hb_repr(v, rv, sizeof rv);
     if (d->kind == HB_INPUT) {
-        if (contains(&d->range, v)) return fmi2OK;
         char have[40];
         hb_repr(s->value[k], have, sizeof have);
         return hb_fail(m, fmi2Error, "input '%s' = %s is out of range: allowed %s (the documented "
