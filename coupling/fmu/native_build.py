@@ -41,8 +41,11 @@ __all__ = ["MINGW_CC", "NATIVE_SOURCES", "STATES", "NativeBuildError", "native_h
 MINGW_CC = "x86_64-w64-mingw32-gcc"
 #: C sources of the native flavour (front, resource URIs, model backend, runtime shim)
 NATIVE_SOURCES = tuple(SOURCE_DIR / f for f in ("front.c", "resource_uri.c", "model_native.c",
-                                                "model_me.c", "nrt_shim.c"))
+                                                "model_me.c", "model_state.c", "nrt_shim.c"))
 _GROUP_NAMES = ("rho", "xi", "eta", "a", "b", "r", "mu", "gamma_hat", "kc", "n", "lam_hat", "phi")
+#: the nondimensional group whose range bounds each input, in units of the static friction
+#: threshold F0 (preload b = B/F0, forcing amplitude a = A/F0): |input| <= hi * F0
+INPUT_GROUPS = {"preload": "group.b", "harmonic_force": "group.a"}
 _RIG_ORDER = ("hammer_mass", "bit_mass", "stiffness", "damping", "mu_static", "mu_kinetic",
               "friction_decay", "normal_force", "contact_stiffness", "contact_exponent",
               "contact_damping", "gap", "preload", "amplitude", "frequency", "phase")
@@ -90,6 +93,7 @@ def native_header(model_description_xml, start_values: dict, layout: dict) -> st
         lines.append(f"    {{{vrs[n]}u, {kind}, {c_string(n)}, {_c_double(starts[n])}, "
                      f"{_c_range(variable_range(n))}}},")
     lines += ["};", f"#define HB_START_IMPACT_ENABLED {int(bool(starts['impact_enabled']))}"]
+    lines += [f"#define HB_INPUT_LIMIT_F0_{n} {_c_double(RANGES[g].hi)}" for n, g in INPUT_GROUPS.items()]
     slots = {n: i for i, (n, _) in enumerate(stored)}
     order = ", ".join("-1" if f == "preload" else f"HBS_{f}" for f in _RIG_ORDER)
     lines += [f"#define HB_NRIG {len(_RIG_ORDER)}u",

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -288,17 +289,62 @@ def main(argv=None) -> int:
     return 0
 
 
+def sources_key(platforms) -> str:
+    """Hash of what the objects are made of: the runtime's sources, this module, numba, llvmlite."""
+    import hashlib
+    from importlib.metadata import version
+
+    from hammerbit import model
+    h = hashlib.sha256()
+    for f in sorted(Path(model.__file__).resolve().parent.glob("*.py"), key=lambda p: p.name):
+        if f.name != "build_info.py":          # rewritten by the Python flavour's build
+            h.update(f.name.encode() + b"\0" + f.read_bytes() + b"\0")
+    h.update(Path(__file__).read_bytes())
+    h.update(f"numba {version('numba')} llvmlite {version('llvmlite')} {sorted(platforms)}".encode())
+    return h.hexdigest()[:16]
+
+
+def _kept_dir(key: str):
+    """``<user cache>/native-kernels/<key>`` (None if the user cache cannot be written)."""
+    from hammerbit.model.numba_cache import user_cache_root
+    d = Path(user_cache_root()) / "native-kernels" / key
+    try:
+        d.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        return None
+    return d
+
+
 def build_objects(out_dir, platforms=("linux64", "win64"), *, python: str = sys.executable,
                   timeout: float = 1800) -> dict:
     """Compile the kernels into ``out_dir/kernels_<platform>.o``; return ``{"layout", "sizes"}``.
 
     Runs :func:`main` in a subprocess: numba there compiles for the portable
     CPU (``NUMBA_CPU_NAME=generic``) into an empty cache directory, so the IR
-    of every kernel is at hand.  Raises :class:`KernelBuildError`.
+    of every kernel is at hand.  The objects are kept in the user cache
+    (``native-kernels/<hash of the sources and versions>``), so a rebuild of
+    the same sources takes seconds.  Raises :class:`KernelBuildError`.
     """
-    from hammerbit.model.numba_target import PORTABLE_ENV
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
+    kept = _kept_dir(sources_key(platforms))
+    summary = kept / "summary.json" if kept else None
+    if summary is not None and summary.is_file():
+        for plat in platforms:
+            shutil.copyfile(kept / f"kernels_{plat}.o", out_dir / f"kernels_{plat}.o")
+        return json.loads(summary.read_text())
+    result = _compile_objects(out_dir, platforms, python=python, timeout=timeout)
+    if kept is not None:
+        for plat in platforms:
+            shutil.copyfile(out_dir / f"kernels_{plat}.o", kept / f"kernels_{plat}.o")
+        tmp = kept / "summary.json.tmp"
+        tmp.write_text(json.dumps(result))
+        os.replace(tmp, kept / "summary.json")     # last: a complete entry or none
+    return result
+
+
+def _compile_objects(out_dir: Path, platforms, *, python: str, timeout: float) -> dict:
+    from hammerbit.model.numba_target import PORTABLE_ENV
     with tempfile.TemporaryDirectory(prefix="hammerbit_kernels_") as cache:
         env = dict(os.environ, HAMMERBIT_CACHE_DIR=cache, NUMBA_CACHE_DIR=cache,
                    PYTHONDONTWRITEBYTECODE="1", **PORTABLE_ENV)

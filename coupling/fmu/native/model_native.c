@@ -12,7 +12,7 @@
  *   - fmi2DoStep: the inputs held over the step, one call of the compiled solver driver to the
  *     step's end, the state restored and fmi2Discard if it fails;
  *   - outputs from the state through the kernels' own force formulas (hb_forces);
- *   - FMU state: the whole model state as plain data (model_state below).
+ *   - FMU state: the whole model state as plain data (model_state.c).
  * Every call records the FMI status it returns in last_status and logs every non-OK status with
  * a message naming the variable, its value and the allowed range. */
 #include <math.h>
@@ -27,6 +27,11 @@
 #include "model_native.h"
 
 #define TWO_PI 6.283185307179586   /* 2.0 * math.pi, as Python rounds it */
+/* Communication times are compared with an absolute tolerance: 1 ns, or a few units in the last
+ * place where t is so large that its doubles lie farther apart (a master computing t0 + n h is
+ * within it, and a step never skips a stretch of time) */
+#define TIME_ABS_TOL 1e-9
+#define TIME_ULPS 4.0
 
 /* ------------------------------------------------------------------------------------------ */
 /* Messages                                                                                    */
@@ -104,6 +109,28 @@ static int range_error(const char *name, double v, const hb_range *r, char *out,
     snprintf(out, n, "parameter '%s' = %s is out of range: allowed %s%s", name, rv,
              non_finite ? "a finite number in " : "", r->text);
     return 1;
+}
+
+/* |input| <= limit F0 for the parameters in use (F0 = mu_static normal_force) */
+static double input_limit(const model_state *s, int k) {
+    return (k == HBS_preload ? HB_INPUT_LIMIT_F0_preload : HB_INPUT_LIMIT_F0_harmonic_force) * s->F0;
+}
+
+static int input_ok(const model_state *s, int k, double v) {
+    double lim = input_limit(s, k);
+    return -lim <= v && v <= lim;   /* false for NaN */
+}
+
+/* "... out of range: allowed [-x, x] N (1000 F0, ...)" for an input value */
+static void input_error(const model_state *s, int k, double v, char *out, size_t n) {
+    char rv[40], lim[40], f0[40], have[40];
+    hb_repr(v, rv, sizeof rv);
+    snprintf(lim, sizeof lim, "%g", input_limit(s, k));
+    hb_repr(s->F0, f0, sizeof f0);
+    hb_repr(s->value[k], have, sizeof have);
+    snprintf(out, n, "input '%s' = %s is out of range: allowed [-%s, %s] N (%g F0, F0 = mu_static "
+             "normal_force = %s N, the static friction threshold); refused, %s N stays",
+             HB_STORED[k].name, rv, lim, lim, input_limit(s, k) / s->F0, f0, have);
 }
 
 /* ------------------------------------------------------------------------------------------ */
@@ -293,11 +320,19 @@ static fmi2Status n_exit_init(fmi2Component c) {
     s->last_status = fmi2OK;
     s->stale = 0;
     char err[1024];
-    if (!commit(s, s->value, s->impact_enabled, 0, err, sizeof err)) {
+    model_state trial = *s;
+    int ok = commit(&trial, s->value, s->impact_enabled, 0, err, sizeof err);
+    for (int k = HBS_preload; ok && k <= HBS_harmonic_force; k++)
+        if (!input_ok(&trial, k, s->value[k])) {   /* the inputs' range follows F0 */
+            input_error(&trial, k, s->value[k], err, sizeof err);
+            ok = 0;
+        }
+    if (!ok) {
         s->ready = 0;
         snprintf(s->error, sizeof s->error, "initialisation failed: %s", err);
         return hb_fail(m, fmi2Error, "%s", s->error);
     }
+    *s = trial;
     s->t = s->t_start;
     s->ready = 1;
     s->error[0] = '\0';
@@ -422,14 +457,12 @@ static fmi2Status check_real(model *m, int k, double v) {
     model_state *s = &m->s;
     const hb_stored *d = &HB_STORED[k];
     char rv[40], err[1024];
-    if (d->kind == HB_INPUT && contains(&d->range, v)) return fmi2OK;   /* the hot path: no text */
-    hb_repr(v, rv, sizeof rv);
     if (d->kind == HB_INPUT) {
-        char have[40];
-        hb_repr(s->value[k], have, sizeof have);
-        return hb_fail(m, fmi2Error, "input '%s' = %s is out of range: allowed %s (the documented "
-                    "physical range); refused, %s N stays", d->name, rv, d->range.text, have);
+        if (input_ok(s, k, v)) return fmi2OK;   /* the hot path: no text */
+        input_error(s, k, v, err, sizeof err);
+        return hb_fail(m, fmi2Error, "%s", err);
     }
+    hb_repr(v, rv, sizeof rv);
     if (s->ready) {
         if (d->kind != HB_TUNABLE) {
             char used[40];
@@ -572,11 +605,12 @@ static fmi2Status n_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
         return hb_fail(m, fmi2Error, "communication step size h = %s s is invalid: it must be > 0 and "
                     "finite; step refused, state unchanged", a);
     }
-    if (t != s->t && !(fabs(t - s->t) <= 1e-9 * fmax(fabs(s->t), h))) {
+    double tol = fmax(TIME_ABS_TOL, TIME_ULPS * (nextafter(fabs(s->t), INFINITY) - fabs(s->t)));
+    if (t != s->t && !(fabs(t - s->t) <= tol)) {
         hb_repr(t, a, sizeof a);
         hb_repr(s->t, b, sizeof b);
         return hb_fail(m, fmi2Error, "currentCommunicationPoint = %s s is not the current time of the "
-                    "FMU, %s s; step refused, state unchanged", a, b);
+                    "FMU, %s s (tolerance %g s); step refused, state unchanged", a, b, tol);
     }
     double old_b = s->p[HBK_P_B], old_f = s->p[HBK_P_FEXT];
     double old_ap = s->applied_preload, old_af = s->applied_force;
@@ -600,94 +634,22 @@ static fmi2Status n_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
         s->applied_force = old_af;
         hb_repr(t, a, sizeof a);
         hb_repr(h, b, sizeof b);
+        if (!raised && (status == HBK_ST_STEP_STORM || status == HBK_ST_EVENT_STORM ||
+                        status == HBK_ST_STEP_TOO_SMALL)) {
+            /* the kernel counts steps and events per forcing period at absolute times: no shorter
+             * communication step gets past this time */
+            char tf[40];
+            hb_repr(s->t_start + tau / s->omega, tf, sizeof tf);
+            return hb_fail(m, fmi2Error, "%s: the solver cannot get past t = %s s, with this step "
+                        "from t = %s s or any shorter one (its limits count per forcing period of the "
+                        "model); state restored to t = %s s; change the parameters or the tolerance",
+                        solver_failure(status), tf, a, a);
+        }
         return hb_fail(m, fmi2Discard, "solver failure in the step from t = %s s with h = %s s: %s at "
                     "tau = %.9g; state restored to t = %s s (retry with a shorter step)", a, b,
                     raised ? "a kernel raised an exception" : solver_failure(status), tau, a);
     }
     s->t = t + h;
-    return fmi2OK;
-}
-
-/* ------------------------------------------------------------------------------------------ */
-/* FMU state: the model state as plain data                                                     */
-/* ------------------------------------------------------------------------------------------ */
-static fmi2Status n_get_state(fmi2Component c, fmi2FMUstate *state) {
-    model *m = c;
-    model_state *copy = malloc(sizeof *copy);
-    if (!copy) return hb_fail(m, fmi2Error, "fmi2GetFMUstate: out of memory");
-    m->s.last_status = fmi2OK;
-    *copy = m->s;
-    *state = copy;
-    return fmi2OK;
-}
-
-/* 1 if `s` can be a state of this build (sizes, flags, modes, finite numbers); else the reason */
-static const char *state_invalid(const model_state *s) {
-    if (s->magic != MODEL_STATE_MAGIC || s->size != sizeof *s) return "it is not a state of this build";
-    if ((s->ready | s->terminated | s->dirty | s->stale | s->has_commit | s->impact_enabled |
-         s->committed_impact) & ~1)
-        return "a flag is neither 0 nor 1";
-    if (!isfinite(s->t) || !isfinite(s->t_start)) return "its time is not finite";
-    for (int i = 0; i < 4; i++)
-        if (!isfinite(s->y[i])) return "its state holds a non-finite number";
-    for (int i = 0; i < HBK_N_FSTATE; i++)
-        if (isnan(s->fst[i])) return "its solver state holds NaN";
-    if (s->ist[HBK_I_STICK] < 0 || s->ist[HBK_I_STICK] > 1 || s->ist[HBK_I_CONTACT] < 0 ||
-        s->ist[HBK_I_CONTACT] > 2)
-        return "its hybrid mode is out of range";
-    if (s->has_commit && !(s->x0 > 0.0 && isfinite(s->x0) && s->F0 > 0.0 && s->omega > 0.0))
-        return "its scales are not positive";
-    return NULL;
-}
-
-static fmi2Status n_set_state(fmi2Component c, fmi2FMUstate state) {
-    model *m = c;
-    const model_state *s = state;
-    const char *why = state_invalid(s);
-    if (why) return hb_fail(m, fmi2Error, "fmi2SetFMUstate: %s; state unchanged", why);
-    m->s = *s;
-    m->s.last_status = fmi2OK;
-    return fmi2OK;
-}
-
-static fmi2Status n_free_state(fmi2Component c, fmi2FMUstate *state) {
-    (void)c;
-    free(*state);
-    *state = NULL;
-    return fmi2OK;
-}
-
-static fmi2Status n_state_size(fmi2Component c, fmi2FMUstate state, size_t *size) {
-    (void)c, (void)state;
-    *size = sizeof(model_state);
-    return fmi2OK;
-}
-
-static fmi2Status n_serialize(fmi2Component c, fmi2FMUstate state, fmi2Byte out[], size_t size) {
-    if (size != sizeof(model_state))
-        return hb_fail(c, fmi2Error, "fmi2SerializeFMUstate: size = %zu, the state needs %zu bytes", size,
-                    sizeof(model_state));
-    memcpy(out, state, sizeof(model_state));
-    return fmi2OK;
-}
-
-static fmi2Status n_deserialize(fmi2Component c, const fmi2Byte in[], size_t size,
-                                fmi2FMUstate *state) {
-    model *m = c;
-    m->s.last_status = fmi2OK;
-    if (size != sizeof(model_state))
-        return hb_fail(m, fmi2Error, "fmi2DeSerializeFMUstate: %zu bytes, but a state of this build has "
-                    "%zu; state unchanged", size, sizeof(model_state));
-    model_state *copy = malloc(sizeof *copy);
-    if (!copy) return hb_fail(m, fmi2Error, "fmi2DeSerializeFMUstate: out of memory");
-    memcpy(copy, in, sizeof *copy);
-    const char *why = state_invalid(copy);
-    if (why) {
-        free(copy);
-        return hb_fail(m, fmi2Error, "fmi2DeSerializeFMUstate: the bytes are corrupt (%s); state "
-                    "unchanged", why);
-    }
-    *state = copy;
     return fmi2OK;
 }
 
@@ -713,12 +675,7 @@ int hb_backend_load(char *err, size_t n) {
     hb_W.SetInteger = n_set_integer;
     hb_W.SetBoolean = n_set_boolean;
     hb_W.SetString = n_set_string;
-    hb_W.GetFMUstate = n_get_state;
-    hb_W.SetFMUstate = n_set_state;
-    hb_W.FreeFMUstate = n_free_state;
-    hb_W.SerializedFMUstateSize = n_state_size;
-    hb_W.SerializeFMUstate = n_serialize;
-    hb_W.DeSerializeFMUstate = n_deserialize;
+    hb_state_fill(&hb_W);
     hb_W.DoStep = n_do_step;
     hb_me_fill(&hb_W);
     hb_W.Instantiate = n_instantiate;

@@ -76,6 +76,9 @@ fmi2Status hb_fail(model *m, fmi2Status st, const char *fmt, ...);
 /* apply the inputs as set to the kernel's parameter vector (Model Exchange: at every evaluation) */
 void hb_apply_inputs(model_state *s);
 
+/* model_state.c: the FMU-state functions of the backend table */
+void hb_state_fill(hb_wrapper *w);
+
 /* model_me.c: the Model Exchange functions of the backend table */
 void hb_me_fill(hb_wrapper *w);
 /* d(state i)/dt [SI] in the current hybrid mode at the model's time */
