@@ -492,3 +492,19 @@ def test_model_exchange_bad_sizes_are_errors(native_dir):
     assert e.value.status == FMI_ERROR
     assert "3 values given, the model has 4" in messages[-1][1]
     m.freeInstance()
+
+
+def test_start_values_of_the_build_are_the_binaries_own(tmp_path):
+    """``--set`` values reach the model description and the compiled-in defaults alike."""
+    from hammerbit.fmu.build import build_fmu
+    fmu = build_fmu(tmp_path / f"{ID}.fmu", runtime="native",
+                    start_values={"hammer_mass": 30.0, "preload": 35.0})
+    d = tmp_path / "x"
+    with zipfile.ZipFile(fmu) as zf:
+        zf.extractall(d)
+    md = read_model_description(str(d / "modelDescription.xml"))
+    starts = {v.name: v.start for v in md.modelVariables}
+    assert float(starts["hammer_mass"]) == 30.0 and float(starts["preload"]) == 35.0
+    s = Slave(d)                                      # nothing set: the binary's own defaults
+    assert s.get("hammer_mass", "preload") == [30.0, 35.0]
+    s.close()
