@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import sys
+import time
 from dataclasses import dataclass
 from typing import Optional
 
@@ -363,8 +364,9 @@ class Stepper:
         st = sample_times if sample_times is not None else _EMPTY_F
         sa = samples if samples is not None else _NO_SAMP
         lg = log if log is not None else _NO_LOG
-        helper = (self._entry not in _NOTICE_CHECKED and compile_notice(self._entry)
-                  and compile_ahead.start(self._entry))  # a second process compiles part of it
+        notice = self._entry not in _NOTICE_CHECKED and compile_notice(self._entry)
+        helper = notice and compile_ahead.start(self._entry)  # a second process compiles part of it
+        t0 = time.perf_counter()
         if self._fast:
             status = K.advance_hammer(self.y, self.istate, self.fstate, t_end, self.p, self.opts,
                                       poin, st, sa, lg)
@@ -372,6 +374,8 @@ class Stepper:
             status = self._advance_general(t_end, poin, st, sa, lg)
         if helper:
             compile_ahead.finish()
+        if notice:
+            compile_done(time.perf_counter() - t0)
         return self._status(status)
 
     def load(self) -> bool:
@@ -467,10 +471,6 @@ class Stepper:
         self.p[:] = s[n + ni + nf:]
 
 
-#: Wall time to compile each entry point with an empty cache [s] on a 2-core machine, for the
-#: notice: the CLI cold start of ``benchmarks/bench_throughput.py`` (``advance_hammer``); the
-#: general driver is a function of the same size.
-COMPILE_SECONDS = {"advance_hammer": 12, "advance": 12}
 _NOTICE_CHECKED = set()
 
 
@@ -505,10 +505,17 @@ def compile_notice(entry: str, stream=None) -> bool:
     if kernels_cached(entry):
         return False
     stream = sys.stderr if stream is None else stream
-    print(f"hammerbit: compiling the solver kernels for this machine (about "
-          f"{COMPILE_SECONDS.get(entry, 60)} s, once; cached in {_numba_cache.cache_root()})",
-          file=stream, flush=True)
+    # no duration is promised: it ranges from seconds to minutes with the machine and its load;
+    # compile_done says how long it took
+    print(f"hammerbit: compiling the solver kernels for this machine (once; cached in "
+          f"{_numba_cache.cache_root()})", file=stream, flush=True)
     return True
+
+
+def compile_done(seconds: float, stream=None) -> None:
+    """Say on stderr how long the compile that :func:`compile_notice` announced took."""
+    stream = sys.stderr if stream is None else stream
+    print(f"hammerbit: compiled the solver kernels in {seconds:.1f} s", file=stream, flush=True)
 
 
 _NO_POIN = np.zeros((0, 5))
