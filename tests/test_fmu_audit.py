@@ -139,7 +139,6 @@ def _storm_time(msg) -> float:
     return float(m.group(1))
 
 
-@pytest.mark.slow
 def test_a_step_storm_no_shorter_step_can_clear_is_an_error(built_fmu):
     """A regime too stiff for the solver's step budget per forcing period used to return
     fmi2Discard inviting a retry with a shorter step; halving never got past t = 2.5e-6 s.  It is
