@@ -1,7 +1,7 @@
 """Co-simulation benchmark: coupling error, its estimate, its order, and cost against the FMI floor.
 
 Measures, on the example string ``field-2200m`` (220 elements, 440 states)
-coupled to the field hammer (:func:`hammerbit.cosim.master.field_hammer`):
+coupled to the field hammer (:func:`hammerbit.cosim.config.field_hammer`):
 
 0. **The coupling-error estimate against the true error** (the monolithic
    reference) on a stuck case (A = 5 kN at 22.5 Hz: the bit never slips) and
@@ -72,7 +72,9 @@ def _rel(a, b):
 
 def measure_estimate(cfg: dict, log) -> dict:
     """Estimate vs true error on the stuck and the drilling case; accuracy of the default run."""
-    from hammerbit.cosim.master import CosimConfig, cosimulate, field_hammer, monolithic
+    from hammerbit.cosim.config import CosimConfig, field_hammer
+    from hammerbit.cosim.master import cosimulate
+    from hammerbit.cosim.reference import monolithic
     from hammerbit.drillstring import load_string
     string = load_string("field-2200m")
     Hmin = min(cfg["est_steps"])
@@ -163,7 +165,9 @@ def _order(H, err):
 
 
 def measure_errors(cfg: dict, log) -> dict:
-    from hammerbit.cosim.master import CosimConfig, SCHEMES, cosimulate, monolithic
+    from hammerbit.cosim.config import SCHEMES, CosimConfig
+    from hammerbit.cosim.master import cosimulate
+    from hammerbit.cosim.reference import monolithic
     from hammerbit.drillstring import load_string
     string = load_string("field-2200m")
     # reference on the finest grid; coarser grids are sub-samples of it
@@ -207,7 +211,8 @@ def measure_errors(cfg: dict, log) -> dict:
 def measure_long_run(cfg: dict, log) -> dict:
     repo_on_path()
     from build_fmu import build_fmu
-    from hammerbit.cosim.master import CosimConfig, cosimulate
+    from hammerbit.cosim.config import CosimConfig
+    from hammerbit.cosim.master import cosimulate
     from hammerbit.drillstring import load_string
     string = load_string("field-2200m")
     H = 1e-3
@@ -227,7 +232,8 @@ def measure_long_run(cfg: dict, log) -> dict:
                           "wob_amplitude_n": r.wob_amplitude()}
         n = out["nodal"]["macro_steps"]
         log(f"HammerBitRock.fmu alone (constant preload, same calls), {n} steps ...")
-        from hammerbit.cosim.master import FMUHammer, field_hammer
+        from hammerbit.cosim.config import field_hammer
+        from hammerbit.cosim.hammer_fmu import FMUHammer
         rig = field_hammer()
         hm = FMUHammer(fmu, rig, rig.preload, rtol=1e-8)
         t1 = time.perf_counter()

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import math
 
-from . import kernels as K
-from .params import N_P
+from . import kernel_layouts as K
+from .kernel_layouts import N_P
 
 __all__ = ["STATE_KEYS", "state_problem"]
 

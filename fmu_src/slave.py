@@ -41,28 +41,30 @@ from pythonfmu import Boolean, DefaultExperiment, Fmi2Causality, Fmi2Initial, Fm
     Fmi2Variability, Integer, Real
 from pythonfmu.enums import Fmi2Status
 
-from . import _numba_cache
 from . import build_info
-from . import kernels as K
+from . import kernel_driver, kernel_forces, kernel_layouts
+from . import numba_cache
 from .fmu_state import state_problem
 from .fmu_variables import (BOOL_PARAMETERS, DEFAULT_TOLERANCE, FIXED_REALS, INPUTS, OUTPUTS,
                             PARAMETERS, RIG_FIELDS, UNITS, accepted_bounds, input_range,
                             nominal_values, range_key, start_values, variable_range)
-from .params import P_B, P_FEXT, RigParameters
+from .kernel_layouts import P_B, P_FEXT
+from .params import RigParameters
 from .pythonfmu_exit import guard_pythonfmu_exit
-from .stepping import _EMPTY_F, _NO_LOG, _NO_POIN, _NO_SAMP, EventStormError, SolverError, \
-    SolverOptions, StepSizeError, Stepper, StepStormError
+from .solver_errors import EventStormError, SolverError, StepSizeError, StepStormError
+from .solver_options import SolverOptions
+from .stepping import NO_LOG, NO_POINCARE, NO_SAMPLE_TIMES, NO_SAMPLES, Stepper
 from .validation import ParameterError, check
-from . import compile_ahead
-from .dispatch import entry_point as _entry_point
+from . import numba_compile_ahead
+from .numba_dispatch import entry_point as _entry_point
 
-compile_ahead.ENABLED = False  # no helper interpreters inside an FMI host
+numba_compile_ahead.ENABLED = False  # no helper interpreters inside an FMI host
 
 __all__ = ["HammerBitRock", "PARAMETERS", "INPUTS", "OUTPUTS", "UNITS", "STATE_FORMAT",
            "OK", "WARNING", "DISCARD", "ERROR", "guard_pythonfmu_exit"]
 
 _INF = math.inf
-_ST_DONE = K.ST_DONE
+_ST_DONE = kernel_layouts.ST_DONE
 _isfinite = math.isfinite
 
 #: FMI 2.0 status codes recorded in ``last_status``
@@ -440,7 +442,7 @@ class HammerBitRock(Fmi2Slave):
         self._yi, self._ii = st.y.item, st.istate.item
         # do_step's hot path calls the stepper's compiled entry point with the stepper's own
         # arrays: Stepper.advance would repeat the argument checks do_step has made already
-        self._kernel = K.advance_hammer if st._fast else _general_advance(st)
+        self._kernel = kernel_driver.advance_hammer if st.fast else _general_advance(st)
         self._slow = True          # do_step rebuilds its tuple of the stepper's arrays
         self._rig = rig
         self._x0 = x0
@@ -511,7 +513,7 @@ class HammerBitRock(Fmi2Slave):
             t0 = time.perf_counter()
             self._commit(self._param_values())
             self._check_inputs()
-            report = _numba_cache.first_use_report(K, time.perf_counter() - t0)
+            report = numba_cache.first_use_report(time.perf_counter() - t0)
         except ParameterError as e:
             self._ready = False
             self._error = f"initialisation failed: {e}"
@@ -553,9 +555,9 @@ class HammerBitRock(Fmi2Slave):
                     return False
             try:
                 status = kernel(y, ist, fst, (current_time + step_size - t_start) * omega, p, opts,
-                                _NO_POIN, _EMPTY_F, _NO_SAMP, _NO_LOG)
+                                NO_POINCARE, NO_SAMPLE_TIMES, NO_SAMPLES, NO_LOG)
                 if status != _ST_DONE:
-                    self._st._status(status)          # raises the solver's error
+                    self._st.check_status(status)          # raises the solver's error
             except Exception as e:  # noqa: BLE001 -- restore the state, report, never raise
                 return self._step_failed(e, snap, old_inputs, current_time, step_size)
             self._t = current_time + step_size
@@ -616,9 +618,10 @@ class HammerBitRock(Fmi2Slave):
         st = self._st
         # what the hot path of do_step reads, in one tuple (the stepper, its arrays and the
         # clock change only when _slow is set)
-        if self._kernel is K.advance_hammer:     # compiled by now: call it without the type dispatch
-            self._kernel = _entry_point(K.advance_hammer, (st.y, st.istate, st.fstate, 0.0, st.p, st.opts,
-                                                            _NO_POIN, _EMPTY_F, _NO_SAMP, _NO_LOG))
+        if self._kernel is kernel_driver.advance_hammer:     # compiled by now: call it without the type dispatch
+            self._kernel = _entry_point(kernel_driver.advance_hammer,
+                                        (st.y, st.istate, st.fstate, 0.0, st.p, st.opts,
+                                         NO_POINCARE, NO_SAMPLE_TIMES, NO_SAMPLES, NO_LOG))
         self._hot = (self._kernel, st.y, st.istate, st.fstate, st.p, st.opts, self._t_start, self._omega,
                      st.state_buffer)
         self._slow = False
@@ -637,20 +640,21 @@ class HammerBitRock(Fmi2Slave):
     # ------------------------------------------------------------------
     def _output_getters(self) -> dict:
         s = self
-        c0 = K.I_COUNT0
-        spring, on_bit, contact = K.spring_damper_force, K.force_on_bit, K.contact_force
-        overlap, kinetic = K.overlap, K.kinetic_friction
+        c0 = kernel_layouts.I_COUNT0
+        spring, on_bit = kernel_forces.spring_damper_force, kernel_forces.force_on_bit
+        contact = kernel_forces.contact_force
+        overlap, kinetic = kernel_forces.overlap, kernel_forces.kinetic_friction
 
         def contact_force():
-            y, p, mc = s._y, s._p, s._ii(K.I_CONTACT)
-            if mc != K.CONTACT:
+            y, p, mc = s._y, s._p, s._ii(kernel_layouts.I_CONTACT)
+            if mc != kernel_layouts.CONTACT:
                 return 0.0
             return contact(overlap(y, p), y[1] - y[3], p, mc) * s._F0
 
         def friction_force():
-            if s._ii(K.I_STICK) == K.SLIP:
+            if s._ii(kernel_layouts.I_STICK) == kernel_layouts.SLIP:
                 return kinetic(s._yi(3), s._p) * s._F0
-            return on_bit(s._y, s._p, s._ii(K.I_CONTACT)) * s._F0
+            return on_bit(s._y, s._p, s._ii(kernel_layouts.I_CONTACT)) * s._F0
 
         def rate_of_penetration():
             dt = s._t - s._t_start
@@ -666,13 +670,13 @@ class HammerBitRock(Fmi2Slave):
             "spring_force": lambda: spring(s._y, s._p) * s._F0,
             "contact_force": contact_force,
             "friction_force": friction_force,
-            "rock_force": lambda: on_bit(s._y, s._p, s._ii(K.I_CONTACT)) * s._F0,
+            "rock_force": lambda: on_bit(s._y, s._p, s._ii(kernel_layouts.I_CONTACT)) * s._F0,
             "rate_of_penetration": rate_of_penetration,
-            "stick_slip": lambda: s._ii(K.I_STICK),
-            "in_contact": lambda: s._ii(K.I_CONTACT) != K.FREE,
-            "impact_count": lambda: s._ii(c0 + K.EV_IMPACT),
-            "slip_count": lambda: s._ii(c0 + K.EV_SLIP_START),
-            "bounce_count": lambda: s._ii(c0 + K.EV_BOUNCE),
+            "stick_slip": lambda: s._ii(kernel_layouts.I_STICK),
+            "in_contact": lambda: s._ii(kernel_layouts.I_CONTACT) != kernel_layouts.FREE,
+            "impact_count": lambda: s._ii(c0 + kernel_layouts.EV_IMPACT),
+            "slip_count": lambda: s._ii(c0 + kernel_layouts.EV_SLIP_START),
+            "bounce_count": lambda: s._ii(c0 + kernel_layouts.EV_BOUNCE),
         }
 
     # ------------------------------------------------------------------

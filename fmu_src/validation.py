@@ -152,7 +152,7 @@ RANGES: dict[str, Range] = {
     # -- a scene (simulate) --------------------------------------------------
     "simulate.periods": Range(0.0, 1e9, lo_open=True),
     "simulate.sample_dt": Range(0.0, 1e9, lo_open=True, unit="s"),
-    # -- co-simulation master (hammerbit.cosim.master.CosimConfig) ----------------------
+    # -- co-simulation master (hammerbit.cosim.config.CosimConfig) ----------------------
     "cosim.step": Range(0.0, 10.0, lo_open=True, unit="s"),
     "cosim.start": Range(-1e9, 1e9, unit="s"),
     "cosim.stop": Range(-1e9, 1e9, unit="s"),

@@ -6,8 +6,11 @@ import math
 import numpy as np
 import pytest
 
-from hammerbit.cosim.master import (CosimConfig, CouplingInstabilityError, StringSide, cosimulate,
-                             extrapolation_weights, field_hammer, monolithic)
+from hammerbit.cosim.config import CosimConfig, CouplingInstabilityError, field_hammer
+from hammerbit.cosim.exchange import extrapolation_weights
+from hammerbit.cosim.master import cosimulate
+from hammerbit.cosim.reference import monolithic
+from hammerbit.cosim.string_side import StringSide
 from hammerbit.drillstring import load_string
 from hammerbit.model.params import RigParameters
 
@@ -81,7 +84,7 @@ def test_schemes_and_extrapolation_orders(string, base, reference, scheme):
 
 
 def test_instability_detected_stiff_interface(string):
-    from hammerbit.cosim.master import StepResolutionError
+    from hammerbit.cosim.error import StepResolutionError
     cfg = CosimConfig(stop=1.0, step=5e-3, interface_stiffness=1e10, estimate=False)
     with pytest.raises(StepResolutionError, match="string mode") as ei:   # refused before the run ...
         cosimulate(string, cfg)
@@ -196,7 +199,8 @@ def test_with_the_fmu(string, built_fmu):
 def test_linear_sweep_matches_frf_and_modes(string):
     """Small excitation (bit stays stuck): the swept WOB amplitude is A |FRF| and its peak
     sits at a natural frequency of the coupled system (bit on bottom, hammer as boundary)."""
-    from hammerbit.cosim.master import coupled_modes, sweep, wob_frf
+    from hammerbit.cosim.linear_modes import coupled_modes
+    from hammerbit.studies.sweep import sweep, wob_frf
     cfg = CosimConfig(stop=4.0, step=1e-3, rig=field_hammer().replace(amplitude=2e3), estimate=False)
     freqs = np.array([22.0, 22.5, 23.0])
     res = sweep(string, freqs, cfg)
@@ -307,7 +311,7 @@ def test_dense_exchange_equals_modal(string):
 # the coupling-error estimate
 # ---------------------------------------------------------------------------
 def test_step_that_cannot_resolve_is_refused(string):
-    from hammerbit.cosim.master import StepResolutionError
+    from hammerbit.cosim.error import StepResolutionError
     with pytest.raises(StepResolutionError, match="slip dynamics") as ei:
         cosimulate(string, CosimConfig(stop=1.0, step=0.015, rig=DRILL))
     assert ei.value.limit.name == "slip"
@@ -344,7 +348,7 @@ def test_estimate_within_a_factor_3_of_the_true_error(string, case, H):
 def test_compiled_entry_points_give_the_dispatchers_bits(kw, monkeypatch):
     """The master calls the exchange through entry points kept per step length; through numba's
     dispatcher on every call the run is the same to the bit (adaptive: many step lengths, rollbacks)."""
-    import hammerbit.cosim.master as cs
+    import hammerbit.cosim.lane as cs
     string = load_string("field-2200m")
     c = CosimConfig(stop=0.4, record=("wob", "hammer_position", "hook_load"), progress=False, **kw)
     fast = cosimulate(string, c)

@@ -197,14 +197,14 @@ def _with_body(data, body):
 
 
 def _stepper_istate_index(body, entry):
-    from hammerbit.model import kernels as K
-    from hammerbit.model.params import N_P
+    from hammerbit.model import kernel_layouts as K
+    from hammerbit.model.kernel_layouts import N_P
     n_y = len(body["stepper"]) - K.N_ISTATE - K.N_FSTATE - N_P
     return n_y + entry
 
 
 def _corruptions(body):
-    from hammerbit.model import kernels as K
+    from hammerbit.model import kernel_layouts as K
     out = {}
 
     def change(name, f):
@@ -375,8 +375,8 @@ except Exception as e:
     sys.exit(0)
 inst.step(1e-3)
 pkg = [m for m in sys.modules if m.startswith("hammerbit_fmu_runtime_") and "." not in m][0]
-nc = sys.modules[pkg + "._numba_cache"]
-hits, misses = nc.kernel_cache_counts(sys.modules[pkg + ".kernels"])
+nc = sys.modules[pkg + ".numba_cache"]
+hits, misses = nc.kernel_cache_counts()
 print(json.dumps({"hits": hits, "misses": misses, "decision": nc.DECISION, "messages": inst.messages,
                   "wall_s": time.perf_counter() - t0}))
 inst.close()
@@ -388,7 +388,7 @@ res = os.path.join(sys.argv[1], "resources")
 sys.path.insert(0, res)
 pkg = [n for n in os.listdir(res) if n.startswith("hammerbit_fmu_runtime_")][0]
 import importlib
-print(json.dumps(importlib.import_module(pkg + "._numba_cache").DECISION))
+print(json.dumps(importlib.import_module(pkg + ".numba_cache").DECISION))
 """
 
 

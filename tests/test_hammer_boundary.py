@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from hammerbit.cosim.master import CosimConfig, coupled_modes, field_hammer
+from hammerbit.cosim.config import CosimConfig, field_hammer
+from hammerbit.cosim.linear_modes import coupled_modes
 from hammerbit.drillstring import DrillStringError, load_string
 from hammerbit.check.frequency import hammer_on_bottom_frequencies
 

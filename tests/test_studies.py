@@ -23,7 +23,10 @@ from hypothesis import strategies as st
 
 from cli_run import run_cli
 from hammerbit.scene.analysis import detect_period
-from hammerbit.model.params import ParameterError, apply_settings, preset, regime
+from hammerbit.model.presets import preset
+from hammerbit.model.regime import regime
+from hammerbit.model.settings import apply_settings
+from hammerbit.model.validation import ParameterError
 from hammerbit.scene.simulate import Record, simulate
 from hammerbit.studies.bifurcation import bifurcation, penetration_sweep
 from hammerbit.studies.executor import ExecutorOptions, chunk_bounds, chunk_plan
@@ -471,7 +474,8 @@ def test_penetration_sweep_equals_simulate():
 # sweep
 # ---------------------------------------------------------------------------
 def test_sweep_reuses_the_string_side_and_detects_steady_state():
-    from hammerbit.cosim.master import CosimConfig, cosimulate, field_hammer
+    from hammerbit.cosim.config import CosimConfig, field_hammer
+    from hammerbit.cosim.master import cosimulate
     from hammerbit.drillstring import load_string
     from hammerbit.studies.sweep import steady_figures, sweep
     string = load_string("field-2200m")
@@ -487,12 +491,6 @@ def test_sweep_reuses_the_string_side_and_detects_steady_state():
         assert row["penetration_m"] == r.penetration_m
         assert (fig["amplitude_change"] <= 0.02) == bool(row["steady"]) or dur == 2.0
     assert np.all(res["duration_s"] >= 0.5) and np.all(res["duration_s"] <= 2.0)
-
-
-def test_moved_names_stay_importable_from_cosim():
-    import hammerbit.cosim.master as cosim
-    from hammerbit.studies import sweep as sweep_module
-    assert cosim.sweep is sweep_module.sweep and cosim.wob_frf is sweep_module.wob_frf
 
 
 # ---------------------------------------------------------------------------

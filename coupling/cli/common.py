@@ -86,7 +86,7 @@ def error(message: str, code: int = EXIT_BAD_INPUT, *, prog: str = "hammerbit") 
 
 def _classify(exc: BaseException) -> int:
     """Exit code of an exception that escaped a command."""
-    from hammerbit.model.stepping import SolverError
+    from hammerbit.model.solver_errors import SolverError
     from hammerbit.model.validation import ParameterError
     if isinstance(exc, (UsageError, ParameterError)):
         return EXIT_BAD_INPUT
@@ -99,7 +99,7 @@ def _classify(exc: BaseException) -> int:
     except ImportError:  # pragma: no cover
         pass
     try:
-        from hammerbit.cosim.master import CouplingInstabilityError
+        from hammerbit.cosim.config import CouplingInstabilityError
         if isinstance(exc, CouplingInstabilityError):
             return EXIT_UNSTABLE
     except ImportError:  # pragma: no cover

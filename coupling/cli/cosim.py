@@ -5,8 +5,8 @@
 
 ``--string`` takes a TOML file or a built-in example name (``field-2200m``).
 Without ``--fmu`` the hammer runs in process (the FMU's own kernels,
-:class:`hammerbit.cosim.master.StepperHammer`).  The hammer is the field hammer
-(:func:`hammerbit.cosim.master.field_hammer`) unless ``--set`` changes it.
+:class:`hammerbit.cosim.hammer_inprocess.StepperHammer`).  The hammer is the field hammer
+(:func:`hammerbit.cosim.config.field_hammer`) unless ``--set`` changes it.
 
 By default the macro step is adaptive (rollback through the FMU state) and
 the run's coupling-error estimate is held against ``--tol`` (1e-3, relative
@@ -62,8 +62,8 @@ def add_cosim_options(p) -> None:
 
 def rig_from_args(args):
     """The field hammer with ``--set`` applied (groups, SI symbols, RigParameters/FMU names)."""
-    from hammerbit.model.params import apply_settings
-    from hammerbit.cosim.master import field_hammer
+    from hammerbit.model.settings import apply_settings
+    from hammerbit.cosim.config import field_hammer
     rig = field_hammer()
     settings = parse_settings(getattr(args, "set", None))
     if settings:
@@ -72,12 +72,12 @@ def rig_from_args(args):
 
 
 def config_from_args(args, **extra):
-    """The one :class:`~hammerbit.cosim.master.CosimConfig` builder of the CLI.
+    """The one :class:`~hammerbit.cosim.config.CosimConfig` builder of the CLI.
 
     Bad values raise :class:`~hammerbit.model.validation.ParameterError` or
     :class:`~hammerbit.cli.common.UsageError` (exit code 2)."""
     from hammerbit.model.validation import ParameterError
-    from hammerbit.cosim.master import CosimConfig
+    from hammerbit.cosim.config import CosimConfig
     rig = rig_from_args(args)
     kw = {"rig": rig, "wob": getattr(args, "wob", None)}
     for name in ("scheme", "extrapolation", "f_max", "harmonic_source", "ramp"):
@@ -114,13 +114,13 @@ def portable_target_for_fmu(args) -> None:
     """With ``--fmu``: this process's numba runs the FMU's portable CPU target.
 
     The FMU then loads the kernels it ships instead of compiling its own copy
-    in this process (:mod:`hammerbit.model.cpu_target`); the master's own
+    in this process (:mod:`hammerbit.model.numba_target`); the master's own
     kernels compile once for that target into the user cache.  Called before
     anything imports numba; without ``--fmu`` (or with ``--monolithic``) it
     does nothing.
     """
     if getattr(args, "fmu", None) is not None and not getattr(args, "monolithic", False):
-        from hammerbit.model.cpu_target import select_portable
+        from hammerbit.model.numba_target import select_portable
         select_portable()
 
 
@@ -128,9 +128,9 @@ def fmu_arg(args):
     """The ``--fmu`` path after a check that it is an FMU (errors exit 2), or None."""
     if args.fmu is None:
         return None
-    from hammerbit.cosim.master import _check_fmu_file
+    from hammerbit.cosim.hammer_fmu import check_fmu_file
     try:
-        _check_fmu_file(args.fmu)
+        check_fmu_file(args.fmu)
     except (OSError, ValueError) as e:
         raise UsageError(f"--fmu {args.fmu}: {e}") from None
     return args.fmu
@@ -173,7 +173,8 @@ def _print_text(out: dict, res, cfg, string) -> None:
 
 def cmd_cosim(args) -> int:
     portable_target_for_fmu(args)
-    from hammerbit.cosim.master import cosimulate, monolithic
+    from hammerbit.cosim.master import cosimulate
+    from hammerbit.cosim.reference import monolithic
     from hammerbit.cosim.error import StepResolutionError
     adaptive = args.step is None or args.adaptive
     extra = {"stop": args.stop,

@@ -11,7 +11,7 @@ def cmd_fmu_build(args) -> int:
     try:
         start = parse_settings(args.set)
         opts = BuildOptions(start_values=start, portable_cache=not args.no_portable_cache,
-                            native_front=not args.no_native_front)
+                            native_front=not args.no_native_front, runtime=args.runtime)
         path = build_fmu(args.out, options=opts)
     except UnknownVariableError as e:
         raise UsageError(f"--set {e}") from None
@@ -35,3 +35,7 @@ def register(sub) -> None:
                    help="do not ship compiled kernels (the FMU compiles them on first use)")
     b.add_argument("--no-native-front", action="store_true",
                    help="keep pythonfmu's binary only (runs only in a Python host)")
+    b.add_argument("--runtime", choices=("pythonfmu", "native"), default="pythonfmu",
+                   help="pythonfmu (default): the model runs in Python in the host; native: the "
+                        "binaries (linux64, and win64 with x86_64-w64-mingw32-gcc) hold the compiled "
+                        "kernels and need no Python")

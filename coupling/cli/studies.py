@@ -48,7 +48,7 @@ def _executor_options(args, *, default_workers=None):
 
 
 def _add_scene_args(p, *, default_preset="paper-fig9") -> None:
-    from hammerbit.model.params import PRESETS
+    from hammerbit.model.presets import PRESETS
     p.add_argument("--preset", default=default_preset, choices=sorted(PRESETS),
                    help=f"parameter preset (default {default_preset})")
     add_set_argument(p)
@@ -56,12 +56,13 @@ def _add_scene_args(p, *, default_preset="paper-fig9") -> None:
 
 
 def _groups(args):
-    from hammerbit.model.params import apply_settings, preset
+    from hammerbit.model.presets import preset
+    from hammerbit.model.settings import apply_settings
     return apply_settings(preset(args.preset), parse_settings(args.set))
 
 
 def _solver(args):
-    from hammerbit.model.stepping import SolverOptions
+    from hammerbit.model.solver_options import SolverOptions
     if args.rtol is None:
         return SolverOptions()
     return SolverOptions(rtol=args.rtol, atol=args.rtol * 1e-2)
@@ -114,7 +115,7 @@ def cmd_sweep(args) -> int:
     from hammerbit.cli.cosim import config_from_args, fmu_arg, load_string_arg, portable_target_for_fmu
     portable_target_for_fmu(args)
     import numpy as np
-    from hammerbit.cosim.master import coupled_modes
+    from hammerbit.cosim.linear_modes import coupled_modes
     from hammerbit.studies.sweep import plot_sweep, sweep, write_sweep_csv
     lo, hi, n = args.frequencies
     if not (0 < lo < hi) or n < 1 or n != int(n):
@@ -238,7 +239,8 @@ def _default_bounds(g):
 def _confirm(groups, string, args) -> dict:
     """Co-simulate the optimum on the string; dynamic WOB amplitude and bounce margin."""
     from hammerbit.cli.cosim import fmu_arg
-    from hammerbit.cosim.master import CosimConfig, cosimulate
+    from hammerbit.cosim.config import CosimConfig
+    from hammerbit.cosim.master import cosimulate
     rig = groups.to_rig()
     T = 1.0 / rig.frequency
     periods = args.confirm_periods

@@ -13,13 +13,15 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from hammerbit.model.params import RIG, RigParameters, Scales
+from hammerbit.model.params import RigParameters
+from hammerbit.model.presets import RIG
+from hammerbit.model.scales import Scales
 from hammerbit.model.validation import check as _check
 
 from hammerbit.cosim.error import CouplingErrorEstimate
 
 __all__ = ["SCHEMES", "RECORDABLE", "CouplingInstabilityError", "field_hammer", "CosimConfig", "CosimResult",
-           "steady_start", "event_counts"]
+           "steady_start", "event_counts", "record_dtype"]
 
 SCHEMES = ("jacobi", "gauss-seidel")
 
@@ -275,7 +277,8 @@ class CosimConfig:
         return replace(self, **changes)
 
 
-def _dtype(record: Sequence[str]) -> np.dtype:
+def record_dtype(record: Sequence[str]) -> np.dtype:
+    """The structured dtype of a run's recorded series: ``time`` first, then ``record``."""
     return np.dtype([("time", "f8")] + [(r, "f8") for r in record])
 
 

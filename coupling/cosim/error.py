@@ -82,9 +82,9 @@ def step_limits(side, config) -> list:
 
     Parameters
     ----------
-    side : hammerbit.cosim.master.StringSide
+    side : hammerbit.cosim.string_side.StringSide
         The string side of the run (its modes and interface).
-    config : hammerbit.cosim.master.CosimConfig
+    config : hammerbit.cosim.config.CosimConfig
 
     Notes
     -----

@@ -5,7 +5,7 @@ polynomial (Jacobi: extrapolated through the last communication points;
 Gauss–Seidel: interpolated through the new value), and the hammer holds the
 mean over the step of the interface force extrapolated the same way.  Both
 use the actual spacing of the communication points (a shorter last step,
-adaptive steps).  :func:`_exchange` builds the polynomial, steps the string
+adaptive steps).  :func:`exchange_step` builds the polynomial, steps the string
 exactly (:mod:`hammerbit.cosim.string_side`), and returns the interface force, the
 energy residual of the step and the force defect ``F_held - mean F_i``.
 """
@@ -14,9 +14,15 @@ from __future__ import annotations
 import numpy as np
 from numba import njit as _njit
 
-from hammerbit.cosim.string_side import _string_step_dense, _string_step_modal
+from hammerbit.cosim.string_side import string_step_dense, string_step_modal
 
-__all__ = ["extrapolation_weights"]
+__all__ = ["extrapolation_weights", "held_force", "exchange_step", "EXCHANGE_OUT_FORCE",
+           "EXCHANGE_OUT_ENERGY_RESIDUAL", "EXCHANGE_OUT_STRING_FORCE", "EXCHANGE_OUT_DEFECT"]
+
+#: Slots of :func:`exchange_step`'s ``out``: the interface force at the step's end [N], the
+#: energy residual of the step [J], ``frow . xi`` (the string's part of the interface force) [N]
+#: and the force defect ``F_held - mean F_i`` [N].
+EXCHANGE_OUT_FORCE, EXCHANGE_OUT_ENERGY_RESIDUAL, EXCHANGE_OUT_STRING_FORCE, EXCHANGE_OUT_DEFECT = 0, 1, 2, 3
 
 
 def extrapolation_weights(order: int, ratio: float = 1.0, ratio_past: float = 1.0) -> np.ndarray:
@@ -55,7 +61,7 @@ def _held_weights(order, a, a2, h, w):
 
 
 @_njit(cache=True)
-def _held_force(order, th, Fh, h, w):
+def held_force(order, th, Fh, h, w):
     """The force the hammer holds over [t_n, t_n + h]: :func:`_held_weights` on the history."""
     _held_weights(order, th[0] - th[1], th[1] - th[2], h, w)
     return w[0] * Fh[0] + w[1] * Fh[1] + w[2] * Fh[2]
@@ -95,8 +101,8 @@ def _coefficients(gs, order, a, a2, h, wh, x_new, v_new, c):
 
 
 @_njit(cache=True)
-def _exchange(gs, order, h, modal, P, xi, buf, tmp, d, G, irow, icol, eta, frow, ki, ci, W,
-              th, wh, Fh, x_new, v_new, F_held, c, out):
+def exchange_step(gs, order, h, modal, P, xi, buf, tmp, d, G, irow, icol, eta, frow, ki, ci, W,
+                  th, wh, Fh, x_new, v_new, F_held, c, out):
     """One macro step of the string side after the hammer's step.
 
     ``th`` (3,): communication times t_n, t_{n-1}, t_{n-2}; ``wh`` (3, 2): hammer
@@ -111,12 +117,12 @@ def _exchange(gs, order, h, modal, P, xi, buf, tmp, d, G, irow, icol, eta, frow,
     _coefficients(gs, order, a, a2, h, wh, x_new, v_new, c)
     F_start = W + out[2] - ki * c[0] - ci * c[1]
     if modal:
-        imp, f_xi = _string_step_modal(d, G, irow, icol, eta, c, frow)
+        imp, f_xi = string_step_modal(d, G, irow, icol, eta, c, frow)
     else:
         n = xi.shape[0]
         for k in range(6):
             buf[n + k] = c[k]
-        imp = _string_step_dense(P, xi, buf, tmp)
+        imp = string_step_dense(P, xi, buf, tmp)
         f_xi = 0.0
         for i in range(n):
             f_xi += frow[i].real * xi[i]

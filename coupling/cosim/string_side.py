@@ -14,7 +14,7 @@ When the eigenvectors of ``A'`` reproduce that step to 1e-10 the state is
 kept in modal coordinates (``eta <- exp(lam h) eta + G c``, one of each
 conjugate pair kept: O(n) per step); otherwise the dense mat-vec is used.
 :class:`StringSide` holds the model and the discretisations (cached per step
-length, shared by a run and its half-step companion); :class:`_StringState`
+length, shared by a run and its half-step companion); :class:`StringState`
 holds one run's state.
 """
 from __future__ import annotations
@@ -29,7 +29,7 @@ import numpy as np
 import scipy.linalg as sla
 from numba import njit as _njit
 
-__all__ = ["StringSide"]
+__all__ = ["StringSide", "StringState", "string_step_dense", "string_step_modal"]
 
 #: eigendecompositions and matrix exponentials of recent string models, shared by every side built
 #: from the same matrices (a sweep, a run and its reference, a study's repeated runs)
@@ -67,7 +67,7 @@ class StringSide:
     """The drillstring plus interface spring and its exact step over any macro step.
 
     Holds the model and the discretisations (one per step length, cached);
-    the state of a run lives in :class:`_StringState` (a run and its
+    the state of a run lives in :class:`StringState` (a run and its
     companion share one side).
 
     Parameters
@@ -233,7 +233,7 @@ class StringSide:
         (6,) = (x, v, x', v', x'', v''); x as deviation from equilibrium.
         Returns the integral of (F_i - W) over the step [N s].  The same kernels
         as the master (modal form when available)."""
-        st = _StringState(self, self.xi)
+        st = StringState(self, self.xi)
         imp = st.advance(self.discretisation(h), np.asarray(coeffs, dtype=float))
         self.xi = st.xi()
         return imp
@@ -253,7 +253,7 @@ class _Discretisation:
     m_icol: Optional[np.ndarray] = None
 
 
-class _StringState:
+class StringState:
     """The string's state in one run: modal ``eta`` when the side has a modal form, else ``xi``."""
 
     def __init__(self, side: StringSide, xi0: Optional[np.ndarray] = None):
@@ -297,13 +297,13 @@ class _StringState:
     def advance(self, d: _Discretisation, coeffs: np.ndarray) -> float:
         """Advance with given coefficients; returns int (F_i - W) dt [N s]."""
         if self.modal:
-            return _string_step_modal(d.m_d, d.m_G, d.m_irow, d.m_icol, self.v, coeffs, self.side.m_frow)[0]
+            return string_step_modal(d.m_d, d.m_G, d.m_irow, d.m_icol, self.v, coeffs, self.side.m_frow)[0]
         self.buf[self.side.n:] = coeffs
-        return _string_step_dense(d.P, self.v, self.buf, self.tmp)
+        return string_step_dense(d.P, self.v, self.buf, self.tmp)
 
 
 @_njit(cache=True, fastmath=True)
-def _string_step_dense(P, xi, buf, tmp):
+def string_step_dense(P, xi, buf, tmp):
     """xi <- P[:n] [xi, c]; returns int (F_i - W) dt (row n).  ``buf[n:]`` holds c."""
     n = xi.shape[0]
     m = buf.shape[0]
@@ -321,7 +321,7 @@ def _string_step_dense(P, xi, buf, tmp):
 
 
 @_njit(cache=True)
-def _string_step_modal(d, G, irow, icol, eta, c, frow):
+def string_step_modal(d, G, irow, icol, eta, c, frow):
     """eta <- d * eta + G c (modal exact step); returns (int (F_i - W) dt, Re(frow . eta) after
     the step), the second in the same pass."""
     imp = 0.0

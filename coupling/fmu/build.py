@@ -43,7 +43,7 @@ from pathlib import Path
 from typing import Mapping, Optional
 from xml.etree import ElementTree as ET
 
-__all__ = ["MODEL_NAME", "RUNTIME_PREFIX", "ENTRY_PREFIX", "BuildOptions", "FMUBuildError",
+__all__ = ["MODEL_NAME", "RUNTIME_PREFIX", "ENTRY_PREFIX", "RUNTIMES", "BuildOptions", "FMUBuildError",
            "UnknownVariableError", "build_fmu", "runtime_dir", "runtime_files", "build_hash",
            "check_start_values", "default_output"]
 
@@ -52,6 +52,8 @@ RUNTIME_PREFIX = "hammerbit_fmu_runtime"   # + "_<hash>": the runtime package in
 ENTRY_PREFIX = "hammerbit_fmu_slave"       # + "_<hash>": pythonfmu's slave module (resources/<name>.py)
 WRAPPER_SUFFIX = "_python"                 # pythonfmu's binary beside the native front
 _HASH_LEN = 12
+#: the runtime flavours of the FMU (BuildOptions.runtime); the first is the default
+RUNTIMES = ("pythonfmu", "native")
 
 
 class FMUBuildError(RuntimeError):
@@ -85,12 +87,18 @@ class BuildOptions:
     python : str
         Python executable that compiles the kernels (default: this one; it must
         be the Python the FMU will run in, same minor version and numba).
+    runtime : {"pythonfmu", "native"}
+        ``pythonfmu``: the model runs in Python inside the host (the default).
+        ``native``: the binaries hold the compiled kernels and need no Python
+        (:mod:`hammerbit.fmu.native_build`; ``portable_cache`` and
+        ``native_front`` do not apply).
     """
 
     start_values: Mapping[str, float] = field(default_factory=dict)
     portable_cache: bool = True
     native_front: bool = True
     python: str = sys.executable
+    runtime: str = "pythonfmu"
 
 
 def runtime_dir() -> Path:
@@ -103,8 +111,8 @@ def runtime_files() -> list:
     """The runtime sources the FMU carries: every module of :mod:`hammerbit.model`."""
     files = sorted(runtime_dir().glob("*.py"))
     names = {p.name for p in files}
-    for required in ("__init__.py", "slave.py", "stepping.py", "kernels.py", "params.py",
-                     "_numba_cache.py", "build_info.py"):
+    for required in ("__init__.py", "slave.py", "stepping.py", "kernel_driver.py", "params.py",
+                     "numba_cache.py", "build_info.py"):
         if required not in names:
             raise FMUBuildError(f"the runtime package {runtime_dir()} lacks {required}")
     return files
@@ -157,7 +165,7 @@ _ctypes.pythonapi.Py_IncRef.argtypes = [_ctypes.py_object]
 _ctypes.pythonapi.Py_IncRef.restype = None
 _ctypes.pythonapi.Py_IncRef(globals())
 
-import {pkg}._numba_cache  # noqa: E402,F401  (picks the CPU target before numba is imported)
+import {pkg}.numba_cache  # noqa: E402,F401  (picks the CPU target before numba is imported)
 from {pkg}.slave import {model}  # noqa: E402,F401
 '''
 
@@ -176,9 +184,8 @@ _EXERCISE = textwrap.dedent('''
     import importlib, json, sys
     sys.path.insert(0, sys.argv[1])
     pkg = sys.argv[2]
-    nc = importlib.import_module(pkg + "._numba_cache")
+    nc = importlib.import_module(pkg + ".numba_cache")
     S = importlib.import_module(pkg + ".slave")
-    K = importlib.import_module(pkg + ".kernels")
 
     def run(impact):
         s = S.HammerBitRock(instance_name="compile")
@@ -196,13 +203,13 @@ _EXERCISE = textwrap.dedent('''
         return s.get_integer([vr["impact_count"]])[0]
 
     impacts = run(False), run(True)
-    hits, misses = nc.kernel_cache_counts(K)
+    hits, misses = nc.kernel_cache_counts()
     print(json.dumps({"decision": nc.DECISION, "hits": hits, "misses": misses, "impacts": impacts}))
 ''')
 
 
 def _exercise(python: str, staging: Path, pkg: str) -> dict:
-    from hammerbit.model._numba_cache import PORTABLE_ENV
+    from hammerbit.model.numba_cache import PORTABLE_ENV
     env = dict(os.environ, PYTHONDONTWRITEBYTECODE="1", **PORTABLE_ENV)
     env.pop("PYTHONPATH", None)
     r = subprocess.run([python, "-c", _EXERCISE, str(staging), pkg], capture_output=True, text=True,
@@ -215,7 +222,7 @@ def _exercise(python: str, staging: Path, pkg: str) -> dict:
 
 def _portable_cache(pkg_dir: Path, python: str) -> dict:
     """Compile the kernels for the portable target into ``pkg_dir/_compiled``; check they load."""
-    from hammerbit.model._numba_cache import MANIFEST, user_cache_root
+    from hammerbit.model.numba_cache import MANIFEST, user_cache_root
     keep = Path(user_cache_root()) / "fmu-build" / pkg_dir.name
     try:
         keep.mkdir(parents=True, exist_ok=True)
@@ -341,13 +348,17 @@ def build_fmu(out=None, *, options: BuildOptions = BuildOptions(), **kw) -> Path
     if out.suffix != ".fmu":
         out = out / f"{MODEL_NAME}.fmu"
     out = out.resolve()
+    if options.runtime not in RUNTIMES:
+        raise FMUBuildError(f"runtime {options.runtime!r} is not one of {', '.join(RUNTIMES)}")
     out.parent.mkdir(parents=True, exist_ok=True)
     start = check_start_values(dict(options.start_values))
+    if options.runtime == "native":
+        return _build_native(out, options, start)
 
     files = runtime_files()
     tag = build_hash(files)
     pkg_name, entry_name = f"{RUNTIME_PREFIX}_{tag}", f"{ENTRY_PREFIX}_{tag}"
-    import hammerbit.model.kernels  # noqa: F401  (numba is imported here before the staged package)
+    import hammerbit.model.kernel_driver  # noqa: F401  (numba is imported here before the staged package)
     with tempfile.TemporaryDirectory(prefix="hammerbit_fmu_build_") as tmp:
         work = Path(tmp)
         staging = work / "stage"
@@ -386,6 +397,22 @@ def build_fmu(out=None, *, options: BuildOptions = BuildOptions(), **kw) -> Path
         os.replace(tmp_out, out)
     _check_contents(out, pkg_name, entry_name)
     return out
+
+
+def _build_native(out: Path, options: BuildOptions, start: dict) -> Path:
+    """The native flavour: the model description of a Python build, native binaries."""
+    from dataclasses import replace
+
+    from hammerbit.fmu.native_build import NativeBuildError, assemble_native_fmu
+    with tempfile.TemporaryDirectory(prefix="hammerbit_fmu_md_") as tmp:
+        python_fmu = build_fmu(Path(tmp) / f"{MODEL_NAME}.fmu",
+                               options=replace(options, runtime="pythonfmu", portable_cache=False,
+                                               native_front=False))
+        try:
+            return assemble_native_fmu(python_fmu, out, start,
+                                       log=lambda msg: print(msg, file=sys.stderr))
+        except NativeBuildError as e:
+            raise FMUBuildError(f"the native runtime: {e}") from None
 
 
 def _check_contents(fmu: Path, pkg_name: str, entry_name: str) -> None:

@@ -1,6 +1,6 @@
 """The project's one FMU loader: an FMI 2.0 co-simulation FMU driven through fmpy's ``FMU2Slave``.
 
-Used by the co-simulation master (:class:`hammerbit.cosim.master.FMUHammer`), the
+Used by the co-simulation master (:class:`hammerbit.cosim.hammer_fmu.FMUHammer`), the
 benchmarks and the tests.  It extracts the FMU, instantiates it with a logger
 that keeps every message (status, text), sets start values, and gives
 variables by name.  Importing it imports neither numba nor the model, so an

@@ -153,8 +153,8 @@ def warm_worker() -> str:
     """
     import hammerbit.studies.bifurcation  # noqa: F401  (the chunk functions' modules)
     import hammerbit.studies.sweep  # noqa: F401
-    from hammerbit.model.cpu_target import runs_portable
-    from hammerbit.model.params import preset
+    from hammerbit.model.numba_target import runs_portable
+    from hammerbit.model.presets import preset
     from hammerbit.model.stepping import Stepper
     from hammerbit.studies.map import run_cell
     g = preset("paper-fig9")

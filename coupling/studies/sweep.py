@@ -24,7 +24,10 @@ import numpy as np
 
 from hammerbit.model.validation import ParameterError
 
-from hammerbit.cosim.master import CosimConfig, StringSide, _coupled_system, cosimulate
+from hammerbit.cosim.config import CosimConfig
+from hammerbit.cosim.linear_modes import coupled_system
+from hammerbit.cosim.master import cosimulate
+from hammerbit.cosim.string_side import StringSide
 from .executor import Executor, ExecutorOptions
 
 __all__ = ["SWEEP_DTYPE", "sweep", "plot_sweep", "write_sweep_csv", "wob_frf", "steady_figures"]
@@ -52,12 +55,12 @@ def _side_for(string, config: CosimConfig, fmu=None) -> StringSide:
     copy, so a result does not depend on which frequencies the worker ran
     before (the same bits whatever the chunking).  The one step runs in
     process, except in a process on the FMU's portable CPU target
-    (:mod:`hammerbit.model.cpu_target`, ``sweep --fmu``), where it runs
+    (:mod:`hammerbit.model.numba_target`, ``sweep --fmu``), where it runs
     through ``fmu``: there the in-process kernels are not compiled, while
     elsewhere they are loaded already (:func:`~hammerbit.studies.executor.warm_worker`)
     and a second FMU instance would only cost its start-up.
     """
-    from hammerbit.model.cpu_target import runs_portable
+    from hammerbit.model.numba_target import runs_portable
     key = _side_key(string, config)
     side = _SIDES.get(key)
     if side is None:
@@ -234,13 +237,13 @@ def write_sweep_csv(result: np.ndarray, path) -> Path:
 
 def wob_frf(string, frequencies, config: CosimConfig = CosimConfig()) -> np.ndarray:
     """Linear frequency response of the WOB at the bit per newton of hammer force
-    (bit stuck, the system of :func:`hammerbit.cosim.master.coupled_modes`), complex (F,) [N/N].
+    (bit stuck, the system of :func:`hammerbit.cosim.linear_modes.coupled_modes`), complex (F,) [N/N].
 
     With a small harmonic amplitude the bit stays stuck, the coupled system is
     linear and :func:`sweep`'s ``wob_amplitude_n`` equals ``A |frf|``; its peaks
-    are at :func:`hammerbit.cosim.master.coupled_modes`.
+    are at :func:`hammerbit.cosim.linear_modes.coupled_modes`.
     """
-    A, n, m1, K, C = _coupled_system(string, config)
+    A, n, m1, K, C = coupled_system(string, config)
     b = np.zeros(n + 2)
     b[n + 1] = 1.0 / m1
     out = []

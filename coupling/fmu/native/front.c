@@ -43,6 +43,8 @@ enum {
     ST_TERMINATED = 1 << 3,
     ST_ERROR = 1 << 4,
     ST_FATAL = 1 << 5,
+    ST_EVENT = 1 << 6,   /* Model Exchange: Event Mode */
+    ST_CONT = 1 << 7,    /* Model Exchange: Continuous-Time Mode */
 };
 
 typedef struct {
@@ -57,12 +59,13 @@ typedef struct {
 
 static const char *const TYPE_NAMES[] = {"Real", "Integer", "Boolean", "String"};
 
-static pthread_mutex_t g_lock = PTHREAD_MUTEX_INITIALIZER;   /* Python start, wrapper load */
+static pthread_mutex_t g_lock = PTHREAD_MUTEX_INITIALIZER;   /* backend load (Python start) */
 
 /* allowed states per function (FMI 2.0.4, section 4.2.4; Error: only inquiries and recovery) */
-#define M_ANY_LIVE (ST_INSTANTIATED | ST_INIT | ST_STEP_COMPLETE | ST_TERMINATED | ST_ERROR)
-#define M_GET (ST_INIT | ST_STEP_COMPLETE | ST_TERMINATED | ST_ERROR)
-#define M_SET (ST_INSTANTIATED | ST_INIT | ST_STEP_COMPLETE)
+#define M_ME (ST_EVENT | ST_CONT)
+#define M_ANY_LIVE (ST_INSTANTIATED | ST_INIT | ST_STEP_COMPLETE | ST_TERMINATED | ST_ERROR | M_ME)
+#define M_GET (ST_INIT | ST_STEP_COMPLETE | ST_TERMINATED | ST_ERROR | M_ME)
+#define M_SET (ST_INSTANTIATED | ST_INIT | ST_STEP_COMPLETE | M_ME)
 #define M_STATUS (ST_STEP_COMPLETE | ST_TERMINATED)
 
 /* ------------------------------------------------------------------------------------------ */
@@ -83,6 +86,7 @@ typedef struct {
     double last_successful;        /* fmi2LastSuccessfulTime [s] */
     int stop_defined;              /* fmi2SetupExperiment's stopTimeDefined */
     double stop_time;              /* its stopTime [s] */
+    int me;                        /* instantiated for Model Exchange */
 } hb_inst;
 
 /* an FMU state of the front: the front's own part, then pythonfmu's */
@@ -177,6 +181,8 @@ static const char *state_name(int s) {
     case ST_TERMINATED: return "Terminated";
     case ST_ERROR: return "Error (after an fmi2Error: fmi2SetFMUstate or fmi2Reset recover)";
     case ST_FATAL: return "Fatal";
+    case ST_EVENT: return "Event Mode";
+    case ST_CONT: return "Continuous-Time Mode";
     default: return "?";
     }
 }
@@ -251,7 +257,9 @@ static int check_vrs(hb_inst *I, const char *fn, int type, const fmi2ValueRefere
                     vr[i], TYPE_NAMES[type]);
             return 0;
         }
-        if (setting && !(v->set_mask & I->state)) {
+        /* Model Exchange's Event and Continuous-Time Modes set what Step Mode sets */
+        int as = I->state & M_ME ? ST_STEP_COMPLETE : I->state;
+        if (setting && !(v->set_mask & as)) {
             LOG(I, fmi2Error, "%s: %s (value reference %u; %s) cannot be set in state %s", fn,
                 v->name, vr[i], v->kind, state_name(I->state));
             return 0;
@@ -342,10 +350,11 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, 
         log_to(functions, name, fmi2Error, "fmi2Instantiate: instanceName must be a non-empty string");
         return NULL;
     }
-    if (fmuType != fmi2CoSimulation) {
+    if (fmuType != fmi2CoSimulation && !(HB_HAS_ME && fmuType == fmi2ModelExchange)) {
         log_to(functions, name, fmi2Error,
-               "fmi2Instantiate: %s supports only fmi2CoSimulation (fmuType = %d requested)",
-               HB_MODEL_IDENTIFIER, (int)fmuType);
+               "fmi2Instantiate: %s supports only %s (fmuType = %d requested)", HB_MODEL_IDENTIFIER,
+               HB_HAS_ME ? "fmi2ModelExchange and fmi2CoSimulation" : "fmi2CoSimulation",
+               (int)fmuType);
         return NULL;
     }
     if (!fmuGUID || strcmp(fmuGUID, HB_GUID) != 0) {
@@ -365,8 +374,7 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, 
         return NULL;
     }
     pthread_mutex_lock(&g_lock);
-    int ok = hb_ensure_python(HB_PYTHON_MODULES, err, sizeof err) &&
-             hb_load_wrapper(HB_WRAPPER_FILE, err, sizeof err);
+    int ok = hb_backend_load(err, sizeof err);
     pthread_mutex_unlock(&g_lock);
     if (!ok) {
         log_to(functions, name, fmi2Error, "fmi2Instantiate: %s", err);
@@ -388,10 +396,11 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, 
     I->state = ST_INSTANTIATED;
     char uri[PATH_MAX + 16];
     snprintf(uri, sizeof uri, "file://%s", path);   /* what pythonfmu strips: plain path */
-    I->w = hb_W.Instantiate(instanceName, fmi2CoSimulation, fmuGUID, uri, &I->inner, visible, fmi2True);
+    I->me = fmuType == fmi2ModelExchange;
+    I->w = hb_W.Instantiate(instanceName, fmuType, fmuGUID, uri, &I->inner, visible, fmi2True);
     if (!I->w) {
-        LOG(I, fmi2Error, "fmi2Instantiate: the Python slave could not be created (see the "
-                          "messages above)");
+        LOG(I, fmi2Error, "fmi2Instantiate: the model could not be created (see the messages "
+                          "above)");
         free_inst(I);
         return NULL;
     }
@@ -475,12 +484,12 @@ EXPORT fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
         LOG(I, fmi2Error, "fmi2ExitInitializationMode: the slave discarded the initialisation");
         st = fmi2Error;
     }
-    if (st <= fmi2Warning) I->state = ST_STEP_COMPLETE;
+    if (st <= fmi2Warning) I->state = I->me ? ST_EVENT : ST_STEP_COMPLETE;
     return record(I, st);
 }
 
 EXPORT fmi2Status fmi2Terminate(fmi2Component c) {
-    BEGIN("fmi2Terminate", ST_STEP_COMPLETE);
+    BEGIN("fmi2Terminate", ST_STEP_COMPLETE | M_ME);
     fmi2Status st = hb_W.Terminate(I->w);
     if (st <= fmi2Warning) I->state = ST_TERMINATED;
     return settle(I, st);
@@ -812,3 +821,7 @@ EXPORT fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, f
     BEGIN("fmi2GetStringStatus", M_STATUS);
     return bad_kind(I, "fmi2GetStringStatus", s);
 }
+
+#if HB_HAS_ME
+#include "front_me.h"
+#endif

@@ -32,6 +32,7 @@ directory loads them all the same.
 logger (the reason, and where the compiled code went), so a compilation is
 never silent.
 """
+import functools
 import hashlib
 import json
 import os
@@ -46,7 +47,7 @@ _HERE = os.path.dirname(os.path.abspath(__file__))
 SHIPPED_DIR = os.path.join(_HERE, "_compiled")
 MANIFEST = "manifest.json"
 
-from .cpu_target import PORTABLE_ENV, runs_portable, select_portable  # noqa: E402
+from .numba_target import PORTABLE_ENV, runs_portable, select_portable  # noqa: E402
 
 
 def user_cache_root() -> str:
@@ -172,7 +173,7 @@ DECISION = _decide()
 
 from numba.core import caching as _caching  # noqa: E402  (after the CPU target is set)
 
-from ._numba_startup import import_arraymath_lazily  # noqa: E402
+from .numba_startup import import_arraymath_lazily  # noqa: E402
 
 
 def cache_root() -> str:
@@ -180,26 +181,37 @@ def cache_root() -> str:
     return DECISION["dir"]
 
 
-#: Runtime modules whose constants the compiled kernels fold in (parameter indices,
-#: ranges, Runge-Kutta tableaux): a change to any of them must miss the cache too.
-_COMPILED_IN = ("params.py", "validation.py", "tableaux.py", "partial.py")
+#: Prefix of the modules that hold numba kernels (``kernel_layouts.py``, ``kernel_driver.py`` ...).
+KERNEL_PREFIX = "kernel_"
+#: Runtime modules whose constants the compiled kernels fold in (ranges, Runge-Kutta tableaux,
+#: the bound copy of the driver): a change to any of them must miss the cache too.
+_COMPILED_IN = ("validation.py", "tableaux.py", "numba_partial.py")
 
 
-def _source_digest(py_file: str) -> str:
-    """SHA-256 of ``py_file`` and of the modules its compiled code folds in."""
+def kernel_sources() -> list:
+    """The kernel modules' files of this package, sorted by name."""
+    return sorted(os.path.join(_HERE, n) for n in os.listdir(_HERE)
+                  if n.startswith(KERNEL_PREFIX) and n.endswith(".py"))
+
+
+@functools.lru_cache(maxsize=1)
+def kernels_digest() -> str:
+    """SHA-256 (shortened) of every kernel module and of the modules they fold in.
+
+    One digest for all kernel modules: numba's cache entry of a kernel holds the
+    compiled code of the kernels it calls, so a change to a callee in another
+    module must miss the caller's entry too.  Computed once per process (every
+    cached kernel asks for it when it is decorated).
+    """
     h = hashlib.sha256()
-    for path in (py_file,) + tuple(os.path.join(_HERE, n) for n in _COMPILED_IN):
+    for path in kernel_sources() + [os.path.join(_HERE, n) for n in _COMPILED_IN]:
+        h.update(os.path.basename(path).encode() + b"\0")
         try:
             with open(path, "rb") as fh:
                 h.update(fh.read())
         except FileNotFoundError:
             h.update(b"-")
     return h.hexdigest()[:20]
-
-
-def kernels_digest() -> str:
-    """The digest the cache of this package's ``kernels.py`` is keyed on."""
-    return _source_digest(os.path.join(_HERE, "kernels.py"))
 
 
 class ContentHashCacheLocator(_caching._SourceFileBackedLocatorMixin, _caching._CacheLocator):
@@ -209,10 +221,10 @@ class ContentHashCacheLocator(_caching._SourceFileBackedLocatorMixin, _caching._
     def __init__(self, py_func, py_file):
         self._py_file = py_file
         self._lineno = py_func.__code__.co_firstlineno
-        digest = _source_digest(py_file)
+        digest = kernels_digest()
         # numba's cache entries remember the module they were compiled in (and re-import it on
-        # load): the library (hammerbit.model.kernels) and each FMU build
-        # (hammerbit_fmu_runtime_<build hash>.kernels) have their own entries.
+        # load): the library (hammerbit.model.kernel_*) and each FMU build
+        # (hammerbit_fmu_runtime_<build hash>.kernel_*) have their own entries.
         module = getattr(py_func, "__module__", None) or os.path.splitext(os.path.basename(py_file))[0]
         self._cache_path = os.path.join(DECISION["dir"], f"{module}-{digest}")
 
@@ -251,10 +263,14 @@ import_arraymath_lazily()
 _REPORTED = []
 
 
-def kernel_cache_counts(kernels) -> tuple:
-    """(hits, misses) of the numba cache over every compiled function of the module ``kernels``."""
+def kernel_cache_counts() -> tuple:
+    """(hits, misses) of the numba cache over every compiled function of this package's kernel
+    modules imported so far."""
     hits = misses = 0
-    for obj in vars(kernels).values():
+    prefix = f"{__package__}.{KERNEL_PREFIX}"
+    dispatchers = {id(obj): obj for name, module in list(sys.modules.items()) if name.startswith(prefix)
+                   for obj in vars(module).values() if hasattr(obj, "stats")}
+    for obj in dispatchers.values():
         stats = getattr(obj, "stats", None)
         if stats is None or not hasattr(stats, "cache_misses"):
             continue
@@ -263,7 +279,7 @@ def kernel_cache_counts(kernels) -> tuple:
     return hits, misses
 
 
-def first_use_report(kernels, seconds: float):
+def first_use_report(seconds: float):
     """The one message of this process about where the kernels came from, or None.
 
     Returns ``(message, status)`` with the FMI status (0 OK: loaded, 1 Warning:
@@ -272,7 +288,7 @@ def first_use_report(kernels, seconds: float):
     if _REPORTED:
         return None
     _REPORTED.append(True)
-    hits, misses = kernel_cache_counts(kernels)
+    hits, misses = kernel_cache_counts()
     where = DECISION["dir"]
     if misses == 0:
         if DECISION["shipped"]:

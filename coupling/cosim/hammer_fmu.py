@@ -1,0 +1,166 @@
+"""The FMU hammer side of the co-simulation: ``HammerBitRock.fmu`` driven through fmpy."""
+from __future__ import annotations
+
+import math
+import zipfile
+from dataclasses import fields
+from pathlib import Path
+
+import numpy as np
+
+from hammerbit.model.params import RigParameters
+
+from hammerbit.cosim.hammer_interface import (OUT_BIT_POSITION, OUT_BIT_VELOCITY, OUT_HAMMER_POSITION,
+                                              OUT_HAMMER_VELOCITY, OUT_WOB)
+
+__all__ = ["FMUHammer", "FMU_NAMES", "check_fmu_file"]
+
+
+def check_fmu_file(path) -> None:
+    """A clear error for a path that is not an FMU (before fmpy's own)."""
+    p = Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(f"fmu {str(path)!r}: no such file (build it with `hammerbit fmu build` "
+                                f"or python build_fmu.py)")
+    if not zipfile.is_zipfile(p):
+        raise ValueError(f"fmu {str(path)!r}: not an FMU (an FMU is a zip archive with a "
+                         f"modelDescription.xml)")
+    with zipfile.ZipFile(p) as z:
+        if "modelDescription.xml" not in z.namelist():
+            raise ValueError(f"fmu {str(path)!r}: the archive has no modelDescription.xml: not an FMU")
+
+
+#: Candidate variable names of the FMU (first match wins).
+FMU_NAMES = {
+    "preload": ("preload",),
+    "hammer_position": ("hammer_position", "x_hammer", "hammer.position"),
+    "hammer_velocity": ("hammer_velocity", "v_hammer", "hammer.velocity"),
+    "bit_position": ("bit_position", "x_bit", "bit.position", "penetration"),
+    "bit_velocity": ("bit_velocity", "v_bit", "bit.velocity"),
+    "contact_force": ("contact_force", "impact_force"),
+    "rock_force": ("rock_force", "drive_on_bit"),
+    "hammer_position_start": ("hammer_position_start", "initial_hammer_position", "hammer_position0",
+                              "x_hammer_start"),
+}
+
+
+class FMUHammer:
+    """The hammer FMU driven through fmpy's ``FMU2Slave``.
+
+    Value references come from ``read_model_description`` by name.  The
+    hammer's parameters are set from the ``RigParameters`` fields the FMU
+    exposes (same names); ``preload`` is the input.  If the FMU exposes a
+    start value of the hammer position (``hammer_position_start`` or the
+    names in :data:`FMU_NAMES`), the run starts in equilibrium
+    (``W/K``); otherwise the initial preload step is the FMU's own start-up.
+    """
+
+    def __init__(self, path, rig: RigParameters, wob: float, *, t0: float = 0.0, rtol: float = 1e-8,
+                 instance: str = "hammer"):
+        from hammerbit.fmu.host import FMUInstance
+        self.path = str(path)
+        self._host = FMUInstance(self.path, instance, start_time=t0, init=False)
+        md, self.fmu = self._host.md, self._host.fmu
+        self.md = md
+        self.vr = dict(self._host.vr)
+        self.causality = {v.name: v.causality for v in md.modelVariables}
+        # parameters by name
+        names, vals = [], []
+        for f in fields(RigParameters):
+            if f.name in ("preload", "gap") or f.name not in self.vr:
+                continue
+            if self.causality[f.name] == "parameter":
+                names.append(self.vr[f.name])
+                vals.append(float(getattr(rig, f.name)))
+        if "gap" in self.vr and math.isfinite(rig.gap):
+            names.append(self.vr["gap"])
+            vals.append(float(rig.gap))
+        if "tolerance" in self.vr:
+            names.append(self.vr["tolerance"])
+            vals.append(float(rtol))
+        if names:
+            self.fmu.setReal(names, vals)
+        if "impact_enabled" in self.vr:
+            self.fmu.setBoolean([self.vr["impact_enabled"]], [bool(math.isfinite(rig.gap))])
+        self.equilibrium_start = False
+        vs = self._find("hammer_position_start", required=False)
+        if vs is not None:
+            self.fmu.setReal([vs], [wob / rig.stiffness])
+            self.equilibrium_start = True
+        self.vr_in = self._find("preload")
+        self.fmu.setReal([self.vr_in], [wob])
+        self.fmu.exitInitializationMode()
+        out = [self._find(k) for k in ("hammer_position", "hammer_velocity", "bit_position", "bit_velocity")]
+        self.vr_rock = self._find("rock_force", required=False)
+        self.vr_fc = None if self.vr_rock is not None else self._find("contact_force", required=False)
+        extra = self.vr_rock if self.vr_rock is not None else self.vr_fc
+        self.vr_out = out + ([extra] if extra is not None else [])
+        self.rig = rig
+        self.x_eq = wob / rig.stiffness if self.equilibrium_start else 0.0
+        self._K, self._C = rig.stiffness, rig.damping
+        self._flag_vrs = (self.vr.get("stick_slip"), self.vr.get("in_contact"))
+
+    def _find(self, key: str, *, required: bool = True):
+        for nm in FMU_NAMES[key]:
+            if nm in self.vr:
+                return self.vr[nm]
+        if required:
+            raise KeyError(f"FMU {self.path}: no variable for {key!r} (tried {FMU_NAMES[key]}); "
+                           f"it has {sorted(self.vr)}")
+        return None
+
+    master_harmonic = None
+
+    def step(self, t: float, H: float, force: float) -> None:
+        if self.master_harmonic is not None:
+            self.fmu.setReal([self.vr_in, self.vr["harmonic_force"]],
+                             [force, self.master_harmonic.mean(t, H)])
+        else:
+            self.fmu.setReal([self.vr_in], [force])
+        self.fmu.doStep(t, H)
+
+    def get_state(self):
+        """fmi2GetFMUstate (the FMU saves its whole hidden state)."""
+        return self.fmu.getFMUState()
+
+    def set_state(self, state) -> None:
+        """fmi2SetFMUstate: roll the FMU back."""
+        self.fmu.setFMUState(state)
+
+    def free_state(self, state) -> None:
+        self.fmu.freeFMUState(state)
+
+    def read(self) -> np.ndarray:
+        v = self.fmu.getReal(self.vr_out)
+        if self.vr_rock is not None:
+            return np.array(v)               # the rock force is the WOB
+        # without a rock force, the WOB's slot holds the contact force (zero when absent)
+        fc = v[OUT_WOB] if len(v) > OUT_WOB else 0.0
+        wob = (self._K * (v[OUT_HAMMER_POSITION] - v[OUT_BIT_POSITION])
+               + self._C * (v[OUT_HAMMER_VELOCITY] - v[OUT_BIT_VELOCITY]) + fc)
+        return np.array([v[OUT_HAMMER_POSITION], v[OUT_HAMMER_VELOCITY], v[OUT_BIT_POSITION],
+                         v[OUT_BIT_VELOCITY], wob])
+
+    def flags(self) -> tuple:
+        """(stick, contact): 1.0 while the bit sticks / while the gap is closed (0.0 for a flag
+        the FMU does not expose)."""
+        stick_vr, contact_vr = self._flag_vrs
+        s = 0.0
+        if stick_vr is not None:
+            s = 1.0 if self.fmu.getInteger([stick_vr])[0] == 0 else 0.0
+        ct = 0.0
+        if contact_vr is not None:
+            ct = 1.0 if self.fmu.getBoolean([contact_vr])[0] else 0.0
+        return s, ct
+
+    def counts(self) -> dict:
+        """Event counts the FMU exposes (:func:`~hammerbit.cosim.config.event_counts` names)."""
+        out = {}
+        for key, name in (("slips", "slip_count"), ("impacts", "impact_count"),
+                          ("bounce_violations", "bounce_count")):
+            if name in self.vr:
+                out[key] = int(self.fmu.getInteger([self.vr[name]])[0])
+        return out
+
+    def close(self):
+        self._host.close()

@@ -1,0 +1,117 @@
+"""One lane of the co-simulation: a hammer side, a string state and their exchange histories.
+
+The run and its half-step companion are two lanes on one
+:class:`~hammerbit.cosim.string_side.StringSide`.
+"""
+from __future__ import annotations
+
+import inspect
+
+import numpy as np
+
+from hammerbit.model.numba_dispatch import entry_point
+
+from hammerbit.cosim.config import CosimConfig
+from hammerbit.cosim.exchange import (EXCHANGE_OUT_FORCE, EXCHANGE_OUT_STRING_FORCE, exchange_step,
+                                      held_force)
+from hammerbit.cosim.hammer_interface import OUT_HAMMER_POSITION, OUT_HAMMER_VELOCITY
+from hammerbit.cosim.string_side import StringSide, StringState
+
+__all__ = ["Lane", "X_NEW_ARG"]
+
+_NONE_C = np.zeros(0, dtype=np.complex128)
+_NONE_2 = np.zeros((0, 6), dtype=np.complex128)
+_NONE_F = np.zeros(0)
+_NONE_P = np.zeros((0, 0))
+#: position of ``x_new`` in :func:`exchange_step`'s arguments (then ``v_new``, ``F_held``)
+X_NEW_ARG = list(inspect.signature(exchange_step.py_func).parameters).index("x_new")
+
+
+class Lane:
+    """A run of the coupled system: its hammer side, its string state, its histories.
+
+    The run and its half-step companion are two lanes on one :class:`StringSide`.
+    """
+
+    def __init__(self, side: StringSide, hammer, config: CosimConfig, H_hist: float):
+        c = config
+        self.side, self.hammer, self.c = side, hammer, c
+        self.gs = c.scheme == "gauss-seidel"
+        self.order = c.extrapolation
+        self.string = StringState(side)
+        self.x_eq = hammer.x_eq
+        self.out = hammer.read()
+        # the exchange histories and scalars in one array (one copy per snapshot): th (3,)
+        # communication times, wh (3, 2) hammer (x deviation, v), Fh (3,) interface forces,
+        # sc (4,) the exchange's outputs
+        self.hist = np.zeros(16)
+        self.th, self.wh = self.hist[0:3], self.hist[3:9].reshape(3, 2)
+        self.Fh, self.sc = self.hist[9:12], self.hist[12:16]
+        self.th[:] = (c.start, c.start - H_hist, c.start - 2 * H_hist)
+        self.wh[:] = (self.out[OUT_HAMMER_POSITION] - self.x_eq, self.out[OUT_HAMMER_VELOCITY])
+        self.sc[EXCHANGE_OUT_STRING_FORCE] = self.string.f_xi()
+        F = side.wob + self.sc[EXCHANGE_OUT_STRING_FORCE] - side.ki * self.wh[0, 0] - side.ci * self.wh[0, 1]
+        self.sc[EXCHANGE_OUT_FORCE] = F
+        self.Fh[:] = F
+        self.F_held = F
+        self.w = np.zeros(3)
+        self.cbuf = np.zeros(6)
+        self.frow = side.m_frow if self.string.modal else side.frow.astype(np.float64)
+        self._h = None                           # the last step length
+        # per step length: [the exchange (its compiled entry point after the first call), its
+        # arguments (exchange_args)]; the held force's entry point after the first step
+        self._calls, self._call = {}, None
+        self._held = held_force
+
+    @property
+    def F(self) -> float:
+        return float(self.sc[EXCHANGE_OUT_FORCE])
+
+    def step(self, t: float, h: float) -> None:
+        """One macro step [t, t + h]: hammer first, then the string (both schemes;
+        Jacobi's string input does not use the new hammer value)."""
+        F_held = self._held(self.order, self.th, self.Fh, h, self.w)
+        self.F_held = F_held
+        self.hammer.step(t, h, F_held)
+        out = self.out = self.hammer.read()
+        if h != self._h:
+            self._h = h
+            call = self._calls.get(h)
+            if call is None:  # a new step length: its arrays, typed by the dispatcher once
+                call = self._calls[h] = [exchange_step, self.exchange_args(h, self.side.discretisation(h))]
+            self._call = call
+        call = self._call
+        args = call[1]
+        args[X_NEW_ARG] = out[OUT_HAMMER_POSITION] - self.x_eq
+        args[X_NEW_ARG + 1] = out[OUT_HAMMER_VELOCITY]
+        args[X_NEW_ARG + 2] = F_held
+        call[0](*args)
+        if call[0] is exchange_step:  # compiled by now: later steps of this length skip the type dispatch
+            call[0] = entry_point(exchange_step, args)
+            if self._held is held_force:
+                self._held = entry_point(held_force, (self.order, self.th, self.Fh, h, self.w))
+
+    def exchange_args(self, h: float, d) -> list:
+        """The arguments of :func:`exchange_step` for steps of length ``h`` (discretisation ``d``);
+        the hammer's new position, velocity and held force (from ``X_NEW_ARG``) are set per step."""
+        s, side = self.string, self.side
+        if s.modal:
+            return [self.gs, self.order, h, True, _NONE_P, _NONE_F, _NONE_F, _NONE_F, d.m_d, d.m_G,
+                    d.m_irow, d.m_icol, s.v, self.frow, side.ki, side.ci, side.wob,
+                    self.th, self.wh, self.Fh, 0.0, 0.0, 0.0, self.cbuf, self.sc]
+        return [self.gs, self.order, h, False, d.P, s.v, s.buf, s.tmp, _NONE_C, _NONE_2, _NONE_C,
+                _NONE_F, _NONE_C, self.frow, side.ki, side.ci, side.wob,
+                self.th, self.wh, self.Fh, 0.0, 0.0, 0.0, self.cbuf, self.sc]
+
+    def snapshot(self):
+        return self.hammer.get_state(), self.string.copy_state(), self.hist.copy(), self.out.copy()
+
+    def restore(self, snap) -> None:
+        hs, v, hist, out = snap
+        self.hammer.set_state(hs)
+        self.string.restore(v)
+        self.hist[:] = hist
+        self.out = out.copy()
+
+    def free(self, snap) -> None:
+        self.hammer.free_state(snap[0])
