@@ -135,7 +135,7 @@ def default_output() -> Path:
 
 def check_start_values(values: Mapping[str, float]) -> dict:
     """Validated start values ``{name: value}`` (UnknownVariableError / ParameterError name what was typed)."""
-    from hammerbit.model.fmu_variables import INPUTS, start_values, variable_range
+    from hammerbit.model.fmu_variables import INPUTS, input_range, start_values
     from hammerbit.model.slave import HammerBitRock
     from hammerbit.model.validation import check_range
     known = start_values()
@@ -143,9 +143,9 @@ def check_start_values(values: Mapping[str, float]) -> dict:
         if name not in known:
             raise UnknownVariableError(name, known)
     vals = start_values(values)
-    for name, _unit, _desc in INPUTS:
-        check_range(name, vals[name], variable_range(name))
-    HammerBitRock._validate({k: v for k, v in vals.items() if k not in ("preload", "harmonic_force")})
+    rig, _ = HammerBitRock._validate({k: v for k, v in vals.items() if k not in ("preload", "harmonic_force")})
+    for name, _unit, _desc in INPUTS:   # bounded by the static friction threshold of these parameters
+        check_range(name, vals[name], input_range(name, rig.scales.friction_force))
     return {name: vals[name] for name in values}
 
 

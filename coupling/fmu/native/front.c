@@ -84,6 +84,8 @@ typedef struct {
     fmi2Status last_status;        /* what fmi2GetInteger reports for HB_STATUS_VR (see record) */
     double time;                   /* current communication point [s] */
     double last_successful;        /* fmi2LastSuccessfulTime [s] */
+    int stop_defined;              /* fmi2SetupExperiment's stopTimeDefined */
+    double stop_time;              /* its stopTime [s] */
     int me;                        /* instantiated for Model Exchange */
 } hb_inst;
 
@@ -293,6 +295,31 @@ static fmi2Status hot_status(hb_inst *I, fmi2Status st) {
     return slave_status(I, st);
 }
 
+/* Communication times are compared with an absolute tolerance: 1 ns, or a few units in the
+ * last place where t is so large that its doubles lie farther apart (beyond about 1e6 s) -- a
+ * master computing t0 + n h is within that, and a step never skips a stretch of time. */
+#define HB_TIME_ABS_TOL 1e-9
+#define HB_TIME_ULPS 4.0
+static double time_tol(double t) {
+    /* the spacing of the doubles above |t|, from its bits: the front links no libm */
+    union { double d; uint64_t u; } next;
+    next.d = t < 0 ? -t : t;
+    double a = next.d;
+    if (!isfinite(a)) return HB_TIME_ABS_TOL;
+    next.u += 1;
+    double tol = HB_TIME_ULPS * (next.d - a);
+    return tol > HB_TIME_ABS_TOL ? tol : HB_TIME_ABS_TOL;
+}
+
+/* The shortest decimal text of x that reads back as x (as Python's repr). */
+static const char *fmt_real(char buf[32], double x) {
+    for (int prec = 15; prec <= 17; prec++) {
+        snprintf(buf, 32, "%.*g", prec, x);
+        if (!isfinite(x) || strtod(buf, NULL) == x) break;
+    }
+    return buf;
+}
+
 #define BEGIN(fn, mask)                           \
     hb_inst *I = (hb_inst *)c;                    \
     if (!I) return fmi2Error;                     \
@@ -426,10 +453,20 @@ EXPORT fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefi
         LOG(I, fmi2Error, "fmi2SetupExperiment: startTime = %g is not finite", startTime);
         return settle(I, fmi2Error);
     }
+    if (stopTimeDefined && !(isfinite(stopTime) && stopTime >= startTime)) {
+        char a[32], b[32];
+        LOG(I, fmi2Error, "fmi2SetupExperiment: stopTime = %s s must be finite and >= startTime = "
+                          "%s s", fmt_real(a, stopTime), fmt_real(b, startTime));
+        return settle(I, fmi2Error);
+    }
     fmi2Status st = hb_W.SetupExperiment(I->w, toleranceDefined, tolerance, startTime, stopTimeDefined,
                                       stopTime);
     st = slave_status(I, st);
-    if (st <= fmi2Warning) I->time = I->last_successful = startTime;
+    if (st <= fmi2Warning) {
+        I->time = I->last_successful = startTime;
+        I->stop_defined = stopTimeDefined != fmi2False;
+        I->stop_time = stopTime;
+    }
     return record(I, st);
 }
 
@@ -464,6 +501,7 @@ EXPORT fmi2Status fmi2Reset(fmi2Component c) {
     if (st <= fmi2Warning) {
         I->state = ST_INSTANTIATED;
         I->time = I->last_successful = 0.0;
+        I->stop_defined = 0;
         I->last_status = fmi2OK;
     }
     return settle(I, st);
@@ -513,6 +551,22 @@ EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint
                              fmi2Real communicationStepSize,
                              fmi2Boolean noSetFMUStatePriorToCurrentPoint) {
     BEGIN("fmi2DoStep", ST_STEP_COMPLETE);
+    char a[32], b[32], c2[32];
+    double off = currentCommunicationPoint - I->time;
+    if (!(off <= time_tol(I->time) && -off <= time_tol(I->time))) {   /* also NaN */
+        LOG(I, fmi2Error, "fmi2DoStep: currentCommunicationPoint = %s s is not the current time of "
+                          "the FMU, %s s (tolerance %g s); step refused, state unchanged",
+            fmt_real(a, currentCommunicationPoint), fmt_real(b, I->time), time_tol(I->time));
+        return settle(I, fmi2Error);
+    }
+    if (I->stop_defined && communicationStepSize > 0 &&
+        currentCommunicationPoint + communicationStepSize > I->stop_time + time_tol(I->stop_time)) {
+        LOG(I, fmi2Error, "fmi2DoStep: at communication point %s s a step of %s s was requested, but "
+                          "the stopTime of fmi2SetupExperiment is %s s; step refused, state unchanged",
+            fmt_real(a, currentCommunicationPoint), fmt_real(b, communicationStepSize),
+            fmt_real(c2, I->stop_time));
+        return settle(I, fmi2Error);
+    }
     fmi2Status st = hot_status(I, hb_W.DoStep(I->w, currentCommunicationPoint, communicationStepSize,
                                            noSetFMUStatePriorToCurrentPoint));
     if (st <= fmi2Warning) {
@@ -574,6 +628,8 @@ EXPORT fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) {
     if (!check_state(I, "fmi2SetFMUstate", FMUstate)) return settle(I, fmi2Error);
     hb_fmustate *s = (hb_fmustate *)FMUstate;
     fmi2Status st = slave_status(I, hb_W.SetFMUstate(I->w, s->inner));
+    if (st >= fmi2Error && I->call_max < fmi2Error)
+        LOG(I, st, "fmi2SetFMUstate: the model refused the state; state unchanged");
     if (st <= fmi2Warning) {
         I->state = s->state;
         I->time = s->time;
@@ -654,6 +710,13 @@ EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serial
                           "FMU (GUID %s)", HB_GUID);
         return settle(I, fmi2Error);
     }
+    if (!isfinite(h.time) || !isfinite(h.last_successful) || h.last_successful > h.time) {
+        char a[32], b[32];
+        LOG(I, fmi2Error, "fmi2DeSerializeFMUstate: the state's header holds the time %s s and the "
+                          "last successful time %s s: both must be finite, the second <= the "
+                          "first; refused", fmt_real(a, h.time), fmt_real(b, h.last_successful));
+        return settle(I, fmi2Error);
+    }
     hb_fmustate *s = (hb_fmustate *)*FMUstate;
     if (s && s->magic != HB_STATE_MAGIC) {
         LOG(I, fmi2Error, "fmi2DeSerializeFMUstate: *FMUstate is not a state of this FMU");
@@ -667,6 +730,9 @@ EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serial
         I, hb_W.DeSerializeFMUstate(I->w, serializedState + sizeof h, size - sizeof h, &s->inner));
     if (old) hb_W.FreeFMUstate(I->w, &old);
     I->last_status = st;
+    if (st >= fmi2Error && I->call_max < fmi2Error)
+        LOG(I, st, "fmi2DeSerializeFMUstate: the state's body (%zu bytes after the header) is not "
+                   "a valid state of this model; refused", size - sizeof h);
     if (st > fmi2Warning) {
         if (fresh) free(s);
         return settle(I, st);
