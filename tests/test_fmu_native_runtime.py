@@ -26,7 +26,7 @@ from fmpy.fmi2 import (FMU2Model, FMU2Slave, fmi2CallbackAllocateMemoryTYPE,  # 
                        fmi2CallbackFreeMemoryTYPE, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE,
                        fmi2Real)
 
-from hammerbit.fmu.native import FrontBuildError, find_compiler  # noqa: E402
+from hammerbit.fmu.native import find_compiler  # noqa: E402
 from hammerbit.fmu.native_build import MINGW_CC, select_platforms  # noqa: E402
 from hammerbit.model.kernel_layouts import P_B, P_FEXT  # noqa: E402
 from hammerbit.model.params import RigParameters  # noqa: E402
@@ -51,13 +51,8 @@ REL = 1e-13
 # fixtures
 # ---------------------------------------------------------------------------
 @pytest.fixture(scope="module")
-def native_fmu(tmp_path_factory):
-    try:
-        find_compiler()
-    except FrontBuildError as e:
-        pytest.skip(str(e))
-    from hammerbit.fmu.build import build_fmu
-    return build_fmu(tmp_path_factory.mktemp("native") / f"{ID}.fmu", runtime="native")
+def native_fmu(built_native_fmu):
+    return built_native_fmu
 
 
 @pytest.fixture(scope="module")
