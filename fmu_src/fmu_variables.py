@@ -9,13 +9,14 @@ overridden by the build's :data:`build_info.START_VALUES`.
 from __future__ import annotations
 
 import math
+import struct
 
 from .params import RigParameters
 from .validation import RANGES, Range
 
 __all__ = ["UNITS", "PARAMETERS", "BOOL_PARAMETERS", "INPUTS", "OUTPUTS", "RIG_FIELDS",
            "FIXED_REALS", "range_key", "variable_range", "start_values", "nominal_values",
-           "DEFAULT_TOLERANCE"]
+           "DEFAULT_TOLERANCE", "INPUT_GROUPS", "input_range", "accepted_bounds"]
 
 _RIG = RigParameters()          # the lab rig at the paper's Fig. 9 operating point
 
@@ -76,11 +77,17 @@ _DEFAULT_GAP = 0.84 * _RIG.scales.length     # the paper's Fig. 12 gap r = 0.84 
 #: Real inputs: (name, unit, description)
 INPUTS = (
     ("preload", "N", "B, weight on bit pushing the hammer toward the rock; held over each communication "
-                     "step; |B| <= 1e9 N"),
+                     "step; |B| <= 1000 F0 (F0 = mu_static normal_force, the static friction threshold; "
+                     "min/max are those of the start values)"),
     ("harmonic_force", "N", "F_h, instantaneous external harmonic force on the hammer; held over each "
                             "communication step (zero-order hold) and added to the internal source; "
-                            "|F_h| <= 1e9 N"),
+                            "|F_h| <= 1000 F0 (F0 = mu_static normal_force; min/max are those of the "
+                            "start values)"),
 )
+
+#: the nondimensional group of the library that bounds each input, in units of the static
+#: friction threshold F0: the preload b = B/F0, the forcing amplitude a = A/F0 (both +-1000 F0)
+INPUT_GROUPS = {"preload": "group.b", "harmonic_force": "group.a"}
 
 #: Outputs: (name, type, unit, description)
 OUTPUTS = (
@@ -113,6 +120,56 @@ def range_key(name: str) -> str:
 def variable_range(name: str) -> Range:
     """Allowed range of a Real parameter or input of the FMU."""
     return RANGES[range_key(name)]
+
+
+def input_range(name: str, friction_force: float) -> Range:
+    """Allowed range [N] of the input ``name`` for the static friction threshold ``friction_force``
+    (F0 = mu_static normal_force [N]): the library's range of its group, times F0, symmetric."""
+    limit = RANGES[INPUT_GROUPS[name]].hi * friction_force
+    return Range(-limit, limit, unit="N")
+
+
+def _ordered(x: float) -> int:
+    """An integer that orders doubles as their values do (adjacent doubles: adjacent integers)."""
+    bits = struct.unpack("<q", struct.pack("<d", x))[0]
+    return bits if bits >= 0 else -(bits & 0x7FFF_FFFF_FFFF_FFFF)
+
+
+def _from_ordered(i: int) -> float:
+    bits = i if i >= 0 else (-i) | (1 << 63)
+    return struct.unpack("<d", struct.pack("<Q", bits))[0]
+
+
+def _edge(accepts, inside: float, outside: float) -> float:
+    """The accepted double nearest ``outside``, from ``inside`` (accepted) on (acceptance an interval)."""
+    if accepts(outside):
+        return outside
+    a, b = _ordered(inside), _ordered(outside)
+    while abs(b - a) > 1:
+        m = (a + b) // 2
+        if accepts(_from_ordered(m)):
+            a = m
+        else:
+            b = m
+    return _from_ordered(a)
+
+
+def accepted_bounds(values: dict, accepts, names=None) -> dict:
+    """``{name: (lo, hi)}``: the exact interval of values of each Real parameter that
+    ``accepts(values with that one changed)`` takes, the others at ``values`` -- what the model
+    description declares as min/max (its own range in :data:`RANGES`, narrowed by the
+    constraints between parameters, e.g. mu_kinetic <= mu_static, and by the library's
+    ranges of the nondimensional groups)."""
+    out = {}
+    for name in names or [n for n, _, _ in PARAMETERS]:
+        rng = variable_range(name)
+
+        def ok(x, name=name):
+            return accepts({**values, name: x})
+
+        start = values[name]
+        out[name] = (_edge(ok, start, rng.lo), _edge(ok, start, rng.hi))
+    return out
 
 
 def start_values(overrides=None) -> dict:

@@ -85,6 +85,12 @@ class ContentHashCacheLocator(_caching._SourceFileBackedLocatorMixin, _caching._
     def get_cache_path(self):
         return self._cache_path
 
+    def ensure_cache_path(self):
+        # the shipped kernels are only read: an FMU unpacked read-only loads them as they are
+        if DECISION["shipped"] and os.path.isdir(self._cache_path):
+            return
+        super().ensure_cache_path()
+
     @classmethod
     def from_function(cls, py_func, py_file):
         if not py_file or os.path.dirname(os.path.abspath(py_file)) != _HERE or not os.path.exists(py_file):

@@ -15,7 +15,13 @@ Two places:
    ``$HAMMERBIT_CACHE_DIR``, else ``$XDG_CACHE_HOME/hammerbit/numba``
    (``~/.cache/hammerbit/numba``); if that cannot be written (read-only
    HOME), ``<tmp>/hammerbit-<uid>/numba``.  The first process compiles once,
-   later processes load it.
+   later processes load it.  A cache directory must be a directory of this
+   user that other users cannot write (numba loads machine code from it into
+   the process); otherwise this process compiles into a fresh private
+   directory of its own and says why.
+
+The shipped kernels are only read, so an FMU unpacked into a read-only
+directory loads them all the same.
 
 Nothing happens at import: :func:`decision` decides once, on first use (no
 environment variable set, no directory created; numba creates the directory
@@ -24,12 +30,13 @@ when it first saves).
 import json
 import os
 import platform
+import stat
 import sys
 import tempfile
 
 from .numba_target import PORTABLE_ENV, runs_portable, select_portable
 
-__all__ = ["SHIPPED_DIR", "MANIFEST", "user_cache_root", "runtime_manifest", "decision",
+__all__ = ["SHIPPED_DIR", "MANIFEST", "user_cache_root", "untrusted", "runtime_manifest", "decision",
            "select_shipped_target"]
 
 _HERE = os.path.dirname(os.path.abspath(__file__))
@@ -61,13 +68,46 @@ def _writable(path: str) -> bool:
     return os.path.isdir(path) and os.access(path, os.W_OK | os.X_OK)
 
 
+def untrusted(path: str):
+    """Why compiled code must not be loaded from the directory ``path`` (None: it may be): it is
+    not a directory (a link, say), belongs to another user, or other users can write to it."""
+    try:
+        st = os.lstat(path)
+    except OSError as e:
+        return f"{path} cannot be inspected ({e.strerror})"
+    if not stat.S_ISDIR(st.st_mode):
+        return f"{path} is not a directory"
+    if hasattr(os, "getuid") and st.st_uid != os.getuid():
+        return f"{path} belongs to the user id {st.st_uid}, not to this user ({os.getuid()})"
+    if st.st_mode & stat.S_IWOTH:
+        return f"other users can write to {path} (mode {stat.S_IMODE(st.st_mode):o})"
+    return None
+
+
+def _private_cache(why: str) -> tuple:
+    """(directory, note): a fresh directory only this process uses (it compiles into it)."""
+    path = tempfile.mkdtemp(prefix="hammerbit-numba-")      # mode 0700, a new name
+    return path, f"{why}, so this process compiles into its own new directory {path}"
+
+
 def _user_cache() -> tuple:
-    """(directory, note): the user cache, or a temporary one if it cannot be written."""
+    """(directory, note): the user cache, else a temporary one of this user; a directory that
+    others could have planted code in is never used (one that does not exist yet is numba's to
+    create, as this user)."""
     root = user_cache_root()
     if _writable(root):
-        return root, None
+        why = untrusted(root) if os.path.lexists(root) else None
+        return (root, None) if why is None else _private_cache(why)
     uid = os.getuid() if hasattr(os, "getuid") else "user"
-    fallback = os.path.join(tempfile.gettempdir(), f"hammerbit-{uid}", "numba")
+    base = os.path.join(tempfile.gettempdir(), f"hammerbit-{uid}")
+    fallback = os.path.join(base, "numba")
+    try:
+        os.makedirs(fallback, mode=0o700, exist_ok=True)
+    except OSError:
+        pass                                  # untrusted() below says what is wrong
+    why = untrusted(base) or untrusted(fallback)
+    if why is not None:
+        return _private_cache(f"{root} cannot be written (read-only HOME?) and {why}")
     return fallback, f"{root} cannot be written (read-only HOME?), so the cache is {fallback}"
 
 

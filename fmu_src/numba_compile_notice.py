@@ -6,12 +6,8 @@ import sys
 from . import kernel_driver
 from . import numba_cache
 
-__all__ = ["COMPILE_SECONDS", "kernels_cached", "compile_notice", "notice_checked"]
+__all__ = ["kernels_cached", "compile_notice", "compile_done", "notice_checked"]
 
-#: Wall time to compile each entry point with an empty cache [s] on a 2-core machine, for the
-#: notice: the CLI cold start of ``benchmarks/bench_throughput.py`` (``advance_hammer``); the
-#: general driver is a function of the same size.
-COMPILE_SECONDS = {"advance_hammer": 12, "advance": 12}
 _NOTICE_CHECKED = set()
 
 
@@ -48,10 +44,17 @@ def compile_notice(entry: str, stream=None) -> bool:
     if kernels_cached(entry):
         return False
     stream = sys.stderr if stream is None else stream
-    print(f"hammerbit: compiling the solver kernels for this machine (about "
-          f"{COMPILE_SECONDS.get(entry, 60)} s, once; cached in {numba_cache.cache_root()})",
-          file=stream, flush=True)
+    # no duration is promised: it ranges from seconds to minutes with the machine and its load;
+    # compile_done says how long it took
+    print(f"hammerbit: compiling the solver kernels for this machine (once; cached in "
+          f"{numba_cache.cache_root()})", file=stream, flush=True)
     return True
+
+
+def compile_done(seconds: float, stream=None) -> None:
+    """Say on stderr how long the compile that :func:`compile_notice` announced took."""
+    stream = sys.stderr if stream is None else stream
+    print(f"hammerbit: compiled the solver kernels in {seconds:.1f} s", file=stream, flush=True)
 
 
 def notice_checked(entry: str) -> bool:

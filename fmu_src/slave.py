@@ -43,15 +43,17 @@ from pythonfmu.enums import Fmi2Status
 from . import build_info
 from . import kernel_driver, kernel_forces, kernel_layouts
 from . import numba_cache
-from .fmu_state import STATE_FORMAT, pop_deserialize_status, state_from_bytes, state_to_bytes
+from .fmu_state import (STATE_FORMAT, pop_deserialize_reason, pop_deserialize_status, state_from_bytes,
+                        state_to_bytes)
+from .fmu_state_checks import state_problem
 from .fmu_variable_xml import KIND, KIND_NAME, RealVar
 from .fmu_variables import (BOOL_PARAMETERS, DEFAULT_TOLERANCE, FIXED_REALS, INPUTS, OUTPUTS,
-                            PARAMETERS, RIG_FIELDS, UNITS, nominal_values, range_key, start_values,
-                            variable_range)
+                            PARAMETERS, RIG_FIELDS, UNITS, accepted_bounds, input_range,
+                            nominal_values, range_key, start_values, variable_range)
 from .kernel_layouts import P_B, P_FEXT
 from .params import RigParameters
 from .pythonfmu_exit import guard_pythonfmu_exit
-from .solver_errors import SolverError
+from .solver_errors import EventStormError, SolverError, StepSizeError, StepStormError
 from .solver_options import SolverOptions
 from .stepping import NO_LOG, NO_POINCARE, NO_SAMPLE_TIMES, NO_SAMPLES, Stepper
 from .validation import ParameterError, check
@@ -67,6 +69,18 @@ _isfinite = math.isfinite
 #: FMI 2.0 status codes recorded in ``last_status``
 OK, WARNING, DISCARD, ERROR = 0, 1, 2, 3
 
+# Communication times are compared with an absolute tolerance (as the native front does): 1 ns,
+# or a few units in the last place where t is so large that its doubles lie farther apart
+_TIME_ABS_TOL = 1e-9
+_TIME_ULPS = 4
+
+# Solver failures that no shorter communication step can clear: the kernel counts its steps and
+# events per forcing period of the model, at absolute times, so every step over that time fails
+_STORMS = (StepStormError, EventStormError, StepSizeError)
+
+
+def _time_tol(t: float) -> float:
+    return max(_TIME_ABS_TOL, _TIME_ULPS * math.ulp(t))
 
 
 def _build_start_values(resources) -> dict:
@@ -120,11 +134,11 @@ class HammerBitRock(Fmi2Slave):
         rig = self._rig
         nominal = nominal_values(rig)
         for name, unit, desc in INPUTS:
-            rng = variable_range(name)
+            rng = input_range(name, self._F0)
             self.register_variable(RealVar(name, unit, min=rng.lo, max=rng.hi, nominal=nominal.get(name),
                                             causality=Fmi2Causality.input,
                                             variability=Fmi2Variability.continuous, description=desc,
-                                            setter=self._input_setter(name, rng)))
+                                            setter=self._input_setter(name)))
         for name, unit, desc in PARAMETERS:
             rng = variable_range(name)
             self.register_variable(RealVar(name, unit, min=rng.lo, max=rng.hi, nominal=nominal.get(name),
@@ -167,6 +181,7 @@ class HammerBitRock(Fmi2Slave):
                 self._setters[kind][vr] = var.setter
         self._real_get = self._getters[Real]
         self._real_set = self._setters[Real]
+        HammerBitRock._STATE_SIZE = self._st.get_state().shape[0]   # the same for every instance
         guard_pythonfmu_exit(self.resources)
 
     # ------------------------------------------------------------------
@@ -184,6 +199,9 @@ class HammerBitRock(Fmi2Slave):
 
     def _read_last_status(self) -> int:
         pending = pop_deserialize_status()
+        reason = pop_deserialize_reason()
+        if reason:        # the refusal of fmi2DeSerializeFMUstate, a class-level call that cannot log
+            self._log(f"fmi2DeSerializeFMUstate: {reason}; refused", ERROR)
         return self.last_status if pending is None else pending
 
     # ------------------------------------------------------------------
@@ -240,9 +258,22 @@ class HammerBitRock(Fmi2Slave):
             setters = [s[vr] for vr in vrs]
         except KeyError:
             return self._fail(self._bad_reference(what, vrs, kind))
+        # all or nothing: a refused value puts back the ones set before it
+        names = [self._names[vr][0] for vr in vrs]
+        saved = {n: getattr(self, n) for n in names}
+        flags = (self._dirty, self._slow, self._stale)
         status = OK
         for f, v in zip(setters, values):
             status = max(status, f(v))
+            if status >= ERROR:
+                break
+        if status >= ERROR:
+            for n, v in saved.items():
+                setattr(self, n, v)
+            self._dirty, self._slow, self._stale = flags
+            if len(vrs) > 1:
+                self._fail(f"{what}: one of the {len(vrs)} values was refused, so none of them was "
+                           f"applied")
         self.last_status = status
 
     def set_real(self, vrs, values):
@@ -266,18 +297,29 @@ class HammerBitRock(Fmi2Slave):
     # ------------------------------------------------------------------
     # setters of inputs and parameters (return the FMI status)
     # ------------------------------------------------------------------
-    def _input_setter(self, name, rng):
+    def _input_setter(self, name):
         d = self.__dict__
-        lo, hi = rng.lo, rng.hi
+        ranges = self._input_ranges
 
         def setter(value):
-            if lo <= value <= hi:               # False for NaN
+            rng = ranges[name]
+            if rng.lo <= value <= rng.hi:               # False for NaN
                 d[name] = value
                 return OK
-            self._fail(f"input {name!r} = {value!r} is out of range: allowed {rng.text()} (the "
-                       f"documented physical range); refused, {d[name]!r} N stays")
+            self._fail(f"input {name!r} = {value!r} is out of range: allowed {rng.text()} "
+                       f"(1000 F0, F0 = mu_static normal_force = {self._F0!r} N, the static friction "
+                       f"threshold); refused, {d[name]!r} N stays")
             return ERROR
         return setter
+
+    def _check_inputs(self) -> None:
+        """ParameterError if an input is outside its range for the parameters in use."""
+        for name, _, _ in INPUTS:
+            rng = self._input_ranges[name]
+            value = getattr(self, name)
+            if not rng.lo <= value <= rng.hi:
+                raise ParameterError(name, value, f"{rng.text()} (1000 F0 for the parameters in use, "
+                                                  f"F0 = {self._F0!r} N)")
 
     def _param_setter(self, name):
         is_bool = name == "impact_enabled"
@@ -322,6 +364,19 @@ class HammerBitRock(Fmi2Slave):
     # ------------------------------------------------------------------
     # parameters -> stepper
     # ------------------------------------------------------------------
+    @classmethod
+    def _accepts(cls, vals: dict, inputs: dict) -> bool:
+        """Would initialisation accept the parameter values ``vals`` with the input values
+        ``inputs`` (the checks of _commit and _check_inputs)?"""
+        try:
+            rig, solver = cls._validate(vals)
+            x0 = rig.scales.length
+            Stepper(rig.to_groups(), solver=solver, y0=(float(vals["initial_hammer_position"]) / x0, 0.0,
+                                                        float(vals["initial_bit_position"]) / x0, 0.0))
+        except ParameterError:
+            return False
+        return all(input_range(name, rig.scales.friction_force).contains(v) for name, v in inputs.items())
+
     @staticmethod
     def _validate(vals: dict):
         """RigParameters and SolverOptions of ``vals``; ParameterError if one is invalid."""
@@ -363,6 +418,9 @@ class HammerBitRock(Fmi2Slave):
         self._v0 = s.velocity
         self._F0 = s.friction_force
         self._omega = s.omega
+        # in place: the input setters hold this dict
+        self.__dict__.setdefault("_input_ranges", {}).update(
+            {name: input_range(name, self._F0) for name, _, _ in INPUTS})
         self._x3_start = y0[2]
         self._committed = dict(vals)
         self._dirty = False
@@ -423,6 +481,7 @@ class HammerBitRock(Fmi2Slave):
         try:
             t0 = time.perf_counter()
             self._commit(self._param_values())
+            self._check_inputs()
             report = numba_cache.first_use_report(time.perf_counter() - t0)
         except ParameterError as e:
             self._ready = False
@@ -482,7 +541,7 @@ class HammerBitRock(Fmi2Slave):
             return False
         t = self._t
         if not (0.0 < step_size < _INF) or (
-                current_time != t and not abs(current_time - t) <= 1e-9 * max(abs(t), step_size)):
+                current_time != t and not abs(current_time - t) <= _time_tol(t)):
             return self._reject_step(current_time, step_size)
         return True
 
@@ -506,6 +565,12 @@ class HammerBitRock(Fmi2Slave):
         self._st.restore(snap)
         if old_inputs is not None:
             self._p[P_B], self._p[P_FEXT], self._applied_preload, self._applied_force = old_inputs
+        if isinstance(e, _STORMS):
+            t_fail = self._t_start + e.time / self._omega
+            return self._fail(f"{e}: the solver cannot get past t = {t_fail!r} s, with this step from "
+                              f"t = {current_time!r} s or any shorter one (its limits count per forcing "
+                              f"period of the model); state restored to t = {current_time!r} s; change "
+                              f"the parameters or the tolerance")
         kind = "solver failure" if isinstance(e, SolverError) else f"failure ({e!r})"
         return self._fail(f"{kind} in the step from t = {current_time!r} s with "
                           f"h = {step_size!r} s: {e}; state restored to t = {current_time!r} s "
@@ -536,7 +601,8 @@ class HammerBitRock(Fmi2Slave):
             return self._fail(f"communication step size h = {step_size!r} s is invalid: "
                               f"it must be > 0 and finite; step refused, state unchanged")
         return self._fail(f"currentCommunicationPoint = {current_time!r} s is not the current "
-                          f"time of the FMU, {self._t!r} s; step refused, state unchanged")
+                          f"time of the FMU, {self._t!r} s (tolerance {_time_tol(self._t):g} s); step "
+                          f"refused, state unchanged")
 
     # ------------------------------------------------------------------
     # Outputs (read from the stepper's arrays when the master asks; the shared force formulas)
@@ -593,6 +659,15 @@ class HammerBitRock(Fmi2Slave):
         opts.setdefault("canSerializeFMUstate", True)
         opts.setdefault("canHandleVariableCommunicationStepSize", True)
         root = super().to_xml(opts)
+        # min/max of the parameters: exactly the values initialisation accepts (the other
+        # parameters and the inputs at their start values)
+        inputs = {name: getattr(self, name) for name, _, _ in INPUTS}
+        bounds = accepted_bounds(self._param_values(), lambda vals: self._accepts(vals, inputs))
+        for sv in root.find("ModelVariables"):
+            b = bounds.get(sv.get("name"))
+            if b is not None:
+                sv.find("Real").set("min", repr(b[0]))
+                sv.find("Real").set("max", repr(b[1]))
         # <UnitDefinitions> goes right after <CoSimulation> (FMI 2.0 schema order)
         units = Element("UnitDefinitions")
         for uname, base in UNITS.items():
@@ -676,4 +751,21 @@ class HammerBitRock(Fmi2Slave):
 
     @staticmethod
     def _fmu_state_from_bytes(data: bytes):
-        return state_from_bytes(data)
+        return state_from_bytes(data, check=HammerBitRock._state_body_problem)
+
+    @staticmethod
+    def _state_body_problem(s: dict):
+        """Why a decoded state cannot be restored into this model (None: it can)."""
+        why = state_problem(s, HammerBitRock._STATE_SIZE, FIXED_REALS + ("impact_enabled", "tolerance"),
+                            len(INPUTS))
+        if why:
+            return why
+        try:
+            rig, _ = HammerBitRock._validate(s["committed"])
+        except ParameterError as e:
+            return f"its parameters in use are invalid: {e}"
+        for (name, _, _), v in zip(INPUTS, s["inputs"]):
+            rng = input_range(name, rig.scales.friction_force)
+            if not rng.contains(v):
+                return f"input {name!r} = {v!r} is outside {rng.text()} (1000 F0 of its parameters)"
+        return None

@@ -9,6 +9,7 @@ linear subsystem differ.
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
 from typing import Optional
 
@@ -18,7 +19,7 @@ from . import kernel_driver
 from . import kernel_forces
 from . import kernel_layouts as KL
 from . import numba_compile_ahead
-from .numba_compile_notice import compile_notice, kernels_cached, notice_checked
+from .numba_compile_notice import compile_done, compile_notice, kernels_cached, notice_checked
 from .params import Groups
 from .solver_errors import raise_for_status
 from .solver_options import SolverOptions, method_tableau
@@ -266,8 +267,10 @@ class Stepper:
         st = sample_times if sample_times is not None else NO_SAMPLE_TIMES
         sa = samples if samples is not None else NO_SAMPLES
         lg = log if log is not None else NO_LOG
-        helper = (not notice_checked(self.entry) and compile_notice(self.entry) and self.compile_helper
-                  and numba_compile_ahead.start(self.entry))  # a second process compiles part of it
+        notice = not notice_checked(self.entry) and compile_notice(self.entry)
+        # a second process compiles part of it
+        helper = notice and self.compile_helper and numba_compile_ahead.start(self.entry)
+        t0 = time.perf_counter()
         if self.fast:
             status = kernel_driver.advance_hammer(self.y, self.istate, self.fstate, t_end, self.p, self.opts,
                                       poin, st, sa, lg)
@@ -275,6 +278,8 @@ class Stepper:
             status = self._advance_general(t_end, poin, st, sa, lg)
         if helper:
             numba_compile_ahead.finish()
+        if notice:
+            compile_done(time.perf_counter() - t0)
         return self.check_status(status)
 
     def load(self) -> bool:

@@ -38,6 +38,23 @@ def built_ssp(tmp_path_factory):
     return build_ssp("field-2200m", tmp_path_factory.mktemp("ssp") / "drilling.ssp",
                      SSPOptions(stop=2.0, step=1e-3, rig=field_hammer().replace(frequency=22.5)))
 
+@pytest.fixture(scope="session")
+def built_native_fmu(tmp_path_factory):
+    """The native flavour (``hammerbit fmu build --runtime native``), built once per session."""
+    from hammerbit.fmu.build import build_fmu
+    from hammerbit.fmu.native import FrontBuildError, find_compiler
+    try:
+        find_compiler()
+    except FrontBuildError as e:
+        pytest.skip(str(e))
+    return build_fmu(tmp_path_factory.mktemp("native") / "HammerBitRock.fmu", runtime="native")
+
+
+@pytest.fixture(params=["pythonfmu", "native"])
+def any_fmu(request):
+    """Each runtime flavour of HammerBitRock.fmu in turn (built once per session each)."""
+    return request.getfixturevalue("built_fmu" if request.param == "pythonfmu" else "built_native_fmu")
+
 
 # ---------------------------------------------------------------------------
 # The slow set.  The README's test command, ``python -m pytest -q``, leaves it

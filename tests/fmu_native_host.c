@@ -2,7 +2,9 @@
  * Real output, terminate, free, exit.  Built against the standard FMI 2.0 headers (fmpy's copy),
  * not against anything of the FMU.
  *
- *   fmu_native_host SO URI GUID [type=1] [steps=10000] [h=1e-3] [out=VR] [logging=0] [threads=1]
+ *   fmu_native_host SO URI GUID [type=1] [steps=10000] [h=1e-3] [out=VR[,VR...]] [logging=0] [threads=1]
+ *
+ * Builds for Linux (dlopen) and, cross-compiled with mingw-w64, for Windows (LoadLibrary).
  *
  * threads=N runs N instances at once, each in its own thread, from instantiation to the end.
  * uri1=URI [uri2=URI ...] run one more instance after the first, one after the other, each with
@@ -11,7 +13,25 @@
  * stdout: "log <status> <category> <message>" per logger call, "value <%.17g>" per instance.
  * Exit codes: 0 ok, 2 dlopen, 3 missing symbol, 10 fmi2Instantiate returned NULL, 11 a call
  * failed. */
+#if defined(_WIN32)
+#include <stdio.h>
+#include <windows.h>
+/* the few dl* calls of this host on the Windows API (cross-built with mingw-w64, run under wine) */
+#define RTLD_NOW 0
+#define RTLD_LOCAL 0
+static void *dlopen(const char *file, int mode) {
+    (void)mode;
+    return (void *)LoadLibraryA(file);
+}
+static void *dlsym(void *h, const char *name) { return (void *)GetProcAddress((HMODULE)h, name); }
+static const char *dlerror(void) {
+    static char buf[64];
+    snprintf(buf, sizeof buf, "LoadLibrary error %lu", (unsigned long)GetLastError());
+    return buf;
+}
+#else
 #include <dlfcn.h>
+#endif
 #include <pthread.h>
 #include <stdarg.h>
 #include <stdint.h>
@@ -77,15 +97,22 @@ static int run(const char *name, const char *uri) {
     }
     long steps = atol(opt(g_argc, g_argv, "steps", "10000"));
     double hstep = atof(opt(g_argc, g_argv, "h", "1e-3"));
-    fmi2ValueReference vr = (fmi2ValueReference)atol(opt(g_argc, g_argv, "out", "0"));
+    /* out=VR or out=VR1,VR2,...: one "value" line per reference, in that order */
+    fmi2ValueReference vrs[32];
+    size_t nvr = 0;
+    for (const char *p = opt(g_argc, g_argv, "out", "0"); p && *p && nvr < 32;) {
+        char *end;
+        vrs[nvr++] = (fmi2ValueReference)strtoul(p, &end, 10);
+        p = *end == ',' ? end + 1 : NULL;
+    }
     CHECK(F.setup(c, fmi2False, 0.0, 0.0, fmi2False, 0.0));
     CHECK(F.enter(c));
     CHECK(F.exit_init(c));
     for (long i = 0; i < steps; i++) CHECK(F.do_step(c, (double)i * hstep, hstep, fmi2True));
-    double value = 0.0;
-    CHECK(F.get_real(c, &vr, 1, &value));
+    double values[32];
+    CHECK(F.get_real(c, vrs, nvr, values));
     pthread_mutex_lock(&g_out);
-    printf("value %.17g\n", value);
+    for (size_t i = 0; i < nvr; i++) printf("value %.17g\n", values[i]);
     fflush(stdout);
     pthread_mutex_unlock(&g_out);
     CHECK(F.terminate(c));

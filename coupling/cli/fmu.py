@@ -14,12 +14,12 @@ def cmd_fmu_build(args) -> int:
     try:
         start = parse_settings(args.set)
         opts = BuildOptions(start_values=start, portable_cache=not args.no_portable_cache,
-                            native_front=not args.no_native_front)
+                            native_front=not args.no_native_front, runtime=args.runtime)
         # the build compiles the kernels and the native front: tens of seconds with nothing to show
         work = [w for w, on in (("compiling the kernels for the portable CPU target", opts.portable_cache),
                                 ("building the native front", opts.native_front)) if on]
-        print("hammerbit fmu build: building HammerBitRock.fmu" + (f" ({', '.join(work)}; about a minute)"
-                                                                    if work else "") + " ...",
+        print(f"hammerbit fmu build: building HammerBitRock.fmu ({args.runtime} runtime)"
+              + (f" ({', '.join(work)}; about a minute)" if work else "") + " ...",
               file=sys.stderr, flush=True)
         t0 = time.perf_counter()
         path = build_fmu(args.out, options=opts)
@@ -81,4 +81,8 @@ def register(sub) -> None:
                    help="do not ship compiled kernels (the FMU compiles them on first use)")
     b.add_argument("--no-native-front", action="store_true",
                    help="keep pythonfmu's binary only (runs only in a Python host)")
+    b.add_argument("--runtime", choices=("pythonfmu", "native"), default="pythonfmu",
+                   help="pythonfmu (default): the model runs in Python in the host; native: the "
+                        "binaries (linux64, and win64 with x86_64-w64-mingw32-gcc) hold the compiled "
+                        "kernels and need no Python")
     add_build_string(fsub)

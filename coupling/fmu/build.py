@@ -43,7 +43,7 @@ from pathlib import Path
 from typing import Mapping, Optional
 from xml.etree import ElementTree as ET
 
-__all__ = ["MODEL_NAME", "RUNTIME_PREFIX", "ENTRY_PREFIX", "BuildOptions", "FMUBuildError",
+__all__ = ["MODEL_NAME", "RUNTIME_PREFIX", "ENTRY_PREFIX", "RUNTIMES", "BuildOptions", "FMUBuildError",
            "UnknownVariableError", "build_fmu", "runtime_dir", "runtime_files", "build_hash",
            "check_start_values", "default_output"]
 
@@ -52,6 +52,8 @@ RUNTIME_PREFIX = "hammerbit_fmu_runtime"   # + "_<hash>": the runtime package in
 ENTRY_PREFIX = "hammerbit_fmu_slave"       # + "_<hash>": pythonfmu's slave module (resources/<name>.py)
 WRAPPER_SUFFIX = "_python"                 # pythonfmu's binary beside the native front
 _HASH_LEN = 12
+#: the runtime flavours of the FMU (BuildOptions.runtime); the first is the default
+RUNTIMES = ("pythonfmu", "native")
 
 
 class FMUBuildError(RuntimeError):
@@ -85,12 +87,18 @@ class BuildOptions:
     python : str
         Python executable that compiles the kernels (default: this one; it must
         be the Python the FMU will run in, same minor version and numba).
+    runtime : {"pythonfmu", "native"}
+        ``pythonfmu``: the model runs in Python inside the host (the default).
+        ``native``: the binaries hold the compiled kernels and need no Python
+        (:mod:`hammerbit.fmu.native_build`; ``portable_cache`` and
+        ``native_front`` do not apply).
     """
 
     start_values: Mapping[str, float] = field(default_factory=dict)
     portable_cache: bool = True
     native_front: bool = True
     python: str = sys.executable
+    runtime: str = "pythonfmu"
 
 
 def runtime_dir() -> Path:
@@ -127,7 +135,7 @@ def default_output() -> Path:
 
 def check_start_values(values: Mapping[str, float]) -> dict:
     """Validated start values ``{name: value}`` (UnknownVariableError / ParameterError name what was typed)."""
-    from hammerbit.model.fmu_variables import INPUTS, start_values, variable_range
+    from hammerbit.model.fmu_variables import INPUTS, input_range, start_values
     from hammerbit.model.slave import HammerBitRock
     from hammerbit.model.validation import check_range
     known = start_values()
@@ -135,9 +143,9 @@ def check_start_values(values: Mapping[str, float]) -> dict:
         if name not in known:
             raise UnknownVariableError(name, known)
     vals = start_values(values)
-    for name, _unit, _desc in INPUTS:
-        check_range(name, vals[name], variable_range(name))
-    HammerBitRock._validate({k: v for k, v in vals.items() if k not in ("preload", "harmonic_force")})
+    rig, _ = HammerBitRock._validate({k: v for k, v in vals.items() if k not in ("preload", "harmonic_force")})
+    for name, _unit, _desc in INPUTS:   # bounded by the static friction threshold of these parameters
+        check_range(name, vals[name], input_range(name, rig.scales.friction_force))
     return {name: vals[name] for name in values}
 
 
@@ -342,8 +350,12 @@ def build_fmu(out=None, *, options: BuildOptions = BuildOptions(), **kw) -> Path
     if out.suffix != ".fmu":
         out = out / f"{MODEL_NAME}.fmu"
     out = out.resolve()
+    if options.runtime not in RUNTIMES:
+        raise FMUBuildError(f"runtime {options.runtime!r} is not one of {', '.join(RUNTIMES)}")
     out.parent.mkdir(parents=True, exist_ok=True)
     start = check_start_values(dict(options.start_values))
+    if options.runtime == "native":
+        return _build_native(out, options, start)
 
     files = runtime_files()
     tag = build_hash(files)
@@ -387,6 +399,22 @@ def build_fmu(out=None, *, options: BuildOptions = BuildOptions(), **kw) -> Path
         os.replace(tmp_out, out)
     _check_contents(out, pkg_name, entry_name)
     return out
+
+
+def _build_native(out: Path, options: BuildOptions, start: dict) -> Path:
+    """The native flavour: the model description of a Python build, native binaries."""
+    from dataclasses import replace
+
+    from hammerbit.fmu.native_build import NativeBuildError, assemble_native_fmu
+    with tempfile.TemporaryDirectory(prefix="hammerbit_fmu_md_") as tmp:
+        python_fmu = build_fmu(Path(tmp) / f"{MODEL_NAME}.fmu",
+                               options=replace(options, runtime="pythonfmu", portable_cache=False,
+                                               native_front=False))
+        try:
+            return assemble_native_fmu(python_fmu, out, start,
+                                       log=lambda msg: print(msg, file=sys.stderr))
+        except NativeBuildError as e:
+            raise FMUBuildError(f"the native runtime: {e}") from None
 
 
 def _check_contents(fmu: Path, pkg_name: str, entry_name: str) -> None:

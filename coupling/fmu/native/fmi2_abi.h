@@ -24,6 +24,15 @@ typedef enum { fmi2OK, fmi2Warning, fmi2Discard, fmi2Error, fmi2Fatal, fmi2Pendi
 typedef enum { fmi2ModelExchange, fmi2CoSimulation } fmi2Type;
 typedef enum { fmi2DoStepStatus, fmi2PendingStatus, fmi2LastSuccessfulTime, fmi2Terminated } fmi2StatusKind;
 
+typedef struct {
+    fmi2Boolean newDiscreteStatesNeeded;
+    fmi2Boolean terminateSimulation;
+    fmi2Boolean nominalsOfContinuousStatesChanged;
+    fmi2Boolean valuesOfContinuousStatesChanged;
+    fmi2Boolean nextEventTimeDefined;
+    fmi2Real nextEventTime;
+} fmi2EventInfo;
+
 typedef void (*fmi2CallbackLogger)(fmi2ComponentEnvironment, fmi2String, fmi2Status, fmi2String,
                                    fmi2String, ...);
 typedef void *(*fmi2CallbackAllocateMemory)(size_t, size_t);
@@ -64,5 +73,13 @@ typedef fmi2Status (*fmi2SerializeFMUstateFn)(fmi2Component, fmi2FMUstate, fmi2B
 typedef fmi2Status (*fmi2DeSerializeFMUstateFn)(fmi2Component, const fmi2Byte *, size_t,
                                                 fmi2FMUstate *);
 typedef fmi2Status (*fmi2DoStepFn)(fmi2Component, fmi2Real, fmi2Real, fmi2Boolean);
+
+/* Model Exchange (the native backend only) */
+typedef fmi2Status (*fmi2NewDiscreteStatesFn)(fmi2Component, fmi2EventInfo *);
+typedef fmi2Status (*fmi2SetTimeFn)(fmi2Component, fmi2Real);
+typedef fmi2Status (*fmi2StatesFn)(fmi2Component, fmi2Real *, size_t);
+typedef fmi2Status (*fmi2SetStatesFn)(fmi2Component, const fmi2Real *, size_t);
+typedef fmi2Status (*fmi2CompletedIntegratorStepFn)(fmi2Component, fmi2Boolean, fmi2Boolean *,
+                                                    fmi2Boolean *);
 
 #endif

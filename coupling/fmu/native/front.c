@@ -43,6 +43,8 @@ enum {
     ST_TERMINATED = 1 << 3,
     ST_ERROR = 1 << 4,
     ST_FATAL = 1 << 5,
+    ST_EVENT = 1 << 6,   /* Model Exchange: Event Mode */
+    ST_CONT = 1 << 7,    /* Model Exchange: Continuous-Time Mode */
 };
 
 typedef struct {
@@ -57,12 +59,13 @@ typedef struct {
 
 static const char *const TYPE_NAMES[] = {"Real", "Integer", "Boolean", "String"};
 
-static pthread_mutex_t g_lock = PTHREAD_MUTEX_INITIALIZER;   /* Python start, wrapper load */
+static pthread_mutex_t g_lock = PTHREAD_MUTEX_INITIALIZER;   /* backend load (Python start) */
 
 /* allowed states per function (FMI 2.0.4, section 4.2.4; Error: only inquiries and recovery) */
-#define M_ANY_LIVE (ST_INSTANTIATED | ST_INIT | ST_STEP_COMPLETE | ST_TERMINATED | ST_ERROR)
-#define M_GET (ST_INIT | ST_STEP_COMPLETE | ST_TERMINATED | ST_ERROR)
-#define M_SET (ST_INSTANTIATED | ST_INIT | ST_STEP_COMPLETE)
+#define M_ME (ST_EVENT | ST_CONT)
+#define M_ANY_LIVE (ST_INSTANTIATED | ST_INIT | ST_STEP_COMPLETE | ST_TERMINATED | ST_ERROR | M_ME)
+#define M_GET (ST_INIT | ST_STEP_COMPLETE | ST_TERMINATED | ST_ERROR | M_ME)
+#define M_SET (ST_INSTANTIATED | ST_INIT | ST_STEP_COMPLETE | M_ME)
 #define M_STATUS (ST_STEP_COMPLETE | ST_TERMINATED)
 
 /* ------------------------------------------------------------------------------------------ */
@@ -81,6 +84,9 @@ typedef struct {
     fmi2Status last_status;        /* what fmi2GetInteger reports for HB_STATUS_VR (see record) */
     double time;                   /* current communication point [s] */
     double last_successful;        /* fmi2LastSuccessfulTime [s] */
+    int stop_defined;              /* fmi2SetupExperiment's stopTimeDefined */
+    double stop_time;              /* its stopTime [s] */
+    int me;                        /* instantiated for Model Exchange */
 } hb_inst;
 
 /* an FMU state of the front: the front's own part, then pythonfmu's */
@@ -175,6 +181,8 @@ static const char *state_name(int s) {
     case ST_TERMINATED: return "Terminated";
     case ST_ERROR: return "Error (after an fmi2Error: fmi2SetFMUstate or fmi2Reset recover)";
     case ST_FATAL: return "Fatal";
+    case ST_EVENT: return "Event Mode";
+    case ST_CONT: return "Continuous-Time Mode";
     default: return "?";
     }
 }
@@ -249,7 +257,9 @@ static int check_vrs(hb_inst *I, const char *fn, int type, const fmi2ValueRefere
                     vr[i], TYPE_NAMES[type]);
             return 0;
         }
-        if (setting && !(v->set_mask & I->state)) {
+        /* Model Exchange's Event and Continuous-Time Modes set what Step Mode sets */
+        int as = I->state & M_ME ? ST_STEP_COMPLETE : I->state;
+        if (setting && !(v->set_mask & as)) {
             LOG(I, fmi2Error, "%s: %s (value reference %u; %s) cannot be set in state %s", fn,
                 v->name, vr[i], v->kind, state_name(I->state));
             return 0;
@@ -285,6 +295,31 @@ static fmi2Status hot_status(hb_inst *I, fmi2Status st) {
     return slave_status(I, st);
 }
 
+/* Communication times are compared with an absolute tolerance: 1 ns, or a few units in the
+ * last place where t is so large that its doubles lie farther apart (beyond about 1e6 s) -- a
+ * master computing t0 + n h is within that, and a step never skips a stretch of time. */
+#define HB_TIME_ABS_TOL 1e-9
+#define HB_TIME_ULPS 4.0
+static double time_tol(double t) {
+    /* the spacing of the doubles above |t|, from its bits: the front links no libm */
+    union { double d; uint64_t u; } next;
+    next.d = t < 0 ? -t : t;
+    double a = next.d;
+    if (!isfinite(a)) return HB_TIME_ABS_TOL;
+    next.u += 1;
+    double tol = HB_TIME_ULPS * (next.d - a);
+    return tol > HB_TIME_ABS_TOL ? tol : HB_TIME_ABS_TOL;
+}
+
+/* The shortest decimal text of x that reads back as x (as Python's repr). */
+static const char *fmt_real(char buf[32], double x) {
+    for (int prec = 15; prec <= 17; prec++) {
+        snprintf(buf, 32, "%.*g", prec, x);
+        if (!isfinite(x) || strtod(buf, NULL) == x) break;
+    }
+    return buf;
+}
+
 #define BEGIN(fn, mask)                           \
     hb_inst *I = (hb_inst *)c;                    \
     if (!I) return fmi2Error;                     \
@@ -315,10 +350,11 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, 
         log_to(functions, name, fmi2Error, "fmi2Instantiate: instanceName must be a non-empty string");
         return NULL;
     }
-    if (fmuType != fmi2CoSimulation) {
+    if (fmuType != fmi2CoSimulation && !(HB_HAS_ME && fmuType == fmi2ModelExchange)) {
         log_to(functions, name, fmi2Error,
-               "fmi2Instantiate: %s supports only fmi2CoSimulation (fmuType = %d requested)",
-               HB_MODEL_IDENTIFIER, (int)fmuType);
+               "fmi2Instantiate: %s supports only %s (fmuType = %d requested)", HB_MODEL_IDENTIFIER,
+               HB_HAS_ME ? "fmi2ModelExchange and fmi2CoSimulation" : "fmi2CoSimulation",
+               (int)fmuType);
         return NULL;
     }
     if (!fmuGUID || strcmp(fmuGUID, HB_GUID) != 0) {
@@ -338,8 +374,7 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, 
         return NULL;
     }
     pthread_mutex_lock(&g_lock);
-    int ok = hb_ensure_python(HB_PYTHON_MODULES, err, sizeof err) &&
-             hb_load_wrapper(HB_WRAPPER_FILE, err, sizeof err);
+    int ok = hb_backend_load(err, sizeof err);
     pthread_mutex_unlock(&g_lock);
     if (!ok) {
         log_to(functions, name, fmi2Error, "fmi2Instantiate: %s", err);
@@ -361,10 +396,11 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, 
     I->state = ST_INSTANTIATED;
     char uri[PATH_MAX + 16];
     snprintf(uri, sizeof uri, "file://%s", path);   /* what pythonfmu strips: plain path */
-    I->w = hb_W.Instantiate(instanceName, fmi2CoSimulation, fmuGUID, uri, &I->inner, visible, fmi2True);
+    I->me = fmuType == fmi2ModelExchange;
+    I->w = hb_W.Instantiate(instanceName, fmuType, fmuGUID, uri, &I->inner, visible, fmi2True);
     if (!I->w) {
-        LOG(I, fmi2Error, "fmi2Instantiate: the Python slave could not be created (see the "
-                          "messages above)");
+        LOG(I, fmi2Error, "fmi2Instantiate: the model could not be created (see the messages "
+                          "above)");
         free_inst(I);
         return NULL;
     }
@@ -417,10 +453,20 @@ EXPORT fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefi
         LOG(I, fmi2Error, "fmi2SetupExperiment: startTime = %g is not finite", startTime);
         return settle(I, fmi2Error);
     }
+    if (stopTimeDefined && !(isfinite(stopTime) && stopTime >= startTime)) {
+        char a[32], b[32];
+        LOG(I, fmi2Error, "fmi2SetupExperiment: stopTime = %s s must be finite and >= startTime = "
+                          "%s s", fmt_real(a, stopTime), fmt_real(b, startTime));
+        return settle(I, fmi2Error);
+    }
     fmi2Status st = hb_W.SetupExperiment(I->w, toleranceDefined, tolerance, startTime, stopTimeDefined,
                                       stopTime);
     st = slave_status(I, st);
-    if (st <= fmi2Warning) I->time = I->last_successful = startTime;
+    if (st <= fmi2Warning) {
+        I->time = I->last_successful = startTime;
+        I->stop_defined = stopTimeDefined != fmi2False;
+        I->stop_time = stopTime;
+    }
     return record(I, st);
 }
 
@@ -438,12 +484,12 @@ EXPORT fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
         LOG(I, fmi2Error, "fmi2ExitInitializationMode: the slave discarded the initialisation");
         st = fmi2Error;
     }
-    if (st <= fmi2Warning) I->state = ST_STEP_COMPLETE;
+    if (st <= fmi2Warning) I->state = I->me ? ST_EVENT : ST_STEP_COMPLETE;
     return record(I, st);
 }
 
 EXPORT fmi2Status fmi2Terminate(fmi2Component c) {
-    BEGIN("fmi2Terminate", ST_STEP_COMPLETE);
+    BEGIN("fmi2Terminate", ST_STEP_COMPLETE | M_ME);
     fmi2Status st = hb_W.Terminate(I->w);
     if (st <= fmi2Warning) I->state = ST_TERMINATED;
     return settle(I, st);
@@ -455,6 +501,7 @@ EXPORT fmi2Status fmi2Reset(fmi2Component c) {
     if (st <= fmi2Warning) {
         I->state = ST_INSTANTIATED;
         I->time = I->last_successful = 0.0;
+        I->stop_defined = 0;
         I->last_status = fmi2OK;
     }
     return settle(I, st);
@@ -504,6 +551,22 @@ EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint
                              fmi2Real communicationStepSize,
                              fmi2Boolean noSetFMUStatePriorToCurrentPoint) {
     BEGIN("fmi2DoStep", ST_STEP_COMPLETE);
+    char a[32], b[32], c2[32];
+    double off = currentCommunicationPoint - I->time;
+    if (!(off <= time_tol(I->time) && -off <= time_tol(I->time))) {   /* also NaN */
+        LOG(I, fmi2Error, "fmi2DoStep: currentCommunicationPoint = %s s is not the current time of "
+                          "the FMU, %s s (tolerance %g s); step refused, state unchanged",
+            fmt_real(a, currentCommunicationPoint), fmt_real(b, I->time), time_tol(I->time));
+        return settle(I, fmi2Error);
+    }
+    if (I->stop_defined && communicationStepSize > 0 &&
+        currentCommunicationPoint + communicationStepSize > I->stop_time + time_tol(I->stop_time)) {
+        LOG(I, fmi2Error, "fmi2DoStep: at communication point %s s a step of %s s was requested, but "
+                          "the stopTime of fmi2SetupExperiment is %s s; step refused, state unchanged",
+            fmt_real(a, currentCommunicationPoint), fmt_real(b, communicationStepSize),
+            fmt_real(c2, I->stop_time));
+        return settle(I, fmi2Error);
+    }
     fmi2Status st = hot_status(I, hb_W.DoStep(I->w, currentCommunicationPoint, communicationStepSize,
                                            noSetFMUStatePriorToCurrentPoint));
     if (st <= fmi2Warning) {
@@ -565,6 +628,8 @@ EXPORT fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) {
     if (!check_state(I, "fmi2SetFMUstate", FMUstate)) return settle(I, fmi2Error);
     hb_fmustate *s = (hb_fmustate *)FMUstate;
     fmi2Status st = slave_status(I, hb_W.SetFMUstate(I->w, s->inner));
+    if (st >= fmi2Error && I->call_max < fmi2Error)
+        LOG(I, st, "fmi2SetFMUstate: the model refused the state; state unchanged");
     if (st <= fmi2Warning) {
         I->state = s->state;
         I->time = s->time;
@@ -645,6 +710,13 @@ EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serial
                           "FMU (GUID %s)", HB_GUID);
         return settle(I, fmi2Error);
     }
+    if (!isfinite(h.time) || !isfinite(h.last_successful) || h.last_successful > h.time) {
+        char a[32], b[32];
+        LOG(I, fmi2Error, "fmi2DeSerializeFMUstate: the state's header holds the time %s s and the "
+                          "last successful time %s s: both must be finite, the second <= the "
+                          "first; refused", fmt_real(a, h.time), fmt_real(b, h.last_successful));
+        return settle(I, fmi2Error);
+    }
     hb_fmustate *s = (hb_fmustate *)*FMUstate;
     if (s && s->magic != HB_STATE_MAGIC) {
         LOG(I, fmi2Error, "fmi2DeSerializeFMUstate: *FMUstate is not a state of this FMU");
@@ -658,6 +730,9 @@ EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serial
         I, hb_W.DeSerializeFMUstate(I->w, serializedState + sizeof h, size - sizeof h, &s->inner));
     if (old) hb_W.FreeFMUstate(I->w, &old);
     I->last_status = st;
+    if (st >= fmi2Error && I->call_max < fmi2Error)
+        LOG(I, st, "fmi2DeSerializeFMUstate: the state's body (%zu bytes after the header) is not "
+                   "a valid state of this model; refused", size - sizeof h);
     if (st > fmi2Warning) {
         if (fresh) free(s);
         return settle(I, st);
@@ -746,3 +821,7 @@ EXPORT fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, f
     BEGIN("fmi2GetStringStatus", M_STATUS);
     return bad_kind(I, "fmi2GetStringStatus", s);
 }
+
+#if HB_HAS_ME
+#include "front_me.h"
+#endif

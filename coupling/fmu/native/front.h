@@ -13,7 +13,11 @@
 
 #include "fmi2_abi.h"
 
+#if defined(_WIN32)
+#define EXPORT __declspec(dllexport)
+#else
 #define EXPORT __attribute__((visibility("default")))
+#endif
 
 /* The dl* functions bound to their first version: a front built with glibc >= 2.34 (where they
  * moved into libc) still loads with an older glibc (where libdl holds them). */
@@ -23,6 +27,12 @@ __asm__(".symver dlsym,dlsym@GLIBC_2.2.5");
 __asm__(".symver dlerror,dlerror@GLIBC_2.2.5");
 __asm__(".symver dladdr,dladdr@GLIBC_2.2.5");
 #endif
+
+/* The model backend behind the front: fills hb_W (below) with the model's functions; 1, or 0 with
+ * the reason in err.  pythonfmu_wrapper.c: Python in the process and pythonfmu's library loaded
+ * (the Python flavour); model_native.c: the compiled kernels (the native flavour).
+ * Not thread-safe: the caller serialises. */
+int hb_backend_load(char *err, size_t n);
 
 /* python_embed.c ------------------------------------------------------------------------------
  * Python in this process with the space-separated `modules` installed; 1, or 0 with the reason
@@ -56,6 +66,14 @@ typedef struct {
     fmi2DeSerializeFMUstateFn DeSerializeFMUstate;
     fmi2DoStepFn DoStep;
     void (*finalize)(void);
+    /* Model Exchange (NULL in the Python flavour) */
+    fmi2ComponentFn EnterEventMode, EnterContinuousTimeMode;
+    fmi2NewDiscreteStatesFn NewDiscreteStates;
+    fmi2SetTimeFn SetTime;
+    fmi2SetStatesFn SetContinuousStates;
+    fmi2StatesFn GetDerivatives, GetEventIndicators, GetContinuousStates,
+        GetNominalsOfContinuousStates;
+    fmi2CompletedIntegratorStepFn CompletedIntegratorStep;
 } hb_wrapper;
 
 /* the loaded library (all NULL before hb_load_wrapper succeeded) */

@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "front.h"
+#include "hb_python.h"   /* HB_WRAPPER_FILE, HB_PYTHON_MODULES (written by build_front) */
 
 hb_wrapper hb_W;
 static int g_exit_registered;
@@ -84,4 +85,9 @@ int hb_load_wrapper(const char *file, char *err, size_t n) {
 /* Kept for hosts and slave code that look this symbol up in every library of the FMU. */
 EXPORT void finalizePythonInterpreter(void) {
     if (hb_W.finalize) hb_W.finalize();
+}
+
+/* The Python flavour's backend: Python in the process, then pythonfmu's library (front.h). */
+int hb_backend_load(char *err, size_t n) {
+    return hb_ensure_python(HB_PYTHON_MODULES, err, n) && hb_load_wrapper(HB_WRAPPER_FILE, err, n);
 }

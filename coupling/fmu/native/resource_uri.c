@@ -4,6 +4,7 @@
  * bytes, '#', ...), and unencoded paths from hosts that write the path as it is; any other host
  * than localhost is refused.  pythonfmu itself only strips "file://" and decodes "%20". */
 #define _GNU_SOURCE
+#include <ctype.h>
 #include <dirent.h>
 #include <limits.h>
 #include <stdio.h>
@@ -50,6 +51,18 @@ static const char *percent_decode(const char *p, char *out, size_t n) {
     return NULL;
 }
 
+#if defined(_WIN32)
+/* "/C:/x" (the path of file:///C:/x) -> "C:/x" */
+static void drop_slash_before_drive(char *path) {
+    if (path[0] == '/' && isalpha((unsigned char)path[1]) && path[2] == ':')
+        memmove(path, path + 1, strlen(path));
+}
+#define IS_ABSOLUTE(p) ((p)[0] == '/' || (p)[0] == '\\' || (isalpha((unsigned char)(p)[0]) && (p)[1] == ':'))
+#else
+#define drop_slash_before_drive(path) ((void)(path))
+#define IS_ABSOLUTE(p) ((p)[0] == '/')
+#endif
+
 int hb_uri_to_path(const char *uri, char *out, size_t n, char *err, size_t en) {
     const char *p = uri;
     if (strncasecmp(p, "file:", 5) == 0) {
@@ -71,16 +84,18 @@ int hb_uri_to_path(const char *uri, char *out, size_t n, char *err, size_t en) {
             p = end;
         }
     }
-    if (p[0] != '/') {
+    if (!IS_ABSOLUTE(p)) {
         snprintf(err, en, "fmuResourceLocation '%s' is not an absolute file URI", uri);
         return 0;
     }
     const char *why = percent_decode(p, out, n);
+    if (!why) drop_slash_before_drive(out);
     if (!why && is_dir(out)) return 1;
     /* a host that wrote the path into the URI without encoding it */
     if (strlen(p) < n) {
         strcpy(out, p);
         strip_slashes(out);
+        drop_slash_before_drive(out);
         if (is_dir(out)) return 1;
     }
     if (why)

@@ -1,0 +1,683 @@
+/* The native model backend of the front: HammerBitRock's co-simulation slave in C around the
+ * library's compiled kernels (the native flavour of the FMU; no Python in the process).
+ *
+ * front.c keeps the FMI state machine, the checks of value references and settability, the
+ * resource URI, the logging rules and the FMU-state header; it calls this backend through the
+ * same table (hb_W) it fills with pythonfmu's functions in the Python flavour.  This file does
+ * what the Python slave (hammerbit.model.slave) does per call:
+ *   - parameters and inputs as set, validated against the ranges of hammerbit.model.validation
+ *     (written into hb_native.h by the build), at fmi2ExitInitializationMode as a whole;
+ *   - SI -> the paper's groups -> the kernel's parameter vector, exactly as RigParameters.to_groups
+ *     and Groups.to_kernel compute it (same operations in the same order);
+ *   - fmi2DoStep: the inputs held over the step, one call of the compiled solver driver to the
+ *     step's end, the state restored and fmi2Discard if it fails;
+ *   - outputs from the state through the kernels' own force formulas (hb_forces);
+ *   - FMU state: the whole model state as plain data (model_state.c).
+ * Every call records the FMI status it returns in last_status and logs every non-OK status with
+ * a message naming the variable, its value and the allowed range. */
+#include <math.h>
+#include <stdarg.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "front.h"
+#include "kernel_api.h"
+#include "model_native.h"
+
+#define TWO_PI 6.283185307179586   /* 2.0 * math.pi, as Python rounds it */
+/* Communication times are compared with an absolute tolerance: 1 ns, or a few units in the last
+ * place where t is so large that its doubles lie farther apart (a master computing t0 + n h is
+ * within it, and a step never skips a stretch of time) */
+#define TIME_ABS_TOL 1e-9
+#define TIME_ULPS 4.0
+
+/* ------------------------------------------------------------------------------------------ */
+/* Messages                                                                                    */
+/* ------------------------------------------------------------------------------------------ */
+/* A float as Python's repr() writes it (the slave's messages): shortest round-trip digits,
+ * exponent form below 1e-4 and from 1e16 on, ".0" on integral values. */
+void hb_repr(double v, char *out, size_t n) {
+    if (isnan(v)) {
+        snprintf(out, n, "nan");
+        return;
+    }
+    if (isinf(v)) {
+        snprintf(out, n, v > 0 ? "inf" : "-inf");
+        return;
+    }
+    char e[40];
+    int prec = 1;
+    for (; prec <= 17; prec++) {
+        snprintf(e, sizeof e, "%.*e", prec - 1, v);
+        if (strtod(e, NULL) == v) break;
+    }
+    int exp10 = atoi(strchr(e, 'e') + 1);
+    if (v != 0.0 && (exp10 < -4 || exp10 >= 16)) {
+        char mant[40];
+        snprintf(mant, sizeof mant, "%.*s", (int)(strchr(e, 'e') - e), e);
+        snprintf(out, n, "%se%c%02d", mant, exp10 < 0 ? '-' : '+', abs(exp10));
+        return;
+    }
+    int decimals = prec - 1 - exp10;
+    snprintf(out, n, "%.*f", decimals > 0 ? decimals : 0, v);
+    if (!strchr(out, '.')) strncat(out, ".0", n - strlen(out) - 1);
+}
+
+void hb_mlog(model *m, fmi2Status st, const char *fmt, ...) {
+    if (!m->cb.logger) return;
+    char msg[2048];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    const char *cat = st == fmi2OK ? "logAll"
+                      : st == fmi2Warning ? "logStatusWarning"
+                      : st == fmi2Discard ? "logStatusDiscard" : "logStatusError";
+    /* the message is the format: the front (inner_logger) escapes its '%' for the host */
+    m->cb.logger(m->cb.componentEnvironment, m->name, st, cat, msg);
+}
+
+fmi2Status hb_fail(model *m, fmi2Status st, const char *fmt, ...) {
+    char msg[2048];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    if ((int32_t)st > m->s.last_status) m->s.last_status = (int32_t)st;
+    hb_mlog(m, st, "%s", msg);
+    return st;
+}
+
+/* ------------------------------------------------------------------------------------------ */
+/* Ranges                                                                                      */
+/* ------------------------------------------------------------------------------------------ */
+static int contains(const hb_range *r, double v) {
+    if (isnan(v)) return 0;
+    if (isinf(v)) return r->allow_inf && v > 0;
+    if (v < r->lo || v > r->hi) return 0;
+    return !((r->lo_open && v == r->lo) || (r->hi_open && v == r->hi));
+}
+
+/* "parameter 'name' = value is out of range: allowed ..." (validation.check_range); 0 if not */
+static int range_error(const char *name, double v, const hb_range *r, char *out, size_t n) {
+    if (contains(r, v)) return 0;
+    char rv[40];
+    hb_repr(v, rv, sizeof rv);
+    int non_finite = isnan(v) || (isinf(v) && !r->allow_inf);
+    snprintf(out, n, "parameter '%s' = %s is out of range: allowed %s%s", name, rv,
+             non_finite ? "a finite number in " : "", r->text);
+    return 1;
+}
+
+/* |input| <= limit F0 for the parameters in use (F0 = mu_static normal_force) */
+static double input_limit(const model_state *s, int k) {
+    return (k == HBS_preload ? HB_INPUT_LIMIT_F0_preload : HB_INPUT_LIMIT_F0_harmonic_force) * s->F0;
+}
+
+static int input_ok(const model_state *s, int k, double v) {
+    double lim = input_limit(s, k);
+    return -lim <= v && v <= lim;   /* false for NaN */
+}
+
+/* "... out of range: allowed [-x, x] N (1000 F0, ...)" for an input value */
+static void input_error(const model_state *s, int k, double v, char *out, size_t n) {
+    char rv[40], lim[40], f0[40], have[40];
+    hb_repr(v, rv, sizeof rv);
+    snprintf(lim, sizeof lim, "%g", input_limit(s, k));
+    hb_repr(s->F0, f0, sizeof f0);
+    hb_repr(s->value[k], have, sizeof have);
+    snprintf(out, n, "input '%s' = %s is out of range: allowed [-%s, %s] N (%g F0, F0 = mu_static "
+             "normal_force = %s N, the static friction threshold); refused, %s N stays",
+             HB_STORED[k].name, rv, lim, lim, input_limit(s, k) / s->F0, f0, have);
+}
+
+/* ------------------------------------------------------------------------------------------ */
+/* Parameters -> kernel arrays (RigParameters -> Groups -> Stepper, as the slave's _commit)     */
+/* ------------------------------------------------------------------------------------------ */
+/* Validate the values v[] (and impact) and build the solver state into s; 1, or 0 with the
+ * message in err (nothing of s changed then). keep: carry y, ist, fst and p of s over. */
+static int commit(model_state *s, const double *v, int impact, int keep, char *err, size_t n) {
+    static const int other[] = {HBS_gap, HBS_initial_hammer_position, HBS_initial_bit_position,
+                                HBS_tolerance};
+    for (size_t i = 0; i < sizeof other / sizeof *other; i++)
+        if (range_error(HB_STORED[other[i]].name, v[other[i]], &HB_STORED[other[i]].range, err, n))
+            return 0;
+    double gap = impact ? v[HBS_gap] : INFINITY;
+    for (size_t i = 0; i < HB_NRIG; i++) {
+        int k = HB_RIG_ORDER[i];
+        double x = k == HBS_gap ? gap : k < 0 ? 0.0 : v[k];   /* k < 0: preload (an input) */
+        const hb_range *r = k < 0 ? &HB_RANGE_PRELOAD : &HB_STORED[k].range;
+        if (range_error(k < 0 ? "preload" : HB_STORED[k].name, x, r, err, n)) return 0;
+    }
+    if (v[HBS_mu_kinetic] > v[HBS_mu_static]) {
+        char rv[40], ms[40];
+        hb_repr(v[HBS_mu_kinetic], rv, sizeof rv);
+        snprintf(ms, sizeof ms, "%g", v[HBS_mu_static]);
+        snprintf(err, n, "parameter 'mu_kinetic' = %s is out of range: allowed (0, mu_static = %s]: "
+                 "kinetic friction above static", rv, ms);
+        return 0;
+    }
+    /* Scales and RigParameters.to_groups */
+    double m1 = v[HBS_hammer_mass], K = v[HBS_stiffness];
+    double F0 = v[HBS_mu_static] * v[HBS_normal_force];
+    double Om = sqrt(K / m1), x0 = F0 / K;
+    double g[HB_NGROUPS];
+    g[0] = v[HBS_bit_mass] / m1;                                         /* rho */
+    g[1] = v[HBS_damping] / (2.0 * sqrt(K * m1));                        /* xi */
+    g[2] = TWO_PI * v[HBS_frequency] / Om;                               /* eta */
+    g[3] = v[HBS_amplitude] / F0;                                        /* a */
+    g[4] = 0.0 / F0;                                                     /* b: an input */
+    g[5] = gap / x0;                                                     /* r */
+    g[6] = v[HBS_mu_kinetic] / v[HBS_mu_static];                         /* mu */
+    g[7] = v[HBS_friction_decay] * x0 * Om;                              /* gamma_hat */
+    g[8] = v[HBS_contact_stiffness] * pow(x0, v[HBS_contact_exponent]) / F0;   /* kc */
+    g[9] = v[HBS_contact_exponent];                                      /* n */
+    g[10] = v[HBS_contact_damping] * x0 * Om;                            /* lam_hat */
+    g[11] = v[HBS_phase];                                                /* phi */
+    for (int i = 0; i < HB_NGROUPS; i++)
+        if (range_error(HB_GROUPS[i].name, g[i], &HB_GROUPS[i].range, err, n)) return 0;
+    if (s->t_start != 0.0) {
+        /* absolute-time forcing on the kernel's clock tau = Omega (t - t_start) */
+        double omega_f = TWO_PI * v[HBS_frequency];
+        g[11] = fmod(v[HBS_phase] + omega_f * s->t_start, TWO_PI);
+        if (range_error("phi", g[11], &HB_GROUPS[11].range, err, n)) return 0;
+    }
+    double y0[4] = {v[HBS_initial_hammer_position] / x0, 0.0, v[HBS_initial_bit_position] / x0, 0.0};
+    if (range_error("y0[0] (hammer position x1)", y0[0], &HB_RANGE_STATE_POSITION, err, n) ||
+        range_error("y0[2] (bit position x3)", y0[2], &HB_RANGE_STATE_POSITION, err, n))
+        return 0;
+    double tol = v[HBS_tolerance], atol = 1e-2 * tol;
+    if (range_error("rtol", tol, &HB_RANGE_RTOL, err, n) ||
+        range_error("atol", atol, &HB_RANGE_ATOL, err, n))
+        return 0;
+    /* Groups.to_kernel and the Stepper's arrays */
+    double *p = s->p;
+    if (!keep) {
+        p[HBK_P_RHO] = g[0];
+        p[HBK_P_XI] = g[1];
+        p[HBK_P_ETA] = g[2];
+        p[HBK_P_A] = g[3];
+        p[HBK_P_B] = g[4];
+        p[HBK_P_R] = g[5];
+        p[HBK_P_MU] = g[6];
+        p[HBK_P_GAMMA] = g[7];
+        p[HBK_P_KC] = g[8];
+        p[HBK_P_N] = g[9];
+        p[HBK_P_LAM] = g[10];
+        p[HBK_P_PHI] = g[11];
+        p[HBK_P_FEXT] = 0.0;
+        p[HBK_P_CONTACT] = (isfinite(g[5]) && g[8] > 0.0) ? 1.0 : 0.0;
+        memset(s->y, 0, sizeof s->y);
+        memset(s->ist, 0, sizeof s->ist);
+        memset(s->fst, 0, sizeof s->fst);
+        memcpy(s->y, y0, sizeof y0);
+    }
+    double period = TWO_PI / g[2];
+    if (!keep) s->fst[HBK_F_H] = fmin(0.01 * period, HB_SOLVER_MAX_STEP);
+    double *o = s->opts;
+    memset(o, 0, sizeof s->opts);
+    o[HBK_O_RTOL] = tol;
+    o[HBK_O_ATOL] = atol;
+    o[HBK_O_HMAX] = HB_SOLVER_MAX_STEP;
+    o[HBK_O_HFIXED] = 0.0;
+    o[HBK_O_EVCAP] = HB_SOLVER_MAX_EVENTS_PER_PERIOD;
+    o[HBK_O_BISECT] = HB_SOLVER_BISECTION_TOL;
+    o[HBK_O_MAXSTEPS] = HB_SOLVER_MAX_STEPS;
+    o[HBK_O_POIN_T0] = 0.0;
+    o[HBK_O_POIN_DT] = period;
+    o[HBK_O_GRAZE] = HB_SOLVER_GRAZE_TOL;
+    o[HBK_O_STEPCAP] = HB_SOLVER_MAX_STEPS_PER_PERIOD;
+    if (!keep) hb_init_modes(s->y, s->ist, s->p);
+    s->x0 = x0;
+    s->v0 = x0 * Om;
+    s->F0 = F0;
+    s->omega = Om;
+    s->x3_start = y0[2];
+    memcpy(s->committed, v, sizeof s->committed);
+    s->committed_impact = impact;
+    s->dirty = 0;
+    s->has_commit = 1;
+    s->applied_preload = s->applied_force = NAN;
+    return 1;
+}
+
+/* ------------------------------------------------------------------------------------------ */
+/* Life cycle                                                                                  */
+/* ------------------------------------------------------------------------------------------ */
+static void set_start_values(model_state *s) {
+    memset(s, 0, sizeof *s);
+    s->magic = MODEL_STATE_MAGIC;
+    s->size = (uint32_t)sizeof *s;
+    for (int i = 0; i < HB_NSTORED; i++) s->value[i] = HB_STORED[i].start;
+    s->impact_enabled = HB_START_IMPACT_ENABLED;
+    snprintf(s->error, sizeof s->error,
+             "the FMU is not initialised (call fmi2ExitInitializationMode first)");
+    char err[512];
+    commit(s, s->value, s->impact_enabled, 0, err, sizeof err);   /* outputs before initialisation */
+    s->stale = 0;
+}
+
+static fmi2Component n_instantiate(fmi2String name, fmi2Type type, fmi2String guid, fmi2String uri,
+                                   const fmi2CallbackFunctions *cb, fmi2Boolean visible,
+                                   fmi2Boolean logging) {
+    (void)type, (void)guid, (void)uri, (void)visible, (void)logging;
+    model *m = calloc(1, sizeof *m);
+    if (!m || !(m->name = strdup(name))) {
+        free(m);
+        return NULL;
+    }
+    m->cb = *cb;
+    set_start_values(&m->s);
+    return m;
+}
+
+static void n_free_instance(fmi2Component c) {
+    model *m = c;
+    if (!m) return;
+    free(m->name);
+    free(m);
+}
+
+static fmi2Status n_setup_experiment(fmi2Component c, fmi2Boolean tol_defined, fmi2Real tol,
+                                     fmi2Real start, fmi2Boolean stop_defined, fmi2Real stop) {
+    (void)stop_defined, (void)stop;
+    model *m = c;
+    m->s.last_status = fmi2OK;
+    if (!isfinite(start)) {
+        char rv[40], old[40];
+        hb_repr(start, rv, sizeof rv);
+        hb_repr(m->s.t_start, old, sizeof old);
+        return hb_fail(m, fmi2Error, "fmi2SetupExperiment: startTime = %s s is not finite; refused, the "
+                    "start time stays %s s", rv, old);
+    }
+    m->s.t_start = m->s.t = start;
+    m->s.stale = 1;
+    if (tol_defined) {
+        const hb_range *r = &HB_STORED[HBS_tolerance].range;
+        if (contains(r, tol)) {
+            m->s.value[HBS_tolerance] = tol;
+        } else {
+            char rv[40], have[40];
+            hb_repr(tol, rv, sizeof rv);
+            hb_repr(m->s.value[HBS_tolerance], have, sizeof have);
+            return hb_fail(m, fmi2Warning, "fmi2SetupExperiment: tolerance = %s is outside %s; the FMU's "
+                        "tolerance %s is used", rv, r->text, have);
+        }
+    }
+    return fmi2OK;
+}
+
+static fmi2Status n_enter_init(fmi2Component c) {
+    ((model *)c)->s.last_status = fmi2OK;
+    return fmi2OK;
+}
+
+static fmi2Status n_exit_init(fmi2Component c) {
+    model *m = c;
+    model_state *s = &m->s;
+    s->last_status = fmi2OK;
+    s->stale = 0;
+    char err[1024];
+    model_state trial = *s;
+    int ok = commit(&trial, s->value, s->impact_enabled, 0, err, sizeof err);
+    for (int k = HBS_preload; ok && k <= HBS_harmonic_force; k++)
+        if (!input_ok(&trial, k, s->value[k])) {   /* the inputs' range follows F0 */
+            input_error(&trial, k, s->value[k], err, sizeof err);
+            ok = 0;
+        }
+    if (!ok) {
+        s->ready = 0;
+        snprintf(s->error, sizeof s->error, "initialisation failed: %s", err);
+        return hb_fail(m, fmi2Error, "%s", s->error);
+    }
+    *s = trial;
+    s->t = s->t_start;
+    s->ready = 1;
+    s->error[0] = '\0';
+    return fmi2OK;
+}
+
+static fmi2Status n_terminate(fmi2Component c) {
+    model *m = c;
+    m->s.last_status = fmi2OK;
+    m->s.terminated = 1;
+    return fmi2OK;
+}
+
+static fmi2Status n_reset(fmi2Component c) {
+    model *m = c;
+    set_start_values(&m->s);
+    return fmi2OK;
+}
+
+/* ------------------------------------------------------------------------------------------ */
+/* Values                                                                                      */
+/* ------------------------------------------------------------------------------------------ */
+static int stored_slot(fmi2ValueReference vr) {
+    for (int i = 0; i < HB_NSTORED; i++)
+        if (HB_STORED[i].vr == vr) return i;
+    return -1;
+}
+
+/* Initialization Mode: outputs follow the parameters set so far (invalid ones: reported at exit) */
+static void refresh(model *m) {
+    model_state *s = &m->s;
+    if (!s->stale) return;
+    s->stale = 0;
+    if (s->ready) return;
+    model_state trial = *s;
+    char err[1024];
+    if (commit(&trial, s->value, s->impact_enabled, 0, err, sizeof err)) *s = trial;
+}
+
+static double real_output(model *m, fmi2ValueReference vr) {
+    model_state *s = &m->s;
+    double f[4];
+    switch (vr) {
+    case HB_VR_hammer_position: return s->y[0] * s->x0;
+    case HB_VR_hammer_velocity: return s->y[1] * s->v0;
+    case HB_VR_bit_position: return s->y[2] * s->x0;
+    case HB_VR_bit_velocity: return s->y[3] * s->v0;
+    case HB_VR_rate_of_penetration: {
+        double dt = s->t - s->t_start;
+        return dt <= 0.0 ? 0.0 : (s->y[2] - s->x3_start) * s->x0 / dt;
+    }
+    default: break;
+    }
+    switch (vr) {
+    case HB_VR_der_hammer_position: return hb_derivative(m, 0);
+    case HB_VR_der_hammer_velocity: return hb_derivative(m, 1);
+    case HB_VR_der_bit_position: return hb_derivative(m, 2);
+    case HB_VR_der_bit_velocity: return hb_derivative(m, 3);
+    default: break;
+    }
+    hb_forces(s->y, s->ist, s->p, f);
+    switch (vr) {
+    case HB_VR_spring_force: return f[0] * s->F0;
+    case HB_VR_contact_force: return f[1] * s->F0;
+    case HB_VR_rock_force: return f[2] * s->F0;
+    case HB_VR_friction_force: return f[3] * s->F0;
+    default: return NAN;
+    }
+}
+
+static fmi2Status n_get_real(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                             fmi2Real value[]) {
+    model *m = c;
+    refresh(m);
+    for (size_t i = 0; i < nvr; i++) {
+        int k = stored_slot(vr[i]);
+        value[i] = k >= 0 ? m->s.value[k] : real_output(m, vr[i]);
+    }
+    return fmi2OK;
+}
+
+static fmi2Status n_get_integer(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                                fmi2Integer value[]) {
+    model *m = c;
+    model_state *s = &m->s;
+    refresh(m);
+    for (size_t i = 0; i < nvr; i++) {
+        switch (vr[i]) {
+        case HB_VR_stick_slip: value[i] = (fmi2Integer)s->ist[HBK_I_STICK]; break;
+        case HB_VR_impact_count: value[i] = (fmi2Integer)s->ist[HBK_I_COUNT0 + HBK_EV_IMPACT]; break;
+        case HB_VR_slip_count: value[i] = (fmi2Integer)s->ist[HBK_I_COUNT0 + HBK_EV_SLIP_START]; break;
+        case HB_VR_bounce_count: value[i] = (fmi2Integer)s->ist[HBK_I_COUNT0 + HBK_EV_BOUNCE]; break;
+        case HB_VR_last_status: value[i] = s->last_status; break;
+        default: value[i] = 0;
+        }
+    }
+    return fmi2OK;
+}
+
+static fmi2Status n_get_boolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                                fmi2Boolean value[]) {
+    model *m = c;
+    refresh(m);
+    for (size_t i = 0; i < nvr; i++) {
+        if (vr[i] == HB_VR_impact_enabled)
+            value[i] = m->s.impact_enabled ? fmi2True : fmi2False;
+        else   /* in_contact */
+            value[i] = m->s.ist[HBK_I_CONTACT] != HBK_FREE ? fmi2True : fmi2False;
+    }
+    return fmi2OK;
+}
+
+static fmi2Status n_get_string(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                               fmi2String value[]) {
+    (void)vr;
+    for (size_t i = 0; i < nvr; i++) value[i] = "";
+    return hb_fail(c, fmi2Error, "fmi2GetString: the model has no String variables");
+}
+
+/* One value of a Real variable checked; the status it earns (the message logged). */
+static fmi2Status check_real(model *m, int k, double v) {
+    model_state *s = &m->s;
+    const hb_stored *d = &HB_STORED[k];
+    char rv[40], err[1024];
+    if (d->kind == HB_INPUT) {
+        if (input_ok(s, k, v)) return fmi2OK;   /* the hot path: no text */
+        input_error(s, k, v, err, sizeof err);
+        return hb_fail(m, fmi2Error, "%s", err);
+    }
+    hb_repr(v, rv, sizeof rv);
+    if (s->ready) {
+        if (d->kind != HB_TUNABLE) {
+            char used[40];
+            hb_repr(s->committed[k], used, sizeof used);
+            return hb_fail(m, fmi2Error, "parameter '%s' = %s was set after initialisation, but it is "
+                        "fixed (causality=parameter, variability=fixed); refused, the value %s stays "
+                        "in use", d->name, rv, used);
+        }
+        if (range_error(d->name, v, &d->range, err, sizeof err)) {
+            char have[40];
+            hb_repr(s->value[k], have, sizeof have);
+            return hb_fail(m, fmi2Error, "invalid tunable %s; refused, the tolerance %s stays in use", err,
+                        have);
+        }
+        return fmi2OK;
+    }
+    if (range_error(d->name, v, &d->range, err, sizeof err))
+        return hb_fail(m, fmi2Warning, "%s; fmi2ExitInitializationMode will fail unless it is corrected",
+                    err);
+    return fmi2OK;
+}
+
+/* fmi2SetReal is atomic: a value refused with fmi2Error leaves every value of the call unset */
+static fmi2Status n_set_real(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                             const fmi2Real value[]) {
+    model *m = c;
+    model_state *s = &m->s;
+    s->last_status = fmi2OK;
+    fmi2Status st = fmi2OK;
+    for (size_t i = 0; i < nvr; i++) {
+        int k = stored_slot(vr[i]);
+        if (k < 0) return hb_fail(m, fmi2Error, "fmi2SetReal: value reference %u is not settable", vr[i]);
+        fmi2Status si = check_real(m, k, value[i]);
+        if (si > st) st = si;
+    }
+    if (st >= fmi2Error) {
+        s->last_status = st;
+        return st;
+    }
+    for (size_t i = 0; i < nvr; i++) {
+        int k = stored_slot(vr[i]);
+        s->value[k] = value[i];
+        if (HB_STORED[k].kind == HB_TUNABLE && s->ready) s->dirty = 1;
+        if (HB_STORED[k].kind != HB_INPUT) s->stale = 1;
+    }
+    s->last_status = st;
+    return st;
+}
+
+static fmi2Status n_set_integer(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                                const fmi2Integer value[]) {
+    (void)value, (void)nvr;
+    return hb_fail(c, fmi2Error, "fmi2SetInteger: value reference %u is not settable", vr[0]);
+}
+
+static fmi2Status n_set_boolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                                const fmi2Boolean value[]) {
+    model *m = c;
+    model_state *s = &m->s;
+    s->last_status = fmi2OK;
+    for (size_t i = 0; i < nvr; i++) {
+        if (vr[i] != HB_VR_impact_enabled)
+            return hb_fail(m, fmi2Error, "fmi2SetBoolean: value reference %u is not settable", vr[i]);
+        if (s->ready)
+            return hb_fail(m, fmi2Error, "parameter 'impact_enabled' = %s was set after initialisation, "
+                        "but it is fixed (causality=parameter, variability=fixed); refused, the value "
+                        "%s stays in use", value[i] ? "True" : "False",
+                        s->committed_impact ? "True" : "False");
+    }
+    for (size_t i = 0; i < nvr; i++) s->impact_enabled = value[i] != fmi2False;
+    s->stale = 1;
+    return fmi2OK;
+}
+
+static fmi2Status n_set_string(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                               const fmi2String value[]) {
+    (void)vr, (void)nvr, (void)value;
+    return hb_fail(c, fmi2Error, "fmi2SetString: the model has no String variables; nothing changed");
+}
+
+/* ------------------------------------------------------------------------------------------ */
+/* fmi2DoStep                                                                                   */
+/* ------------------------------------------------------------------------------------------ */
+static const char *solver_failure(int64_t status) {
+    switch (status) {
+    case HBK_ST_EVENT_STORM:
+        return "event storm: more events in one forcing period than max_events_per_period (e.g. a "
+               "chattering contact or a force at the friction threshold)";
+    case HBK_ST_STEP_TOO_SMALL:
+        return "step size fell below the resolution of t; the problem is too stiff for these "
+               "tolerances";
+    case HBK_ST_STEP_STORM:
+        return "step storm: more accepted steps in one forcing period than max_steps_per_period; the "
+               "regime is too stiff for these tolerances";
+    case HBK_ST_NONFINITE: return "state became non-finite";
+    case HBK_ST_MAX_STEPS: return "more steps than max_steps in one call";
+    case HBK_ST_BAD_INPUT:
+        return "the kernel refused its input: a non-finite state or end time, or an end time before "
+               "the current time";
+    default: return "the solver stopped";
+    }
+}
+
+/* the tolerance was set since the last commit: new solver options, the state carried over */
+static int apply_tolerance(model *m) {
+    model_state *s = &m->s;
+    model_state trial = *s;
+    char err[1024];
+    if (!commit(&trial, s->value, s->impact_enabled, 1, err, sizeof err)) {
+        s->value[HBS_tolerance] = s->committed[HBS_tolerance];
+        hb_fail(m, fmi2Error, "invalid tunable parameter: %s", err);
+        return 0;
+    }
+    *s = trial;
+    return 1;
+}
+
+void hb_apply_inputs(model_state *s) {
+    double preload = s->value[HBS_preload], fh = s->value[HBS_harmonic_force];
+    if (preload != s->applied_preload || fh != s->applied_force) {
+        s->p[HBK_P_B] = preload / s->F0;   /* exactly as RigParameters.to_groups() */
+        s->p[HBK_P_FEXT] = fh / s->F0;
+        s->applied_preload = preload;
+        s->applied_force = fh;
+    }
+}
+
+static fmi2Status n_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_prior) {
+    (void)no_prior;
+    model *m = c;
+    model_state *s = &m->s;
+    s->last_status = fmi2OK;
+    if (s->terminated)
+        return hb_fail(m, fmi2Error, "fmi2DoStep refused: the FMU was terminated (fmi2Terminate)");
+    if (!s->ready) return hb_fail(m, fmi2Error, "fmi2DoStep refused: %s", s->error);
+    if (s->dirty && !apply_tolerance(m)) return fmi2Error;
+    char a[40], b[40];
+    if (!(0.0 < h && h < INFINITY)) {
+        hb_repr(h, a, sizeof a);
+        return hb_fail(m, fmi2Error, "communication step size h = %s s is invalid: it must be > 0 and "
+                    "finite; step refused, state unchanged", a);
+    }
+    double tol = fmax(TIME_ABS_TOL, TIME_ULPS * (nextafter(fabs(s->t), INFINITY) - fabs(s->t)));
+    if (t != s->t && !(fabs(t - s->t) <= tol)) {
+        hb_repr(t, a, sizeof a);
+        hb_repr(s->t, b, sizeof b);
+        return hb_fail(m, fmi2Error, "currentCommunicationPoint = %s s is not the current time of the "
+                    "FMU, %s s (tolerance %g s); step refused, state unchanged", a, b, tol);
+    }
+    double old_b = s->p[HBK_P_B], old_f = s->p[HBK_P_FEXT];
+    double old_ap = s->applied_preload, old_af = s->applied_force;
+    hb_apply_inputs(s);
+    double y[4], fst[HBK_N_FSTATE];
+    int64_t ist[HBK_N_ISTATE];
+    memcpy(y, s->y, sizeof y);
+    memcpy(ist, s->ist, sizeof ist);
+    memcpy(fst, s->fst, sizeof fst);
+    hb_kernel_raised();
+    int64_t status = hb_advance(s->y, s->ist, s->fst, (t + h - s->t_start) * s->omega, s->p, s->opts);
+    int raised = hb_kernel_raised();
+    if (raised || status != HBK_ST_DONE) {
+        double tau = s->fst[HBK_F_T];
+        memcpy(s->y, y, sizeof y);
+        memcpy(s->ist, ist, sizeof ist);
+        memcpy(s->fst, fst, sizeof fst);
+        s->p[HBK_P_B] = old_b;
+        s->p[HBK_P_FEXT] = old_f;
+        s->applied_preload = old_ap;
+        s->applied_force = old_af;
+        hb_repr(t, a, sizeof a);
+        hb_repr(h, b, sizeof b);
+        if (!raised && (status == HBK_ST_STEP_STORM || status == HBK_ST_EVENT_STORM ||
+                        status == HBK_ST_STEP_TOO_SMALL)) {
+            /* the kernel counts steps and events per forcing period at absolute times: no shorter
+             * communication step gets past this time */
+            char tf[40];
+            hb_repr(s->t_start + tau / s->omega, tf, sizeof tf);
+            return hb_fail(m, fmi2Error, "%s: the solver cannot get past t = %s s, with this step "
+                        "from t = %s s or any shorter one (its limits count per forcing period of the "
+                        "model); state restored to t = %s s; change the parameters or the tolerance",
+                        solver_failure(status), tf, a, a);
+        }
+        return hb_fail(m, fmi2Discard, "solver failure in the step from t = %s s with h = %s s: %s at "
+                    "tau = %.9g; state restored to t = %s s (retry with a shorter step)", a, b,
+                    raised ? "a kernel raised an exception" : solver_failure(status), tau, a);
+    }
+    s->t = t + h;
+    return fmi2OK;
+}
+
+/* ------------------------------------------------------------------------------------------ */
+/* The backend table for front.c                                                                */
+/* ------------------------------------------------------------------------------------------ */
+hb_wrapper hb_W;
+
+int hb_backend_load(char *err, size_t n) {
+    (void)err, (void)n;
+    if (hb_W.Instantiate) return 1;
+    hb_W.FreeInstance = n_free_instance;
+    hb_W.SetupExperiment = n_setup_experiment;
+    hb_W.EnterInitializationMode = n_enter_init;
+    hb_W.ExitInitializationMode = n_exit_init;
+    hb_W.Terminate = n_terminate;
+    hb_W.Reset = n_reset;
+    hb_W.GetReal = n_get_real;
+    hb_W.GetInteger = n_get_integer;
+    hb_W.GetBoolean = n_get_boolean;
+    hb_W.GetString = n_get_string;
+    hb_W.SetReal = n_set_real;
+    hb_W.SetInteger = n_set_integer;
+    hb_W.SetBoolean = n_set_boolean;
+    hb_W.SetString = n_set_string;
+    hb_state_fill(&hb_W);
+    hb_W.DoStep = n_do_step;
+    hb_me_fill(&hb_W);
+    hb_W.Instantiate = n_instantiate;
+    return 1;
+}

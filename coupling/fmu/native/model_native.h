@@ -1,0 +1,87 @@
+/* The native model backend (native flavour): its state, the tables the build writes into
+ * hb_native.h, and what model_native.c and model_me.c share. */
+#ifndef HAMMERBIT_MODEL_NATIVE_H
+#define HAMMERBIT_MODEL_NATIVE_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "front.h"
+
+/* allowed values of one real number (hammerbit.model.validation.Range) */
+typedef struct {
+    double lo, hi;
+    int lo_open, hi_open, allow_inf;
+    const char *text;          /* Range.text(): "[lo, hi] unit" */
+} hb_range;
+
+enum { HB_INPUT, HB_FIXED, HB_TUNABLE };
+
+/* a Real input or parameter the model stores */
+typedef struct {
+    unsigned vr;
+    int kind;                  /* HB_INPUT, HB_FIXED, HB_TUNABLE */
+    const char *name;
+    double start;
+    hb_range range;
+} hb_stored;
+
+typedef struct {
+    const char *name;          /* the group's name, as a ParameterError names it */
+    hb_range range;
+} hb_group;
+
+#include "hb_native.h"
+
+/* ------------------------------------------------------------------------------------------ */
+/* State                                                                                       */
+/* ------------------------------------------------------------------------------------------ */
+#define MODEL_STATE_MAGIC 0x48424e31u   /* "HBN1": layout version of model_state */
+
+typedef struct {
+    uint32_t magic;
+    uint32_t size;                 /* sizeof(model_state): a state of another build is refused */
+    double value[HB_NSTORED];      /* parameters and inputs as set (SI) */
+    int32_t impact_enabled;
+    double committed[HB_NSTORED];  /* the validated values in use */
+    int32_t committed_impact;
+    int32_t ready, terminated, dirty, stale, has_commit;
+    int32_t last_status;
+    double t_start, t;
+    /* solver state and parameters (kernel layout) */
+    double y[4];
+    int64_t ist[HBK_N_ISTATE];
+    double fst[HBK_N_FSTATE];
+    double p[HBK_N_P];
+    double opts[HBK_N_OPTS];
+    double x0, v0, F0, omega, x3_start;
+    double applied_preload, applied_force;   /* inputs last written into p (NaN: none yet) */
+    char error[512];               /* why fmi2DoStep is refused (not initialised, ...) */
+} model_state;
+
+typedef struct {
+    model_state s;
+    char *name;
+    fmi2CallbackFunctions cb;
+    int event_iterations;          /* Model Exchange: mode switches in the current event mode */
+    unsigned armed, fired;         /* event kinds watched when Event Mode began; taken since (bits) */
+} model;
+
+/* a float as Python's repr() writes it */
+void hb_repr(double v, char *out, size_t n);
+/* log a message with a status through the host's (the front's) logger */
+void hb_mlog(model *m, fmi2Status st, const char *fmt, ...);
+/* record st as the call's status (last_status), log the message; st */
+fmi2Status hb_fail(model *m, fmi2Status st, const char *fmt, ...);
+/* apply the inputs as set to the kernel's parameter vector (Model Exchange: at every evaluation) */
+void hb_apply_inputs(model_state *s);
+
+/* model_state.c: the FMU-state functions of the backend table */
+void hb_state_fill(hb_wrapper *w);
+
+/* model_me.c: the Model Exchange functions of the backend table */
+void hb_me_fill(hb_wrapper *w);
+/* d(state i)/dt [SI] in the current hybrid mode at the model's time */
+double hb_derivative(model *m, int i);
+
+#endif

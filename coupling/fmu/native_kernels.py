@@ -1,0 +1,363 @@
+"""The model's numba kernels as object files for the native FMU: C entry points, LLVM IR, objects.
+
+The native flavour of ``HammerBitRock.fmu`` runs the library's own kernels
+(``hammerbit.model.kernel_*``), compiled ahead of time for each target
+platform, so the FMU needs neither Python nor numba.  The steps:
+
+1. numba ``cfunc`` entry points with a C ABI (pointers to the state, option
+   and parameter arrays; :data:`ENTRY_POINTS`) call the kernels: the solver
+   driver ``advance_hammer`` and, for Model Exchange, the vector field, the
+   event indicators and the reset map;
+2. their LLVM IR (``inspect_llvm()``, which holds every kernel they call) is
+   parsed with llvmlite and linked into one module; each entry point gets a
+   plain C name (``hb_advance`` ...), every other definition becomes internal;
+3. the module is optimised and emitted for a target triple and the portable
+   CPU ``x86-64`` (no host-specific instructions) as an object file.
+
+The objects reference libm and a few helpers of numba's runtime (``NRT_*``
+allocation of the driver's scratch arrays, and the ``Py*``/``numba_*``
+functions of the error path of a cfunc); ``native/nrt_shim.c`` provides them.
+:func:`undefined_symbols` lists what an object needs, so the build can
+refuse an object that needs anything else.
+
+Compiling needs numba to compile the kernels afresh (a cached kernel carries
+no IR) for the portable CPU: :func:`build_objects` runs :func:`main` in a
+subprocess with an empty kernel cache and ``NUMBA_CPU_NAME=generic``.
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+__all__ = ["TARGETS", "ENTRY_POINTS", "KernelBuildError", "Target", "LAYOUT_NAMES", "layout",
+           "compile_entry_points", "linked_ir", "emit_object", "undefined_symbols",
+           "ALLOWED_UNDEFINED", "build_objects"]
+
+
+class KernelBuildError(RuntimeError):
+    """The kernels could not be compiled into object files (the message says which step)."""
+
+
+@dataclass(frozen=True)
+class Target:
+    """A platform the native FMU is built for."""
+
+    platform: str      #: FMI binaries directory name (linux64, win64)
+    triple: str        #: LLVM target triple
+    suffix: str        #: shared-library suffix (.so, .dll)
+
+
+#: the platforms of the native flavour; win64 is linked by mingw-w64
+TARGETS = {
+    "linux64": Target("linux64", "x86_64-unknown-linux-gnu", ".so"),
+    "win64": Target("win64", "x86_64-w64-windows-gnu", ".dll"),
+}
+
+#: the CPU the objects are emitted for: the x86-64 baseline (SSE2), which every x86-64 CPU runs
+PORTABLE_CPU = "x86-64"
+
+#: C names of the entry points and their C prototypes (kernel_api.h in native/ declares the same)
+ENTRY_POINTS = {
+    "hb_advance": "int64_t hb_advance(double *y, int64_t *ist, double *fst, double tau_end, "
+                  "double *p, double *opts)",
+    "hb_init_modes": "int64_t hb_init_modes(double *y, int64_t *ist, double *p)",
+    "hb_forces": "int64_t hb_forces(double *y, int64_t *ist, double *p, double *out)",
+    "hb_rhs": "int64_t hb_rhs(double tau, double *y, double *p, int64_t mode_s, int64_t mode_c, "
+              "double *out)",
+    "hb_watched": "int64_t hb_watched(int64_t *ist, double *p, int64_t *kinds)",
+    "hb_watch_value": "double hb_watch_value(int64_t kind, double *y, double *p, int64_t mode_c)",
+    "hb_apply_event": "int64_t hb_apply_event(int64_t kind, double *y, int64_t *ist, double *fst, "
+                      "double *p)",
+}
+
+#: symbols an object may leave to the C side: libm, and what native/nrt_shim.c defines
+ALLOWED_UNDEFINED = frozenset({
+    # libm (what LLVM lowers the math intrinsics to, per platform)
+    "exp", "pow", "sin", "cos", "sincos", "log", "floor", "sqrt", "fabs", "fmod", "tan", "atan",
+    "atan2", "log1p", "expm1", "cosh", "sinh", "tanh", "memset", "memcpy", "memmove",
+    # numba's runtime helpers the shim provides
+    "NRT_MemInfo_alloc_aligned", "NRT_MemInfo_call_dtor", "NRT_Free", "numba_gil_ensure",
+    "numba_gil_release", "numba_unpickle", "numba_do_raise", "numba_runtime_build_excinfo_struct",
+    "PyUnicode_FromString", "PyErr_WriteUnraisable", "Py_DecRef", "PyErr_Clear",
+    "PyBytes_FromStringAndSize", "PyErr_SetString", "PyErr_SetNone", "PyErr_SetObject",
+    "PyErr_Occurred", "PyErr_Fetch", "PyErr_Restore", "PyExc_RuntimeError",
+    # mingw-w64 stack probe of large frames
+    "___chkstk_ms", "__chkstk",
+})
+
+#: kernel layout constants the C side reads from the generated header (``layout()``)
+LAYOUT_NAMES = (
+    "N_ISTATE", "N_FSTATE", "N_OPTS", "I_STICK", "I_CONTACT", "I_BOUNCE", "I_WIN", "I_COUNT0",
+    "F_T", "F_H", "STICK", "SLIP", "FREE", "CONTACT", "CLAMPED", "EV_SLIP_START", "EV_STICK",
+    "EV_SLIP_ON", "EV_IMPACT", "EV_SEPARATION", "EV_CLAMP", "EV_UNCLAMP", "EV_BOUNCE",
+    "EV_BOUNCE_END", "N_EVENT_KINDS", "O_RTOL", "O_ATOL", "O_HMAX", "O_HFIXED", "O_EVCAP",
+    "O_BISECT", "O_MAXSTEPS", "O_POIN_T0", "O_POIN_DT", "O_GRAZE", "O_STEPCAP", "ST_DONE",
+    "ST_LOG_FULL", "ST_EVENT_STORM", "ST_STEP_TOO_SMALL", "ST_NONFINITE", "ST_MAX_STEPS",
+    "ST_STEP_STORM", "ST_BAD_INPUT", "V_BIT", "X_BIT",
+)
+_PARAM_NAMES = ("P_RHO", "P_XI", "P_ETA", "P_A", "P_B", "P_R", "P_MU", "P_GAMMA", "P_KC", "P_N",
+                "P_LAM", "P_PHI", "P_FEXT", "P_CONTACT", "N_P")
+#: the size of the watched-kinds buffer of hb_watched (``kernels.watched`` fills at most 3)
+WATCH_SLOTS = 4
+
+
+def layout() -> dict:
+    """``{name: int}``: the kernels' array layout (offsets, modes, event kinds, status codes)."""
+    from hammerbit.model import kernel_layouts as KL
+    out = {name: int(getattr(KL, name)) for name in LAYOUT_NAMES + _PARAM_NAMES}
+    out["WATCH_SLOTS"] = WATCH_SLOTS
+    return out
+
+
+# ---------------------------------------------------------------------------
+# 1. entry points (compiled in this process)
+# ---------------------------------------------------------------------------
+def compile_entry_points() -> dict:
+    """``{C name: numba cfunc}`` of :data:`ENTRY_POINTS` (compiles them in this process)."""
+    import numpy as np
+    from numba import carray, cfunc, types
+    from numba.core.types import CPointer, float64, int64
+
+    from hammerbit.model import kernel_driver as KD
+    from hammerbit.model import kernel_events as KE
+    from hammerbit.model import kernel_forces as KF
+    from hammerbit.model import kernel_layouts as KL
+    from hammerbit.model import kernel_reset as KR
+
+    f64p, i64p = CPointer(float64), CPointer(int64)
+    NI, NF, NO, N_P = KL.N_ISTATE, KL.N_FSTATE, KL.N_OPTS, KL.N_P
+    NS, NL = KL.N_SAMPLE_COLS, KL.N_LOG_COLS
+    NY = 4                                     # x1..x4: the FMU has no subsystem, no energy block
+    advance_hammer, rhs, watched, watch_value = KD.advance_hammer, KF.rhs, KE.watched, KE.watch_value
+    apply_event, overlap, impact_mode = KR.apply_event, KF.overlap, KF.contact_mode_at_impact
+    spring, on_bit, contact, kinetic = (KF.spring_damper_force, KF.force_on_bit, KF.contact_force,
+                                        KF.kinetic_friction)
+    I_STICK, I_CONTACT, I_WIN, P_CONTACT = KL.I_STICK, KL.I_CONTACT, KL.I_WIN, KL.P_CONTACT
+    STICK, SLIP, FREE, CONTACT, V_BIT = KL.STICK, KL.SLIP, KL.FREE, KL.CONTACT, KL.V_BIT
+    no_ap, no_ai, no_ax = np.zeros(1, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0)
+    no_h, no_g, no_g2 = np.zeros((0, 2)), np.zeros(0), np.zeros(2)
+
+    @cfunc(int64(f64p, i64p, f64p, float64, f64p, f64p))
+    def hb_advance(yp, ip, fp, tau_end, pp, op):
+        # the record buffers the FMU does not use are empty (what Stepper passes when none is asked)
+        return advance_hammer(carray(yp, (NY,)), carray(ip, (NI,)), carray(fp, (NF,)), tau_end,
+                              carray(pp, (N_P,)), carray(op, (NO,)), np.empty((0, 5)), np.empty(0),
+                              np.empty((0, NS)), np.empty((0, NL)))
+
+    @cfunc(int64(f64p, i64p, f64p))
+    def hb_init_modes(yp, ip, pp):
+        # the modes of a state at rest, as Stepper does at construction
+        y, ist, p = carray(yp, (NY,)), carray(ip, (NI,)), carray(pp, (N_P,))
+        ist[I_STICK] = SLIP if y[V_BIT] > 0.0 else STICK
+        if p[P_CONTACT] > 0.0 and overlap(y, p) > 0.0:
+            ist[I_CONTACT] = impact_mode(y, p)
+        else:
+            ist[I_CONTACT] = FREE
+        ist[I_WIN] = -1
+        return 0
+
+    @cfunc(int64(f64p, i64p, f64p, f64p))
+    def hb_forces(yp, ip, pp, op):
+        # [spring-damper, contact (CONTACT mode only), force on the bit, friction] / F0
+        y, ist, p, out = carray(yp, (NY,)), carray(ip, (NI,)), carray(pp, (N_P,)), carray(op, (4,))
+        mc = ist[I_CONTACT]
+        out[0] = spring(y, p)
+        out[1] = contact(overlap(y, p), y[1] - y[3], p, mc) if mc == CONTACT else 0.0
+        out[2] = on_bit(y, p, mc)
+        out[3] = kinetic(y[3], p) if ist[I_STICK] == SLIP else out[2]
+        return 0
+
+    @cfunc(int64(float64, f64p, f64p, int64, int64, f64p))
+    def hb_rhs(tau, yp, pp, ms, mc, op):
+        rhs(tau, carray(yp, (NY,)), carray(pp, (N_P,)), ms, mc, 0, 0, no_ap, no_ai, no_ax, no_h,
+            no_g, no_g2, carray(op, (NY,)))
+        return 0
+
+    @cfunc(int64(i64p, f64p, i64p))
+    def hb_watched(ip, pp, kp):
+        return watched(carray(ip, (NI,)), carray(pp, (N_P,)), carray(kp, (WATCH_SLOTS,)))
+
+    @cfunc(float64(int64, f64p, f64p, int64))
+    def hb_watch_value(kind, yp, pp, mc):
+        return watch_value(kind, carray(yp, (NY,)), carray(pp, (N_P,)), mc)
+
+    @cfunc(int64(int64, f64p, i64p, f64p, f64p))
+    def hb_apply_event(kind, yp, ip, fp, pp):
+        return apply_event(kind, carray(yp, (NY,)), carray(ip, (NI,)), carray(fp, (NF,)),
+                           carray(pp, (N_P,)))
+
+    funcs = {"hb_advance": hb_advance, "hb_init_modes": hb_init_modes, "hb_forces": hb_forces,
+             "hb_rhs": hb_rhs, "hb_watched": hb_watched, "hb_watch_value": hb_watch_value,
+             "hb_apply_event": hb_apply_event}
+    assert set(funcs) == set(ENTRY_POINTS)
+    return funcs
+
+
+# ---------------------------------------------------------------------------
+# 2. LLVM IR of the entry points, linked into one module
+# ---------------------------------------------------------------------------
+def _llvm():
+    import llvmlite.binding as llvm
+    llvm.initialize_all_targets()
+    llvm.initialize_all_asmprinters()
+    return llvm
+
+
+def linked_ir(funcs: dict) -> str:
+    """One LLVM module with every entry point under its C name and nothing else exported."""
+    llvm = _llvm()
+    module = None
+    names = {}
+    for cname, fn in funcs.items():
+        mod = llvm.parse_assembly(fn.inspect_llvm())
+        names[fn.native_name] = cname
+        if module is None:
+            module = mod
+        else:
+            module.link_in(mod)
+    for f in module.functions:
+        if f.is_declaration:
+            continue
+        if f.name in names:
+            f.name = names[f.name]
+            f.linkage = llvm.Linkage.external
+            # the library's exports are the FMI functions only (ELF; a DLL exports what it marks)
+            f.visibility = llvm.Visibility.hidden
+        else:
+            f.linkage = llvm.Linkage.internal
+    for g in module.global_variables:
+        if not g.is_declaration:
+            g.linkage = llvm.Linkage.internal
+    missing = set(ENTRY_POINTS) - {f.name for f in module.functions if not f.is_declaration}
+    if missing:
+        raise KernelBuildError(f"the linked kernel module lacks the entry points {sorted(missing)}")
+    module.verify()
+    return str(module)
+
+
+# ---------------------------------------------------------------------------
+# 3. object files
+# ---------------------------------------------------------------------------
+def emit_object(ir: str, target: Target) -> bytes:
+    """Object file of ``ir`` for ``target`` and the portable CPU (optimised; unused code removed)."""
+    llvm = _llvm()
+    mod = llvm.parse_assembly(ir)
+    # numba ran with NUMBA_CPU_NAME=generic: its IR carries no CPU attributes; the target machine
+    # emits for the baseline CPU
+    tm = llvm.Target.from_triple(target.triple).create_target_machine(
+        cpu=PORTABLE_CPU, features="", opt=3, reloc="pic", codemodel="default")
+    mod.triple = target.triple
+    mod.data_layout = str(tm.target_data)
+    pto = llvm.create_pipeline_tuning_options(speed_level=2)
+    pb = llvm.create_pass_builder(tm, pto)
+    pb.getModulePassManager().run(mod, pb)
+    mod.verify()
+    return tm.emit_object(mod)
+
+
+def undefined_symbols(obj: Path, *, nm: str = "nm") -> set:
+    """Names an object file leaves undefined (``nm -u``; a leading underscore of COFF kept)."""
+    r = subprocess.run([nm, "-u", str(obj)], capture_output=True, text=True)
+    if r.returncode != 0:
+        raise KernelBuildError(f"{nm} -u {obj} failed: {r.stderr.strip()}")
+    return {line.split()[-1] for line in r.stdout.splitlines() if line.strip()}
+
+
+def main(argv=None) -> int:
+    """``python -m hammerbit.fmu.native_kernels OUT_DIR PLATFORM...``: write ``kernels_<platform>.o``.
+
+    Run by :func:`build_objects` in a process with the portable CPU target and
+    an empty kernel cache.  Prints a JSON summary (layout, object sizes).
+    """
+    argv = sys.argv[1:] if argv is None else argv
+    out_dir = Path(argv[0])
+    funcs = compile_entry_points()
+    ir = linked_ir(funcs)
+    sizes = {}
+    for plat in argv[1:]:
+        obj = emit_object(ir, TARGETS[plat])
+        path = out_dir / f"kernels_{plat}.o"
+        path.write_bytes(obj)
+        sizes[plat] = len(obj)
+    print(json.dumps({"layout": layout(), "sizes": sizes}))
+    return 0
+
+
+def sources_key(platforms) -> str:
+    """Hash of what the objects are made of: the runtime's sources, this module, numba, llvmlite."""
+    import hashlib
+    from importlib.metadata import version
+
+    from hammerbit import model
+    h = hashlib.sha256()
+    for f in sorted(Path(model.__file__).resolve().parent.glob("*.py"), key=lambda p: p.name):
+        if f.name != "build_info.py":          # rewritten by the Python flavour's build
+            h.update(f.name.encode() + b"\0" + f.read_bytes() + b"\0")
+    h.update(Path(__file__).read_bytes())
+    h.update(f"numba {version('numba')} llvmlite {version('llvmlite')} {sorted(platforms)}".encode())
+    return h.hexdigest()[:16]
+
+
+def _kept_dir(key: str):
+    """``<user cache>/native-kernels/<key>`` (None if the user cache cannot be written)."""
+    from hammerbit.model.numba_cache import user_cache_root
+    d = Path(user_cache_root()) / "native-kernels" / key
+    try:
+        d.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        return None
+    return d
+
+
+def build_objects(out_dir, platforms=("linux64", "win64"), *, python: str = sys.executable,
+                  timeout: float = 1800) -> dict:
+    """Compile the kernels into ``out_dir/kernels_<platform>.o``; return ``{"layout", "sizes"}``.
+
+    Runs :func:`main` in a subprocess: numba there compiles for the portable
+    CPU (``NUMBA_CPU_NAME=generic``) into an empty cache directory, so the IR
+    of every kernel is at hand.  The objects are kept in the user cache
+    (``native-kernels/<hash of the sources and versions>``), so a rebuild of
+    the same sources takes seconds.  Raises :class:`KernelBuildError`.
+    """
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    kept = _kept_dir(sources_key(platforms))
+    summary = kept / "summary.json" if kept else None
+    if summary is not None and summary.is_file():
+        for plat in platforms:
+            shutil.copyfile(kept / f"kernels_{plat}.o", out_dir / f"kernels_{plat}.o")
+        return json.loads(summary.read_text())
+    result = _compile_objects(out_dir, platforms, python=python, timeout=timeout)
+    if kept is not None:
+        for plat in platforms:
+            shutil.copyfile(out_dir / f"kernels_{plat}.o", kept / f"kernels_{plat}.o")
+        tmp = kept / "summary.json.tmp"
+        tmp.write_text(json.dumps(result))
+        os.replace(tmp, kept / "summary.json")     # last: a complete entry or none
+    return result
+
+
+def _compile_objects(out_dir: Path, platforms, *, python: str, timeout: float) -> dict:
+    from hammerbit.model.numba_target import PORTABLE_ENV
+    with tempfile.TemporaryDirectory(prefix="hammerbit_kernels_") as cache:
+        env = dict(os.environ, HAMMERBIT_CACHE_DIR=cache, NUMBA_CACHE_DIR=cache,
+                   PYTHONDONTWRITEBYTECODE="1", **PORTABLE_ENV)
+        try:
+            r = subprocess.run([python, "-m", "hammerbit.fmu.native_kernels", str(out_dir), *platforms],
+                               capture_output=True, text=True, env=env, timeout=timeout)
+        except subprocess.TimeoutExpired:
+            raise KernelBuildError(f"compiling the kernels took more than {timeout:g} s") from None
+    if r.returncode != 0:
+        raise KernelBuildError(f"compiling the kernels into object files failed (exit {r.returncode}):\n"
+                               f"{r.stderr[-3000:]}")
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+if __name__ == "__main__":
+    sys.exit(main())

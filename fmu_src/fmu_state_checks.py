@@ -1,0 +1,96 @@
+"""Checks of a saved HammerBitRock FMU state before it is restored (fmi2DeSerializeFMUstate).
+
+A serialised state comes from outside the process (a file, another tool), so
+every field is checked before the slave uses it: the keys, the types, finite
+numbers, the stepper array's length and the ranges of its mode and counter
+entries (an out-of-range mode would index past the kernel's tables), and the
+clock.  :func:`state_problem` says what is wrong, or returns None.
+"""
+from __future__ import annotations
+
+import math
+
+from . import kernel_layouts as K
+from .kernel_layouts import N_P
+
+__all__ = ["STATE_KEYS", "state_problem"]
+
+#: keys of a saved state (besides "format" and "build")
+STATE_KEYS = ("stepper", "committed", "params", "inputs", "t", "t_start", "ready", "terminated",
+              "error")
+
+#: the largest counter a state may hold: every integer below it is exact in a float64
+_MAX_COUNT = 2.0 ** 53
+#: allowed values of the mode entries of the kernel's integer state
+_MODES = {K.I_STICK: (K.STICK, K.SLIP), K.I_CONTACT: (K.FREE, K.CONTACT, K.CLAMPED),
+          K.I_BOUNCE: (0, 1)}
+
+
+#: the forcing-period windows of the storm counters start at -1 (no window yet)
+_WINDOWS = (K.I_WIN, K.I_SWIN)
+_WINDOW_START = -1
+
+
+def _finite_number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _stepper_problem(arr, size: int):
+    if not isinstance(arr, list) or len(arr) != size:
+        n = len(arr) if isinstance(arr, list) else type(arr).__name__
+        return f"the stepper state has {n} entries, this model's has {size}"
+    # numbers, none NaN; the kernel's parameters may hold inf (no gap: R = inf)
+    if not all(isinstance(v, (int, float)) and not isinstance(v, bool) and v == v for v in arr):
+        return "the stepper state holds a NaN or non-numeric entry"
+    n_y = size - K.N_ISTATE - K.N_FSTATE - N_P
+    f0 = n_y + K.N_ISTATE
+    for i in list(range(n_y)) + [f0 + K.F_T, f0 + K.F_H]:
+        if not math.isfinite(arr[i]):
+            return f"the stepper state's position, velocity, time or step (entry {i}) is {arr[i]!r}"
+    for i, v in enumerate(arr[n_y:f0]):
+        lowest = _WINDOW_START if i in _WINDOWS else 0
+        if v != int(v) or not lowest <= v < _MAX_COUNT:
+            return f"integer state entry {i} = {v!r} is not a count in [{lowest}, 2**53)"
+        allowed = _MODES.get(i)
+        if allowed is not None and int(v) not in allowed:
+            return f"mode entry {i} = {v!r} is not one of {allowed}"
+    return None
+
+
+def state_problem(s, size: int, param_names, n_inputs: int):
+    """Why the decoded state ``s`` cannot be restored (None: it can).
+
+    ``size`` is the length of the stepper array, ``param_names`` the names in
+    ``params``/``committed``, ``n_inputs`` the number of input values.  The
+    ranges that depend on the parameters (the committed parameters, the inputs'
+    bounds) are the slave's to check.
+    """
+    missing = [k for k in STATE_KEYS if k not in s]
+    if missing:
+        return f"fields missing: {', '.join(missing)}"
+    why = _stepper_problem(s["stepper"], size)
+    if why:
+        return why
+    for key in ("t", "t_start"):
+        if not _finite_number(s[key]):
+            return f"{key} = {s[key]!r} is not a finite time"
+    if s["t"] < s["t_start"]:
+        return f"t = {s['t']!r} s is before t_start = {s['t_start']!r} s"
+    for key in ("params", "committed"):
+        d = s[key]
+        if not isinstance(d, dict) or set(d) != set(param_names):
+            return f"{key} does not name this model's parameters"
+        for name, v in d.items():
+            ok = isinstance(v, bool) if name == "impact_enabled" else _finite_number(v)
+            if not ok:
+                return f"{key}[{name!r}] = {v!r} is not a {'Boolean' if name == 'impact_enabled' else 'finite number'}"
+    inputs = s["inputs"]
+    if not (isinstance(inputs, (list, tuple)) and len(inputs) == n_inputs
+            and all(_finite_number(v) for v in inputs)):
+        return f"inputs = {inputs!r} is not {n_inputs} finite numbers"
+    for key in ("ready", "terminated"):
+        if not isinstance(s[key], bool):
+            return f"{key} = {s[key]!r} is not a Boolean"
+    if s["error"] is not None and not isinstance(s["error"], str):
+        return f"error = {s['error']!r} is not a text"
+    return None
