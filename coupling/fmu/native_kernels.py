@@ -306,7 +306,7 @@ def sources_key(platforms) -> str:
 
 def _kept_dir(key: str):
     """``<user cache>/native-kernels/<key>`` (None if the user cache cannot be written)."""
-    from hammerbit.model.numba_cache import user_cache_root
+    from hammerbit.model.numba_cache_place import user_cache_root
     d = Path(user_cache_root()) / "native-kernels" / key
     try:
         d.mkdir(parents=True, exist_ok=True)
