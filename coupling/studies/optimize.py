@@ -36,7 +36,7 @@ from hammerbit.model.solver_errors import SolverError
 from hammerbit.model.solver_options import SolverOptions
 
 from .executor import Executor, ExecutorOptions
-from .map import STATUS_OK, Axis, _map_chunk, axis_unit, run_cell
+from .map import STATUS_OK, Axis, map_chunk, axis_unit, run_cell
 from .bifurcation import SECONDS_PER_PERIOD
 
 __all__ = ["Bound", "OptimizeConfig", "Candidate", "OptimizeResult", "optimize", "frequency_windows"]
@@ -373,7 +373,7 @@ def optimize(groups: Groups, config: OptimizeConfig, *, string=None, executor: O
     own = executor is None
     ex = Executor(options) if own else executor
     try:
-        rows = ex.run(_map_chunk, cells, fixed=(groups, names, c.periods, c.solver),
+        rows = ex.run(map_chunk, cells, fixed=(groups, names, c.periods, c.solver),
                       cost_s=c.periods * SECONDS_PER_PERIOD, label="optimize: grid")
     finally:
         if own:
