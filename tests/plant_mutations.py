@@ -1,4 +1,4 @@
-"""Plant each mutation of tests/MUTATIONS.md (section arch) alone, run its fast tests, restore the source.
+"""Plant each mutation of tests/MUTATIONS.md (sections arch and fig12) alone, run its fast tests, restore the source.
 
 ``python tests/plant_mutations.py [ID ...]`` prints KILLED or SURVIVED per mutation.
 """
@@ -35,6 +35,13 @@ M = [
  ("friction-taylor-curvature", "fmu_src/kernel_forces.py", "e = EXP_FRICTION_TAYLOR * (1.0 - u + 0.5 * u * u)", "e = EXP_FRICTION_TAYLOR * (1.0 - u + u * u)", "tests/test_kernel_units.py -k friction"),
  ("watch-slope-bounce-sign", "fmu_src/kernel_events.py", "return -s if kind == EV_BOUNCE else s", "return s", "tests/test_kernel_units.py -k slope"),
  ("watch-slope-clamp-sign", "fmu_src/kernel_events.py", "        return -p[P_LAM] * ddd\n", "        return p[P_LAM] * ddd\n", "tests/test_kernel_units.py -k slope"),
+ # section fig12: the paper-figure calibration, its derivation script and Fig. 14
+ ("fig12-calibration-mu", "fmu_src/presets.py", "PAPER_MU = 0.795", "PAPER_MU = 0.85", "tests/test_paper_figures.py -k fig12_period_sequence"),
+ ("fig12-caption-gap", "fmu_src/presets.py", "PAPER_GAP = 0.84", "PAPER_GAP = 0.81", "tests/test_paper_figures.py -k one_model"),
+ ("fig12-preset-from-rig", "fmu_src/presets.py", "    return _paper_fig9().replace(r=PAPER_GAP, a=0.06)", "    return RIG.to_groups().replace(eta=1.0, b=0.55, phi=math.pi / 2, mu=PAPER_MU, r=PAPER_GAP, a=0.06)", "tests/test_paper_figures.py -k one_model"),
+ ("fig12-search-any", "docs/make_calibration.py", 'return np.all(np.nan_to_num(ds["period"].values) == want, axis=-1)', 'return np.any(np.nan_to_num(ds["period"].values) == want, axis=-1)', "tests/test_paper_figures.py -k calibration_search"),
+ ("fig14-rop-from-start", "coupling/scene/simulate.py", "        k0 = min(int(math.floor(len(p) * (1.0 - window))), len(p) - 2)", "        k0 = 0", "tests/test_paper_figures.py -k fig14_over"),
+ ("fig14-overlap-gap", "fmu_src/kernel_forces.py", "    return y[X_HAMMER] - y[X_BIT] - p[P_R]\n", "    return y[X_HAMMER] - y[X_BIT] - p[P_R] * 1.001\n", "tests/test_paper_figures.py -k start_up_impact"),
 ]
 only = sys.argv[1:]
 res = {}
