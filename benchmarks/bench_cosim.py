@@ -26,6 +26,10 @@ coupled to the field hammer (:func:`hammerbit.cosim.config.field_hammer`):
    step (one ``setReal``, one ``doStep``, one ``getReal`` of 5 values).
    Both sides are the best of two runs.  Goal: at most 2x the floor.
 
+4. **Set-up** of the string side in a fresh process (its eigenproblem on one
+   BLAS thread, against numpy's default threading) and the **sustained
+   drilling** run: 60 s with the auto-driller (WOB held, ROP of the halves).
+
 Run: ``python -m benchmarks --only cosim`` (``--quick`` for a short run).
 """
 from __future__ import annotations
@@ -56,9 +60,9 @@ def fmi_floor(fmu_path, n_steps: int, H: float) -> float:
 
 def _config(quick: bool) -> dict:
     if quick:
-        return {"stop": 1.5, "steps": [0.5e-3, 1e-3, 2e-3], "long_stop": 10.0,
+        return {"stop": 1.5, "steps": [0.5e-3, 1e-3, 2e-3], "long_stop": 10.0, "sustained_stop": 10.0,
                 "est_stop": 1.0, "est_steps": [0.5e-3, 1e-3, 2e-3, 5e-3]}
-    return {"stop": 3.0, "steps": [0.25e-3, 0.5e-3, 1e-3, 2e-3], "long_stop": 60.0,
+    return {"stop": 3.0, "steps": [0.25e-3, 0.5e-3, 1e-3, 2e-3], "long_stop": 60.0, "sustained_stop": 60.0,
             "est_stop": 2.0, "est_steps": [0.25e-3, 0.5e-3, 1e-3, 2e-3, 5e-3, 10e-3]}
 
 
@@ -249,6 +253,67 @@ def measure_long_run(cfg: dict, log) -> dict:
     return out
 
 
+_SETUP_CODE = r"""
+import json, time
+import numpy as np
+from threadpoolctl import threadpool_limits
+t0 = time.perf_counter()
+from hammerbit.drillstring import load_string
+from hammerbit.cosim.config import CosimConfig
+from hammerbit.cosim.string_side import StringSide
+s = load_string("field-2200m")
+c = CosimConfig()
+t1 = time.perf_counter()
+side = StringSide(s, c)
+side.discretisation(c.step)
+t2 = time.perf_counter()
+A = np.array(side.A1)
+t3 = time.perf_counter()
+np.linalg.eig(A)
+t4 = time.perf_counter()
+with threadpool_limits(limits=1, user_api="blas"):
+    np.linalg.eig(A)
+t5 = time.perf_counter()
+print(json.dumps({"string_side_s": t2 - t1, "states": int(side.n), "eig_default_threads_s": t4 - t3,
+                  "eig_one_thread_s": t5 - t4}))
+"""
+
+
+def measure_setup(log) -> dict:
+    """Cold set-up of the field string's side (a fresh process: no memo), and its eigenproblem
+    with numpy's default BLAS threading (the peer) against one thread (what the side uses)."""
+    import json
+    import subprocess
+    log("set-up: the string side in a fresh process")
+    out = subprocess.run([sys.executable, "-c", _SETUP_CODE], capture_output=True, text=True, check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def measure_sustained(cfg: dict, log) -> dict:
+    """The auto-driller run of ``tests/test_top.py::test_sustained_drilling_with_the_auto_driller``:
+    field-2200m, A = 15 kN at 22.5 Hz, fixed 1 ms steps, ``sustained_stop`` seconds."""
+    from hammerbit.cosim.config import CosimConfig, field_hammer
+    from hammerbit.cosim.master import cosimulate
+    from hammerbit.drillstring import load_string
+    from hammerbit.drillstring.top import TopCondition
+    stop = cfg["sustained_stop"]
+    log(f"sustained drilling: {stop:g} s with the auto-driller")
+    rig = field_hammer().replace(frequency=22.5, amplitude=15e3)
+    c = CosimConfig(stop=stop, step=1e-3, rig=rig, top=TopCondition.auto_driller(), estimate=False,
+                    record=("wob", "bit_position", "stick"), progress=False)
+    r = cosimulate(load_string("field-2200m"), c)
+    d = r.data
+    t, x = d["time"], d["bit_position"]
+    half = int(np.searchsorted(t, 0.5 * stop))
+    last = t >= stop - min(10.0, 0.5 * stop)
+    return {"stop_s": stop, "wall_time_s": r.wall_time_s, "setup_time_s": r.setup_time_s,
+            "macro_steps": r.macro_steps, "slips": r.counts.get("slips", 0),
+            "wob_set_point_n": c.weight_on_bit, "wob_mean_last_n": float(np.mean(d["wob"][last])),
+            "rop_first_half_m_per_h": float((x[half] - x[0]) / (t[half] - t[0]) * 3600.0),
+            "rop_second_half_m_per_h": float((x[-1] - x[half]) / (t[-1] - t[half]) * 3600.0),
+            "gains": r.stats.get("auto_driller")}
+
+
 def _plot(result):
     import matplotlib
     matplotlib.use("Agg")
@@ -302,11 +367,31 @@ def run(quick: bool = False, *, verbose: bool = True) -> dict:
 
     cfg = _config(quick)
     t0 = time.perf_counter()
+    setup = measure_setup(log)
+    sustained = measure_sustained(cfg, log)
     estimate = measure_estimate(cfg, log)
     errors = measure_errors(cfg, log)
     long = measure_long_run(cfg, log)
     cmd = harness_command(NAME, quick)
     summary = []
+    summary.append(summary_row(
+        f"set-up of the field string's side ({setup['states']} states: eigenproblem, exact step) in a fresh "
+        f"process; its eigenproblem on one BLAS thread, peer = numpy's default threading",
+        fmt_time(setup["string_side_s"]), peer=fmt_time(setup["eig_default_threads_s"]) + " (eig alone)",
+        ratio=f"{setup['eig_one_thread_s'] / setup['eig_default_threads_s']:.2f}x (eig, one thread / default)",
+        command=cmd))
+    su = sustained
+    summary.append(summary_row(
+        f"sustained drilling: {su['stop_s']:g} s on field-2200m with the auto-driller (22.5 Hz, 15 kN, H = 1 ms, "
+        f"{su['macro_steps']} steps, {su['slips']} slips): mean WOB of the last 10 s vs set point, ROP of the "
+        f"halves",
+        f"{su['wob_mean_last_n'] / 1e3:.2f} kN vs {su['wob_set_point_n'] / 1e3:.2f} kN; ROP "
+        f"{su['rop_first_half_m_per_h']:.1f} / {su['rop_second_half_m_per_h']:.1f} m/h; "
+        f"{fmt_time(su['wall_time_s'])} (+ set-up {fmt_time(su['setup_time_s'])})",
+        goal="WOB within 2 %, ROP halves within 10 %",
+        met=bool(abs(su["wob_mean_last_n"] / su["wob_set_point_n"] - 1) <= 0.02
+                 and abs(su["rop_first_half_m_per_h"] / su["rop_second_half_m_per_h"] - 1) <= 0.1),
+        command=cmd))
     ratios = [r[k] for r in estimate["rows"] for k in ("wob_amplitude_ratio", "penetration_ratio")
               if r[k] is not None]
     lo, hi = min(ratios), max(ratios)
@@ -354,7 +439,8 @@ def run(quick: bool = False, *, verbose: bool = True) -> dict:
         fmt_time(long["fmu_alone_s"]), peer=fmt_time(long["floor_s"]),
         ratio=f"{long['fmu_alone_s'] / long['floor_s']:.2f}x floor", command=cmd))
     result = {"benchmark": NAME, "quick": quick, "command": cmd, "argv": sys.argv, "machine": machine_info(),
-              "config": cfg, "estimate": estimate, "errors": errors, "long_run": long, "summary": summary,
+              "config": cfg, "setup": setup, "sustained": sustained, "estimate": estimate, "errors": errors,
+              "long_run": long, "summary": summary,
               "elapsed_s": time.perf_counter() - t0}
     save_result(NAME, result, _plot(result))
     return result

@@ -100,6 +100,7 @@ def test_default_gains_follow_the_documented_derivation(field):
     assert g.proportional_gain == pytest.approx(2 * w_n / k_s, rel=1e-12)
     assert g.integral_gain == pytest.approx(w_n ** 2 / k_s, rel=1e-12)
     assert g.damping_ratio == pytest.approx(1.0, rel=1e-12)
+    assert g.settling_time_s == pytest.approx(6.0 / w_n, rel=1e-12)
     given = auto_driller_gains(field, TopCondition.auto_driller(1e-6, 2e-7), interface_stiffness=ki,
                                hammer_stiffness=rig.stiffness)
     assert (given.proportional_gain, given.integral_gain) == (1e-6, 2e-7)
@@ -187,3 +188,46 @@ def test_cli_top_bad_value_exits_2(capsys):
     code, out, err = run_cli(["cosim", "--string", "field-2200m", "--stop", "0.1", "--top", "feed:fast"], capsys)
     assert code == 2
     assert "--top feed:fast" in err and "Traceback" not in err
+
+
+def sustained_drilling(string, *, stop=60.0, step=1e-3):
+    """The sustained-drilling run: 60 s on the field string with the auto-driller (the drilling
+    case: A = 15 kN at 22.5 Hz), fixed 1 ms steps (also the benchmark's run)."""
+    rig = field_hammer().replace(frequency=22.5, amplitude=15e3)
+    cfg = CosimConfig(stop=stop, step=step, rig=rig, top=TopCondition.auto_driller(), estimate=False,
+                      record=("wob", "bit_position", "stick"), progress=False)
+    return cosimulate(string, cfg)
+
+
+@pytest.mark.slow
+def test_sustained_drilling_with_the_auto_driller(field):
+    r = sustained_drilling(field)
+    d = r.data
+    t = d["time"]
+    slip_starts = t[1:][(d["stick"][:-1] > 0.5) & (d["stick"][1:] < 0.5)]
+    # slips continue to the end: every second of the last ten has some
+    assert np.all(np.histogram(slip_starts, bins=np.arange(50.0, 60.01, 1.0))[0] > 0)
+    last = t >= 50.0
+    assert np.mean(d["wob"][last]) == pytest.approx(r.config.weight_on_bit, rel=0.02)
+    half = np.searchsorted(t, 30.0)
+    x = d["bit_position"]
+    rop1 = (x[half] - x[0]) / (t[half] - t[0])
+    rop2 = (x[-1] - x[half]) / (t[-1] - t[half])
+    assert rop2 > 0.0 and rop1 == pytest.approx(rop2, rel=0.1)
+
+
+def test_feed_is_an_exact_input_of_the_exchange(field):
+    """No harmonic force and a fast feed: the hammer is pushed quasi-statically through the
+    interface while the block moves. The string sees the feed as an exact polynomial over each
+    long step, so the interface force follows the reference to a small fraction of the load
+    the feed builds (a feed held constant over a step would be off by k_i V H / 2)."""
+    V = 0.1
+    rig = field_hammer().replace(amplitude=0.0)
+    cfg = CosimConfig(stop=0.5, step=5e-3, rig=rig, top=TopCondition.feed(V), f_max=60.0, estimate=False,
+                      check_step=False, record=("interface_force",))
+    ref = monolithic(field, cfg)
+    co = cosimulate(field, cfg)
+    built = np.ptp(ref.data["interface_force"])
+    err = np.max(np.abs(co.data["interface_force"] - ref.data["interface_force"]))
+    assert built > 1e4
+    assert err < 0.1 * cfg.interface_stiffness * V * cfg.step / 2

@@ -79,11 +79,13 @@ def top_from_args(args):
         raise UsageError(str(e)) from None
 
 
-def rig_from_args(args):
-    """The field hammer with ``--set`` applied (groups, SI symbols, RigParameters/FMU names)."""
+def rig_from_args(args, string=None):
+    """The string's default hammer (:func:`~hammerbit.cosim.config.default_hammer`: the field hammer,
+    or the paper's rig on a string too light for it; the field hammer without a string) with
+    ``--set`` applied (groups, SI symbols, RigParameters/FMU names)."""
     from hammerbit.model.settings import apply_settings
-    from hammerbit.cosim.config import field_hammer
-    rig = field_hammer()
+    from hammerbit.cosim.config import default_hammer, field_hammer
+    rig = field_hammer() if string is None else default_hammer(string)
     settings = parse_settings(getattr(args, "set", None))
     if settings:
         rig = apply_settings(rig.to_groups(), settings).to_rig()
@@ -97,7 +99,8 @@ def config_from_args(args, **extra):
     :class:`~hammerbit.cli.common.UsageError` (exit code 2)."""
     from hammerbit.model.validation import ParameterError
     from hammerbit.cosim.config import CosimConfig
-    rig = rig_from_args(args)
+    string = load_string_arg(args) if getattr(args, "string", None) else None
+    rig = rig_from_args(args, string)
     kw = {"rig": rig, "wob": getattr(args, "wob", None), "top": top_from_args(args)}
     for name in ("scheme", "extrapolation", "f_max", "harmonic_source", "ramp"):
         if getattr(args, name, None) is not None:
@@ -111,11 +114,25 @@ def config_from_args(args, **extra):
         kw["interface_damping"] = args.interface_damping
     kw.update(extra)
     try:
-        return CosimConfig(**kw)
+        cfg = CosimConfig(**kw)
     except ParameterError:
         raise
     except (ValueError, TypeError) as e:
         raise UsageError(str(e)) from None
+    if string is not None:
+        _check_wob(string, cfg, given=getattr(args, "wob", None) is not None)
+    return cfg
+
+
+def _check_wob(string, cfg, *, given: bool) -> None:
+    """The WOB must hang from the string: 0 < WOB <= its buoyed weight (exit 2 otherwise)."""
+    from hammerbit.drillstring.statics import static_equilibrium
+    weight = static_equilibrium(string).buoyed_weight
+    W = cfg.weight_on_bit
+    if not 0.0 < W <= weight:
+        what = f"--wob {W:g}" if given else f"the hammer's preload (WOB) {W:g} N"
+        raise UsageError(f"{what}: allowed range 0 < WOB <= the buoyed weight of {string.name}, {weight:.6g} N "
+                         f"(give --wob, or --set preload=...)")
 
 
 def load_string_arg(args):
@@ -175,7 +192,8 @@ def _print_text(out: dict, res, cfg, string) -> None:
                 f"extrapolation order {cfg.extrapolation}, hammer {out['hammer']})")
     print(head)
     print(f"  to t = {out['stop_s']:g} s; WOB mean {out['wob_mean_n'] / 1e3:.4g} kN, dynamic amplitude "
-          f"{out['wob_amplitude_n'] / 1e3:.4g} kN (from t = {out['steady_window_start_s']:g} s)")
+          f"{out['wob_amplitude_n'] / 1e3:.4g} kN (fundamental, from t = {out['steady_window_start_s']:g} s); "
+          f"max {out['wob_max_n'] / 1e3:.4g} kN, min {out['wob_min_n'] / 1e3:.4g} kN")
     c = out["counts"]
     print(f"  penetration {out['penetration_m'] * 1e3:.5g} mm; slips {c.get('slips', 0)}, impacts "
           f"{c.get('impacts', 0)}, bounce violations {c.get('bounce_violations', 0)}")
@@ -200,7 +218,7 @@ def cmd_cosim(args) -> int:
     portable_target_for_fmu(args)
     from hammerbit.cosim.master import cosimulate
     from hammerbit.cosim.reference import monolithic
-    from hammerbit.cosim.error import StepResolutionError
+    from hammerbit.cosim.error import SAFETY_FACTOR, StepResolutionError
     adaptive = args.step is None or args.adaptive
     extra = {"stop": args.stop,
              "record": ("wob", "interface_force", "hammer_position", "hammer_velocity", "bit_position",
@@ -242,11 +260,19 @@ def cmd_cosim(args) -> int:
         print(json.dumps(out, indent=2, default=float))
     else:
         _print_text(out, res, cfg, string)
+    bounce = out["bounce"]["violations"]
+    if bounce:
+        print(f"hammerbit cosim: warning: {bounce} bounce violation(s): the rock would have to pull the bit "
+              f"back (lowest WOB {out['wob_min_n']:.4g} N, mean {out['wob_mean_n']:.4g} N); the model "
+              f"leaves its range of validity", file=sys.stderr)
+    if est is not None and not est.claimed:
+        print(f"hammerbit cosim: warning: {est.text()}", file=sys.stderr)
+        return EXIT_INACCURATE
     if est is not None and not est.meets_tolerance:
         how = ("a smaller --step, or the adaptive step (omit --step)" if not cfg.adaptive else
                "a tighter --tol or a smaller first --step")
-        print(f"hammerbit cosim: warning: the answer is not within the tolerance: {est.text()}; "
-              f"use {how}", file=sys.stderr)
+        print(f"hammerbit cosim: warning: the answer is not shown to be within the tolerance (the estimate "
+              f"must be within tol / {SAFETY_FACTOR:g}, its margin): {est.text()}; use {how}", file=sys.stderr)
         return EXIT_INACCURATE
     return EXIT_OK
 

@@ -272,6 +272,10 @@ def cmd_check(args: argparse.Namespace) -> int:
     return code
 
 
+#: Highest frequency [Hz] ``modes --hammer-on-bottom --count N`` searches up to for N modes.
+MODES_F_CEILING = 1e6
+
+
 def _cmd_hammer_modes(args: argparse.Namespace) -> int:
     """``hammerbit modes --hammer-on-bottom``: the hammer as the bottom boundary.
 
@@ -293,6 +297,10 @@ def _cmd_hammer_modes(args: argparse.Namespace) -> int:
     kw = dict(interface_stiffness=cfg.interface_stiffness, hammer_mass=rig.hammer_mass,
               hammer_stiffness=rig.stiffness, top=top, f_max=f_max)
     f = hammer_on_bottom_frequencies(string, mass=args.mass, **kw)
+    while args.count and not args.fmax and len(f) < args.count and kw["f_max"] < MODES_F_CEILING:
+        # --count without --fmax: as many modes as asked, however high they lie
+        kw["f_max"] *= 4.0
+        f = hammer_on_bottom_frequencies(string, mass=args.mass, **kw)
     exact = hammer_on_bottom_frequencies(string, exact=True, **kw) if args.exact else None
     if args.count:
         f = f[: args.count]

@@ -126,6 +126,12 @@ def cmd_sweep(args) -> int:
     cfg = config_from_args(args, stop=args.duration, progress=False, estimate=False,
                            **({} if args.step is not None else {"step": 1e-3}))
     string = load_string_arg(args)
+    if args.step is None:
+        # 1 ms, or the largest step that resolves this string and hammer
+        from hammerbit.cosim.error import step_limits
+        from hammerbit.cosim.string_side import StringSide
+        H = min([cfg.step] + [lim.max_step_s for lim in step_limits(StringSide(string, cfg), cfg)])
+        cfg = cfg.replace(step=H)
     t0 = time.perf_counter()
     res = sweep(string, freqs, cfg, fmu=fmu_arg(args), window_periods=args.window_periods,
                 steady_tol=args.steady_tol, max_duration=args.max_duration,

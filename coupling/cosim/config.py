@@ -21,8 +21,8 @@ from hammerbit.model.validation import check as _check
 from hammerbit.cosim.error import CouplingErrorEstimate
 from hammerbit.drillstring.top import TopCondition
 
-__all__ = ["SCHEMES", "EXCHANGES", "HAMMER_INPUTS", "RECORDABLE", "CouplingInstabilityError", "field_hammer", "CosimConfig",
-           "CosimResult", "steady_start", "event_counts", "record_dtype"]
+__all__ = ["SCHEMES", "EXCHANGES", "HAMMER_INPUTS", "RECORDABLE", "CouplingInstabilityError", "field_hammer",
+           "default_hammer", "CosimConfig", "CosimResult", "steady_start", "event_counts", "record_dtype"]
 
 SCHEMES = ("jacobi", "gauss-seidel")
 #: How the string side computes the interface force at a communication point (``CosimConfig.exchange``).
@@ -103,6 +103,21 @@ def field_hammer(*, hammer_mass: float = 400.0, natural_frequency: float = 20.0,
     g = RIG.to_groups() if groups is None else groups
     K = hammer_mass * (2.0 * math.pi * natural_frequency) ** 2
     return g.to_rig(Scales(hammer_mass, K, friction_force), mu_static=RIG.mu_static)
+
+
+#: A string carries the field hammer by default when its buoyed weight is at least this many times
+#: the field hammer's WOB (the rest hangs from the hook, as on a rig).
+FIELD_WEIGHT_RATIO = 2.0
+
+
+def default_hammer(string) -> RigParameters:
+    """The hammer a string gets unless told otherwise: the field hammer (:func:`field_hammer`, a
+    55 kN WOB) on a string whose buoyed weight is at least twice that, else the rig of the paper
+    (``RigParameters()``: m1 = 25.3 kg, 1.47 Hz, a 29.7 N WOB), the hammer of the lab string."""
+    from hammerbit.drillstring.statics import static_equilibrium
+    field = field_hammer()
+    weight = static_equilibrium(string).buoyed_weight
+    return field if weight >= FIELD_WEIGHT_RATIO * field.preload else RIG
 
 
 # ---------------------------------------------------------------------------
@@ -347,6 +362,9 @@ class CosimResult:
     method: str = "cosim"
     counts: dict = field(default_factory=dict)
     estimate: Optional[CouplingErrorEstimate] = None
+    dense: Optional[np.ndarray] = None
+    """``time``, ``wob`` sampled finely (the monolithic reference's dense output); the WOB
+    figures are taken from it when present."""
 
     @property
     def stop_s(self) -> float:
@@ -360,9 +378,20 @@ class CosimResult:
         return self.data[self.data["time"] >= t_from - 1e-12]
 
     def wob_amplitude(self, t_from: Optional[float] = None) -> float:
-        """Dynamic WOB amplitude (max - min)/2 over the window [N]."""
-        w = self.window(t_from)["wob"]
-        return float(0.5 * (w.max() - w.min()))
+        """Dynamic WOB amplitude [N]: the fundamental harmonic at the forcing frequency over the
+        last whole forcing periods of the window (:mod:`hammerbit.cosim.amplitude`)."""
+        from hammerbit.cosim.amplitude import fundamental
+        d = self.dense if self.dense is not None else self.data
+        t0 = steady_start(self.config) if t_from is None else t_from
+        return fundamental(d["time"], d["wob"], self.config.rig.frequency, t0)[0]
+
+    def wob_peaks(self, t_from: Optional[float] = None) -> tuple:
+        """``(max, min)`` of the WOB over the window [N]: the contact peaks and the lowest WOB
+        (sampled: a contact spike between two samples is missed)."""
+        from hammerbit.cosim.amplitude import peak
+        d = self.dense if self.dense is not None else self.data
+        t0 = steady_start(self.config) if t_from is None else t_from
+        return peak(d["time"], d["wob"], t0)
 
     def wob_mean(self, t_from: Optional[float] = None) -> float:
         """Mean WOB over the window [N]."""
@@ -379,10 +408,13 @@ class CosimResult:
         if "wob" in self.data.dtype.names:
             out["wob_mean_n"] = self.wob_mean(t_from)
             out["wob_amplitude_n"] = self.wob_amplitude(t_from)
+            out["wob_max_n"], out["wob_min_n"] = self.wob_peaks(t_from)
         out["top"] = self.config.top.to_dict()
         if "auto_driller" in self.stats:
             out["top"].update(self.stats["auto_driller"])
         out["counts"] = dict(self.counts)
+        bounce = int(self.counts.get("bounce_violations", 0))
+        out["bounce"] = {"violations": bounce, "flagged": bounce > 0}
         if self.estimate is not None:
             out["error_estimate"] = self.estimate.to_dict()
         out.update({k: v for k, v in self.stats.items() if isinstance(v, (int, float, str))})

@@ -86,7 +86,8 @@ from typing import Optional
 import numpy as np
 
 from hammerbit.cosim.config import CosimConfig, CosimResult, CouplingInstabilityError, steady_start
-from hammerbit.cosim.error import check_step, measured_order, richardson, step_limits
+from hammerbit.cosim.amplitude import fundamental
+from hammerbit.cosim.error import check_step, measured_order, richardson, step_limits, unclaimed, SAFETY_FACTOR
 from hammerbit.cosim.exchange import EXCHANGE_OUT_DEFECT, EXCHANGE_OUT_ENERGY_RESIDUAL
 from hammerbit.cosim.hammer_interface import OUT_BIT_POSITION, OUT_WOB, counts_of
 from hammerbit.cosim.hammers import hammer_side
@@ -179,10 +180,11 @@ def cosimulate(string, config: CosimConfig = CosimConfig(), *, fmu=None, hammer=
     setup = res.setup_time_s + t_side
     passes, wall = 1, res.wall_time_s
     total = {k: res.stats[k] for k in _SUMMED}
-    while (res.estimate is not None and not res.estimate.meets_tolerance and math.isfinite(res.estimate.worst)
+    while (res.estimate is not None and res.estimate.claimed and not res.estimate.meets_tolerance
+           and math.isfinite(res.estimate.worst)
            and hammer is None and passes < MAX_PASSES):
         # the global error grows at least linearly with the defect tolerance
-        defect_tol *= max(min(0.5 * c.tol / res.estimate.worst, 0.5), 1e-2)
+        defect_tol *= max(min(0.5 * c.tol / SAFETY_FACTOR / res.estimate.worst, 0.5), 1e-2)
         res = _run(side, c, fmu=fmu, hammer=None, defect_tol=defect_tol)
         setup += res.setup_time_s
         passes += 1
@@ -198,10 +200,12 @@ def cosimulate(string, config: CosimConfig = CosimConfig(), *, fmu=None, hammer=
 #: Per-step force-defect tolerance of the adaptive step, relative to the WOB, per unit of ``tol``
 #: (the first pass; a second pass tightens it when the run's estimate exceeds ``tol``).
 DEFECT_TOL_FACTOR = 1.0 / 40.0
+#: The adaptive run's first step is its nominal step divided by this (at least ``h_min``).
+ADAPTIVE_START_DIVISOR = 16.0
 #: Counts summed over the passes of an adaptive run.
 _SUMMED = ("rejected", "rollbacks", "hammer_steps", "companion_steps", "state_saves")
 #: Passes of the adaptive run at most (each tightens the defect tolerance by the estimate).
-MAX_PASSES = 3
+MAX_PASSES = 4
 
 
 def cosimulate_adaptive(string, config: CosimConfig = CosimConfig(), *, fmu=None, tol: Optional[float] = None,
@@ -221,7 +225,12 @@ def _run(side: StringSide, c: CosimConfig, *, fmu, hammer, defect_tol) -> CosimR
         if c.adaptive:
             # the adaptive step never grows past what resolves the system
             H_chk = min(H_chk, min(lim.max_step_s for lim in step_limits(side, c)))
-            c = c.replace(h_max=max(min(c.step_range[1], H_chk), c.step_range[0]))
+            lo = c.step_range[0]
+            if H_chk < c.step:
+                # a first step the system cannot take: start at the largest one it can
+                lo = min(lo, H_chk / 64.0)
+                c = c.replace(step=H_chk)
+            c = c.replace(h_min=lo, h_max=max(min(c.step_range[1], H_chk), lo))
             check_step(side, c, c.step)
         else:
             check_step(side, c, H_chk)
@@ -250,6 +259,10 @@ def _run(side: StringSide, c: CosimConfig, *, fmu, hammer, defect_tol) -> CosimR
         fine = Lane(side, comp, c, 0.5 * H) if comp is not None else None
         n_full, rem = c.whole_steps
         n_est = n_full + 1 if not c.adaptive else int((c.stop - c.start) / H) + 1
+        if c.adaptive:
+            # the start-up (the force switched on, histories without a past) in short steps; the
+            # step then doubles as the defect allows
+            H = max(c.step_range[0], c.step / ADAPTIVE_START_DIVISOR)
         rec = Recorder(c, n_est // c.record_every + 2, main)
         watch = StabilityWatch(c, side, steady_start(c))
         setup = _time.perf_counter() - ts
@@ -348,13 +361,16 @@ def _run(side: StringSide, c: CosimConfig, *, fmu, hammer, defect_tol) -> CosimR
         est = None
         if fine is not None:
             # both amplitudes on the run's communication points in the steady window
-            sel = np.asarray(t_all) >= steady_start(c) - 1e-12
-            amp = 0.5 * float(np.ptp(np.asarray(wob_m)[sel]))
-            amp_f = 0.5 * float(np.ptp(np.asarray(wob_f)[sel]))
+            t_arr, t_from, f_rig = np.asarray(t_all), steady_start(c), c.rig.frequency
+            amp = fundamental(t_arr, np.asarray(wob_m), f_rig, t_from)[0]
+            amp_f = fundamental(t_arr, np.asarray(wob_f), f_rig, t_from)[0]
             p = measured_order(np.asarray(d_main), np.asarray(d_fine))
             est = richardson(amplitude=amp, amplitude_fine=amp_f, penetration=pen,
                              penetration_fine=float(fine.out[OUT_BIT_POSITION]), order=p, tol=c.tol,
                              length_scale=c.rig.scales.length)
+            if counts.get("impacts", 0) > 0:
+                est = unclaimed(est, f"{counts['impacts']} impacts: step doubling does not resolve the "
+                                     f"contact spikes, so no tolerance is claimed for this run")
             if "wob_error_estimate" in data.dtype.names:
                 data["wob_error_estimate"] *= est.factor
         stats = watch.stats()

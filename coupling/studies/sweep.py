@@ -9,7 +9,10 @@ Steady state is detected, not assumed: the WOB amplitude is measured over
 the last two windows of ``window_periods`` forcing periods; when they differ
 by more than ``steady_tol`` (relative) the run is repeated with twice the
 duration, up to ``max_duration``.  The figures come from those two windows,
-and rows that never settle are flagged ``steady = 0``.
+and rows that never settle are flagged ``steady = 0``.  The ROP is taken over
+whole slip cycles, two windows of :data:`ROP_SLIPS` slips each, and must
+agree between them within :data:`ROP_TOL` too (:func:`steady_rop`): slips come
+every few forcing periods, so a window of a few periods can hold none.
 """
 from __future__ import annotations
 
@@ -30,7 +33,8 @@ from hammerbit.cosim.master import cosimulate
 from hammerbit.cosim.string_side import StringSide
 from .executor import Executor, ExecutorOptions
 
-__all__ = ["SWEEP_DTYPE", "sweep", "plot_sweep", "write_sweep_csv", "wob_frf", "steady_figures"]
+__all__ = ["SWEEP_DTYPE", "sweep", "plot_sweep", "write_sweep_csv", "wob_frf", "steady_figures", "steady_rop",
+           "ROP_SLIPS", "ROP_TOL"]
 
 SWEEP_DTYPE = np.dtype([("frequency_hz", "f8"), ("wob_mean_n", "f8"), ("wob_amplitude_n", "f8"),
                         ("wob_min_n", "f8"), ("bounce_margin", "f8"), ("rop_m_per_h", "f8"),
@@ -101,17 +105,64 @@ def steady_figures(data: np.ndarray, frequency: float, window_periods: int, fric
             "amplitude_change": change}
 
 
+#: Slip cycles in each of the two windows the ROP is measured and compared over.
+ROP_SLIPS = 5
+#: Allowed relative change of the ROP between those two windows.
+ROP_TOL = 0.1
+
+
+def steady_rop(data: np.ndarray, t_from: float, slips: int = ROP_SLIPS) -> dict:
+    """The ROP over whole slip cycles, and whether it is steady.
+
+    ``data`` has ``time``, ``bit_position`` and ``stick``.  The bit advances in
+    slips, every few forcing periods, so the ROP is taken between slip starts:
+    over the last ``2 slips`` slip cycles after ``t_from`` [s], and compared
+    between the earlier and the later ``slips`` cycles.  No slip in the later
+    half of the run: ROP 0, steady (the bit is stuck).  Returns
+    ``rop_m_per_h``, ``rop_change`` (relative) and ``rop_steady``.
+    """
+    t, x, st = data["time"], data["bit_position"], data["stick"]
+    starts = np.flatnonzero((st[:-1] > 0.5) & (st[1:] < 0.5)) + 1
+    starts = starts[t[starts] >= t_from]
+    t_half = 0.5 * (t[0] + t[-1])
+    if starts.size == 0 or t[starts[-1]] < t_half:
+        return {"rop_m_per_h": 0.0, "rop_change": 0.0, "rop_steady": True}
+    if starts.size < 2 * slips + 1:
+        i0 = starts[0]
+        rop = (x[starts[-1]] - x[i0]) / max(t[starts[-1]] - t[i0], 1e-300) if starts.size > 1 else 0.0
+        return {"rop_m_per_h": float(rop * 3600.0), "rop_change": 1.0, "rop_steady": False}
+    a, m, b = starts[-2 * slips - 1], starts[-slips - 1], starts[-1]
+    r1 = (x[m] - x[a]) / (t[m] - t[a])
+    r2 = (x[b] - x[m]) / (t[b] - t[m])
+    change = abs(r2 - r1) / max(abs(r1), abs(r2), 1e-300)
+    return {"rop_m_per_h": float((x[b] - x[a]) / (t[b] - t[a]) * 3600.0), "rop_change": float(change),
+            "rop_steady": bool(change <= ROP_TOL)}
+
+
+def _settling_time(side) -> float:
+    """Time [s] the top condition needs to settle: 0 for a fixed hook or a feed."""
+    return 0.0 if side.gains is None else side.gains.settling_time_s
+
+
 def _sweep_one(string, f, config, fmu, window_periods, steady_tol, max_duration):
     rig = config.rig.replace(frequency=float(f))
     # at least three windows after the force ramp
     dur = max(config.stop - config.start, config.ramp + 3.0 * window_periods / f)
     F_s = config.rig.scales.friction_force
     while True:
-        cfg = config.replace(rig=rig, stop=config.start + dur, record=("wob", "bit_position"),
+        cfg = config.replace(rig=rig, stop=config.start + dur, record=("wob", "bit_position", "stick"),
                              record_every=1, progress=False)
-        r = cosimulate(string, cfg, fmu=fmu, side=_side_for(string, cfg, fmu))
+        side = _side_for(string, cfg, fmu)
+        settle = _settling_time(side)
+        if dur < settle + 3.0 * window_periods / f and dur < max_duration:
+            # an auto-driller settles over several of its time constants: measure after them
+            dur = min(max_duration, settle + 3.0 * window_periods / f)
+            continue
+        r = cosimulate(string, cfg, fmu=fmu, side=side)
         fig = steady_figures(r.data, f, window_periods, F_s)
-        steady = fig["amplitude_change"] <= steady_tol
+        rop = steady_rop(r.data, config.start + max(config.ramp + window_periods / f, settle))
+        fig["rop_m_per_h"] = rop["rop_m_per_h"]
+        steady = fig["amplitude_change"] <= steady_tol and rop["rop_steady"]
         if steady or 2 * dur > max_duration + 1e-12:
             break
         dur *= 2
