@@ -58,8 +58,8 @@ def table(result: dict) -> str:
             f"`drilling.ssp` in every runner.  The fixed-step runs agree to "
             f"{result['max_fixed_step_spread_rel']:.1e} (relative) in penetration; `hammerbit cosim --ssp "
             f"--step 0.001` estimates its own error at {est['penetration_rel']:.2e} (penetration) and "
-            f"{est['wob_amplitude_rel']:.2e} (WOB amplitude).  WOB amplitude: (max - min)/2 of the rock "
-            f"force over the second half.  Wall times include each runner's set-up; load "
+            f"{est['wob_amplitude_rel']:.2e} (WOB amplitude).  WOB amplitude: the fundamental harmonic "
+            f"of the rock force at the forcing frequency over the second half.  Wall times include each runner's set-up; load "
             f"{result['machine'].get('load_average', '?')}.\n")
 
 
@@ -93,10 +93,10 @@ def run(quick: bool = False) -> dict:
         t_from = steady_start(ref.config)
         rows = []
         lib = run_libcosim(path, stop)
-        rows.append(_row("libcosimpy (fixed step)", lib.penetration_m, lib.wob_amplitude(t_from), lib.wall_time_s,
-                         ref))
+        rows.append(_row("libcosimpy (fixed step)", lib.penetration_m, lib.wob_amplitude(t_from, FREQUENCY_HZ),
+                         lib.wall_time_s, ref))
         fm = run_fmpy(path, stop, STEP_S)
-        rows.append(_row("FMPy simulate_ssp (fixed step)", fm.penetration_m, fm.wob_amplitude(t_from),
+        rows.append(_row("FMPy simulate_ssp (fixed step)", fm.penetration_m, fm.wob_amplitude(t_from, FREQUENCY_HZ),
                          fm.wall_time_s, ref))
         t0 = time.perf_counter()
         fixed = cosimulate_ssp(path, adaptive=False)

@@ -100,6 +100,7 @@ def test_default_gains_follow_the_documented_derivation(field):
     assert g.proportional_gain == pytest.approx(2 * w_n / k_s, rel=1e-12)
     assert g.integral_gain == pytest.approx(w_n ** 2 / k_s, rel=1e-12)
     assert g.damping_ratio == pytest.approx(1.0, rel=1e-12)
+    assert g.settling_time_s == pytest.approx(6.0 / w_n, rel=1e-12)
     given = auto_driller_gains(field, TopCondition.auto_driller(1e-6, 2e-7), interface_stiffness=ki,
                                hammer_stiffness=rig.stiffness)
     assert (given.proportional_gain, given.integral_gain) == (1e-6, 2e-7)

@@ -58,13 +58,15 @@ from .drill_string import DrillString
 from .validation import DrillStringError
 
 __all__ = ["TOP_KINDS", "TopCondition", "AutoDrillerGains", "auto_driller_gains", "SideMatrices", "top_matrices",
-           "BANDWIDTH_FRACTION", "DAMPING_RATIO", "M_PER_H"]
+           "BANDWIDTH_FRACTION", "DAMPING_RATIO", "M_PER_H", "SETTLE_TIME_CONSTANTS"]
 
 TOP_KINDS = ("fixed", "feed", "auto-driller")
 #: Natural frequency of the default auto-driller loop as a fraction of the string's first axial mode.
 BANDWIDTH_FRACTION = 0.2
 #: Damping ratio of the default auto-driller loop (critical: no overshoot of the WOB).
 DAMPING_RATIO = 1.0
+#: Time constants ``1 / w_n`` the auto-driller's loop takes to settle.
+SETTLE_TIME_CONSTANTS = 6.0
 #: Metres per hour in metres per second.
 M_PER_H = 1.0 / 3600.0
 #: Largest feed velocity accepted [m/s] (1000 m/h: far above any drilling rate).
@@ -205,8 +207,17 @@ class AutoDrillerGains:
     natural_frequency_hz: float
     damping_ratio: float
 
+    @property
+    def settling_time_s(self) -> float:
+        """Time [s] the loop needs to settle: :data:`SETTLE_TIME_CONSTANTS` of ``1 / w_n`` (critically
+        damped, the WOB is then within 2 % of its set point after a step in the ROP).  A study
+        measures the sustained ROP after it."""
+        return SETTLE_TIME_CONSTANTS / (2.0 * math.pi * self.natural_frequency_hz)
+
     def to_dict(self) -> dict:
-        return {k: float(getattr(self, k)) for k in self.__dataclass_fields__}
+        out = {k: float(getattr(self, k)) for k in self.__dataclass_fields__}
+        out["settling_time_s"] = self.settling_time_s
+        return out
 
 
 def series_stiffness(string: DrillString, interface_stiffness: float, hammer_stiffness: float) -> float:

@@ -29,7 +29,7 @@ from typing import Optional
 
 import numpy as np
 
-__all__ = ["MODEL_NAME", "StringBuild", "build_string_fmu", "default_rig", "string_build",
+__all__ = ["MODEL_NAME", "StringBuild", "build_string_fmu", "string_build",
            "default_string_output"]
 
 MODEL_NAME = "Drillstring"
@@ -57,15 +57,6 @@ from {pkg}.string_slave import {model}  # noqa: E402,F401
 def default_string_output() -> Path:
     """``dist/Drillstring.fmu`` in the current directory."""
     return Path("dist") / f"{MODEL_NAME}.fmu"
-
-
-def default_rig(buoyed_weight: float):
-    """The hammer a string gets by default: the field hammer when the string can carry its WOB
-    (55 kN), else the lab rig of the paper (WOB 29.7 N)."""
-    from hammerbit.cosim.config import field_hammer
-    from hammerbit.model.params import RigParameters
-    rig = field_hammer()
-    return rig if rig.preload <= buoyed_weight else RigParameters()
 
 
 @dataclass(frozen=True)
@@ -116,18 +107,19 @@ def string_build(string_arg, *, wob: Optional[float] = None, rig=None, top=None,
                  interface_stiffness: float = 2.0e6, interface_damping: float = 2.0e3) -> StringBuild:
     """The string side of ``string_arg`` (TOML path or example name) and its arrays.
 
-    ``wob`` defaults to the hammer's preload; ``rig`` to :func:`default_rig`; ``top`` (a
+    ``wob`` defaults to the hammer's preload; ``rig`` to the string's default hammer
+    (:func:`hammerbit.cosim.config.default_hammer`); ``top`` (a
     ``TopCondition``, default fixed) gives the FMU's start values of the top condition.  Both
     forms are built (fixed hook, auto-driller at the default gains or the given ones), with
     their derivatives in the damping ratio and the gains (:mod:`hammerbit.model.string_model`)."""
-    from hammerbit.cosim.config import CosimConfig
+    from hammerbit.cosim.config import CosimConfig, default_hammer
     from hammerbit.cosim.string_side import StringSide
     from hammerbit.drillstring import DrillStringError, load_string, state_space
     from hammerbit.drillstring.boundary import Boundary
     from hammerbit.drillstring.top import TopCondition, auto_driller_gains, top_matrices
     from hammerbit.model.string_model import TOP_CONDITIONS
     string = string_arg if not isinstance(string_arg, (str, Path)) else load_string(string_arg)
-    rig = default_rig(string.buoyed_weight) if rig is None else rig
+    rig = default_hammer(string) if rig is None else rig
     top = TopCondition.fixed() if top is None else top
     config = CosimConfig(rig=rig, wob=wob, interface_stiffness=interface_stiffness,
                          interface_damping=interface_damping, estimate=False)

@@ -54,7 +54,7 @@ class SSPOptions:
     ``hammer``: an existing HammerBitRock FMU (default: built with the system's start values);
     ``stop``, ``step``: the default experiment and libcosim's fixed step [s]; ``wob``: weight on
     bit [N] (default: the hammer's preload); ``rig``: the hammer's ``RigParameters`` (default:
-    :func:`hammerbit.fmu.build_string.default_rig` of the string); ``top``: the string's
+    :func:`hammerbit.cosim.config.default_hammer` of the string); ``top``: the string's
     ``TopCondition`` (default fixed)."""
 
     hammer: Optional[str] = None

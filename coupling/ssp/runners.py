@@ -33,10 +33,11 @@ class RunnerResult:
     def penetration_m(self) -> float:
         return float(self.data["bit_position"][-1])
 
-    def wob_amplitude(self, t_from: float) -> float:
-        """(max - min) / 2 of the WOB over ``time >= t_from`` [N] (as ``CosimResult.wob_amplitude``)."""
-        w = self.data["wob"][self.data["time"] >= t_from - 1e-12]
-        return float(0.5 * (w.max() - w.min()))
+    def wob_amplitude(self, t_from: float, frequency: float) -> float:
+        """The WOB's fundamental harmonic at ``frequency`` [Hz] over the whole forcing periods after
+        ``t_from`` [N] (as ``CosimResult.wob_amplitude``)."""
+        from hammerbit.cosim.amplitude import fundamental
+        return float(fundamental(self.data["time"], self.data["wob"], frequency, t_from)[0])
 
 
 def run_libcosim(path, stop: float) -> RunnerResult:

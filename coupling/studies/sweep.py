@@ -139,15 +139,9 @@ def steady_rop(data: np.ndarray, t_from: float, slips: int = ROP_SLIPS) -> dict:
             "rop_steady": bool(change <= ROP_TOL)}
 
 
-#: Time constants ``1 / w_n`` of the auto-driller's loop before the ROP is measured (critical
-#: damping: the WOB is then within 2 % of its set point after a step in the ROP).
-SETTLE_TIME_CONSTANTS = 6.0
-
-
 def _settling_time(side) -> float:
     """Time [s] the top condition needs to settle: 0 for a fixed hook or a feed."""
-    g = side.gains
-    return 0.0 if g is None else SETTLE_TIME_CONSTANTS / (2.0 * math.pi * g.natural_frequency_hz)
+    return 0.0 if side.gains is None else side.gains.settling_time_s
 
 
 def _sweep_one(string, f, config, fmu, window_periods, steady_tol, max_duration):
