@@ -19,6 +19,16 @@ def built_fmu(tmp_path_factory):
     return build_fmu(tmp_path_factory.mktemp("fmu") / "HammerBitRock.fmu")
 
 
+@pytest.fixture(scope="session", params=["pythonfmu", "native"])
+def flavour_fmu(request, tmp_path_factory):
+    """``HammerBitRock.fmu`` of each runtime flavour (``hammerbit fmu build --runtime ...``), built
+    once per session: the suites that must hold for both run against each."""
+    if request.param == "pythonfmu":
+        return request.getfixturevalue("built_fmu")
+    from hammerbit.fmu.build import build_fmu
+    return build_fmu(tmp_path_factory.mktemp("fmu-native") / "HammerBitRock.fmu", runtime="native")
+
+
 # ---------------------------------------------------------------------------
 # The slow set.  The README's test command, ``python -m pytest -q``, leaves it
 # out (``addopts = -m 'not slow' ...`` in pyproject.toml); ``-m slow`` runs only

@@ -48,7 +48,8 @@ class FMUInstance:
     messages : list of (int, str)
         Every logged message: FMI status and text.
     has_front : bool
-        The FMU's binary is the native front (pythonfmu's binary beside it).
+        The FMU's binary is the native front (pythonfmu's binary beside it, or the native
+        runtime flavour).
     """
 
     def __init__(self, path, name: str = "hammer", *, start_time: float = 0.0, reals=None, booleans=None,
@@ -64,7 +65,13 @@ class FMUInstance:
         self._own_dir = unzipdir is None
         self.dir = str(unzipdir) if unzipdir is not None else extract(self.path)
         ident = self.md.coSimulation.modelIdentifier
-        self.has_front = os.path.isfile(os.path.join(self.dir, "binaries", "linux64", f"{ident}_python.so"))
+        # the native front: beside pythonfmu's binary, or the whole binary of the native flavour
+        # (no pythonfmu entry module in resources/)
+        resources = os.path.join(self.dir, "resources")
+        pythonfmu_entry = os.path.isdir(resources) and any(
+            n.startswith("hammerbit_fmu_slave_") for n in os.listdir(resources))
+        self.has_front = (os.path.isfile(os.path.join(self.dir, "binaries", "linux64", f"{ident}_python.so"))
+                          or not pythonfmu_entry)
         self.messages = []
 
         def logger(env, instance, status, category, message):
