@@ -66,12 +66,10 @@ class FMUInstance:
         self.dir = str(unzipdir) if unzipdir is not None else extract(self.path)
         ident = self.md.coSimulation.modelIdentifier
         # the native front: beside pythonfmu's binary, or the whole binary of the native flavour
-        # (no pythonfmu entry module in resources/)
-        resources = os.path.join(self.dir, "resources")
-        pythonfmu_entry = os.path.isdir(resources) and any(
-            n.startswith("hammerbit_fmu_slave_") for n in os.listdir(resources))
+        # (which carries no pythonfmu slave: pythonfmu marks its FMUs with resources/slavemodule.txt)
+        pythonfmu_slave = os.path.isfile(os.path.join(self.dir, "resources", "slavemodule.txt"))
         self.has_front = (os.path.isfile(os.path.join(self.dir, "binaries", "linux64", f"{ident}_python.so"))
-                          or not pythonfmu_entry)
+                          or not pythonfmu_slave)
         self.messages = []
 
         def logger(env, instance, status, category, message):
