@@ -26,7 +26,7 @@ from fmpy.fmi2 import (FMU2Model, FMU2Slave, fmi2CallbackAllocateMemoryTYPE,  # 
                        fmi2CallbackFreeMemoryTYPE, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE,
                        fmi2Real)
 
-from hammerbit.fmu.native import FrontBuildError, find_compiler  # noqa: E402
+from hammerbit.fmu.native import find_compiler  # noqa: E402
 from hammerbit.fmu.native_build import MINGW_CC, select_platforms  # noqa: E402
 from hammerbit.model.kernel_layouts import P_B, P_FEXT  # noqa: E402
 from hammerbit.model.params import RigParameters  # noqa: E402
@@ -51,13 +51,8 @@ REL = 1e-13
 # fixtures
 # ---------------------------------------------------------------------------
 @pytest.fixture(scope="module")
-def native_fmu(tmp_path_factory):
-    try:
-        find_compiler()
-    except FrontBuildError as e:
-        pytest.skip(str(e))
-    from hammerbit.fmu.build import build_fmu
-    return build_fmu(tmp_path_factory.mktemp("native") / f"{ID}.fmu", runtime="native")
+def native_fmu(built_native_fmu):
+    return built_native_fmu
 
 
 @pytest.fixture(scope="module")
@@ -492,3 +487,41 @@ def test_model_exchange_bad_sizes_are_errors(native_dir):
     assert e.value.status == FMI_ERROR
     assert "3 values given, the model has 4" in messages[-1][1]
     m.freeInstance()
+
+
+def test_start_values_of_the_build_are_the_binaries_own(tmp_path):
+    """``--set`` values reach the model description and the compiled-in defaults alike."""
+    from hammerbit.fmu.build import build_fmu
+    fmu = build_fmu(tmp_path / f"{ID}.fmu", runtime="native",
+                    start_values={"hammer_mass": 30.0, "preload": 35.0})
+    d = tmp_path / "x"
+    with zipfile.ZipFile(fmu) as zf:
+        zf.extractall(d)
+    md = read_model_description(str(d / "modelDescription.xml"))
+    starts = {v.name: v.start for v in md.modelVariables}
+    assert float(starts["hammer_mass"]) == 30.0 and float(starts["preload"]) == 35.0
+    s = Slave(d)                                      # nothing set: the binary's own defaults
+    assert s.get("hammer_mass", "preload") == [30.0, 35.0]
+    s.close()
+
+
+def test_a_step_storm_is_an_error_at_the_librarys_time_and_changes_nothing(native_dir):
+    """Too stiff for the solver's step budget per forcing period: fmi2Error naming the time the
+    library's own Stepper stops at (no shorter step gets past it), the state as before the step."""
+    import re as _re
+    from hammerbit.model.solver_errors import StepStormError
+    stiff = {"stiffness": 1e15, "hammer_mass": 1e-6, "bit_mass": 1e-6}   # Omega = 3.2e10 rad/s
+    s = Slave(native_dir, reals=stiff)
+    before = s.get("hammer_position", "hammer_velocity")
+    assert s.status_of(s.fmu.doStep, 0.0, 1e-3) == FMI_ERROR
+    msg = s.errors()[-1]
+    assert "step storm" in msg and "retry" not in msg, msg
+    t_fail = float(_re.search(r"cannot get past t = ([-+0-9.e]+) s", msg).group(1))
+    rig = RIG.replace(**stiff)
+    st = Stepper(rig.to_groups().replace(b=0.0), solver=SolverOptions(rtol=1e-8, atol=1e-10))
+    st.p[P_B] = RIG.preload / rig.scales.friction_force
+    with pytest.raises(StepStormError) as e:
+        st.advance(1e-3 * rig.scales.omega)
+    assert t_fail == pytest.approx(e.value.time / rig.scales.omega, rel=1e-12)
+    assert s.get("hammer_position", "hammer_velocity") == before
+    s.fmu.freeInstance()

@@ -11,6 +11,8 @@ from __future__ import annotations
 import os
 import shutil
 
+from hammerbit.fmu.native_build import NATIVE_GENERATION_TOOL
+
 __all__ = ["FMUInstance", "FMI_OK", "FMI_WARNING", "FMI_DISCARD", "FMI_ERROR", "FMI_FATAL"]
 
 FMI_OK, FMI_WARNING, FMI_DISCARD, FMI_ERROR, FMI_FATAL = 0, 1, 2, 3, 4
@@ -48,8 +50,8 @@ class FMUInstance:
     messages : list of (int, str)
         Every logged message: FMI status and text.
     has_front : bool
-        The FMU's binary is the native front (pythonfmu's binary beside it, or the native
-        runtime flavour).
+        The FMU's binary is the native front, which returns the model's real
+        statuses: pythonfmu's binary beside it, or the native runtime flavour.
     """
 
     def __init__(self, path, name: str = "hammer", *, start_time: float = 0.0, reals=None, booleans=None,
@@ -65,11 +67,9 @@ class FMUInstance:
         self._own_dir = unzipdir is None
         self.dir = str(unzipdir) if unzipdir is not None else extract(self.path)
         ident = self.md.coSimulation.modelIdentifier
-        # the native front: beside pythonfmu's binary, or the whole binary of the native flavour
-        # (which carries no pythonfmu slave: pythonfmu marks its FMUs with resources/slavemodule.txt)
-        pythonfmu_slave = os.path.isfile(os.path.join(self.dir, "resources", "slavemodule.txt"))
-        self.has_front = (os.path.isfile(os.path.join(self.dir, "binaries", "linux64", f"{ident}_python.so"))
-                          or not pythonfmu_slave)
+        native = (self.md.generationTool or "").startswith(NATIVE_GENERATION_TOOL)
+        self.has_front = native or os.path.isfile(os.path.join(self.dir, "binaries", "linux64",
+                                                               f"{ident}_python.so"))
         self.messages = []
 
         def logger(env, instance, status, category, message):

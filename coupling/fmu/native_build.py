@@ -33,15 +33,18 @@ from hammerbit.fmu.native import SOURCE_DIR, FrontBuildError, c_string, find_com
     read_model_description
 from hammerbit.fmu.native_kernels import TARGETS, ALLOWED_UNDEFINED, build_objects, undefined_symbols
 
-__all__ = ["MINGW_CC", "NATIVE_SOURCES", "STATES", "NativeBuildError", "native_header",
+__all__ = ["NATIVE_GENERATION_TOOL", "MINGW_CC", "NATIVE_SOURCES", "STATES", "NativeBuildError", "native_header",
            "select_platforms", "build_binaries",
            "native_model_description", "assemble_native_fmu"]
 
+#: ``generationTool`` of the native flavour's model description (how a host tells the flavours apart)
+NATIVE_GENERATION_TOOL = "hammerbit fmu build --runtime native"
 #: the cross-compiler of the win64 binary (Debian package gcc-mingw-w64-x86-64)
 MINGW_CC = "x86_64-w64-mingw32-gcc"
 #: C sources of the native flavour (front, resource URIs, model backend, runtime shim)
 NATIVE_SOURCES = tuple(SOURCE_DIR / f for f in ("front.c", "resource_uri.c", "model_native.c",
-                                                "model_me.c", "model_state.c", "nrt_shim.c"))
+                                                "model_values.c", "model_me.c", "model_state.c",
+                                                "nrt_shim.c"))
 _GROUP_NAMES = ("rho", "xi", "eta", "a", "b", "r", "mu", "gamma_hat", "kc", "n", "lam_hat", "phi")
 #: the nondimensional group whose range bounds each input, in units of the static friction
 #: threshold F0 (preload b = B/F0, forcing amplitude a = A/F0): |input| <= hi * F0
@@ -227,7 +230,7 @@ def native_model_description(xml: bytes) -> bytes:
     event kind of the kernels)."""
     from hammerbit.model.kernel_layouts import N_EVENT_KINDS
     root = ET.fromstring(xml)
-    root.set("generationTool", "hammerbit fmu build --runtime native")
+    root.set("generationTool", NATIVE_GENERATION_TOOL)
     root.set("numberOfEventIndicators", str(N_EVENT_KINDS))
     cs = root.find("CoSimulation")
     if cs is None:

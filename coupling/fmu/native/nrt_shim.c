@@ -3,7 +3,8 @@
  * The kernel objects (hammerbit.fmu.native_kernels) reference
  *   - NRT allocation: the solver driver allocates its scratch arrays with np.empty at entry and
  *     releases them on return (NRT_MemInfo_alloc_aligned, NRT_MemInfo_call_dtor, NRT_Free);
- *     here they live on malloc/free, in numba's MemInfo layout (the kernels read its fields);
+ *     here they live on malloc/free (released blocks kept per thread for the next call), in
+ *     numba's MemInfo layout (the kernels read its fields);
  *   - the error path of a numba cfunc: if a kernel raised (a ZeroDivisionError, ...), the cfunc
  *     takes the GIL and writes the exception to Python's "unraisable" hook.  There is no Python
  *     here: the stubs record that a kernel raised, and the model turns that into an FMI status
@@ -39,19 +40,45 @@ int hb_kernel_raised(void) {
     return r;
 }
 
-/* the block: [meminfo][padding to `align`][data]; dtor_info holds the block for the release */
+/* A block: [capacity][meminfo][padding to `align`][data]; dtor_info holds the block.  The solver
+ * driver allocates the same dozen small scratch arrays at every call (every fmi2DoStep), so
+ * released blocks are kept per thread and handed out again instead of a malloc/free each. */
+#define KEPT_BLOCKS 32
+typedef struct {
+    size_t capacity;           /* bytes of the whole block */
+    nrt_meminfo mi;
+} block_head;
+
+static _Thread_local block_head *g_kept[KEPT_BLOCKS];
+static _Thread_local int g_nkept;
+
 static void release_block(void *ptr, size_t size, void *info) {
     (void)ptr, (void)size;
-    free(info);
+    if (g_nkept < KEPT_BLOCKS)
+        g_kept[g_nkept++] = info;
+    else
+        free(info);
+}
+
+static block_head *take_block(size_t need) {
+    for (int i = g_nkept - 1; i >= 0; i--) {
+        block_head *b = g_kept[i];
+        if (b->capacity >= need) {
+            g_kept[i] = g_kept[--g_nkept];
+            return b;
+        }
+    }
+    block_head *b = malloc(need);
+    if (b) b->capacity = need;
+    return b;
 }
 
 SHIM_EXPORT void *NRT_MemInfo_alloc_aligned(size_t size, unsigned align) {
     if (align < sizeof(void *)) align = sizeof(void *);
-    size_t head = sizeof(nrt_meminfo);
-    char *block = malloc(head + size + align);
+    block_head *block = take_block(sizeof(block_head) + size + align);
     if (!block) return NULL;
-    uintptr_t data = ((uintptr_t)(block + head) + align - 1) & ~(uintptr_t)(align - 1);
-    nrt_meminfo *mi = (nrt_meminfo *)block;
+    uintptr_t data = ((uintptr_t)(block + 1) + align - 1) & ~(uintptr_t)(align - 1);
+    nrt_meminfo *mi = &block->mi;
     mi->refct = 1;
     mi->dtor = release_block;
     mi->dtor_info = block;
