@@ -1,10 +1,12 @@
 """The variables of the HammerBitRock FMU: names, units, ranges, start values, descriptions.
 
 One table per causality.  Names are :class:`RigParameters` field names
-wherever one exists; allowed ranges come from :data:`validation.RANGES` (the
-``modelDescription.xml`` declares them as ``min``/``max``, the slave refuses
-values outside them); start values are the lab preset (``RigParameters()``),
-overridden by the build's :data:`build_info.START_VALUES`.
+wherever one exists; allowed ranges come from :data:`validation.RANGES`, the
+inputs' from the static friction threshold (:func:`input_range`); the
+``modelDescription.xml`` declares as ``min``/``max`` exactly what the slave
+accepts with the other start values (:func:`accepted_bounds`); start values
+are the lab preset (``RigParameters()``), overridden by the build's
+:data:`build_info.START_VALUES`.
 """
 from __future__ import annotations
 

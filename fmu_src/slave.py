@@ -10,8 +10,9 @@ variables are declared in :mod:`fmu_variables`; their ranges come from
 Semantics (see ``docs/fmu.md``):
 
 * **Inputs** ``preload`` and ``harmonic_force`` are held constant over a
-  communication step (zero-order hold).  A value outside the documented
-  physical range is refused when it is set (the previous value stays).  The
+  communication step (zero-order hold).  A value beyond 1000 times the static
+  friction threshold is refused when it is set (the previous value stays); a
+  vector set is all or nothing.  The
   internal harmonic source ``amplitude * sin(2 pi frequency t + phase)`` is a
   function of time inside the step and is added to ``harmonic_force``.
 * **Parameters** are ``fixed`` (validated at ``fmi2ExitInitializationMode``),

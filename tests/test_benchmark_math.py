@@ -206,3 +206,14 @@ def test_step_statistics_refuses_unpaired_or_empty_blocks(ours, floor):
     from benchmarks.bench_fmu import step_statistics
     with pytest.raises(ValueError, match="paired positive times"):
         step_statistics(ours, floor)
+
+
+def test_own_cost_ratio_takes_the_call_floor_off_both():
+    from benchmarks.bench_fmu_native import own_cost_ratio
+    floor_call = [1.0, 1.2, 0.9]                          # the host's cost of the calls alone
+    ours = [f + 0.4 for f in floor_call]                  # own cost 0.4
+    trivial = [f + 2.0 for f in floor_call]               # own cost 2.0
+    r = own_cost_ratio(ours, trivial, floor_call)
+    assert r["own_ratio"] == pytest.approx(0.2) and r["own_ratio_q1"] == pytest.approx(0.2)
+    assert r["ours_own_s"] == pytest.approx(0.4) and r["floor_own_s"] == pytest.approx(2.0)
+    assert r["call_floor_s"] == pytest.approx(1.0)

@@ -38,10 +38,12 @@ RIG = RigParameters()
     ("preload=1e12", ["preload", "1000000000000.0", "[-54000, 54000] N"]),
     ("mu_kinetic=0.9", ["mu_kinetic", "0.9"]),
 ])
-def test_build_command_refuses_bad_start_values(tmp_path, setting, words, capsys):
+@pytest.mark.parametrize("runtime", ["pythonfmu", "native"])
+def test_build_command_refuses_bad_start_values(tmp_path, setting, words, runtime, capsys):
     """``hammerbit fmu build`` in this process (the console script's process boundary is tested in
-    test_cli.py): exit 2, the name and value as typed, no traceback, no file."""
-    code, out, err = run_cli(["fmu", "build", "--out", str(tmp_path / "x.fmu"), "--set", setting], capsys)
+    test_cli.py): exit 2, the name and value as typed, no traceback, no file; both flavours."""
+    code, out, err = run_cli(["fmu", "build", "--runtime", runtime, "--out", str(tmp_path / "x.fmu"),
+                              "--set", setting], capsys)
     assert code == 2, out + err
     assert all(w in err for w in words), err
     assert "Traceback" not in err

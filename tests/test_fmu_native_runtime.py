@@ -503,3 +503,25 @@ def test_start_values_of_the_build_are_the_binaries_own(tmp_path):
     s = Slave(d)                                      # nothing set: the binary's own defaults
     assert s.get("hammer_mass", "preload") == [30.0, 35.0]
     s.close()
+
+
+def test_a_step_storm_is_an_error_at_the_librarys_time_and_changes_nothing(native_dir):
+    """Too stiff for the solver's step budget per forcing period: fmi2Error naming the time the
+    library's own Stepper stops at (no shorter step gets past it), the state as before the step."""
+    import re as _re
+    from hammerbit.model.solver_errors import StepStormError
+    stiff = {"stiffness": 1e15, "hammer_mass": 1e-6, "bit_mass": 1e-6}   # Omega = 3.2e10 rad/s
+    s = Slave(native_dir, reals=stiff)
+    before = s.get("hammer_position", "hammer_velocity")
+    assert s.status_of(s.fmu.doStep, 0.0, 1e-3) == FMI_ERROR
+    msg = s.errors()[-1]
+    assert "step storm" in msg and "retry" not in msg, msg
+    t_fail = float(_re.search(r"cannot get past t = ([-+0-9.e]+) s", msg).group(1))
+    rig = RIG.replace(**stiff)
+    st = Stepper(rig.to_groups().replace(b=0.0), solver=SolverOptions(rtol=1e-8, atol=1e-10))
+    st.p[P_B] = RIG.preload / rig.scales.friction_force
+    with pytest.raises(StepStormError) as e:
+        st.advance(1e-3 * rig.scales.omega)
+    assert t_fail == pytest.approx(e.value.time / rig.scales.omega, rel=1e-12)
+    assert s.get("hammer_position", "hammer_velocity") == before
+    s.fmu.freeInstance()

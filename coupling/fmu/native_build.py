@@ -43,7 +43,8 @@ NATIVE_GENERATION_TOOL = "hammerbit fmu build --runtime native"
 MINGW_CC = "x86_64-w64-mingw32-gcc"
 #: C sources of the native flavour (front, resource URIs, model backend, runtime shim)
 NATIVE_SOURCES = tuple(SOURCE_DIR / f for f in ("front.c", "resource_uri.c", "model_native.c",
-                                                "model_me.c", "model_state.c", "nrt_shim.c"))
+                                                "model_values.c", "model_me.c", "model_state.c",
+                                                "nrt_shim.c"))
 _GROUP_NAMES = ("rho", "xi", "eta", "a", "b", "r", "mu", "gamma_hat", "kc", "n", "lam_hat", "phi")
 #: the nondimensional group whose range bounds each input, in units of the static friction
 #: threshold F0 (preload b = B/F0, forcing amplitude a = A/F0): |input| <= hi * F0

@@ -11,7 +11,8 @@
  *     and Groups.to_kernel compute it (same operations in the same order);
  *   - fmi2DoStep: the inputs held over the step, one call of the compiled solver driver to the
  *     step's end, the state restored and fmi2Discard if it fails;
- *   - outputs from the state through the kernels' own force formulas (hb_forces);
+ *   - values and outputs (model_values.c): outputs from the state through the kernels' own
+ *     force formulas (hb_forces);
  *   - FMU state: the whole model state as plain data (model_state.c).
  * Every call records the FMI status it returns in last_status and logs every non-OK status with
  * a message naming the variable, its value and the allowed range. */
@@ -93,7 +94,7 @@ fmi2Status hb_fail(model *m, fmi2Status st, const char *fmt, ...) {
 /* ------------------------------------------------------------------------------------------ */
 /* Ranges                                                                                      */
 /* ------------------------------------------------------------------------------------------ */
-static int contains(const hb_range *r, double v) {
+int hb_contains(const hb_range *r, double v) {
     if (isnan(v)) return 0;
     if (isinf(v)) return r->allow_inf && v > 0;
     if (v < r->lo || v > r->hi) return 0;
@@ -101,8 +102,8 @@ static int contains(const hb_range *r, double v) {
 }
 
 /* "parameter 'name' = value is out of range: allowed ..." (validation.check_range); 0 if not */
-static int range_error(const char *name, double v, const hb_range *r, char *out, size_t n) {
-    if (contains(r, v)) return 0;
+int hb_range_error(const char *name, double v, const hb_range *r, char *out, size_t n) {
+    if (hb_contains(r, v)) return 0;
     char rv[40];
     hb_repr(v, rv, sizeof rv);
     int non_finite = isnan(v) || (isinf(v) && !r->allow_inf);
@@ -116,13 +117,13 @@ static double input_limit(const model_state *s, int k) {
     return (k == HBS_preload ? HB_INPUT_LIMIT_F0_preload : HB_INPUT_LIMIT_F0_harmonic_force) * s->F0;
 }
 
-static int input_ok(const model_state *s, int k, double v) {
+int hb_input_ok(const model_state *s, int k, double v) {
     double lim = input_limit(s, k);
     return -lim <= v && v <= lim;   /* false for NaN */
 }
 
 /* "... out of range: allowed [-x, x] N (1000 F0, ...)" for an input value */
-static void input_error(const model_state *s, int k, double v, char *out, size_t n) {
+void hb_input_error(const model_state *s, int k, double v, char *out, size_t n) {
     char rv[40], lim[40], f0[40], have[40];
     hb_repr(v, rv, sizeof rv);
     snprintf(lim, sizeof lim, "%g", input_limit(s, k));
@@ -138,18 +139,18 @@ static void input_error(const model_state *s, int k, double v, char *out, size_t
 /* ------------------------------------------------------------------------------------------ */
 /* Validate the values v[] (and impact) and build the solver state into s; 1, or 0 with the
  * message in err (nothing of s changed then). keep: carry y, ist, fst and p of s over. */
-static int commit(model_state *s, const double *v, int impact, int keep, char *err, size_t n) {
+int hb_commit(model_state *s, const double *v, int impact, int keep, char *err, size_t n) {
     static const int other[] = {HBS_gap, HBS_initial_hammer_position, HBS_initial_bit_position,
                                 HBS_tolerance};
     for (size_t i = 0; i < sizeof other / sizeof *other; i++)
-        if (range_error(HB_STORED[other[i]].name, v[other[i]], &HB_STORED[other[i]].range, err, n))
+        if (hb_range_error(HB_STORED[other[i]].name, v[other[i]], &HB_STORED[other[i]].range, err, n))
             return 0;
     double gap = impact ? v[HBS_gap] : INFINITY;
     for (size_t i = 0; i < HB_NRIG; i++) {
         int k = HB_RIG_ORDER[i];
         double x = k == HBS_gap ? gap : k < 0 ? 0.0 : v[k];   /* k < 0: preload (an input) */
         const hb_range *r = k < 0 ? &HB_RANGE_PRELOAD : &HB_STORED[k].range;
-        if (range_error(k < 0 ? "preload" : HB_STORED[k].name, x, r, err, n)) return 0;
+        if (hb_range_error(k < 0 ? "preload" : HB_STORED[k].name, x, r, err, n)) return 0;
     }
     if (v[HBS_mu_kinetic] > v[HBS_mu_static]) {
         char rv[40], ms[40];
@@ -177,20 +178,20 @@ static int commit(model_state *s, const double *v, int impact, int keep, char *e
     g[10] = v[HBS_contact_damping] * x0 * Om;                            /* lam_hat */
     g[11] = v[HBS_phase];                                                /* phi */
     for (int i = 0; i < HB_NGROUPS; i++)
-        if (range_error(HB_GROUPS[i].name, g[i], &HB_GROUPS[i].range, err, n)) return 0;
+        if (hb_range_error(HB_GROUPS[i].name, g[i], &HB_GROUPS[i].range, err, n)) return 0;
     if (s->t_start != 0.0) {
         /* absolute-time forcing on the kernel's clock tau = Omega (t - t_start) */
         double omega_f = TWO_PI * v[HBS_frequency];
         g[11] = fmod(v[HBS_phase] + omega_f * s->t_start, TWO_PI);
-        if (range_error("phi", g[11], &HB_GROUPS[11].range, err, n)) return 0;
+        if (hb_range_error("phi", g[11], &HB_GROUPS[11].range, err, n)) return 0;
     }
     double y0[4] = {v[HBS_initial_hammer_position] / x0, 0.0, v[HBS_initial_bit_position] / x0, 0.0};
-    if (range_error("y0[0] (hammer position x1)", y0[0], &HB_RANGE_STATE_POSITION, err, n) ||
-        range_error("y0[2] (bit position x3)", y0[2], &HB_RANGE_STATE_POSITION, err, n))
+    if (hb_range_error("y0[0] (hammer position x1)", y0[0], &HB_RANGE_STATE_POSITION, err, n) ||
+        hb_range_error("y0[2] (bit position x3)", y0[2], &HB_RANGE_STATE_POSITION, err, n))
         return 0;
     double tol = v[HBS_tolerance], atol = 1e-2 * tol;
-    if (range_error("rtol", tol, &HB_RANGE_RTOL, err, n) ||
-        range_error("atol", atol, &HB_RANGE_ATOL, err, n))
+    if (hb_range_error("rtol", tol, &HB_RANGE_RTOL, err, n) ||
+        hb_range_error("atol", atol, &HB_RANGE_ATOL, err, n))
         return 0;
     /* Groups.to_kernel and the Stepper's arrays */
     double *p = s->p;
@@ -255,7 +256,7 @@ static void set_start_values(model_state *s) {
     snprintf(s->error, sizeof s->error,
              "the FMU is not initialised (call fmi2ExitInitializationMode first)");
     char err[512];
-    commit(s, s->value, s->impact_enabled, 0, err, sizeof err);   /* outputs before initialisation */
+    hb_commit(s, s->value, s->impact_enabled, 0, err, sizeof err);   /* outputs before initialisation */
     s->stale = 0;
 }
 
@@ -296,7 +297,7 @@ static fmi2Status n_setup_experiment(fmi2Component c, fmi2Boolean tol_defined, f
     m->s.stale = 1;
     if (tol_defined) {
         const hb_range *r = &HB_STORED[HBS_tolerance].range;
-        if (contains(r, tol)) {
+        if (hb_contains(r, tol)) {
             m->s.value[HBS_tolerance] = tol;
         } else {
             char rv[40], have[40];
@@ -321,10 +322,10 @@ static fmi2Status n_exit_init(fmi2Component c) {
     s->stale = 0;
     char err[1024];
     model_state trial = *s;
-    int ok = commit(&trial, s->value, s->impact_enabled, 0, err, sizeof err);
+    int ok = hb_commit(&trial, s->value, s->impact_enabled, 0, err, sizeof err);
     for (int k = HBS_preload; ok && k <= HBS_harmonic_force; k++)
-        if (!input_ok(&trial, k, s->value[k])) {   /* the inputs' range follows F0 */
-            input_error(&trial, k, s->value[k], err, sizeof err);
+        if (!hb_input_ok(&trial, k, s->value[k])) {   /* the inputs' range follows F0 */
+            hb_input_error(&trial, k, s->value[k], err, sizeof err);
             ok = 0;
         }
     if (!ok) {
@@ -350,197 +351,6 @@ static fmi2Status n_reset(fmi2Component c) {
     model *m = c;
     set_start_values(&m->s);
     return fmi2OK;
-}
-
-/* ------------------------------------------------------------------------------------------ */
-/* Values                                                                                      */
-/* ------------------------------------------------------------------------------------------ */
-static int stored_slot(fmi2ValueReference vr) {
-    for (int i = 0; i < HB_NSTORED; i++)
-        if (HB_STORED[i].vr == vr) return i;
-    return -1;
-}
-
-/* Initialization Mode: outputs follow the parameters set so far (invalid ones: reported at exit) */
-static void refresh(model *m) {
-    model_state *s = &m->s;
-    if (!s->stale) return;
-    s->stale = 0;
-    if (s->ready) return;
-    model_state trial = *s;
-    char err[1024];
-    if (commit(&trial, s->value, s->impact_enabled, 0, err, sizeof err)) *s = trial;
-}
-
-static double real_output(model *m, fmi2ValueReference vr) {
-    model_state *s = &m->s;
-    double f[4];
-    switch (vr) {
-    case HB_VR_hammer_position: return s->y[0] * s->x0;
-    case HB_VR_hammer_velocity: return s->y[1] * s->v0;
-    case HB_VR_bit_position: return s->y[2] * s->x0;
-    case HB_VR_bit_velocity: return s->y[3] * s->v0;
-    case HB_VR_rate_of_penetration: {
-        double dt = s->t - s->t_start;
-        return dt <= 0.0 ? 0.0 : (s->y[2] - s->x3_start) * s->x0 / dt;
-    }
-    default: break;
-    }
-    switch (vr) {
-    case HB_VR_der_hammer_position: return hb_derivative(m, 0);
-    case HB_VR_der_hammer_velocity: return hb_derivative(m, 1);
-    case HB_VR_der_bit_position: return hb_derivative(m, 2);
-    case HB_VR_der_bit_velocity: return hb_derivative(m, 3);
-    default: break;
-    }
-    hb_forces(s->y, s->ist, s->p, f);
-    switch (vr) {
-    case HB_VR_spring_force: return f[0] * s->F0;
-    case HB_VR_contact_force: return f[1] * s->F0;
-    case HB_VR_rock_force: return f[2] * s->F0;
-    case HB_VR_friction_force: return f[3] * s->F0;
-    default: return NAN;
-    }
-}
-
-static fmi2Status n_get_real(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                             fmi2Real value[]) {
-    model *m = c;
-    refresh(m);
-    for (size_t i = 0; i < nvr; i++) {
-        int k = stored_slot(vr[i]);
-        value[i] = k >= 0 ? m->s.value[k] : real_output(m, vr[i]);
-    }
-    return fmi2OK;
-}
-
-static fmi2Status n_get_integer(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                                fmi2Integer value[]) {
-    model *m = c;
-    model_state *s = &m->s;
-    refresh(m);
-    for (size_t i = 0; i < nvr; i++) {
-        switch (vr[i]) {
-        case HB_VR_stick_slip: value[i] = (fmi2Integer)s->ist[HBK_I_STICK]; break;
-        case HB_VR_impact_count: value[i] = (fmi2Integer)s->ist[HBK_I_COUNT0 + HBK_EV_IMPACT]; break;
-        case HB_VR_slip_count: value[i] = (fmi2Integer)s->ist[HBK_I_COUNT0 + HBK_EV_SLIP_START]; break;
-        case HB_VR_bounce_count: value[i] = (fmi2Integer)s->ist[HBK_I_COUNT0 + HBK_EV_BOUNCE]; break;
-        case HB_VR_last_status: value[i] = s->last_status; break;
-        default: value[i] = 0;
-        }
-    }
-    return fmi2OK;
-}
-
-static fmi2Status n_get_boolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                                fmi2Boolean value[]) {
-    model *m = c;
-    refresh(m);
-    for (size_t i = 0; i < nvr; i++) {
-        if (vr[i] == HB_VR_impact_enabled)
-            value[i] = m->s.impact_enabled ? fmi2True : fmi2False;
-        else   /* in_contact */
-            value[i] = m->s.ist[HBK_I_CONTACT] != HBK_FREE ? fmi2True : fmi2False;
-    }
-    return fmi2OK;
-}
-
-static fmi2Status n_get_string(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                               fmi2String value[]) {
-    (void)vr;
-    for (size_t i = 0; i < nvr; i++) value[i] = "";
-    return hb_fail(c, fmi2Error, "fmi2GetString: the model has no String variables");
-}
-
-/* One value of a Real variable checked; the status it earns (the message logged). */
-static fmi2Status check_real(model *m, int k, double v) {
-    model_state *s = &m->s;
-    const hb_stored *d = &HB_STORED[k];
-    char rv[40], err[1024];
-    if (d->kind == HB_INPUT) {
-        if (input_ok(s, k, v)) return fmi2OK;   /* the hot path: no text */
-        input_error(s, k, v, err, sizeof err);
-        return hb_fail(m, fmi2Error, "%s", err);
-    }
-    hb_repr(v, rv, sizeof rv);
-    if (s->ready) {
-        if (d->kind != HB_TUNABLE) {
-            char used[40];
-            hb_repr(s->committed[k], used, sizeof used);
-            return hb_fail(m, fmi2Error, "parameter '%s' = %s was set after initialisation, but it is "
-                        "fixed (causality=parameter, variability=fixed); refused, the value %s stays "
-                        "in use", d->name, rv, used);
-        }
-        if (range_error(d->name, v, &d->range, err, sizeof err)) {
-            char have[40];
-            hb_repr(s->value[k], have, sizeof have);
-            return hb_fail(m, fmi2Error, "invalid tunable %s; refused, the tolerance %s stays in use", err,
-                        have);
-        }
-        return fmi2OK;
-    }
-    if (range_error(d->name, v, &d->range, err, sizeof err))
-        return hb_fail(m, fmi2Warning, "%s; fmi2ExitInitializationMode will fail unless it is corrected",
-                    err);
-    return fmi2OK;
-}
-
-/* fmi2SetReal is atomic: a value refused with fmi2Error leaves every value of the call unset */
-static fmi2Status n_set_real(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                             const fmi2Real value[]) {
-    model *m = c;
-    model_state *s = &m->s;
-    s->last_status = fmi2OK;
-    fmi2Status st = fmi2OK;
-    for (size_t i = 0; i < nvr; i++) {
-        int k = stored_slot(vr[i]);
-        if (k < 0) return hb_fail(m, fmi2Error, "fmi2SetReal: value reference %u is not settable", vr[i]);
-        fmi2Status si = check_real(m, k, value[i]);
-        if (si > st) st = si;
-    }
-    if (st >= fmi2Error) {
-        s->last_status = st;
-        return st;
-    }
-    for (size_t i = 0; i < nvr; i++) {
-        int k = stored_slot(vr[i]);
-        s->value[k] = value[i];
-        if (HB_STORED[k].kind == HB_TUNABLE && s->ready) s->dirty = 1;
-        if (HB_STORED[k].kind != HB_INPUT) s->stale = 1;
-    }
-    s->last_status = st;
-    return st;
-}
-
-static fmi2Status n_set_integer(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                                const fmi2Integer value[]) {
-    (void)value, (void)nvr;
-    return hb_fail(c, fmi2Error, "fmi2SetInteger: value reference %u is not settable", vr[0]);
-}
-
-static fmi2Status n_set_boolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                                const fmi2Boolean value[]) {
-    model *m = c;
-    model_state *s = &m->s;
-    s->last_status = fmi2OK;
-    for (size_t i = 0; i < nvr; i++) {
-        if (vr[i] != HB_VR_impact_enabled)
-            return hb_fail(m, fmi2Error, "fmi2SetBoolean: value reference %u is not settable", vr[i]);
-        if (s->ready)
-            return hb_fail(m, fmi2Error, "parameter 'impact_enabled' = %s was set after initialisation, "
-                        "but it is fixed (causality=parameter, variability=fixed); refused, the value "
-                        "%s stays in use", value[i] ? "True" : "False",
-                        s->committed_impact ? "True" : "False");
-    }
-    for (size_t i = 0; i < nvr; i++) s->impact_enabled = value[i] != fmi2False;
-    s->stale = 1;
-    return fmi2OK;
-}
-
-static fmi2Status n_set_string(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                               const fmi2String value[]) {
-    (void)vr, (void)nvr, (void)value;
-    return hb_fail(c, fmi2Error, "fmi2SetString: the model has no String variables; nothing changed");
 }
 
 /* ------------------------------------------------------------------------------------------ */
@@ -571,7 +381,7 @@ static int apply_tolerance(model *m) {
     model_state *s = &m->s;
     model_state trial = *s;
     char err[1024];
-    if (!commit(&trial, s->value, s->impact_enabled, 1, err, sizeof err)) {
+    if (!hb_commit(&trial, s->value, s->impact_enabled, 1, err, sizeof err)) {
         s->value[HBS_tolerance] = s->committed[HBS_tolerance];
         hb_fail(m, fmi2Error, "invalid tunable parameter: %s", err);
         return 0;
@@ -667,14 +477,7 @@ int hb_backend_load(char *err, size_t n) {
     hb_W.ExitInitializationMode = n_exit_init;
     hb_W.Terminate = n_terminate;
     hb_W.Reset = n_reset;
-    hb_W.GetReal = n_get_real;
-    hb_W.GetInteger = n_get_integer;
-    hb_W.GetBoolean = n_get_boolean;
-    hb_W.GetString = n_get_string;
-    hb_W.SetReal = n_set_real;
-    hb_W.SetInteger = n_set_integer;
-    hb_W.SetBoolean = n_set_boolean;
-    hb_W.SetString = n_set_string;
+    hb_values_fill(&hb_W);
     hb_state_fill(&hb_W);
     hb_W.DoStep = n_do_step;
     hb_me_fill(&hb_W);

@@ -73,8 +73,21 @@ void hb_repr(double v, char *out, size_t n);
 void hb_mlog(model *m, fmi2Status st, const char *fmt, ...);
 /* record st as the call's status (last_status), log the message; st */
 fmi2Status hb_fail(model *m, fmi2Status st, const char *fmt, ...);
+/* v in the range r (validation.Range.contains) */
+int hb_contains(const hb_range *r, double v);
+/* 1 and "parameter 'name' = v is out of range: allowed ..." in out if v is outside r; else 0 */
+int hb_range_error(const char *name, double v, const hb_range *r, char *out, size_t n);
+/* an input value within +-1000 F0 of the parameters in use; its refusal message */
+int hb_input_ok(const model_state *s, int k, double v);
+void hb_input_error(const model_state *s, int k, double v, char *out, size_t n);
+/* validate the values v[] (and impact) and build the solver state into s; 1, or 0 with the
+ * message in err (s unchanged then); keep: carry y, ist, fst and p of s over */
+int hb_commit(model_state *s, const double *v, int impact, int keep, char *err, size_t n);
 /* apply the inputs as set to the kernel's parameter vector (Model Exchange: at every evaluation) */
 void hb_apply_inputs(model_state *s);
+
+/* model_values.c: the fmi2Get* and fmi2Set* functions of the backend table */
+void hb_values_fill(hb_wrapper *w);
 
 /* model_state.c: the FMU-state functions of the backend table */
 void hb_state_fill(hb_wrapper *w);
