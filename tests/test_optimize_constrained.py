@@ -72,8 +72,9 @@ def test_contact_force_limit_binding_on_the_lab_rig_with_a_gap():
 
 
 def test_static_threshold_binding_over_amplitude_and_preload():
-    """paper-fig9 over (a, b) with b <= 0.84 < mu: the ROP grows with both, a + b <= 1 binds."""
-    g = preset("paper-fig9")
+    """paper-fig9 with mu = 0.85 over (a, b) with b <= 0.84 < mu: the ROP grows with both, a + b <= 1
+    binds."""
+    g = preset("paper-fig9").replace(mu=0.85)
     bounds = (Bound("a", 0.05, 0.6), Bound("b", 0.3, 0.84))
     periods = 30
     res = optimize(g, OptimizeConfig(bounds=bounds, periods=periods), options=IN_PROCESS)

@@ -167,9 +167,12 @@ def _optimize(args) -> None:
     from hammerbit.cli.common import parse_settings
     from hammerbit.model.presets import preset
     from hammerbit.model.validation import ParameterError
-    if args.grid > 0 and args.periods > 0:
-        cells = args.grid ** max(1, len(args.bounds or ()) or 2)
-        check_fits(f"--grid {args.grid} ({cells:,} cells over the bounded variables)",
+    from hammerbit.studies.optimize import DEFAULT_GRID
+    n_vars = min(max(1, len(args.bounds or ()) or 2), max(DEFAULT_GRID))
+    grid = DEFAULT_GRID[n_vars] if args.grid is None else args.grid
+    if grid > 0 and args.periods > 0:
+        cells = grid ** n_vars
+        check_fits(f"--grid {grid} ({cells:,} cells over the bounded variables)",
                    bytes_needed=cells * BYTES_PER_MAP_CELL,
                    cpu_seconds=cells * args.periods * CPU_SECONDS_PER_PERIOD,
                    hint="use a coarser --grid (the local refinement finds the optimum between cells)")
