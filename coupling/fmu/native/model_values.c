@@ -113,6 +113,9 @@ static fmi2Status check_real(model *m, int k, double v) {
     char rv[40], err[1024];
     if (d->kind == HB_INPUT) {
         if (hb_input_ok(s, k, v)) return fmi2OK;   /* the hot path: no text */
+        /* before initialisation the range follows parameters that may still change (in this very
+           call): fmi2ExitInitializationMode checks it for the parameters it commits */
+        if (!s->ready && isfinite(v)) return fmi2OK;
         hb_input_error(s, k, v, err, sizeof err);
         return hb_fail(m, fmi2Error, "%s", err);
     }
