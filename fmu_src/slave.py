@@ -36,7 +36,6 @@ import math
 import os
 import time
 
-import numpy as np
 from pythonfmu import Boolean, DefaultExperiment, Fmi2Causality, Fmi2Initial, Fmi2Slave, \
     Fmi2Variability, Integer, Real
 from pythonfmu.enums import Fmi2Status
@@ -44,13 +43,9 @@ from pythonfmu.enums import Fmi2Status
 from . import build_info
 from . import kernel_driver, kernel_forces, kernel_layouts
 from . import numba_cache
-from .fmu_state import (STATE_FORMAT, pop_deserialize_reason, pop_deserialize_status, state_from_bytes,
-                        state_to_bytes)
-from .fmu_state_checks import state_problem
-from .fmu_variable_xml import KIND, KIND_NAME, RealVar
-from .fmu_variables import (BOOL_PARAMETERS, DEFAULT_TOLERANCE, FIXED_REALS, INPUTS, OUTPUTS,
-                            PARAMETERS, RIG_FIELDS, UNITS, accepted_bounds, input_range,
-                            nominal_values, range_key, start_values, variable_range)
+from .fmu_state import STATE_FORMAT, pop_deserialize_reason, pop_deserialize_status
+from .fmu_variable_xml import KIND, RealVar
+from .fmu_variables import (BOOL_PARAMETERS, DEFAULT_TOLERANCE, FIXED_REALS, INPUTS, OUTPUTS, PARAMETERS, RIG_FIELDS, UNITS, accepted_bounds, input_range, nominal_values, range_key, start_values, variable_range)
 from .kernel_layouts import P_B, P_FEXT
 from .params import RigParameters
 from .pythonfmu_exit import guard_pythonfmu_exit
@@ -59,6 +54,9 @@ from .solver_options import SolverOptions
 from .stepping import NO_LOG, NO_POINCARE, NO_SAMPLE_TIMES, NO_SAMPLES, Stepper
 from .validation import ParameterError, check
 from .numba_dispatch import entry_point as _entry_point
+from .fmi_status import DISCARD, ERROR, OK, WARNING
+from .slave_access import VariableAccess
+from .slave_state import SavedState
 
 __all__ = ["HammerBitRock", "PARAMETERS", "INPUTS", "OUTPUTS", "UNITS", "STATE_FORMAT",
            "OK", "WARNING", "DISCARD", "ERROR", "guard_pythonfmu_exit"]
@@ -67,8 +65,6 @@ _INF = math.inf
 _ST_DONE = kernel_layouts.ST_DONE
 _isfinite = math.isfinite
 
-#: FMI 2.0 status codes recorded in ``last_status``
-OK, WARNING, DISCARD, ERROR = 0, 1, 2, 3
 
 # Communication times are compared with an absolute tolerance (as the native front does): 1 ns,
 # or a few units in the last place where t is so large that its doubles lie farther apart
@@ -103,7 +99,7 @@ def _general_advance(st):
     return kernel
 
 
-class HammerBitRock(Fmi2Slave):
+class HammerBitRock(VariableAccess, SavedState, Fmi2Slave):
     """Hammer-bit-rock model of Franca & Weber (2004) as an FMI 2.0 co-simulation slave."""
 
     author = "hammerbit project"
@@ -204,168 +200,6 @@ class HammerBitRock(Fmi2Slave):
         if reason:        # the refusal of fmi2DeSerializeFMUstate, a class-level call that cannot log
             self._log(f"fmi2DeSerializeFMUstate: {reason}; refused", ERROR)
         return self.last_status if pending is None else pending
-
-    # ------------------------------------------------------------------
-    # fmi2Get*/fmi2Set*: dictionary lookups; never raise into the C wrapper
-    # ------------------------------------------------------------------
-    def _bad_reference(self, what, vrs, kind) -> str:
-        bad = []
-        for vr in vrs:
-            entry = self._names.get(vr) if isinstance(vr, int) else None
-            if entry is None:
-                bad.append(f"{vr!r} (no such variable)")
-            elif entry[1] is not kind:
-                bad.append(f"{vr} ({entry[0]!r} is {KIND_NAME[entry[1]]}, not {KIND_NAME[kind]})")
-            elif what.startswith("fmi2Set") and vr not in self._setters[kind]:
-                bad.append(f"{vr} ({entry[0]!r} is not settable: an output or a local variable)")
-        return f"{what}: invalid value reference {', '.join(bad)}; nothing changed"
-
-    def _get(self, kind, conv, vrs, what, fill):
-        if self._stale:
-            self._refresh_initial_outputs()
-        g = self._getters[kind]
-        try:
-            return [conv(g[vr]()) for vr in vrs]
-        except KeyError:
-            self._fail(self._bad_reference(what, vrs, kind))
-            return [fill] * len(vrs)
-
-    def get_real(self, vrs):
-        if self._stale:
-            self._refresh_initial_outputs()
-        g = self._real_get
-        try:
-            if len(vrs) == 1:
-                return [g[vrs[0]]()]
-            return [g[vr]() for vr in vrs]     # getters return numbers; the wrapper converts
-        except KeyError:
-            self._fail(self._bad_reference("fmi2GetReal", vrs, Real))
-            return [math.nan] * len(vrs)
-
-    def get_integer(self, vrs):
-        return self._get(Integer, int, vrs, "fmi2GetInteger", 0)
-
-    def get_boolean(self, vrs):
-        return self._get(Boolean, bool, vrs, "fmi2GetBoolean", False)
-
-    def get_string(self, vrs):
-        self._fail(f"fmi2GetString: invalid value references {list(vrs)!r} (the model has no String "
-                   f"variables)")
-        return [""] * len(vrs)
-
-    def _set(self, kind, vrs, values, what):
-        s = self._setters[kind]
-        try:
-            setters = [s[vr] for vr in vrs]
-        except KeyError:
-            return self._fail(self._bad_reference(what, vrs, kind))
-        # all or nothing: a refused value puts back the ones set before it
-        names = [self._names[vr][0] for vr in vrs]
-        saved = {n: getattr(self, n) for n in names}
-        flags = (self._dirty, self._slow, self._stale)
-        status = OK
-        for f, v in zip(setters, values):
-            status = max(status, f(v))
-            if status >= ERROR:
-                break
-        if status >= ERROR:
-            for n, v in saved.items():
-                setattr(self, n, v)
-            self._dirty, self._slow, self._stale = flags
-            if len(vrs) > 1:
-                self._fail(f"{what}: one of the {len(vrs)} values was refused, so none of them was "
-                           f"applied")
-        self.last_status = status
-
-    def set_real(self, vrs, values):
-        if len(vrs) == 1:
-            f = self._real_set.get(vrs[0])
-            if f is not None:
-                self.last_status = f(values[0])
-                return
-        self._set(Real, vrs, values, "fmi2SetReal")
-
-    def set_integer(self, vrs, values):
-        self._set(Integer, vrs, values, "fmi2SetInteger")
-
-    def set_boolean(self, vrs, values):
-        self._set(Boolean, vrs, values, "fmi2SetBoolean")
-
-    def set_string(self, vrs, values):
-        self._fail(f"fmi2SetString: invalid value references {list(vrs)!r} (the model has no String "
-                   f"variables); nothing changed")
-
-    # ------------------------------------------------------------------
-    # setters of inputs and parameters (return the FMI status)
-    # ------------------------------------------------------------------
-    def _input_setter(self, name):
-        d = self.__dict__
-        ranges = self._input_ranges
-
-        def setter(value):
-            rng = ranges[name]
-            if rng.lo <= value <= rng.hi:               # False for NaN
-                d[name] = value
-                return OK
-            if not self._ready and _isfinite(value):
-                # before initialisation the range follows parameters that may still change (in
-                # this very call): exit_initialization_mode checks it for the parameters it commits
-                d[name] = value
-                return OK
-            self._fail(f"input {name!r} = {value!r} is out of range: allowed {rng.text()} "
-                       f"(1000 F0, F0 = mu_static normal_force = {self._F0!r} N, the static friction "
-                       f"threshold); refused, {d[name]!r} N stays")
-            return ERROR
-        return setter
-
-    def _check_inputs(self) -> None:
-        """ParameterError if an input is outside its range for the parameters in use."""
-        for name, _, _ in INPUTS:
-            rng = self._input_ranges[name]
-            value = getattr(self, name)
-            if not rng.lo <= value <= rng.hi:
-                raise ParameterError(name, value, f"{rng.text()} (1000 F0 for the parameters in use, "
-                                                  f"F0 = {self._F0!r} N)")
-
-    def _param_setter(self, name):
-        is_bool = name == "impact_enabled"
-
-        def setter(value):
-            if self._ready:
-                return self._set_after_initialisation(name, value)
-            setattr(self, name, bool(value) if is_bool else value)
-            self._stale = True
-            if is_bool:
-                return OK
-            try:
-                check(range_key(name), value, label=name)
-            except ParameterError as e:        # an error only if still so at initialisation
-                self._fail(f"{e}; fmi2ExitInitializationMode will fail unless it is corrected", WARNING)
-                return WARNING
-            return OK
-        return setter
-
-    def _set_after_initialisation(self, name, value) -> int:
-        if name != "tolerance":
-            self._fail(f"parameter {name!r} = {value!r} was set after initialisation, but it is fixed "
-                       f"(causality=parameter, variability=fixed); refused, the value "
-                       f"{self._committed[name]!r} stays in use")
-            return ERROR
-        try:
-            check(range_key(name), value, label=name)
-        except ParameterError as e:
-            self._fail(f"invalid tunable {e}; refused, the tolerance {self.tolerance!r} stays in use")
-            return ERROR
-        self.tolerance = value
-        self._dirty = True
-        self._slow = True
-        return OK
-
-    def _param_values(self) -> dict:
-        vals = {name: getattr(self, name) for name in FIXED_REALS}
-        vals["impact_enabled"] = bool(self.impact_enabled)
-        vals["tolerance"] = self.tolerance
-        return vals
 
     # ------------------------------------------------------------------
     # parameters -> stepper
@@ -690,88 +524,3 @@ class HammerBitRock(Fmi2Slave):
             for u in outputs:
                 SubElement(init, "Unknown", {"index": u.get("index")})
         return root
-
-    # ------------------------------------------------------------------
-    # FMU state
-    # ------------------------------------------------------------------
-    def _get_fmu_state(self):
-        try:
-            state = {
-                "format": STATE_FORMAT,
-                "build": build_info.BUILD_HASH,
-                "stepper": self._st.get_state(),
-                "committed": dict(self._committed),
-                "params": self._param_values(),
-                "inputs": (float(self.preload), float(self.harmonic_force)),
-                "t": self._t,
-                "t_start": self._t_start,
-                "ready": self._ready,
-                "terminated": self._terminated,
-                "error": self._error,
-            }
-        except Exception as e:  # noqa: BLE001 -- an exception would be fmi2Fatal in pythonfmu
-            self._fail(f"fmi2GetFMUstate failed: {type(e).__name__}: {e}")
-            return {"format": "invalid", "reason": repr(e)}
-        self.last_status = OK
-        return state
-
-    def _set_fmu_state(self, state):
-        try:
-            if not isinstance(state, dict) or state.get("format") != STATE_FORMAT:
-                reason = state.get("reason") if isinstance(state, dict) else None
-                return self._fail(f"fmi2SetFMUstate: not a {STATE_FORMAT} state"
-                                  + (f" ({reason})" if reason else "") + "; state unchanged")
-            arr = np.asarray(state["stepper"], dtype=np.float64)
-            if arr.shape != self._st.get_state().shape or np.any(np.isnan(arr)):
-                return self._fail(f"fmi2SetFMUstate: the stepper state (length {arr.shape[0]}) does not "
-                                  f"fit or holds NaN; state unchanged")
-            committed = state["committed"]
-            t_start_old = self._t_start
-            self._t_start = float(state["t_start"])
-            try:
-                if committed != self._committed or self._t_start != t_start_old:
-                    self._commit(committed, warm_up=False, keep_state=arr)
-                else:
-                    self._st.set_state(arr)
-                    self._applied_preload = self._applied_force = math.nan
-            except Exception:
-                self._t_start = t_start_old
-                raise
-            for name, v in state["params"].items():
-                setattr(self, name, v)
-            self._dirty = state["params"] != committed
-            self._slow = True
-            self._stale = False
-            self.preload, self.harmonic_force = state["inputs"]
-            self._t = float(state["t"])
-            self._ready = bool(state["ready"])
-            self._terminated = bool(state.get("terminated", False))
-            self._error = state["error"]
-            self.last_status = OK
-        except Exception as e:  # noqa: BLE001 -- an exception would be fmi2Fatal in pythonfmu
-            self._fail(f"fmi2SetFMUstate failed: {type(e).__name__}: {e}; state unchanged")
-
-    @staticmethod
-    def _fmu_state_to_bytes(state) -> bytes:
-        return state_to_bytes(state)
-
-    @staticmethod
-    def _fmu_state_from_bytes(data: bytes):
-        return state_from_bytes(data, check=HammerBitRock._state_body_problem)
-
-    @staticmethod
-    def _state_body_problem(s: dict):
-        """Why a decoded state cannot be restored into this model (None: it can)."""
-        why = state_problem(s, HammerBitRock._STATE_SIZE, FIXED_REALS + ("impact_enabled", "tolerance"),
-                            len(INPUTS))
-        if why:
-            return why
-        try:
-            rig, _ = HammerBitRock._validate(s["committed"])
-        except ParameterError as e:
-            return f"its parameters in use are invalid: {e}"
-        for (name, _, _), v in zip(INPUTS, s["inputs"]):
-            rng = input_range(name, rig.scales.friction_force)
-            if not rng.contains(v):
-                return f"input {name!r} = {v!r} is outside {rng.text()} (1000 F0 of its parameters)"
-        return None
