@@ -12,7 +12,7 @@ from hammerbit.cosim.config import CosimConfig, field_hammer
 from hammerbit.cosim.master import cosimulate
 from hammerbit.cosim.reference import monolithic
 from hammerbit.drillstring import load_string
-from hammerbit.model.params import RIG
+from hammerbit.model.presets import RIG
 from hammerbit.studies.sweep import steady_rop
 
 

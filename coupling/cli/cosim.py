@@ -82,7 +82,7 @@ def rig_from_args(args, string=None):
     """The string's default hammer (:func:`~hammerbit.cosim.config.default_hammer`: the field hammer,
     or the paper's rig on a string too light for it; the field hammer without a string) with
     ``--set`` applied (groups, SI symbols, RigParameters/FMU names)."""
-    from hammerbit.model.params import apply_settings
+    from hammerbit.model.settings import apply_settings
     from hammerbit.cosim.config import default_hammer, field_hammer
     rig = field_hammer() if string is None else default_hammer(string)
     settings = parse_settings(getattr(args, "set", None))
@@ -149,13 +149,13 @@ def portable_target_for_fmu(args) -> None:
     """With ``--fmu``: this process's numba runs the FMU's portable CPU target.
 
     The FMU then loads the kernels it ships instead of compiling its own copy
-    in this process (:mod:`hammerbit.model.cpu_target`); the master's own
+    in this process (:mod:`hammerbit.model.numba_target`); the master's own
     kernels compile once for that target into the user cache.  Called before
     anything imports numba; without ``--fmu`` (or with ``--monolithic``) it
     does nothing.
     """
     if getattr(args, "fmu", None) is not None and not getattr(args, "monolithic", False):
-        from hammerbit.model.cpu_target import select_portable
+        from hammerbit.model.numba_target import select_portable
         select_portable()
 
 

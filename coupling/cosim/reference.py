@@ -46,8 +46,9 @@ def monolithic(string, config=None):
         ``interface_force``, ``step_size`` the sampling step; ``counts`` the
         events by kind; no estimate.
     """
-    from hammerbit.model import kernels as K
-    from hammerbit.model.stepping import LinearSubsystem, SolverOptions, Stepper
+    from hammerbit.model import kernel_layouts
+    from hammerbit.model.solver_options import SolverOptions
+    from hammerbit.model.stepping import LinearSubsystem, Stepper
     c = CosimConfig() if config is None else config
     ts = _time.perf_counter()
     side = StringSide(string, c)
@@ -81,7 +82,7 @@ def monolithic(string, config=None):
     grp = rig.to_groups().replace(b=0.0)
     st = Stepper(grp, solver=SolverOptions(rtol=c.rtol, atol=c.rtol * 1e-2), linear=lin,
                  y0=[x1eq, 0.0, 0.0, 0.0])
-    st.fstate[K.F_T] = Om * c.start
+    st.fstate[kernel_layouts.F_T] = Om * c.start
     n_full, rem = c.whole_steps
     idx = np.arange(0, n_full + 1, c.record_every)
     t_s = c.start + idx * c.step
@@ -94,7 +95,7 @@ def monolithic(string, config=None):
     n_d = min(int(math.ceil((c.stop - t_w) * f * DENSE_PER_PERIOD)), DENSE_MAX)
     t_d = np.linspace(t_w, c.stop, max(n_d, 2) + 1)
     t_all = np.union1d(t_s, t_d)
-    samples_all = np.zeros((len(t_all), K.N_SAMPLE_COLS))
+    samples_all = np.zeros((len(t_all), kernel_layouts.N_SAMPLE_COLS))
     setup = _time.perf_counter() - ts
     t_loop = _time.perf_counter()
     if c.ramp > 0.0:
@@ -103,16 +104,17 @@ def monolithic(string, config=None):
         k = 0
         while t < min(c.start + c.ramp, c.stop) - 1e-12:
             h = min(c.step, c.stop - t)
-            st.p[K.P_A] = a * c.ramp_factor(t + 0.5 * h)
+            st.p[kernel_layouts.P_A] = a * c.ramp_factor(t + 0.5 * h)
             k += 1
             t = min(c.start + k * c.step, c.stop)
             st.advance(Om * t, sample_times=Om * t_all, samples=samples_all)
-        st.p[K.P_A] = a
+        st.p[kernel_layouts.P_A] = a
     st.advance(Om * c.stop, sample_times=Om * t_all, samples=samples_all)
     wall = _time.perf_counter() - t_loop
     samples = samples_all[np.searchsorted(t_all, t_s)]
-    fk_d = ((samples_all[:, K.X_HAMMER] - samples_all[:, K.X_BIT])
-            + 2.0 * st.p[K.P_XI] * (samples_all[:, K.V_HAMMER] - samples_all[:, K.V_BIT]))
+    L = kernel_layouts
+    fk_d = ((samples_all[:, L.X_HAMMER] - samples_all[:, L.X_BIT])
+            + 2.0 * st.p[L.P_XI] * (samples_all[:, L.V_HAMMER] - samples_all[:, L.V_BIT]))
     dense = np.zeros(len(t_all), dtype=[("time", "f8"), ("wob", "f8")])
     dense["time"] = t_all
     dense["wob"] = (fk_d + samples_all[:, 4]) * F0
@@ -120,12 +122,12 @@ def monolithic(string, config=None):
     data["time"] = t_s
     x1, x2, x3, x4, fc, fl = (samples[:, i] for i in range(6))
     p = st.p
-    fk = ((samples[:, K.X_HAMMER] - samples[:, K.X_BIT])
-          + 2.0 * p[K.P_XI] * (samples[:, K.V_HAMMER] - samples[:, K.V_BIT]))
+    fk = ((samples[:, L.X_HAMMER] - samples[:, L.X_BIT])
+          + 2.0 * p[L.P_XI] * (samples[:, L.V_HAMMER] - samples[:, L.V_BIT]))
     m = {"wob": (fk + fc) * F0, "interface_force": fl * F0, "hammer_force": fl * F0,
          "hammer_position": x1 * x0, "hammer_velocity": x2 * v0, "bit_position": x3 * x0,
-         "bit_velocity": x4 * v0, "stick": (samples[:, 6] == K.STICK).astype(float),
-         "contact": (samples[:, 7] != K.FREE).astype(float),
+         "bit_velocity": x4 * v0, "stick": (samples[:, 6] == kernel_layouts.STICK).astype(float),
+         "contact": (samples[:, 7] != kernel_layouts.FREE).astype(float),
          "step_size": np.r_[0.0, np.diff(t_s)]}
     for r in c.record:
         if r in m:
