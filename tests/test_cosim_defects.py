@@ -150,3 +150,12 @@ def test_steady_rop_over_whole_slip_cycles():
     assert steady_rop(stuck, 0.5) == {"rop_m_per_h": 0.0, "rop_change": 0.0, "rop_steady": True}
     short = data[data["time"] < 1.5]
     assert not steady_rop(short, 0.2)["rop_steady"]
+
+
+def test_cli_sweep_on_the_lab_string_runs(capsys):
+    """The default step is one the lab string resolves (its rod's modes are in the kHz)."""
+    code, out, err = run_cli(["sweep", "--string", "lab", "--frequencies", "1.4", "1.5", "2", "--workers", "1",
+                              "--window-periods", "1", "--max-duration", "3", "--json"], capsys)
+    assert code == 0, err
+    rows = json.loads(out)["rows"]
+    assert len(rows) == 2 and all(np.isfinite(r["wob_amplitude_n"]) and r["wob_amplitude_n"] > 0 for r in rows)

@@ -48,7 +48,7 @@ def test_cosim_through_the_fmu_loads_the_kernels_it_ships(built_fmu, tmp_path):
     """``hammerbit cosim --fmu``: no compile notice, nothing compiled into an empty user cache."""
     cache = tmp_path / "cache"
     r = subprocess.run([sys.executable, "-m", "hammerbit", "cosim", "--string", "field-2200m", "--fmu",
-                        str(built_fmu), "--stop", "0.05", "--step", "1e-3", "--json"],
+                        str(built_fmu), "--stop", "0.05", "--step", "5e-4", "--json"],
                        capture_output=True, text=True, env=_env(HAMMERBIT_CACHE_DIR=str(cache)), timeout=600)
     assert r.returncode == 0, r.stderr
     assert "compiling" not in r.stderr

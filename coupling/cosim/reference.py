@@ -112,8 +112,9 @@ def monolithic(string, config=None):
     st.advance(Om * c.stop, sample_times=Om * t_all, samples=samples_all)
     wall = _time.perf_counter() - t_loop
     samples = samples_all[np.searchsorted(t_all, t_s)]
-    fk_d = ((samples_all[:, kernel_layouts.X_HAMMER] - samples_all[:, kernel_layouts.X_BIT])
-            + 2.0 * st.p[kernel_layouts.P_XI] * (samples_all[:, kernel_layouts.V_HAMMER] - samples_all[:, kernel_layouts.V_BIT]))
+    L = kernel_layouts
+    fk_d = ((samples_all[:, L.X_HAMMER] - samples_all[:, L.X_BIT])
+            + 2.0 * st.p[L.P_XI] * (samples_all[:, L.V_HAMMER] - samples_all[:, L.V_BIT]))
     dense = np.zeros(len(t_all), dtype=[("time", "f8"), ("wob", "f8")])
     dense["time"] = t_all
     dense["wob"] = (fk_d + samples_all[:, 4]) * F0
@@ -121,8 +122,8 @@ def monolithic(string, config=None):
     data["time"] = t_s
     x1, x2, x3, x4, fc, fl = (samples[:, i] for i in range(6))
     p = st.p
-    fk = ((samples[:, kernel_layouts.X_HAMMER] - samples[:, kernel_layouts.X_BIT])
-          + 2.0 * p[kernel_layouts.P_XI] * (samples[:, kernel_layouts.V_HAMMER] - samples[:, kernel_layouts.V_BIT]))
+    fk = ((samples[:, L.X_HAMMER] - samples[:, L.X_BIT])
+          + 2.0 * p[L.P_XI] * (samples[:, L.V_HAMMER] - samples[:, L.V_BIT]))
     m = {"wob": (fk + fc) * F0, "interface_force": fl * F0, "hammer_force": fl * F0,
          "hammer_position": x1 * x0, "hammer_velocity": x2 * v0, "bit_position": x3 * x0,
          "bit_velocity": x4 * v0, "stick": (samples[:, 6] == kernel_layouts.STICK).astype(float),

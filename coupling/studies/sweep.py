@@ -29,6 +29,7 @@ from hammerbit.model.validation import ParameterError
 
 from hammerbit.cosim.config import CosimConfig
 from hammerbit.cosim.linear_modes import coupled_system
+from hammerbit.cosim.amplitude import fundamental
 from hammerbit.cosim.master import cosimulate
 from hammerbit.cosim.string_side import StringSide
 from .executor import Executor, ExecutorOptions
@@ -80,7 +81,8 @@ def steady_figures(data: np.ndarray, frequency: float, window_periods: int, fric
     """Figures of the last two windows of ``window_periods`` forcing periods each.
 
     ``data`` has ``time``, ``wob`` and ``bit_position`` (SI).  Returns the WOB
-    mean, amplitude ((max - min)/2) and minimum over both windows, the bounce
+    mean, amplitude (the fundamental harmonic at the forcing frequency,
+    :func:`hammerbit.cosim.amplitude.fundamental`) and minimum over both windows, the bounce
     margin ``1 + min(WOB)/F_s``, the ROP [m/h] and ``amplitude_change``, the
     relative change of the amplitude from the earlier window to the later.
     """
@@ -93,7 +95,8 @@ def steady_figures(data: np.ndarray, frequency: float, window_periods: int, fric
     w = data["wob"]
 
     def amp(m):
-        return 0.5 * float(w[m].max() - w[m].min())
+        tm = t[m]
+        return fundamental(tm, w[m], frequency, float(tm[0]))[0]
 
     a_last, a_prev = amp(last), amp(prev)
     change = abs(a_last - a_prev) / max(a_last, a_prev, 1e-9 * max(abs(w[both]).max(), 1.0))
