@@ -18,23 +18,26 @@ from . import numba_cache  # noqa: F401  (registers the content-hash cache locat
 from . import tableaux as _T
 from .numba_partial import bind
 from .kernel_events import watch_tol, watch_value, watched
-from .kernel_forces import contact_force_at, force_on_bit, overlap, rhs
-from .kernel_layouts import (CONTACT, EPS, ERRACC_FLOOR, EV_SEPARATION, EV_STICK, FREE, F_ERRACC, F_H,
-                             F_DRIVE_MIN, F_HACC, F_H_MODE, F_PEAK, F_T, F_T_STICK, F_V4_PEAK, HOW_DENSE, HOW_RESTEP, HOW_STICK,
-                             I_CONTACT, I_NLOG, I_REJECTS, I_RHS, I_STEPS, I_STICK, I_SWIN, I_SWIN_STEPS,
-                             I_WIN, I_WIN_EVENTS, LAYER_TARGET, L_KIND, L_PEAK, L_T, L_VREL, L_X1, L_X2,
-                             L_X3, L_X4, MAX_FACTOR, MIN_FACTOR, O_ATOL, O_BISECT, O_EVCAP, O_GRAZE,
-                             O_HFIXED, O_HMAX, O_MAXSTEPS, O_RTOL, O_STEPCAP, P_ETA, P_KC, P_LAM, P_MU, P_N,
-                             P_RHO, P_XI, SAFETY, SLIP, STICK, ST_BAD_INPUT, ST_DONE, ST_EVENT_STORM,
-                             ST_LOG_FULL, ST_MAX_STEPS, ST_NONFINITE, ST_STEP_STORM, ST_STEP_TOO_SMALL,
-                             V_BIT, V_HAMMER, X_BIT, X_HAMMER)
-from .kernel_localise import (drive_end, drive_inside, locate_event, peak_in_step, plain, sign_change,
-                              state_at)
+from .kernel_forces import contact_force_at, overlap, rhs, force_on_bit
+from .kernel_layouts import (CHUNK_SLIVER, CONTACT, CONTACT_STABILITY_LIMIT, EPS, ERRACC_FLOOR, EV_SEPARATION,
+                             EV_STICK, F_DRIVE_MIN, F_ERRACC, F_H, F_H_MODE, F_HACC, F_PEAK, F_T, F_T_STICK,
+                             F_V4_PEAK, FREE, HOW_DENSE, HOW_RESTEP, HOW_STICK, I_CONTACT, I_NLOG, I_REJECTS,
+                             I_RHS, I_STEPS, I_STICK, I_SWIN, I_SWIN_STEPS, I_WIN, I_WIN_EVENTS, L_KIND,
+                             L_PEAK, L_T, L_VREL, L_X1, L_X2, L_X3, L_X4, LAYER_TARGET, MAX_FACTOR,
+                             MIN_FACTOR, O_ATOL, O_BISECT, O_EVCAP, O_GRAZE, O_HFIXED, O_HMAX, O_MAXSTEPS,
+                             O_RTOL, O_STEPCAP, P_ETA, P_KC, P_LAM, P_MU, P_N, P_RHO, P_XI, SAFETY, SLIP,
+                             SLIVER_FLOORS, ST_BAD_INPUT, ST_DONE, ST_EVENT_STORM, ST_LOG_FULL, ST_MAX_STEPS,
+                             ST_NONFINITE, ST_STEP_STORM, ST_STEP_TOO_SMALL, STICK, STICK_CHUNKS_PER_PERIOD,
+                             STOP_OVERSHOOT, STOP_SHRINK_FLOOR, TIME_RESOLUTION, TINY, V_BIT, V_HAMMER, X_BIT,
+                             X_HAMMER)
+from .kernel_localise import (locate_event, peak_in_step, plain, sign_change, state_at, drive_end,
+                              drive_inside)
 from .kernel_recording import needs_record, record_until
 from .kernel_reset import apply_event
 from .kernel_runge_kutta import dense_eval, error_norm, friction_layer_err, interpolant, rk_step
 from .kernel_stick import (stick_chunk_consts, stick_closed_form_ok, stick_prepare, stick_prepare_phase,
                            stick_rate, stick_state, stick_state_chunk)
+
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
 def err_root(x, e):
@@ -138,7 +141,8 @@ def advance(y, istate, fstate, t_end, p, opts,
     graze_stick = plain(1, n) > 0
     # exact stick stepping (adaptive methods, hammer-only systems): see stick_prepare
     cf_ok = (not fixed) and nz == 0 and ne == 0 and dense_w.shape[0] >= 3 and stick_closed_form_ok(p)
-    cf_chunk = min(2.0 * math.pi / p[P_ETA], 2.0 * math.pi / math.sqrt(max(1.0 - p[P_XI] * p[P_XI], 1e-300))) / 8.0
+    cf_chunk = min(2.0 * math.pi / p[P_ETA],
+                   2.0 * math.pi / math.sqrt(max(1.0 - p[P_XI] * p[P_XI], TINY))) / STICK_CHUNKS_PER_PERIOD
     cf_chunk = min(cf_chunk, opts[O_HMAX])
     chunk_c = np.empty(6)
     e_abs = 0.0
@@ -192,7 +196,7 @@ def advance(y, istate, fstate, t_end, p, opts,
     while True:
         remaining = t_end - t
         # a sliver below the time resolution is no dynamics: done
-        if remaining <= 10.0 * EPS * max(abs(t_end), 1.0):
+        if remaining <= TIME_RESOLUTION * max(abs(t_end), 1.0):
             break
         if log_cap > 0 and istate[I_NLOG] >= log_cap:
             fstate[F_T] = t
@@ -222,7 +226,7 @@ def advance(y, istate, fstate, t_end, p, opts,
             h_chunk = cf_chunk
             t1 = t + h_chunk
             full = True
-            if h_chunk >= remaining or remaining - h_chunk < 1e4 * EPS * max(abs(t), 1.0):
+            if h_chunk >= remaining or remaining - h_chunk < CHUNK_SLIVER * max(abs(t), 1.0):
                 h_chunk = remaining
                 t1 = t_end
                 full = False
@@ -298,7 +302,7 @@ def advance(y, istate, fstate, t_end, p, opts,
                         fstate[F_T] = t
                         return ST_NONFINITE
             else:
-                hmin = 10.0 * EPS * max(abs(t), 1.0)
+                hmin = TIME_RESOLUTION * max(abs(t), 1.0)
                 rejected = False
                 if mc != FREE:
                     # stiff contact: keep h within the explicit method's
@@ -309,19 +313,19 @@ def advance(y, istate, fstate, t_end, p, opts,
                         if mc == CONTACT:
                             kcl *= 1.0 + p[P_LAM] * max(y[V_HAMMER] - y[V_BIT], 0.0)
                         minv = 1.0 + (1.0 / p[P_RHO] if ms == SLIP else 0.0)
-                        hcap = 1.5 / math.sqrt(kcl * minv + 1e-300)
+                        hcap = CONTACT_STABILITY_LIMIT / math.sqrt(kcl * minv + TINY)
                         if h > hcap:
                             h = hcap
                 if ms == SLIP and stages[0, V_BIT] < 0.0 and y[V_BIT] > 0.0:
                     # the bit decelerates to a stop: do not step far past the
                     # predicted stop, where the friction law is extrapolated
                     t_stop = -y[V_BIT] / stages[0, V_BIT]
-                    if h > 1.3 * t_stop:
-                        h = max(1.3 * t_stop, 1e-3 * h)
+                    if h > STOP_OVERSHOOT * t_stop:
+                        h = max(STOP_OVERSHOOT * t_stop, STOP_SHRINK_FLOOR * h)
                 while True:
                     if h > hmax:
                         h = hmax
-                    if h >= remaining or (not rejected and remaining - h < 1e3 * hmin):
+                    if h >= remaining or (not rejected and remaining - h < SLIVER_FLOORS * hmin):
                         # never leave a sliver behind; after a rejection the step only
                         # shrinks (snapping back to the whole remainder would retry the
                         # rejected step forever when hmin is coarse, e.g. at a late start)

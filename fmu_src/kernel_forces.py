@@ -10,8 +10,11 @@ import math
 from numba import njit
 
 from . import numba_cache  # noqa: F401  (registers the content-hash cache locator first)
-from .kernel_layouts import (CLAMPED, CONTACT, FREE, P_A, P_B, P_ETA, P_FEXT, P_GAMMA, P_KC, P_LAM, P_MU,
-                             P_N, P_PHI, P_R, P_RHO, P_XI, SLIP, V_BIT, V_HAMMER, X_BIT, X_HAMMER, Z0)
+from .kernel_layouts import (CLAMPED, CONTACT, EXP_FRICTION_TAYLOR, FREE, FRICTION_TAYLOR_FROM, P_A, P_B,
+                             P_ETA, P_FEXT, P_GAMMA, P_KC, P_LAM, P_MU, P_N, P_PHI, P_R, P_RHO, P_XI, SLIP,
+                             V_BIT, V_HAMMER, X_BIT, X_HAMMER, Z0)
+
+
 
 @njit(cache=True, _nrt=False)
 def contact_force(d, d_rate, p, contact_mode):
@@ -42,11 +45,11 @@ def kinetic_friction(v, p):
     The solution beyond the event is never used.
     """
     gv = p[P_GAMMA] * v
-    if gv >= -4.0:
+    if gv >= FRICTION_TAYLOR_FROM:
         e = math.exp(-gv)
     else:
-        u = gv + 4.0  # < 0
-        e = 54.598150033144236 * (1.0 - u + 0.5 * u * u)
+        u = gv - FRICTION_TAYLOR_FROM  # < 0
+        e = EXP_FRICTION_TAYLOR * (1.0 - u + 0.5 * u * u)
     return p[P_MU] + (1.0 - p[P_MU]) * e
 
 

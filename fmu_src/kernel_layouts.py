@@ -130,6 +130,28 @@ MIN_FACTOR = 0.2
 MAX_FACTOR = 10.0
 ERRACC_FLOOR = 1e-4  # floor of the remembered error in the predictive controller
 LAYER_TARGET = 0.3   # friction-layer error norm a proposed step may reach (friction_layer_err)
+#: guard added under a square root or a division that must stay finite at zero
+TINY = 1e-300
+#: a step shorter than this (relative to |t|, at least 1) does not resolve t: the step-size floor
+TIME_RESOLUTION = 10.0 * EPS
+#: a remainder of a stick chunk shorter than this (relative to |t|) joins the chunk
+CHUNK_SLIVER = 1e4 * EPS
+#: the step never leaves a remainder shorter than this many step-size floors
+SLIVER_FLOORS = 1e3
+#: exact stick chunks per forcing (or natural) period: short enough for the event
+#: search on each chunk to see every extremum of the indicators
+STICK_CHUNKS_PER_PERIOD = 8.0
+#: bound on h omega_c of the explicit method in stiff contact (inside its stability region)
+CONTACT_STABILITY_LIMIT = 1.5
+#: a slipping step may pass the predicted stop of the bit by this factor (not much further,
+#: where the friction law is extrapolated) ...
+STOP_OVERSHOOT = 1.3
+#: ... but shrinks at most by this factor at once
+STOP_SHRINK_FLOOR = 1e-3
+#: kinetic friction: gamma_hat v below which exp(-gamma_hat v) is continued by its Taylor
+#: polynomial (a trial stage past the stop cannot blow up), and exp(-FRICTION_TAYLOR_FROM)
+FRICTION_TAYLOR_FROM = -4.0
+EXP_FRICTION_TAYLOR = 54.598150033144236  # = math.exp(4.0), exactly (a literal: numba folds it)
 DRIVE_GATE = 1e-2    # drive_end: the exact search runs when the Hermite minimum is this close (x |rate| h)
 
 

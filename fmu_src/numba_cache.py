@@ -1,4 +1,4 @@
-"""Where the compiled kernels come from: the FMU's shipped cache, or a cache keyed on content.
+"""The numba cache of the kernels: a locator keyed on their content, not their path.
 
 numba's own locators key the cache directory on the source file's *path*.
 An FMU is unzipped into a fresh temporary directory on every load, so those
@@ -6,21 +6,8 @@ caches never hit.  This locator keys the cache on the *content* of the source
 file and on the module name: the same kernels, wherever they were unpacked,
 find the same compiled code.  It only claims this package's own modules.
 
-Two places, decided once when this module is imported (before numba is):
-
-1. **Shipped** (an FMU built by ``hammerbit fmu build``): the build compiles
-   the kernels for numba's portable CPU target (``NUMBA_CPU_NAME=generic``,
-   no extra CPU features) into ``_compiled/`` next to this file and records
-   the numba and Python versions and the machine in
-   ``_compiled/manifest.json``.  On a machine that matches, this module sets
-   the same two environment variables before numba is imported, and numba
-   loads the shipped code: nothing is compiled.
-2. **User cache** otherwise (the library, a mismatching machine, or numba
-   already imported in this process for another CPU):
-   ``$HAMMERBIT_CACHE_DIR``, else ``$XDG_CACHE_HOME/hammerbit/numba``
-   (``~/.cache/hammerbit/numba``); if that cannot be written (read-only
-   HOME), ``<tmp>/hammerbit-<uid>/numba``.  The first process compiles once,
-   later processes load it.
+The cache directory (the FMU's shipped kernels or the user's cache) is
+decided by :mod:`.numba_cache_place`.
 
 :func:`first_use_report` turns the outcome into one message for the FMI
 logger (the reason, and where the compiled code went), so a compilation is
@@ -28,111 +15,17 @@ never silent.
 """
 import functools
 import hashlib
-import json
 import os
-import platform
 import sys
-import tempfile
+
+from .numba_cache_place import decision
 
 _HERE = os.path.dirname(os.path.abspath(__file__))
 
-#: directory of the kernels compiled by the FMU build (absent in the library)
-SHIPPED_DIR = os.path.join(_HERE, "_compiled")
-MANIFEST = "manifest.json"
-
-from .numba_target import PORTABLE_ENV, runs_portable, select_portable  # noqa: E402
-
-
-def user_cache_root() -> str:
-    """The user's cache directory of hammerbit's compiled kernels (may not be writable)."""
-    env = os.environ.get("HAMMERBIT_CACHE_DIR")
-    if env:
-        return env
-    xdg = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return os.path.join(xdg, "hammerbit", "numba")
-
-
-def _writable(path: str) -> bool:
-    try:
-        os.makedirs(path, exist_ok=True)
-        tempfile.TemporaryFile(dir=path).close()
-    except OSError:
-        return False
-    return True
-
-
-def _user_cache() -> tuple:
-    """(directory, note): the user cache, or a temporary one if it cannot be written."""
-    root = user_cache_root()
-    if _writable(root):
-        return root, None
-    uid = os.getuid() if hasattr(os, "getuid") else "user"
-    fallback = os.path.join(tempfile.gettempdir(), f"hammerbit-{uid}", "numba")
-    return fallback, f"{root} cannot be written (read-only HOME?), so the cache is {fallback}"
-
-
-def runtime_manifest() -> dict:
-    """What a shipped cache must match: numba version, Python minor version, machine."""
-    import numba  # noqa: PLC0415 -- only after the CPU target is decided
-    return {"numba": numba.__version__, "python": "%d.%d" % sys.version_info[:2],
-            "machine": platform.machine(), "cpu_name": PORTABLE_ENV["NUMBA_CPU_NAME"]}
-
-
-def _shipped_mismatch(manifest: dict):
-    """Why the shipped cache cannot be used in this process (None: it can)."""
-    py = "%d.%d" % sys.version_info[:2]
-    if manifest.get("python") != py:
-        return f"the shipped kernels are for Python {manifest.get('python')}, this is Python {py}"
-    if manifest.get("machine") != platform.machine():
-        return (f"the shipped kernels are for {manifest.get('machine')}, this machine is "
-                f"{platform.machine()}")
-    if "numba" in sys.modules:
-        from numba.core import config  # noqa: PLC0415
-        if not runs_portable():
-            from llvmlite import binding as ll  # noqa: PLC0415
-            cpu = config.CPU_NAME or ll.get_host_cpu_name()
-            return (f"numba was already imported in this process for the CPU {cpu!r}; the shipped "
-                    f"kernels are compiled for the portable target 'generic'")
-    else:
-        for key, value in PORTABLE_ENV.items():
-            have = os.environ.get(key)
-            if have is not None and have != value:
-                return f"the environment sets {key}={have!r}; the shipped kernels are for {value!r}"
-    from importlib.metadata import PackageNotFoundError, version  # noqa: PLC0415
-    try:
-        nb = version("numba")
-    except PackageNotFoundError:
-        return "numba is not installed in this Python"
-    if manifest.get("numba") != nb:
-        return f"the shipped kernels are for numba {manifest.get('numba')}, this is numba {nb}"
-    return None
-
-
-def _decide() -> dict:
-    """Pick the cache directory of this process (sets the CPU target if the shipped one fits)."""
-    path = os.path.join(SHIPPED_DIR, MANIFEST)
-    if not os.path.isfile(path):
-        root, note = _user_cache()
-        return {"dir": root, "shipped": False, "reason": "no compiled kernels are shipped with this copy "
-                "of the model" + (f"; {note}" if note else "")}
-    try:
-        with open(path) as fh:
-            manifest = json.load(fh)
-    except (OSError, ValueError) as e:
-        manifest, why = {}, f"the shipped manifest cannot be read ({e})"
-    else:
-        why = _shipped_mismatch(manifest)
-    if why is None:
-        select_portable()
-        return {"dir": SHIPPED_DIR, "shipped": True, "reason": None}
-    root, note = _user_cache()
-    return {"dir": root, "shipped": False, "reason": why + (f"; {note}" if note else "")}
-
-
 #: the decision of this process: {"dir", "shipped", "reason"}
-DECISION = _decide()
+DECISION = decision()
 
-from numba.core import caching as _caching  # noqa: E402  (after the CPU target is set)
+from numba.core import caching as _caching  # noqa: E402  (after the CPU target is decided)
 
 from .numba_startup import import_arraymath_lazily  # noqa: E402
 
@@ -194,12 +87,16 @@ class ContentHashCacheLocator(_caching._SourceFileBackedLocatorMixin, _caching._
 
     @classmethod
     def from_function(cls, py_func, py_file):
-        if not py_file or os.path.dirname(os.path.abspath(py_file)) != _HERE:
+        if not py_file or os.path.dirname(os.path.abspath(py_file)) != _HERE or not os.path.exists(py_file):
             return None
-        return super().from_function(py_func, py_file)
+        # numba's locators create their directory here, when a kernel is decorated (at import);
+        # this one leaves it to numba's ensure_cache_path() before the first save
+        return cls(py_func, py_file)
 
 
 def _register():
+    # numba internal (no public hook for a cache locator): the class list numba tries in order.
+    # tests/test_numba_internals.py fails on a numba release that changes it.
     impl = getattr(_caching, "CacheImpl", None) or getattr(_caching, "_CacheImpl")
     classes = impl._locator_classes
     # one registration per package directory, even if the package is imported under two names

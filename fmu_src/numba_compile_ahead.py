@@ -9,9 +9,12 @@ reaches one the helper has finished, numba loads it from the cache instead.
 What a helper must compile (the callees' names and numba signatures, in the
 order numba finishes them) is recorded once from a real compile into
 ``_compile_plan.pkl`` (``python -m hammerbit.model.numba_compile_plan --record``).
-The plan names the source it was recorded from (:func:`.numba_cache.kernels_digest`)
-and the numba version; a plan for other kernels or another numba is ignored and
-the compile simply runs in one process, as it would without a plan.
+The plan is for one numba version (a plan for another one is ignored and the
+compile simply runs in one process, as it would without a plan).  An entry
+whose function is gone or takes another number of arguments is skipped; any
+other stale entry costs the helper one useless compile and nothing else (the
+plan only decides what is compiled early, never what runs), so an edit of the
+kernels that keeps their signatures keeps the plan useful.
 
 The helper walks the plan from its end while this process types the entry
 point from its start, so they meet in the middle; it stops when the entry
@@ -33,24 +36,39 @@ from .numba_compile_notice import kernels_cached
 _HERE = os.path.dirname(os.path.abspath(__file__))
 PLAN_FILE = os.path.join(_HERE, "_compile_plan.pkl")
 
-#: start a helper process on a first compile (the FMU sets it False)
+#: start a helper process on a first compile (a switch for the user; the FMU's steppers ask for
+#: no helper through ``Stepper(compile_helper=False)`` instead)
 ENABLED = True
 
 _helper = None
 
 
 def plan_for(entry: str):
-    """The plan's [(kernel module, function name, signature), ...] for ``entry``, or None if
-    absent or stale."""
+    """The plan's [(kernel module, function name, signature), ...] for ``entry`` whose functions
+    exist with that many arguments, or None without a plan for this numba."""
     try:
         with open(PLAN_FILE, "rb") as fh:
             plan = pickle.load(fh)
         import numba  # noqa: PLC0415 -- numba_cache picks the CPU target first
-        if plan.get("numba") != numba.__version__ or plan.get("digest") != numba_cache.kernels_digest():
+        if plan.get("numba") != numba.__version__:
             return None
-        return plan["entries"].get(entry)
+        items = plan["entries"].get(entry)
     except Exception:  # noqa: BLE001 -- no plan, an unreadable one, or types of another numba
         return None
+    if not items:
+        return None
+    return [item for item in items if _resolves(*item)] or None
+
+
+def _resolves(module: str, name: str, sig) -> bool:
+    """True if ``module.name`` is a kernel of this package taking ``len(sig)`` arguments."""
+    if not module.startswith(numba_cache.KERNEL_PREFIX):
+        return False
+    try:
+        disp = getattr(importlib.import_module(f"{__package__}.{module}"), name)
+        return disp.py_func.__code__.co_argcount == len(sig)
+    except Exception:  # noqa: BLE001 -- gone, or not a dispatcher
+        return False
 
 
 def start(entry: str) -> bool:
@@ -104,12 +122,7 @@ def helper_main(entry: str) -> None:
     for module, name, sig in reversed(items):
         if kernels_cached(entry):
             return
-        try:
-            disp = getattr(importlib.import_module(f"{__package__}.{module}"), name, None)
-        except ImportError:
-            continue
-        if disp is None:
-            continue
+        disp = getattr(importlib.import_module(f"{__package__}.{module}"), name)
         try:
             disp.compile(sig)
         except Exception:  # noqa: BLE001 -- the main process compiles whatever the helper could not

@@ -33,7 +33,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import threading
 import time
 
 import numpy as np
@@ -44,6 +43,8 @@ from pythonfmu.enums import Fmi2Status
 from . import build_info
 from . import kernel_driver, kernel_forces, kernel_layouts
 from . import numba_cache
+from .fmu_state import STATE_FORMAT, pop_deserialize_status, state_from_bytes, state_to_bytes
+from .fmu_variable_xml import KIND, KIND_NAME, RealVar
 from .fmu_variables import (BOOL_PARAMETERS, DEFAULT_TOLERANCE, FIXED_REALS, INPUTS, OUTPUTS,
                             PARAMETERS, RIG_FIELDS, UNITS, nominal_values, range_key, start_values,
                             variable_range)
@@ -54,10 +55,7 @@ from .solver_errors import SolverError
 from .solver_options import SolverOptions
 from .stepping import NO_LOG, NO_POINCARE, NO_SAMPLE_TIMES, NO_SAMPLES, Stepper
 from .validation import ParameterError, check
-from . import numba_compile_ahead
 from .numba_dispatch import entry_point as _entry_point
-
-numba_compile_ahead.ENABLED = False  # no helper interpreters inside an FMI host
 
 __all__ = ["HammerBitRock", "PARAMETERS", "INPUTS", "OUTPUTS", "UNITS", "STATE_FORMAT",
            "OK", "WARNING", "DISCARD", "ERROR", "guard_pythonfmu_exit"]
@@ -69,12 +67,6 @@ _isfinite = math.isfinite
 #: FMI 2.0 status codes recorded in ``last_status``
 OK, WARNING, DISCARD, ERROR = 0, 1, 2, 3
 
-#: Format tag of a saved FMU state (checked when a state is restored).
-STATE_FORMAT = "hammerbit-fmu-state/2"
-
-# status of the last fmi2DeSerializeFMUstate of this thread (a class-level call in pythonfmu:
-# the instance it is made for reads it through last_status right after the call)
-_DESERIALIZED = threading.local()
 
 
 def _build_start_values(resources) -> dict:
@@ -94,29 +86,6 @@ def _general_advance(st):
         st.advance(tau_end)
         return _ST_DONE
     return kernel
-
-
-# ---------------------------------------------------------------------------
-# variables with the attributes pythonfmu does not write
-# ---------------------------------------------------------------------------
-class _RealVar(Real):
-    """pythonfmu ``Real`` that also writes ``unit``, ``min``, ``max`` and ``nominal``."""
-
-    def __init__(self, name, unit=None, *, min=None, max=None, nominal=None, **kwargs):
-        super().__init__(name, **kwargs)
-        self.extra = {"unit": unit, "min": min, "max": max, "nominal": nominal}
-
-    def to_xml(self):
-        node = super().to_xml()
-        real = node.find("Real")
-        for key, value in self.extra.items():
-            if value is not None:
-                real.set(key, value if isinstance(value, str) else repr(float(value)))
-        return node
-
-
-_KIND = {Real: Real, _RealVar: Real, Integer: Integer, Boolean: Boolean}
-_KIND_NAME = {Real: "Real", Integer: "Integer", Boolean: "Boolean"}
 
 
 class HammerBitRock(Fmi2Slave):
@@ -152,13 +121,13 @@ class HammerBitRock(Fmi2Slave):
         nominal = nominal_values(rig)
         for name, unit, desc in INPUTS:
             rng = variable_range(name)
-            self.register_variable(_RealVar(name, unit, min=rng.lo, max=rng.hi, nominal=nominal.get(name),
+            self.register_variable(RealVar(name, unit, min=rng.lo, max=rng.hi, nominal=nominal.get(name),
                                             causality=Fmi2Causality.input,
                                             variability=Fmi2Variability.continuous, description=desc,
                                             setter=self._input_setter(name, rng)))
         for name, unit, desc in PARAMETERS:
             rng = variable_range(name)
-            self.register_variable(_RealVar(name, unit, min=rng.lo, max=rng.hi, nominal=nominal.get(name),
+            self.register_variable(RealVar(name, unit, min=rng.lo, max=rng.hi, nominal=nominal.get(name),
                                             causality=Fmi2Causality.parameter,
                                             variability=(Fmi2Variability.tunable if name == "tolerance"
                                                          else Fmi2Variability.fixed),
@@ -174,7 +143,7 @@ class HammerBitRock(Fmi2Slave):
             kw = dict(causality=Fmi2Causality.output, initial=Fmi2Initial.calculated,
                       description=desc, getter=getters[name])
             if typ == "Real":
-                var = _RealVar(name, unit, nominal=nominal.get(name),
+                var = RealVar(name, unit, nominal=nominal.get(name),
                                variability=Fmi2Variability.continuous, **kw)
             elif typ == "Integer":
                 var = Integer(name, variability=Fmi2Variability.discrete, **kw)
@@ -191,7 +160,7 @@ class HammerBitRock(Fmi2Slave):
         self._setters = {t: {} for t in (Real, Integer, Boolean)}
         self._names = {}
         for vr, var in self.vars.items():
-            kind = _KIND[type(var)]
+            kind = KIND[type(var)]
             self._names[vr] = (var.name, kind)
             self._getters[kind][vr] = var.getter
             if var.causality in (Fmi2Causality.input, Fmi2Causality.parameter):
@@ -214,7 +183,7 @@ class HammerBitRock(Fmi2Slave):
         return False
 
     def _read_last_status(self) -> int:
-        pending = _DESERIALIZED.__dict__.pop("status", None)
+        pending = pop_deserialize_status()
         return self.last_status if pending is None else pending
 
     # ------------------------------------------------------------------
@@ -227,7 +196,7 @@ class HammerBitRock(Fmi2Slave):
             if entry is None:
                 bad.append(f"{vr!r} (no such variable)")
             elif entry[1] is not kind:
-                bad.append(f"{vr} ({entry[0]!r} is {_KIND_NAME[entry[1]]}, not {_KIND_NAME[kind]})")
+                bad.append(f"{vr} ({entry[0]!r} is {KIND_NAME[entry[1]]}, not {KIND_NAME[kind]})")
             elif what.startswith("fmi2Set") and vr not in self._setters[kind]:
                 bad.append(f"{vr} ({entry[0]!r} is not settable: an output or a local variable)")
         return f"{what}: invalid value reference {', '.join(bad)}; nothing changed"
@@ -378,7 +347,7 @@ class HammerBitRock(Fmi2Slave):
             groups = groups.replace(phi=math.fmod(rig.phase + omega_f * self._t_start, 2.0 * math.pi))
         x0 = s.length
         y0 = (float(vals["initial_hammer_position"]) / x0, 0.0, float(vals["initial_bit_position"]) / x0, 0.0)
-        st = Stepper(groups, solver=solver, y0=y0)   # inputs enter p at every step
+        st = Stepper(groups, solver=solver, y0=y0, compile_helper=False)   # inputs enter p at every step
         if keep_state is not None:
             st.set_state(keep_state)
         # only now change the instance (nothing above touched it)
@@ -703,21 +672,8 @@ class HammerBitRock(Fmi2Slave):
 
     @staticmethod
     def _fmu_state_to_bytes(state) -> bytes:
-        s = dict(state)
-        if "stepper" in s:
-            s["stepper"] = [float(v) for v in s["stepper"]]
-        return json.dumps(s).encode("utf-8")
+        return state_to_bytes(state)
 
     @staticmethod
     def _fmu_state_from_bytes(data: bytes):
-        try:
-            s = json.loads(bytes(data).decode("utf-8"))
-            if not isinstance(s, dict) or s.get("format") != STATE_FORMAT:
-                raise ValueError(f"not a {STATE_FORMAT} state")
-            if "inputs" in s:
-                s["inputs"] = tuple(s["inputs"])
-        except (ValueError, TypeError) as e:   # JSON and UTF-8 errors are ValueErrors
-            _DESERIALIZED.status = ERROR
-            return {"format": "invalid", "reason": f"cannot deserialise the FMU state: {e}"}
-        _DESERIALIZED.status = OK
-        return s
+        return state_from_bytes(data)

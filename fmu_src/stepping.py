@@ -131,6 +131,10 @@ class Stepper:
         paper's start).  Finite, within ``RANGES["state.*"]``, x4 >= 0.
     extra_force : float
         Constant extra force on the hammer / F0 (the FMU's ``harmonic_force`` input).
+    compile_helper : bool
+        On a first compile (a cache miss), let a second process compile part of the
+        kernels (:mod:`.numba_compile_ahead`); the FMU says no (an FMI host is no
+        place to start interpreters).
 
     Raises
     ------
@@ -146,12 +150,13 @@ class Stepper:
 
     def __init__(self, groups: Groups, *, solver: SolverOptions = SolverOptions(),
                  linear: Optional[LinearSubsystem] = None, energy: bool = False,
-                 y0=None, extra_force: float = 0.0):
+                 y0=None, extra_force: float = 0.0, compile_helper: bool = True):
         y0 = None if y0 is None else check_initial_state(y0)
         z0 = None if linear is None else _check_finite_vector("linear.z0", linear.z0, linear.size)
         extra_force = check("state.extra_force", extra_force, label="extra_force")
         self.groups = groups
         self.solver = solver
+        self.compile_helper = compile_helper
         self.p = groups.to_kernel(extra_force=extra_force)
         self._tab = method_tableau(solver.method)
         nz = 0
@@ -261,7 +266,7 @@ class Stepper:
         st = sample_times if sample_times is not None else NO_SAMPLE_TIMES
         sa = samples if samples is not None else NO_SAMPLES
         lg = log if log is not None else NO_LOG
-        helper = (not notice_checked(self.entry) and compile_notice(self.entry)
+        helper = (not notice_checked(self.entry) and compile_notice(self.entry) and self.compile_helper
                   and numba_compile_ahead.start(self.entry))  # a second process compiles part of it
         if self.fast:
             status = kernel_driver.advance_hammer(self.y, self.istate, self.fstate, t_end, self.p, self.opts,

@@ -765,3 +765,20 @@ def test_tolerance_set_after_initialisation_applies_from_the_next_step():
         same.advance(t * om)
     assert np.array_equal(s._st.get_state(), lib.get_state())
     assert not np.array_equal(lib.y, same.y)
+
+
+@pytest.mark.parametrize("t, h", [(1e-3, -1e-3), (1e-3, math.nan), (0.5, 1e-3)],
+                         ids=["negative step", "NaN step", "wrong communication point"])
+def test_bad_do_step_in_process_is_an_error_and_changes_nothing(t, h):
+    """The slave itself (no FMU archive): a bad fmi2DoStep returns False with fmi2Error and a log
+    message naming the bad value, and the state and clock stay where they were."""
+    from hammerbit.model.slave import HammerBitRock
+    s = HammerBitRock(instance_name="unit")
+    s.setup_experiment(0.0)
+    s.exit_initialization_mode()
+    assert s.do_step(0.0, 1e-3) and s.last_status == FMI_OK
+    before = (s._st.get_state(), s._t)
+    assert s.do_step(t, h) is False                     # the clock is at 1 ms
+    assert s.last_status == FMI_ERROR
+    assert "step" in s.log_queue[-1].msg or "Communication" in s.log_queue[-1].msg
+    assert np.array_equal(s._st.get_state(), before[0]) and s._t == before[1]

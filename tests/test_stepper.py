@@ -271,3 +271,24 @@ def test_load_never_compiles(monkeypatch):
     st = Stepper(preset("paper-fig9"))
     monkeypatch.setattr(S.Stepper, "advance", lambda *a, **k: pytest.fail("load() ran the kernel"))
     assert st.load() is False
+
+
+def test_a_full_event_log_returns_log_full_and_the_next_call_resumes():
+    """With room for 3 events the stepper stops at the log's end and says 'log_full'; a call with
+    a fresh buffer goes on from there, and the two logs together are the one-call log."""
+    g = preset("paper-fig12").replace(a=0.06)
+    ref = Stepper(g)
+    big = np.zeros((500, kernel_layouts.N_LOG_COLS))
+    assert ref.advance(5 * g.period, log=big) == "done"
+    n_ref = int(ref.istate[kernel_layouts.I_NLOG])
+    assert n_ref > 6
+    st = Stepper(g)
+    small = np.zeros((3, kernel_layouts.N_LOG_COLS))
+    assert st.advance(5 * g.period, log=small) == "log_full"
+    assert st.time < 5 * g.period
+    st.istate[kernel_layouts.I_NLOG] = 0
+    rest = np.zeros((500, kernel_layouts.N_LOG_COLS))
+    assert st.advance(5 * g.period, log=rest) == "done"
+    joined = np.vstack([small, rest[:int(st.istate[kernel_layouts.I_NLOG])]])
+    assert np.array_equal(joined, big[:n_ref])
+    assert np.array_equal(st.y, ref.y)

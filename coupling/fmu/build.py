@@ -157,7 +157,9 @@ _ctypes.pythonapi.Py_IncRef.argtypes = [_ctypes.py_object]
 _ctypes.pythonapi.Py_IncRef.restype = None
 _ctypes.pythonapi.Py_IncRef(globals())
 
-import {pkg}.numba_cache  # noqa: E402,F401  (picks the CPU target before numba is imported)
+from {pkg} import numba_cache_place as _place  # noqa: E402
+
+_place.select_shipped_target()  # before numba is imported: the shipped kernels' CPU target
 from {pkg}.slave import {model}  # noqa: E402,F401
 '''
 
@@ -188,7 +190,7 @@ _EXERCISE = textwrap.dedent('''
             s.set_real([vr["amplitude"]], [0.06 * s._F0])
         s.exit_initialization_mode()
         assert s.last_status in (0, 1), s.log_queue[-1].msg
-        reals = [k for k, v in s.vars.items() if type(v).__name__ in ("Real", "_RealVar")]
+        reals = [k for k, v in s.vars.items() if type(v).__name__ in ("Real", "RealVar")]
         for k in range(400):
             assert s.do_step(k * 5e-3, 5e-3), s.log_queue[-1].msg
             s.get_real(reals)
@@ -201,7 +203,7 @@ _EXERCISE = textwrap.dedent('''
 
 
 def _exercise(python: str, staging: Path, pkg: str) -> dict:
-    from hammerbit.model.numba_cache import PORTABLE_ENV
+    from hammerbit.model.numba_target import PORTABLE_ENV
     env = dict(os.environ, PYTHONDONTWRITEBYTECODE="1", **PORTABLE_ENV)
     env.pop("PYTHONPATH", None)
     r = subprocess.run([python, "-c", _EXERCISE, str(staging), pkg], capture_output=True, text=True,
@@ -214,7 +216,7 @@ def _exercise(python: str, staging: Path, pkg: str) -> dict:
 
 def _portable_cache(pkg_dir: Path, python: str) -> dict:
     """Compile the kernels for the portable target into ``pkg_dir/_compiled``; check they load."""
-    from hammerbit.model.numba_cache import MANIFEST, user_cache_root
+    from hammerbit.model.numba_cache_place import MANIFEST, user_cache_root
     keep = Path(user_cache_root()) / "fmu-build" / pkg_dir.name
     try:
         keep.mkdir(parents=True, exist_ok=True)

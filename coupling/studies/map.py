@@ -69,7 +69,8 @@ from .bifurcation import SECONDS_PER_PERIOD
 from .executor import Executor, ExecutorOptions
 
 __all__ = ["Axis", "CELL_DTYPE", "MapCell", "run_cell", "cell_figures", "regime_map", "map_to_json", "axis_unit",
-           "best_valid_cell", "FLAG_FIELDS", "DOMAIN_FIELDS", "STATUS_OK", "STATUS_SOLVER", "STATUS_INVALID"]
+           "best_valid_cell", "FLAG_FIELDS", "DOMAIN_FIELDS", "STATUS_OK", "STATUS_SOLVER", "STATUS_INVALID",
+           "map_chunk"]
 
 STATUS_OK, STATUS_SOLVER, STATUS_INVALID = 0, 1, 2
 
@@ -280,7 +281,7 @@ def _failed(status: int, message: str, groups: Optional[Groups]) -> MapCell:
     return MapCell(None, nan, nan, nan, nan, nan, nan, None, groups, status, message)
 
 
-def _map_chunk(cells, base, names, periods, solver):
+def map_chunk(cells, base, names, periods, solver):
     """Chunk function: one row of ``CELL_DTYPE`` and an error message per cell."""
     buf = _Buffers(periods)
     out = []
@@ -351,7 +352,7 @@ def regime_map(groups: Groups, axes: Sequence[Axis], *, periods: int = 300,
         ex.connect()
         t0 = _time.perf_counter()
         cpu0 = ex.cpu_s
-        res = ex.run(_map_chunk, cells, fixed=(groups, names, int(periods), solver),
+        res = ex.run(map_chunk, cells, fixed=(groups, names, int(periods), solver),
                      cost_s=periods * SECONDS_PER_PERIOD, label="map")
         wall = _time.perf_counter() - t0
         cpu = ex.cpu_s - cpu0
