@@ -53,7 +53,9 @@ from typing import Optional
 
 import numpy as np
 
-from .description import Boundary, DrillString, DrillStringError
+from .boundary import Boundary
+from .drill_string import DrillString
+from .validation import DrillStringError
 
 __all__ = ["TOP_KINDS", "TopCondition", "AutoDrillerGains", "auto_driller_gains", "SideMatrices", "top_matrices",
            "BANDWIDTH_FRACTION", "DAMPING_RATIO", "M_PER_H"]
