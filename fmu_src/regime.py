@@ -1,4 +1,10 @@
-"""The regime flags of a scene: where the model's answer is not drilling (bounce, overload, runaway)."""
+"""The paper's static domain of a scene: the rules a < b, a + b <= 1 and b <= mu it breaks.
+
+These rules are where the paper worked, not whether a scene's answer is a
+drilling point: a scene outside them may drill, and the scene's own run says
+whether it runs away or bounces (the studies' scene flags, computed from the
+solver's trackers ``F_DRIVE_MIN`` and ``F_T_STICK`` and the Poincaré samples).
+"""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -10,26 +16,22 @@ __all__ = ["Regime", "regime"]
 
 @dataclass(frozen=True)
 class Regime:
-    """Where a scene lies relative to the model's validity domain.
+    """Which of the paper's static rules a scene breaks.
 
     Attributes
     ----------
     bounce : bool
-        ``a >= b``: the harmonic force can exceed the preload, the drive on
-        the bit can fall below ``-F_s`` and the rock would have to pull the
-        bit back (bit bounce).  The model holds the bit and counts it.
+        ``a >= b``: the harmonic amplitude reaches the preload.  The drive on
+        the bit may then fall below zero, and below ``-F_s`` only in some scenes.
     overload : bool
         ``a + b > 1``: preload plus amplitude exceed the static threshold
         ``F0 = mu_e F_N``, outside the paper's domain ``a + b <= 1``.
     runaway : bool
         ``b > f_floor`` where ``f_floor`` is the kinetic friction the bit
-        feels at high speed: ``mu`` when ``gamma_hat > 0``, else 1.  Adding
-        the two equations of motion gives ``m1 x_b'' + m2 x_s'' = B + F_h(t)
-        - F_f(v_s)`` while the bit slips; ``F_h`` averages to zero over a
-        period and ``F_f`` decreases to ``mu_d F_N`` as ``v_s`` grows.  So if
-        ``B > mu_d F_N`` a fast-sliding bit gains momentum every period and
-        the drift grows without bound; if ``B <= mu_d F_N`` the friction
-        exceeds the preload at every speed and the momentum stays bounded.
+        feels at high speed: ``mu`` when ``gamma_hat > 0``, else 1.  Necessary
+        for a runaway drift (friction below the preload at high speed), not
+        sufficient: the slip must also reach the speed where the friction falls
+        below the preload and keep sliding.
     """
 
     bounce: bool
@@ -46,7 +48,7 @@ class Regime:
 
 
 def regime(groups: Groups) -> Regime:
-    """The :class:`Regime` flags of a scene (pure function of its groups)."""
+    """The paper's static rules a scene breaks (pure function of its groups)."""
     floor = groups.mu if groups.gamma_hat > 0.0 else 1.0
     return Regime(bounce=groups.a >= groups.b, overload=groups.a + groups.b > 1.0,
                   runaway=groups.b > floor)

@@ -1,7 +1,7 @@
 """Regime flags of a scene from its own dynamics: runaway, bounce, tension and a settled period.
 
 The paper's static rules (``a < b``, ``a + b <= 1``, ``b <= mu``,
-:func:`hammerbit.model.params.regime`) say where the paper worked: they are
+:func:`hammerbit.model.regime.regime`) say where the paper worked: they are
 reported as *the paper's domain*.  Whether a scene's answer is usable comes
 from what the scene did:
 

@@ -299,7 +299,7 @@ class _Problem:
         F0 = g.scales.friction_force
         fl = cell.flags
         ran = fl is not None
-        # the rule of params.regime (overload: a + b > 1), so that a cell on the line counts as inside
+        # the rule of hammerbit.model.regime.regime (overload: a + b > 1), so that a cell on the line counts as inside
         m = {"bounce": None, "threshold": (1.0 - (g.a + g.b)) * F0, "runaway": None, "frequency": None,
              "contact_force": None}
         ok = {"ran": ran, "bounce": None if not ran else not fl.bounce, "threshold": not (g.a + g.b > 1.0),

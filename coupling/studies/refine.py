@@ -1,15 +1,16 @@
-"""Local refinement of a constrained optimum: a pattern search that follows the feasible boundary.
+"""Local refinement of a constrained optimum: a compass search that closes in on the feasible boundary.
 
 The ROP landscape of the hammer is piecewise smooth: steps where the period-n
 changes, and constraints (the contact-force limit, ``a + b <= 1``, the
 frequency windows, the scene's own flags) that often bind at the optimum.
 A penalty method does not follow such a ridge.  :func:`pattern_search` moves
-from a feasible start along the ``3**k - 1`` grid directions with a step that
-halves when no move improves; a move that leaves the feasible set but would
-drill faster (the constraint blocks an improvement) is bisected back to the
-boundary, so the search walks along active constraints.  Every point it
-evaluates is feasible-checked by the caller's ``evaluate``; the result is the
-best feasible point seen, never worse than the start.
+from a feasible start along the ``3**k - 1`` grid directions (the diagonals
+too, so it can slide along a boundary that no axis follows) and accepts a
+move only to a feasible, faster point; when no move improves it halves its
+step.  A faster point cut off by a constraint is thus approached from the
+feasible side by ever smaller steps, so the search ends on the active
+constraint.  The result is the best feasible point seen, never worse than
+the start.
 """
 from __future__ import annotations
 
@@ -19,10 +20,8 @@ from typing import Callable
 
 import numpy as np
 
-__all__ = ["pattern_search", "BISECTIONS", "MIN_STEP"]
+__all__ = ["pattern_search", "MIN_STEP"]
 
-#: Bisections of a segment from a feasible point to an infeasible, faster one.
-BISECTIONS = 6
 #: The search stops when its step is below this fraction of every bound's span.
 MIN_STEP = 1e-4
 
@@ -71,20 +70,6 @@ def pattern_search(evaluate: Callable, x0: np.ndarray, start, lo: np.ndarray, hi
             used += 1
             if better(c):
                 best, improved = c, True
-            elif not c.feasible and math.isfinite(c.rop_m_per_h) and c.rop_m_per_h > best.rop_m_per_h:
-                a, b = x.copy(), y
-                for _ in range(BISECTIONS):
-                    if used >= budget:
-                        break
-                    m = 0.5 * (a + b)
-                    cm = evaluate(m)
-                    used += 1
-                    if cm.feasible:
-                        a = m
-                        if better(cm):
-                            best, improved = cm, True
-                    else:
-                        b = m
         if improved:
             x = np.array([best.values[n] for n in best.values], dtype=float)
         else:
