@@ -6,7 +6,7 @@ carries: as the bit drills, the string unloads it unless the hook follows.
 :func:`confirm` therefore co-simulates the point with the hook on the
 auto-driller (:mod:`hammerbit.drillstring.top`), which lowers the block to
 hold the static WOB (the point's preload).  It lets the controller settle
-(``SETTLE_TIME_CONSTANTS`` of its loop, as the frequency sweep does) and then
+(:attr:`~hammerbit.drillstring.top.AutoDrillerGains.settling_time_s`, as the frequency sweep does) and then
 measures the *sustained* ROP over whole slip cycles
 (:func:`hammerbit.studies.sweep.steady_rop`), beside the dynamic WOB and the
 bounce margin.
@@ -23,7 +23,7 @@ from hammerbit.cosim.string_side import StringSide
 from hammerbit.drillstring.top import TopCondition
 from hammerbit.model.params import Groups
 
-from .sweep import SETTLE_TIME_CONSTANTS, steady_rop
+from .sweep import steady_rop
 
 __all__ = ["confirm", "STEPS_PER_PERIOD", "TRUNCATION_FACTOR", "STEPS_PER_TRUNCATION"]
 
@@ -79,7 +79,7 @@ def confirm(groups: Groups, string, *, periods: int = 20, interface_stiffness: O
                        estimate=False, stop=step * 2)
     side = StringSide(string, cfg)
     gains = side.gains
-    settle = 0.0 if gains is None else SETTLE_TIME_CONSTANTS / (2.0 * math.pi * gains.natural_frequency_hz)
+    settle = 0.0 if gains is None else gains.settling_time_s
     stop = settle + periods * T
     cfg = cfg.replace(stop=stop)
     t0 = time.perf_counter()
