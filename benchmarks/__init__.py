@@ -161,12 +161,12 @@ def kernel_source() -> dict:
     machines, so every timing result should record it.
     """
     try:
-        from hammerbit.model import _numba_cache, kernels as K
+        from hammerbit.model import kernel_driver, numba_cache
     except Exception:  # pragma: no cover
         return {"source": None}
-    out = {"cache_dir": _numba_cache.cache_root(), "functions": {}}
+    out = {"cache_dir": numba_cache.cache_root(), "functions": {}}
     for name in ("advance_hammer", "advance"):
-        d = getattr(K, name, None)
+        d = getattr(kernel_driver, name, None)
         if d is None or not getattr(d, "signatures", None):
             continue
         hits = sum(d.stats.cache_hits.values())

@@ -81,8 +81,8 @@ _LOAD_PROBE = textwrap.dedent('''
     fmu.doStep(0.0, 1e-3)
     t4 = time.perf_counter()
     pkg = [m for m in sys.modules if m.startswith("hammerbit_fmu_runtime_") and "." not in m][0]
-    nc = sys.modules[pkg + "._numba_cache"]
-    hits, misses = nc.kernel_cache_counts(sys.modules[pkg + ".kernels"])
+    nc = sys.modules[pkg + ".numba_cache"]
+    hits, misses = nc.kernel_cache_counts()
     out = {"import_fmpy_s": t0 - t_start, "extract_s": t1 - t0, "instantiate_s": t2 - t1,
            "initialise_s": t3 - t2, "load_s": t3 - t0, "first_step_s": t4 - t3,
            "numba_cache_hits": hits, "numba_cache_misses": misses, "shipped": nc.DECISION["shipped"],
@@ -154,7 +154,7 @@ _STEP_PROBE = textwrap.dedent('''
     out = {"ours_all_s": [w for w, _ in t_ours], "floor_all_s": [w for w, _ in t_floor],
            "ours_cpu_all_s": [c for _, c in t_ours], "floor_cpu_all_s": [c for _, c in t_floor],
            "events": int(sum(ints)), "bit": ours.fmu.getReal([ours.vr["bit_position"]])[0],
-           "shipped": sys.modules[pkg + "._numba_cache"].DECISION["shipped"],
+           "shipped": sys.modules[pkg + ".numba_cache"].DECISION["shipped"],
            "native_front": ours.host.has_front}
     ours.close()
     floor.close()
@@ -221,7 +221,7 @@ def _in_process_split(n, reals, preload, rounds: int = 15) -> dict:
     """
     import numpy as np
     from hammerbit.model.slave import HammerBitRock
-    from hammerbit.model.stepping import _EMPTY_F, _NO_LOG, _NO_POIN, _NO_SAMP
+    from hammerbit.model.stepping import NO_LOG, NO_POINCARE, NO_SAMPLE_TIMES, NO_SAMPLES
     s = HammerBitRock(instance_name="split")
     s.setup_experiment(0.0)
     for k, v in reals.items():
@@ -247,7 +247,7 @@ def _in_process_split(n, reals, preload, rounds: int = 15) -> dict:
     def kernel_calls():
         t = s._t
         for k in range(1, n + 1):
-            kernel(y, ist, fst, (t + k * STEP) * om, p, opts, _NO_POIN, _EMPTY_F, _NO_SAMP, _NO_LOG)
+            kernel(y, ist, fst, (t + k * STEP) * om, p, opts, NO_POINCARE, NO_SAMPLE_TIMES, NO_SAMPLES, NO_LOG)
         s._t = t + n * STEP
 
     times = {"slave_do_step_s": [], "stepper_advance_s": [], "kernel_call_s": []}
@@ -308,7 +308,8 @@ def measure_load(fmu_path, quick: bool, log) -> dict:
 # ---------------------------------------------------------------------------
 def measure_per_period(fmu_path, quick: bool, log) -> dict:
     from hammerbit.model.params import RigParameters
-    from hammerbit.model.stepping import SolverOptions, Stepper
+    from hammerbit.model.solver_options import SolverOptions
+    from hammerbit.model.stepping import Stepper
     rig = RigParameters()
     periods = 3 if quick else 20
     T = 1.0 / rig.frequency

@@ -43,8 +43,9 @@ import numpy as np
 from benchmarks import (stage_logger, fmt_num, fmt_ratio, fmt_time, harness_command, kernel_source, machine_info,
                         save_result, summary_row)
 from benchmarks.scipy_reference import ReferenceError, simulate_reference
-from hammerbit.model.params import preset
-from hammerbit.model.stepping import SolverError, SolverOptions
+from hammerbit.model.presets import preset
+from hammerbit.model.solver_errors import SolverError
+from hammerbit.model.solver_options import SolverOptions
 from hammerbit.scene.simulate import simulate
 
 NAME = "solvers"

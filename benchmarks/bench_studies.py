@@ -58,8 +58,8 @@ def _axes(cfg):
 
 
 def _one_map(cfg, executor):
-    from hammerbit.model.params import preset
-    from hammerbit.model.stepping import SolverOptions
+    from hammerbit.model.presets import preset
+    from hammerbit.model.solver_options import SolverOptions
     from hammerbit.studies.map import regime_map
     return regime_map(preset("paper-fig9"), _axes(cfg), periods=cfg["periods"],
                       solver=SolverOptions(rtol=RTOL, atol=RTOL * 1e-2), executor=executor)
@@ -88,14 +88,14 @@ def _kernel_share(cfg) -> dict:
     kernel share); the rest is per-cell Python: scene set-up and validation,
     the Stepper, period detection, ROP and impact/peak-force extraction.
     """
-    from hammerbit.model import kernels as K
-    from hammerbit.model.params import preset
-    from hammerbit.model.stepping import SolverOptions
+    from hammerbit.model import kernel_driver
+    from hammerbit.model.presets import preset
+    from hammerbit.model.solver_options import SolverOptions
     from hammerbit.studies.map import _map_chunk
     g = preset("paper-fig9")
     solver = SolverOptions(rtol=RTOL, atol=RTOL * 1e-2)
     cells = [(float(a), float(e)) for a in _axes(cfg)[0].values for e in _axes(cfg)[1].values]
-    real = K.advance_hammer
+    real = kernel_driver.advance_hammer
     spent = [0.0]
 
     def timed(*args):
@@ -107,7 +107,7 @@ def _kernel_share(cfg) -> dict:
 
     best = None
     try:
-        K.advance_hammer = timed
+        kernel_driver.advance_hammer = timed
         for _ in range(cfg["repeats"]):
             spent[0] = 0.0
             t0 = time.perf_counter()
@@ -116,7 +116,7 @@ def _kernel_share(cfg) -> dict:
             if best is None or total < best[0]:
                 best = (total, spent[0])
     finally:
-        K.advance_hammer = real
+        kernel_driver.advance_hammer = real
     total, kern = best
     return {"cells": len(cells), "total_s": total, "kernel_s": kern, "python_s": total - kern,
             "python_us_per_cell": (total - kern) / len(cells) * 1e6, "python_share": (total - kern) / total,

@@ -106,8 +106,8 @@ def measure_sweep(cfg: dict, workers: int) -> dict:
     (1: in process; else local Dask worker processes, started before the clock)."""
     from hammerbit.studies.bifurcation import bifurcation
     from hammerbit.studies.executor import ExecutorOptions
-    from hammerbit.model.params import preset
-    from hammerbit.model.stepping import SolverOptions
+    from hammerbit.model.presets import preset
+    from hammerbit.model.solver_options import SolverOptions
     g = preset("paper-fig9")
     values = np.linspace(*A_RANGE, cfg["num"])
     solver = SolverOptions(rtol=RTOL, atol=ATOL)
@@ -130,8 +130,8 @@ def measure_sweep(cfg: dict, workers: int) -> dict:
 
 def measure_per_a(cfg: dict) -> dict:
     """Single-thread cost of one forcing period against a (min of 3 runs per value)."""
-    from hammerbit.model.params import preset
-    from hammerbit.model.stepping import SolverOptions
+    from hammerbit.model.presets import preset
+    from hammerbit.model.solver_options import SolverOptions
     from hammerbit.scene.simulate import simulate
     g = preset("paper-fig9")
     solver = SolverOptions(rtol=RTOL, atol=ATOL)

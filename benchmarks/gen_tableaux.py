@@ -97,7 +97,7 @@ out += "RK4_N_STAGES = 4\n"
 out += fmt("RK4_A", A5) + fmt("RK4_B", B4) + fmt("RK4_C", C5) + fmt("RK4_W", W4)
 out += "RK4_E = np.zeros(RK4_N_STAGES + 1)  # no error estimate\n"
 out += '''
-# ---- each method as the driver takes it (``kernels.advance``): A, B, C, E, E3, W, the number of
+# ---- each method as the driver takes it (``kernel_driver.advance``): A, B, C, E, E3, W, the number of
 # stages, the error-estimate kind and the controller exponent 1 / (order of the estimate + 1) ----
 METHODS = {
     "dop853": (DOP853_A, DOP853_B, DOP853_C, DOP853_E, DOP853_E3, DOP853_W, DOP853_N_STAGES, ERR_DOP853,

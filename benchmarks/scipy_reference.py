@@ -1,7 +1,7 @@
 """An independent reference solver of the hammer–bit–rock model built on SciPy.
 
 This module re-implements the hybrid model of ``model.md`` from scratch, with
-no code shared with ``hammerbit.model.kernels``: a Python-level loop over the
+no code shared with the kernels (``hammerbit.model.kernel_*``): a Python-level loop over the
 hybrid modes drives :func:`scipy.integrate.solve_ivp` with *terminal* events,
 one call per smooth segment.
 
@@ -43,7 +43,7 @@ so the two solvers can be compared event by event.
 
 Examples
 --------
->>> from hammerbit.model.params import preset
+>>> from hammerbit.model.presets import preset
 >>> ref = simulate_reference(preset('paper-fig9'), 10)   # doctest: +SKIP
 >>> ref.penetration                                       # doctest: +SKIP
 """

@@ -16,7 +16,7 @@ import time
 import numpy as np
 
 from hammerbit.studies.bifurcation import bifurcation, penetration_sweep
-from hammerbit.model.params import preset
+from hammerbit.model.presets import preset
 from hammerbit.scene.plots import plot_bifurcation, plot_penetration, plot_scene
 
 TRACKED = pathlib.Path(__file__).resolve().parent.parent / "docs" / "figures"

@@ -1,4 +1,4 @@
-"""Physical parameters of the hammer–bit–rock model (Franca & Weber 2004).
+"""The two parameter sets of the hammer–bit–rock model (Franca & Weber 2004): SI rig and nondimensional groups.
 
 Two frozen dataclasses describe the same model:
 
@@ -7,7 +7,7 @@ Two frozen dataclasses describe the same model:
 * :class:`Groups` — the paper's nondimensional groups, which the kernels use.
 
 ``RigParameters.to_groups()`` and ``Groups.to_rig(scales)`` convert both ways;
-:class:`Scales` carries the three numbers the nondimensional form loses
+:class:`~.scales.Scales` carries the three numbers the nondimensional form loses
 (hammer mass, spring stiffness and the static friction force ``F0``).
 
 Every constructor validates: an out-of-range or non-finite value raises
@@ -22,90 +22,12 @@ from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
-__all__ = [
-    "ParameterError",
-    "RigParameters",
-    "DEFAULT_SCALES",
-    "Regime",
-    "regime",
-    "Groups",
-    "Scales",
-    "PRESETS",
-    "preset",
-    "P_RHO", "P_XI", "P_ETA", "P_A", "P_B", "P_R", "P_MU", "P_GAMMA", "P_KC",
-    "P_N", "P_LAM", "P_PHI", "P_FEXT", "P_CONTACT", "N_P",
-]
+from .kernel_layouts import (N_P, P_A, P_B, P_CONTACT, P_ETA, P_FEXT, P_GAMMA, P_KC, P_LAM, P_MU, P_N, P_PHI,
+                             P_R, P_RHO, P_XI)
+from .scales import DEFAULT_SCALES, Scales
+from .validation import ParameterError, check
 
-from .validation import RANGES, ParameterError, check
-
-
-# ---------------------------------------------------------------------------
-# Kernel parameter vector layout (nondimensional)
-# ---------------------------------------------------------------------------
-P_RHO = 0      # mass ratio m2/m1
-P_XI = 1       # damping ratio
-P_ETA = 2      # forcing frequency ratio
-P_A = 3        # harmonic amplitude / F0
-P_B = 4        # preload / F0
-P_R = 5        # gap / x0 (inf: no impact device)
-P_MU = 6       # kinetic / static friction
-P_GAMMA = 7    # friction decay gamma * x0 * Omega
-P_KC = 8       # contact stiffness Kc x0^n / F0
-P_N = 9        # contact exponent
-P_LAM = 10     # contact damping lam x0 Omega
-P_PHI = 11     # forcing phase [rad]
-P_FEXT = 12    # extra constant force on the hammer / F0 (FMU input, held over a step)
-P_CONTACT = 13  # 1.0 if the contact code runs, 0.0 if the gap is disabled
-N_P = 14
-
-
-@dataclass(frozen=True)
-class Scales:
-    """Scales of the nondimensional form.
-
-    Attributes
-    ----------
-    hammer_mass : float
-        m1 [kg].
-    stiffness : float
-        K [N/m].
-    friction_force : float
-        F0 = mu_e F_N, the static friction threshold [N].
-    """
-
-    hammer_mass: float
-    stiffness: float
-    friction_force: float
-
-    @property
-    def omega(self) -> float:
-        """Omega = sqrt(K/m1), the time scale [rad/s]."""
-        return math.sqrt(self.stiffness / self.hammer_mass)
-
-    @property
-    def length(self) -> float:
-        """x0 = F0/K, the length scale [m]."""
-        return self.friction_force / self.stiffness
-
-    @property
-    def velocity(self) -> float:
-        """x0 Omega, the velocity scale [m/s]."""
-        return self.length * self.omega
-
-    @property
-    def time(self) -> float:
-        """1/Omega, the time scale [s]: t = tau / Omega."""
-        return 1.0 / self.omega
-
-    def to_dict(self) -> dict:
-        """The scales in SI, for JSON output (keys name their unit)."""
-        return {"hammer_mass_kg": self.hammer_mass, "stiffness_n_per_m": self.stiffness,
-                "friction_force_n": self.friction_force, "length_m": self.length,
-                "omega_rad_per_s": self.omega, "velocity_m_per_s": self.velocity}
-
-
-#: Scales of the paper's rig (section 4): m1 = 25.3 kg, K = 2170 N/m, F0 = 54 N.
-DEFAULT_SCALES = Scales(25.3, 2170.0, 54.0)
+__all__ = ["ParameterError", "RigParameters", "Groups", "GROUP_NAMES"]
 
 
 @dataclass(frozen=True)
@@ -355,170 +277,3 @@ class RigParameters:
     def replace(self, **changes) -> "RigParameters":
         """Copy with some fields changed (validated)."""
         return replace(self, **changes)
-
-
-# ---------------------------------------------------------------------------
-# Presets
-# ---------------------------------------------------------------------------
-RIG = RigParameters()
-RIG_SCALES = RIG.scales   # == DEFAULT_SCALES
-
-#: Short SI names accepted by ``--set`` (the spec's symbols) -> RigParameters field.
-SI_ALIASES = {
-    "m1": "hammer_mass", "m2": "bit_mass", "K": "stiffness", "C": "damping",
-    "mu_e": "mu_static", "mu_d": "mu_kinetic", "gamma": "friction_decay",
-    "F_N": "normal_force", "Kc": "contact_stiffness", "lam": "contact_damping",
-    "R": "gap", "B": "preload", "A": "amplitude", "f": "frequency",
-}
-
-
-def _lab() -> Groups:
-    return RIG.to_groups()
-
-
-def _paper_fig9() -> Groups:
-    return RIG.to_groups().replace(eta=1.0, b=0.55, phi=math.pi / 2, mu=0.85, r=math.inf, a=0.11)
-
-
-def _paper_fig12() -> Groups:
-    return _paper_fig9().replace(r=0.84, a=0.06)
-
-
-def _chaos() -> Groups:
-    # found by a scan (README, "Chaos"): impact device, low preload, lower kinetic friction
-    return _paper_fig12().replace(eta=0.8, b=0.3, mu=0.6, a=0.1967)
-
-
-PRESETS = {
-    "lab": _lab,
-    "paper-fig9": _paper_fig9,
-    "paper-fig12": _paper_fig12,
-    "chaos": _chaos,
-}
-
-
-def preset(name: str) -> Groups:
-    """Nondimensional groups of a named preset.
-
-    Parameters
-    ----------
-    name : {'lab', 'paper-fig9', 'paper-fig12', 'chaos'}
-        ``lab``: the rig with its identified friction (mu = 0.56/0.62) at the
-        Fig. 9 operating point, a = 0.15, no gap.  ``paper-fig9``: eta = 1,
-        b = 0.55, phi = pi/2, mu = 0.85 (the calibration of model.md), no gap,
-        a = 0.11.  ``paper-fig12``: ``paper-fig9`` with r = 0.84 and a = 0.06.
-        ``chaos``: ``paper-fig12`` with eta = 0.8, b = 0.3, mu = 0.6, a = 0.1967,
-        a strange attractor (positive largest Lyapunov exponent; Fig. 15).
-    """
-    try:
-        return PRESETS[name]()
-    except KeyError:
-        raise ParameterError("preset", name, "one of " + ", ".join(PRESETS)) from None
-
-
-#: FMU variable names that are not RigParameters fields, accepted by ``--set`` too.
-FMU_ALIASES = {"impact_gap": "gap"}
-
-
-def setting_target(key: str, value=None) -> tuple[str, str]:
-    """Where a ``--set`` name points: ``("group", name)`` or ``("rig", field)``.
-
-    Accepted names: the groups (``a``, ``b``, ``eta`` ...), the spec's SI
-    symbols (``m1``, ``K``, ``mu_d``, ``B``, ``A``, ``f`` ...), the
-    :class:`RigParameters` fields, which are also the FMU's variable names
-    (``hammer_mass``, ``preload``, ``amplitude``, ``frequency`` ...).
-    """
-    if key in GROUP_NAMES:
-        return "group", key
-    if key in SI_ALIASES:
-        return "rig", SI_ALIASES[key]
-    if key in _RIG_FIELDS:
-        return "rig", key
-    if key in FMU_ALIASES:
-        return "rig", FMU_ALIASES[key]
-    raise ParameterError(key, "?" if value is None else value, "a known name: a group (" + ", ".join(GROUP_NAMES)
-                         + "), an SI symbol (" + ", ".join(SI_ALIASES)
-                         + ") or an SI/FMU name (" + ", ".join(_RIG_FIELDS) + ")")
-
-
-def apply_settings(groups: Groups, settings: dict) -> Groups:
-    """Apply ``{name: value}`` overrides given by group, SI symbol or SI/FMU name.
-
-    Group names change the group directly.  SI names are applied to the scene's
-    SI parameters (at its own scales) and converted back, so e.g. ``K`` changes
-    every group that depends on it *and* the scales that turn results into SI.
-    Errors name the parameter as it was typed.
-    """
-    g_changes, si_changes, typed = {}, {}, {}
-    for key, value in settings.items():
-        kind, name = setting_target(key, value)
-        typed[name] = key
-        (g_changes if kind == "group" else si_changes)[name] = value
-    try:
-        if si_changes:
-            groups = groups.to_rig(mu_static=float(si_changes.get("mu_static", groups.mu_static))
-                                   if _is_real(si_changes.get("mu_static", groups.mu_static))
-                                   else groups.mu_static).replace(**si_changes).to_groups()
-        if g_changes:
-            groups = groups.replace(**g_changes)
-    except ParameterError as e:
-        raise e.renamed(typed.get(e.name, e.name)) from None
-    return groups
-
-
-def _is_real(v) -> bool:
-    try:
-        float(v)
-        return True
-    except (TypeError, ValueError):
-        return False
-
-
-_RIG_FIELDS = tuple(f.name for f in fields(RigParameters))
-
-
-# ---------------------------------------------------------------------------
-# Regimes: where the model's answer is not drilling
-# ---------------------------------------------------------------------------
-@dataclass(frozen=True)
-class Regime:
-    """Where a scene lies relative to the model's validity domain.
-
-    Attributes
-    ----------
-    bounce : bool
-        ``a >= b``: the harmonic force can exceed the preload, the drive on
-        the bit can fall below ``-F_s`` and the rock would have to pull the
-        bit back (bit bounce).  The model holds the bit and counts it.
-    overload : bool
-        ``a + b > 1``: preload plus amplitude exceed the static threshold
-        ``F0 = mu_e F_N``, outside the paper's domain ``a + b <= 1``.
-    runaway : bool
-        ``b > f_floor`` where ``f_floor`` is the kinetic friction the bit
-        feels at high speed: ``mu`` when ``gamma_hat > 0``, else 1.  Adding
-        the two equations of motion gives ``m1 x_b'' + m2 x_s'' = B + F_h(t)
-        - F_f(v_s)`` while the bit slips; ``F_h`` averages to zero over a
-        period and ``F_f`` decreases to ``mu_d F_N`` as ``v_s`` grows.  So if
-        ``B > mu_d F_N`` a fast-sliding bit gains momentum every period and
-        the drift grows without bound; if ``B <= mu_d F_N`` the friction
-        exceeds the preload at every speed and the momentum stays bounded.
-    """
-
-    bounce: bool
-    overload: bool
-    runaway: bool
-
-    @property
-    def flags(self) -> list:
-        """Names of the flags that are set."""
-        return [k for k in ("bounce", "overload", "runaway") if getattr(self, k)]
-
-    def to_dict(self) -> dict:
-        return {"bounce": self.bounce, "overload": self.overload, "runaway": self.runaway}
-
-
-def regime(groups: Groups) -> Regime:
-    """The :class:`Regime` flags of a scene (pure function of its groups)."""
-    floor = groups.mu if groups.gamma_hat > 0.0 else 1.0
-    return Regime(bounce=groups.a >= groups.b, overload=groups.a + groups.b > 1.0,
-                  runaway=groups.b > floor)

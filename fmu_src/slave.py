@@ -33,7 +33,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import threading
 import time
 
 import numpy as np
@@ -41,37 +40,33 @@ from pythonfmu import Boolean, DefaultExperiment, Fmi2Causality, Fmi2Initial, Fm
     Fmi2Variability, Integer, Real
 from pythonfmu.enums import Fmi2Status
 
-from . import _numba_cache
 from . import build_info
-from . import kernels as K
+from . import kernel_driver, kernel_forces, kernel_layouts
+from . import numba_cache
+from .fmu_state import STATE_FORMAT, pop_deserialize_status, state_from_bytes, state_to_bytes
+from .fmu_variable_xml import KIND, KIND_NAME, RealVar
 from .fmu_variables import (BOOL_PARAMETERS, DEFAULT_TOLERANCE, FIXED_REALS, INPUTS, OUTPUTS,
                             PARAMETERS, RIG_FIELDS, UNITS, nominal_values, range_key, start_values,
                             variable_range)
-from .params import P_B, P_FEXT, RigParameters
+from .kernel_layouts import P_B, P_FEXT
+from .params import RigParameters
 from .pythonfmu_exit import guard_pythonfmu_exit
-from .stepping import _EMPTY_F, _NO_LOG, _NO_POIN, _NO_SAMP, SolverError, SolverOptions, Stepper
+from .solver_errors import SolverError
+from .solver_options import SolverOptions
+from .stepping import NO_LOG, NO_POINCARE, NO_SAMPLE_TIMES, NO_SAMPLES, Stepper
 from .validation import ParameterError, check
-from . import compile_ahead
-from .dispatch import entry_point as _entry_point
-
-compile_ahead.ENABLED = False  # no helper interpreters inside an FMI host
+from .numba_dispatch import entry_point as _entry_point
 
 __all__ = ["HammerBitRock", "PARAMETERS", "INPUTS", "OUTPUTS", "UNITS", "STATE_FORMAT",
            "OK", "WARNING", "DISCARD", "ERROR", "guard_pythonfmu_exit"]
 
 _INF = math.inf
-_ST_DONE = K.ST_DONE
+_ST_DONE = kernel_layouts.ST_DONE
 _isfinite = math.isfinite
 
 #: FMI 2.0 status codes recorded in ``last_status``
 OK, WARNING, DISCARD, ERROR = 0, 1, 2, 3
 
-#: Format tag of a saved FMU state (checked when a state is restored).
-STATE_FORMAT = "hammerbit-fmu-state/2"
-
-# status of the last fmi2DeSerializeFMUstate of this thread (a class-level call in pythonfmu:
-# the instance it is made for reads it through last_status right after the call)
-_DESERIALIZED = threading.local()
 
 
 def _build_start_values(resources) -> dict:
@@ -91,29 +86,6 @@ def _general_advance(st):
         st.advance(tau_end)
         return _ST_DONE
     return kernel
-
-
-# ---------------------------------------------------------------------------
-# variables with the attributes pythonfmu does not write
-# ---------------------------------------------------------------------------
-class _RealVar(Real):
-    """pythonfmu ``Real`` that also writes ``unit``, ``min``, ``max`` and ``nominal``."""
-
-    def __init__(self, name, unit=None, *, min=None, max=None, nominal=None, **kwargs):
-        super().__init__(name, **kwargs)
-        self.extra = {"unit": unit, "min": min, "max": max, "nominal": nominal}
-
-    def to_xml(self):
-        node = super().to_xml()
-        real = node.find("Real")
-        for key, value in self.extra.items():
-            if value is not None:
-                real.set(key, value if isinstance(value, str) else repr(float(value)))
-        return node
-
-
-_KIND = {Real: Real, _RealVar: Real, Integer: Integer, Boolean: Boolean}
-_KIND_NAME = {Real: "Real", Integer: "Integer", Boolean: "Boolean"}
 
 
 class HammerBitRock(Fmi2Slave):
@@ -149,13 +121,13 @@ class HammerBitRock(Fmi2Slave):
         nominal = nominal_values(rig)
         for name, unit, desc in INPUTS:
             rng = variable_range(name)
-            self.register_variable(_RealVar(name, unit, min=rng.lo, max=rng.hi, nominal=nominal.get(name),
+            self.register_variable(RealVar(name, unit, min=rng.lo, max=rng.hi, nominal=nominal.get(name),
                                             causality=Fmi2Causality.input,
                                             variability=Fmi2Variability.continuous, description=desc,
                                             setter=self._input_setter(name, rng)))
         for name, unit, desc in PARAMETERS:
             rng = variable_range(name)
-            self.register_variable(_RealVar(name, unit, min=rng.lo, max=rng.hi, nominal=nominal.get(name),
+            self.register_variable(RealVar(name, unit, min=rng.lo, max=rng.hi, nominal=nominal.get(name),
                                             causality=Fmi2Causality.parameter,
                                             variability=(Fmi2Variability.tunable if name == "tolerance"
                                                          else Fmi2Variability.fixed),
@@ -171,7 +143,7 @@ class HammerBitRock(Fmi2Slave):
             kw = dict(causality=Fmi2Causality.output, initial=Fmi2Initial.calculated,
                       description=desc, getter=getters[name])
             if typ == "Real":
-                var = _RealVar(name, unit, nominal=nominal.get(name),
+                var = RealVar(name, unit, nominal=nominal.get(name),
                                variability=Fmi2Variability.continuous, **kw)
             elif typ == "Integer":
                 var = Integer(name, variability=Fmi2Variability.discrete, **kw)
@@ -188,7 +160,7 @@ class HammerBitRock(Fmi2Slave):
         self._setters = {t: {} for t in (Real, Integer, Boolean)}
         self._names = {}
         for vr, var in self.vars.items():
-            kind = _KIND[type(var)]
+            kind = KIND[type(var)]
             self._names[vr] = (var.name, kind)
             self._getters[kind][vr] = var.getter
             if var.causality in (Fmi2Causality.input, Fmi2Causality.parameter):
@@ -211,7 +183,7 @@ class HammerBitRock(Fmi2Slave):
         return False
 
     def _read_last_status(self) -> int:
-        pending = _DESERIALIZED.__dict__.pop("status", None)
+        pending = pop_deserialize_status()
         return self.last_status if pending is None else pending
 
     # ------------------------------------------------------------------
@@ -224,7 +196,7 @@ class HammerBitRock(Fmi2Slave):
             if entry is None:
                 bad.append(f"{vr!r} (no such variable)")
             elif entry[1] is not kind:
-                bad.append(f"{vr} ({entry[0]!r} is {_KIND_NAME[entry[1]]}, not {_KIND_NAME[kind]})")
+                bad.append(f"{vr} ({entry[0]!r} is {KIND_NAME[entry[1]]}, not {KIND_NAME[kind]})")
             elif what.startswith("fmi2Set") and vr not in self._setters[kind]:
                 bad.append(f"{vr} ({entry[0]!r} is not settable: an output or a local variable)")
         return f"{what}: invalid value reference {', '.join(bad)}; nothing changed"
@@ -375,7 +347,7 @@ class HammerBitRock(Fmi2Slave):
             groups = groups.replace(phi=math.fmod(rig.phase + omega_f * self._t_start, 2.0 * math.pi))
         x0 = s.length
         y0 = (float(vals["initial_hammer_position"]) / x0, 0.0, float(vals["initial_bit_position"]) / x0, 0.0)
-        st = Stepper(groups, solver=solver, y0=y0)   # inputs enter p at every step
+        st = Stepper(groups, solver=solver, y0=y0, compile_helper=False)   # inputs enter p at every step
         if keep_state is not None:
             st.set_state(keep_state)
         # only now change the instance (nothing above touched it)
@@ -384,7 +356,7 @@ class HammerBitRock(Fmi2Slave):
         self._yi, self._ii = st.y.item, st.istate.item
         # do_step's hot path calls the stepper's compiled entry point with the stepper's own
         # arrays: Stepper.advance would repeat the argument checks do_step has made already
-        self._kernel = K.advance_hammer if st._fast else _general_advance(st)
+        self._kernel = kernel_driver.advance_hammer if st.fast else _general_advance(st)
         self._slow = True          # do_step rebuilds its tuple of the stepper's arrays
         self._rig = rig
         self._x0 = x0
@@ -451,7 +423,7 @@ class HammerBitRock(Fmi2Slave):
         try:
             t0 = time.perf_counter()
             self._commit(self._param_values())
-            report = _numba_cache.first_use_report(K, time.perf_counter() - t0)
+            report = numba_cache.first_use_report(time.perf_counter() - t0)
         except ParameterError as e:
             self._ready = False
             self._error = f"initialisation failed: {e}"
@@ -493,9 +465,9 @@ class HammerBitRock(Fmi2Slave):
                     return False
             try:
                 status = kernel(y, ist, fst, (current_time + step_size - t_start) * omega, p, opts,
-                                _NO_POIN, _EMPTY_F, _NO_SAMP, _NO_LOG)
+                                NO_POINCARE, NO_SAMPLE_TIMES, NO_SAMPLES, NO_LOG)
                 if status != _ST_DONE:
-                    self._st._status(status)          # raises the solver's error
+                    self._st.check_status(status)          # raises the solver's error
             except Exception as e:  # noqa: BLE001 -- restore the state, report, never raise
                 return self._step_failed(e, snap, old_inputs, current_time, step_size)
             self._t = current_time + step_size
@@ -550,9 +522,10 @@ class HammerBitRock(Fmi2Slave):
         st = self._st
         # what the hot path of do_step reads, in one tuple (the stepper, its arrays and the
         # clock change only when _slow is set)
-        if self._kernel is K.advance_hammer:     # compiled by now: call it without the type dispatch
-            self._kernel = _entry_point(K.advance_hammer, (st.y, st.istate, st.fstate, 0.0, st.p, st.opts,
-                                                            _NO_POIN, _EMPTY_F, _NO_SAMP, _NO_LOG))
+        if self._kernel is kernel_driver.advance_hammer:     # compiled by now: call it without the type dispatch
+            self._kernel = _entry_point(kernel_driver.advance_hammer,
+                                        (st.y, st.istate, st.fstate, 0.0, st.p, st.opts,
+                                         NO_POINCARE, NO_SAMPLE_TIMES, NO_SAMPLES, NO_LOG))
         self._hot = (self._kernel, st.y, st.istate, st.fstate, st.p, st.opts, self._t_start, self._omega,
                      st.state_buffer)
         self._slow = False
@@ -570,20 +543,21 @@ class HammerBitRock(Fmi2Slave):
     # ------------------------------------------------------------------
     def _output_getters(self) -> dict:
         s = self
-        c0 = K.I_COUNT0
-        spring, on_bit, contact = K.spring_damper_force, K.force_on_bit, K.contact_force
-        overlap, kinetic = K.overlap, K.kinetic_friction
+        c0 = kernel_layouts.I_COUNT0
+        spring, on_bit = kernel_forces.spring_damper_force, kernel_forces.force_on_bit
+        contact = kernel_forces.contact_force
+        overlap, kinetic = kernel_forces.overlap, kernel_forces.kinetic_friction
 
         def contact_force():
-            y, p, mc = s._y, s._p, s._ii(K.I_CONTACT)
-            if mc != K.CONTACT:
+            y, p, mc = s._y, s._p, s._ii(kernel_layouts.I_CONTACT)
+            if mc != kernel_layouts.CONTACT:
                 return 0.0
             return contact(overlap(y, p), y[1] - y[3], p, mc) * s._F0
 
         def friction_force():
-            if s._ii(K.I_STICK) == K.SLIP:
+            if s._ii(kernel_layouts.I_STICK) == kernel_layouts.SLIP:
                 return kinetic(s._yi(3), s._p) * s._F0
-            return on_bit(s._y, s._p, s._ii(K.I_CONTACT)) * s._F0
+            return on_bit(s._y, s._p, s._ii(kernel_layouts.I_CONTACT)) * s._F0
 
         def rate_of_penetration():
             dt = s._t - s._t_start
@@ -599,13 +573,13 @@ class HammerBitRock(Fmi2Slave):
             "spring_force": lambda: spring(s._y, s._p) * s._F0,
             "contact_force": contact_force,
             "friction_force": friction_force,
-            "rock_force": lambda: on_bit(s._y, s._p, s._ii(K.I_CONTACT)) * s._F0,
+            "rock_force": lambda: on_bit(s._y, s._p, s._ii(kernel_layouts.I_CONTACT)) * s._F0,
             "rate_of_penetration": rate_of_penetration,
-            "stick_slip": lambda: s._ii(K.I_STICK),
-            "in_contact": lambda: s._ii(K.I_CONTACT) != K.FREE,
-            "impact_count": lambda: s._ii(c0 + K.EV_IMPACT),
-            "slip_count": lambda: s._ii(c0 + K.EV_SLIP_START),
-            "bounce_count": lambda: s._ii(c0 + K.EV_BOUNCE),
+            "stick_slip": lambda: s._ii(kernel_layouts.I_STICK),
+            "in_contact": lambda: s._ii(kernel_layouts.I_CONTACT) != kernel_layouts.FREE,
+            "impact_count": lambda: s._ii(c0 + kernel_layouts.EV_IMPACT),
+            "slip_count": lambda: s._ii(c0 + kernel_layouts.EV_SLIP_START),
+            "bounce_count": lambda: s._ii(c0 + kernel_layouts.EV_BOUNCE),
         }
 
     # ------------------------------------------------------------------
@@ -698,21 +672,8 @@ class HammerBitRock(Fmi2Slave):
 
     @staticmethod
     def _fmu_state_to_bytes(state) -> bytes:
-        s = dict(state)
-        if "stepper" in s:
-            s["stepper"] = [float(v) for v in s["stepper"]]
-        return json.dumps(s).encode("utf-8")
+        return state_to_bytes(state)
 
     @staticmethod
     def _fmu_state_from_bytes(data: bytes):
-        try:
-            s = json.loads(bytes(data).decode("utf-8"))
-            if not isinstance(s, dict) or s.get("format") != STATE_FORMAT:
-                raise ValueError(f"not a {STATE_FORMAT} state")
-            if "inputs" in s:
-                s["inputs"] = tuple(s["inputs"])
-        except (ValueError, TypeError) as e:   # JSON and UTF-8 errors are ValueErrors
-            _DESERIALIZED.status = ERROR
-            return {"format": "invalid", "reason": f"cannot deserialise the FMU state: {e}"}
-        _DESERIALIZED.status = OK
-        return s
+        return state_from_bytes(data)

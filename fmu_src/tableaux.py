@@ -230,7 +230,7 @@ RK4_W = np.array([[ 0.16666666666666669,  0.33333333333333354,  0.33333333333333
   -1.0000000000000002 ]])
 RK4_E = np.zeros(RK4_N_STAGES + 1)  # no error estimate
 
-# ---- each method as the driver takes it (``kernels.advance``): A, B, C, E, E3, W, the number of
+# ---- each method as the driver takes it (``kernel_driver.advance``): A, B, C, E, E3, W, the number of
 # stages, the error-estimate kind and the controller exponent 1 / (order of the estimate + 1) ----
 METHODS = {
     "dop853": (DOP853_A, DOP853_B, DOP853_C, DOP853_E, DOP853_E3, DOP853_W, DOP853_N_STAGES, ERR_DOP853,

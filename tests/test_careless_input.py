@@ -283,7 +283,7 @@ def test_ctrl_c_in_a_map_on_a_local_cluster_prints_one_line(tmp_path):
 def test_bifurcation_csv_is_si_with_each_values_own_scales(tmp_path, capsys):
     """Over the SI stiffness K, x0 = 54 N / K changes with each value: the mm columns follow it
     (by hand, against the nondimensional points of the same sweep run in the library)."""
-    from hammerbit.model.params import preset
+    from hammerbit.model.presets import preset
     from hammerbit.studies.bifurcation import bifurcation
     from hammerbit.studies.executor import ExecutorOptions
     csv = tmp_path / "bif.csv"
@@ -308,7 +308,7 @@ def test_bifurcation_csv_is_si_with_each_values_own_scales(tmp_path, capsys):
 def test_a_contact_open_to_the_end_reports_its_peak_force():
     """r = 0: the hammer rests on the bit and never separates; the peak contact force is that of
     the open contact (no separation logs it), checked against densely sampled contact forces."""
-    from hammerbit.model.params import preset
+    from hammerbit.model.presets import preset
     from hammerbit.scene.simulate import Record, simulate
     g = preset("paper-fig9").replace(r=0.0)
     P = 20

@@ -88,7 +88,7 @@ def test_simulate_json_si_against_hand_scales(capsys):
     assert rop["mm_per_period"] == pytest.approx(rop["x0_per_period"] * X0_M * 1e3, rel=1e-12)
     assert rop["m_per_h"] == pytest.approx(rop["mm_per_period"] * 1e-3 / T * 3600.0, rel=1e-12)
     # the ROP is the advance over the second half: two separate runs from rest give it too
-    from hammerbit.model.params import preset
+    from hammerbit.model.presets import preset
     from hammerbit.scene.simulate import simulate
     g = preset("paper-fig9").replace(a=0.083)
     p150, p300 = simulate(g, 150).penetration, simulate(g, 300).penetration

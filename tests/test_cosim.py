@@ -357,3 +357,91 @@ def test_compiled_entry_points_give_the_dispatchers_bits(kw, monkeypatch):
     for name in fast.data.dtype.names:
         assert np.array_equal(fast.data[name], plain.data[name]), name
     assert fast.stats.get("rollbacks") == plain.stats.get("rollbacks")
+
+
+# ---------------------------------------------------------------------------
+# the exchange's polynomials against the interpolation polynomials they stand for
+# ---------------------------------------------------------------------------
+@pytest.mark.parametrize("gs, order", [(False, 0), (False, 1), (False, 2), (True, 0), (True, 1), (True, 2)],
+                         ids=["jacobi-0", "jacobi-1", "jacobi-2", "gs-0", "gs-1", "gs-2"])
+def test_taylor_coefficients_are_those_of_the_interpolation_polynomial(gs, order):
+    """The hammer motion the string sees over [t_n, t_n + h] is the polynomial through the last
+    communication points (Jacobi) or through the new value (Gauss–Seidel), uneven spacings: its
+    value, slope and second derivative at t_n, from numpy's fit through the same points."""
+    from hammerbit.cosim.exchange import taylor_coefficients
+    a, a2, h = 1.3e-3, 0.7e-3, 2.1e-3
+    wh = np.array([[0.31, -1.7], [0.12, 2.3], [-0.45, 0.9]])      # (x, v) at t_n, t_{n-1}, t_{n-2}
+    x_new, v_new = 0.77, -0.35
+    c = np.zeros(6)
+    taylor_coefficients(gs, order, a, a2, h, wh, x_new, v_new, c)
+    for k, new in ((0, x_new), (1, v_new)):
+        if gs and order == 0:
+            ts, ws = [0.0], [new]                 # the new value held over the step
+        elif gs:
+            ts, ws = [h, 0.0, -a][:order + 1], [new, wh[0, k], wh[1, k]][:order + 1]
+        else:
+            ts, ws = [0.0, -a, -a - a2][:order + 1], list(wh[:order + 1, k])
+        poly = np.polyfit(ts, ws, len(ts) - 1)
+        want = [np.polyval(np.polyder(poly, d), 0.0) if d < len(poly) else 0.0 for d in range(3)]
+        got = [c[k], c[2 + k], c[4 + k]]
+        assert got == pytest.approx(want, rel=1e-9, abs=1e-9), (k, got, want)
+
+
+@pytest.mark.parametrize("order", [0, 1, 2])
+def test_held_force_is_the_mean_of_the_extrapolation_polynomial(order):
+    """The force the hammer holds is the mean over [t_n, t_n + h] of the polynomial through the
+    last forces (uneven spacings), integrated by numpy."""
+    from hammerbit.cosim.exchange import held_force
+    a, a2, h = 1.3e-3, 0.7e-3, 2.1e-3
+    th = np.array([0.5, 0.5 - a, 0.5 - a - a2])
+    Fh = np.array([1.0e4, 1.3e4, 0.8e4])
+    got = held_force(order, th, Fh, h, np.zeros(3))
+    poly = np.polyfit([0.0, -a, -a - a2][:order + 1], Fh[:order + 1], order)
+    prim = np.polyint(poly)
+    assert got == pytest.approx((np.polyval(prim, h) - np.polyval(prim, 0.0)) / h, rel=1e-12)
+
+
+class _PrescribedHammer:
+    """A hammer side moving on a given smooth trajectory, whatever force it holds."""
+
+    x_eq = 0.0
+    master_harmonic = None
+
+    def __init__(self, x, v):
+        self.x, self.v, self.t = x, v, 0.0
+
+    def step(self, t, h, force):
+        self.t = t + h
+
+    def read(self):
+        return np.array([self.x(self.t), self.v(self.t), 0.0, 0.0, 0.0])
+
+
+@pytest.mark.parametrize("f_max", [None, 100.0], ids=["dense", "modal"])
+def test_energy_residual_is_the_step_energy_balance(string, f_max):
+    """The energy residual of each step is the energy the string side delivers through the
+    interface (trapezoid of F_i v_h on the step ends, with the extrapolated motion at the end,
+    here from numpy's polynomial through the last three points) minus the work the held force
+    does on the hammer, F_held (x_h(t_n+1) - x_h(t_n)) (Jacobi, order 2, uneven steps)."""
+    from hammerbit.cosim.exchange import EXCHANGE_OUT_ENERGY_RESIDUAL, EXCHANGE_OUT_STRING_FORCE
+    from hammerbit.cosim.lane import Lane
+    cfg = CosimConfig(scheme="jacobi", extrapolation=2, estimate=False, f_max=f_max)
+    side = StringSide(string, cfg)
+    w = 2 * math.pi * 17.0
+    hammer = _PrescribedHammer(lambda t: 1e-4 * math.sin(w * t), lambda t: 1e-4 * w * math.cos(w * t))
+    lane = Lane(side, hammer, cfg, 1e-3)
+    ki, ci, W = side.ki, side.ci, side.wob
+    t = 0.0
+    for h in [1e-3, 1e-3, 1e-3, 5e-4, 1e-3, 2e-3, 1e-3, 1e-3]:
+        ts = lane.th.copy() - lane.th[0]
+        hist = lane.wh.copy()
+        F_before = lane.F
+        lane.step(t, h)
+        x0, v0 = hist[0]
+        xe, ve = (np.polyval(np.polyfit(ts, hist[:, k], 2), h) for k in (0, 1))
+        F_end = W + lane.sc[EXCHANGE_OUT_STRING_FORCE] - ki * xe - ci * ve
+        x_new = hammer.x(t + h)
+        want = 0.5 * h * (F_before * v0 + F_end * ve) - lane.F_held * (x_new - x0)
+        got = lane.sc[EXCHANGE_OUT_ENERGY_RESIDUAL]
+        assert got == pytest.approx(want, rel=1e-7, abs=1e-9 * abs(F_before * v0 * h)), (t, got, want)
+        t += h

@@ -12,7 +12,7 @@ import pytest
 
 _SELECT = textwrap.dedent("""
     import os, sys
-    from hammerbit.model.cpu_target import select_portable, runs_portable
+    from hammerbit.model.numba_target import select_portable, runs_portable
     chose = select_portable()
     import numba
     print(chose, runs_portable(), numba.config.CPU_NAME, os.environ.get("NUMBA_CPU_NAME"))
@@ -59,11 +59,11 @@ def test_a_study_worker_of_an_fmu_master_compiles_nothing_at_start(tmp_path):
     """Dask workers of ``sweep --fmu`` inherit the portable target; with nothing compiled for it,
     their start-up warm-up loads no in-process solver (a sweep through the FMU never runs it)."""
     code = textwrap.dedent("""
-        from hammerbit.model.cpu_target import select_portable
+        from hammerbit.model.numba_target import select_portable
         assert select_portable()
         from hammerbit.studies.executor import warm_worker
-        from hammerbit.model import kernels as K
-        print(warm_worker(), len(K.advance_hammer.signatures))
+        from hammerbit.model import kernel_driver
+        print(warm_worker(), len(kernel_driver.advance_hammer.signatures))
     """)
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                        env=_env(HAMMERBIT_CACHE_DIR=str(tmp_path)), timeout=120)

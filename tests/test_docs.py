@@ -162,7 +162,8 @@ def test_no_first_person_or_process_wording(doc):
 
 def test_model_doc_defines_every_group_and_the_validity_domain():
     """docs/model.md names each group of the code with its definition, and the three regime flags."""
-    from hammerbit.model.params import GROUP_NAMES, Regime
+    from hammerbit.model.params import GROUP_NAMES
+    from hammerbit.model.regime import Regime
     text = (ROOT / "docs" / "model.md").read_text(encoding="utf-8")
     for g in GROUP_NAMES:
         assert re.search(rf"^\| `{g}` \|", text, flags=re.M), g

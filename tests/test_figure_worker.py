@@ -14,7 +14,7 @@ import pytest
 
 from hammerbit.scene import figure_worker
 from hammerbit.scene.figure_worker import figure_formats
-from hammerbit.model.params import preset
+from hammerbit.model.presets import preset
 from hammerbit.scene.plots import scene_figure
 from hammerbit.scene.figure import draw_scene
 from cli_run import run_cli

@@ -30,9 +30,11 @@ from fmpy.fmi1 import FMICallException  # noqa: E402
 from fmpy.fmi2 import fmi2LastSuccessfulTime  # noqa: E402
 
 from hammerbit.fmu.host import FMI_DISCARD, FMI_ERROR, FMI_OK, FMI_WARNING, FMUInstance  # noqa: E402
-from hammerbit.model import kernels as K  # noqa: E402
-from hammerbit.model.params import P_B, P_FEXT, RigParameters  # noqa: E402
-from hammerbit.model.stepping import SolverOptions, Stepper  # noqa: E402
+from hammerbit.model import kernel_layouts  # noqa: E402
+from hammerbit.model.kernel_layouts import P_B, P_FEXT  # noqa: E402
+from hammerbit.model.params import RigParameters
+from hammerbit.model.solver_options import SolverOptions  # noqa: E402
+from hammerbit.model.stepping import Stepper
 from hammerbit.model.validation import RANGES  # noqa: E402
 
 RIG = RigParameters()                    # the FMU's start values (lab preset)
@@ -120,7 +122,7 @@ def test_build_carries_the_runtime_and_its_compiled_kernels(built_fmu):
         manifest = json.loads(zf.read(f"resources/{_runtime_package(names)}/_compiled/manifest.json"))
     pkg = _runtime_package(names)
     assert pkg == f"hammerbit_fmu_runtime_{build_hash()}"
-    assert f"resources/{pkg}/slave.py" in names and f"resources/{pkg}/kernels.py" in names
+    assert f"resources/{pkg}/slave.py" in names and f"resources/{pkg}/kernel_driver.py" in names
     assert f"resources/hammerbit_fmu_slave_{build_hash()}.py" in names
     assert any(n.startswith(f"resources/{pkg}/_compiled/") and n.endswith(".nbc") for n in names)
     assert manifest["cpu_name"] == "generic" and manifest["python"] == "%d.%d" % sys.version_info[:2]
@@ -653,8 +655,8 @@ _PROBE = textwrap.dedent("""
         out.setdefault("messages", inst.messages)
         inst.close()
     pkg = [m for m in sys.modules if m.startswith("hammerbit_fmu_runtime_") and "." not in m][0]
-    nc = sys.modules[pkg + "._numba_cache"]
-    out["cache_hits"], out["cache_misses"] = nc.kernel_cache_counts(sys.modules[pkg + ".kernels"])
+    nc = sys.modules[pkg + ".numba_cache"]
+    out["cache_hits"], out["cache_misses"] = nc.kernel_cache_counts()
     out["decision"] = nc.DECISION
     out["exit_guard"] = len(sys.modules["hammerbit.model.pythonfmu_exit"]._PINNED_WRAPPERS)
     print(json.dumps(out), flush=True)
@@ -703,9 +705,9 @@ def test_solver_failure_inside_a_step_restores_the_state(monkeypatch):
     real = s._kernel
 
     def failing(y, ist, fst, t_end, *rest):
-        real(y, ist, fst, 0.5 * (fst[K.F_T] + t_end), *rest)   # half-way, then fail
-        ist[K.I_COUNT0] += 5
-        return K.ST_EVENT_STORM
+        real(y, ist, fst, 0.5 * (fst[kernel_layouts.F_T] + t_end), *rest)   # half-way, then fail
+        ist[kernel_layouts.I_COUNT0] += 5
+        return kernel_layouts.ST_EVENT_STORM
 
     monkeypatch.setattr(s, "_kernel", failing)
     s._slow = True                  # do_step takes the kernel from the tuple its slow path rebuilds
@@ -729,7 +731,7 @@ def test_stepper_snapshot_restores_the_integration_state_in_place():
     before, snap = st.get_state(), st.snapshot()
     st.advance(9.0)                                  # moves y, the event counts and the clock
     first = st.get_state()
-    assert not np.array_equal(first, before) and st.istate[K.I_COUNT0:].sum() > 0
+    assert not np.array_equal(first, before) and st.istate[kernel_layouts.I_COUNT0:].sum() > 0
     st.restore(snap)
     assert np.array_equal(st.get_state(), before)
     assert all(a is b for a, b in zip((st.y, st.istate, st.fstate), arrays))
@@ -762,3 +764,20 @@ def test_tolerance_set_after_initialisation_applies_from_the_next_step():
         same.advance(t * om)
     assert np.array_equal(s._st.get_state(), lib.get_state())
     assert not np.array_equal(lib.y, same.y)
+
+
+@pytest.mark.parametrize("t, h", [(1e-3, -1e-3), (1e-3, math.nan), (0.5, 1e-3)],
+                         ids=["negative step", "NaN step", "wrong communication point"])
+def test_bad_do_step_in_process_is_an_error_and_changes_nothing(t, h):
+    """The slave itself (no FMU archive): a bad fmi2DoStep returns False with fmi2Error and a log
+    message naming the bad value, and the state and clock stay where they were."""
+    from hammerbit.model.slave import HammerBitRock
+    s = HammerBitRock(instance_name="unit")
+    s.setup_experiment(0.0)
+    s.exit_initialization_mode()
+    assert s.do_step(0.0, 1e-3) and s.last_status == FMI_OK
+    before = (s._st.get_state(), s._t)
+    assert s.do_step(t, h) is False                     # the clock is at 1 ms
+    assert s.last_status == FMI_ERROR
+    assert "step" in s.log_queue[-1].msg or "Communication" in s.log_queue[-1].msg
+    assert np.array_equal(s._st.get_state(), before[0]) and s._t == before[1]

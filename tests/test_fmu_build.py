@@ -22,7 +22,8 @@ from cli_run import run_cli  # noqa: E402
 from hammerbit.fmu.build import build_fmu, build_hash, runtime_files  # noqa: E402
 from hammerbit.fmu.host import FMUInstance  # noqa: E402
 from hammerbit.model.params import RigParameters  # noqa: E402
-from hammerbit.model.stepping import SolverOptions, Stepper  # noqa: E402
+from hammerbit.model.solver_options import SolverOptions  # noqa: E402
+from hammerbit.model.stepping import Stepper
 
 REPO = Path(__file__).resolve().parents[1]
 RIG = RigParameters()
@@ -106,8 +107,8 @@ _COLD = textwrap.dedent("""
     t1 = time.perf_counter()
     inst.step(1e-3)
     pkg = [m for m in sys.modules if m.startswith("hammerbit_fmu_runtime_") and "." not in m][0]
-    nc = sys.modules[pkg + "._numba_cache"]
-    hits, misses = nc.kernel_cache_counts(sys.modules[pkg + ".kernels"])
+    nc = sys.modules[pkg + ".numba_cache"]
+    hits, misses = nc.kernel_cache_counts()
     print(json.dumps({"load_init_s": t1 - t0, "hits": hits, "misses": misses, "decision": nc.DECISION,
                       "messages": inst.messages}))
     inst.close()

@@ -3,10 +3,11 @@ import numpy as np
 import pytest
 from numba import njit
 
-from hammerbit.model import kernels as K
-from hammerbit.model.params import preset
-from hammerbit.model.partial import bind
-from hammerbit.model.stepping import SolverOptions, Stepper
+from hammerbit.model import kernel_layouts
+from hammerbit.model.presets import preset
+from hammerbit.model.numba_partial import bind
+from hammerbit.model.solver_options import SolverOptions
+from hammerbit.model.stepping import Stepper
 
 
 def _poly(x, c, n):
@@ -60,11 +61,11 @@ def test_advance_hammer_equals_the_general_driver_bit_for_bit():
     o = SolverOptions(rtol=1e-8, atol=1e-10)
     fast = Stepper(g, solver=o)
     general = Stepper(g, solver=o)
-    assert fast._fast
-    general._fast = False
+    assert fast.fast
+    general.fast = False
     t_end = 40 * g.period
     fast.advance(t_end)
     general.advance(t_end)
     assert np.array_equal(fast.y, general.y)
     assert np.array_equal(fast.istate, general.istate)
-    assert fast.istate[K.I_STEPS] > 100
+    assert fast.istate[kernel_layouts.I_STEPS] > 100

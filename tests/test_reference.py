@@ -22,8 +22,9 @@ import numpy as np
 import pytest
 
 from benchmarks.scipy_reference import simulate_reference
-from hammerbit.model.params import preset
-from hammerbit.model.stepping import EventStormError, SolverOptions
+from hammerbit.model.presets import preset
+from hammerbit.model.solver_errors import EventStormError
+from hammerbit.model.solver_options import SolverOptions
 from hammerbit.scene.simulate import BounceWarning, Record, simulate
 
 PERIODS = 100

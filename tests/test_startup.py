@@ -1,7 +1,7 @@
 """Loading the kernels does not import scipy.linalg, and numba's BLAS-backed functions still work.
 
 The kernels hold ``scipy.linalg`` back while numba's ``arraymath`` loads and set its BLAS flag
-themselves (``fmu_src/_numba_startup.py``).  The fast test checks that flag against numba's own
+themselves (``fmu_src/numba_startup.py``).  The fast test checks that flag against numba's own
 probe, run afterwards in the same process; the slow one compiles ``np.correlate``, which the flag
 steers to BLAS.
 """
@@ -12,7 +12,7 @@ import textwrap
 _LOAD = """
     import sys
     import numpy as np
-    from hammerbit.model.params import preset
+    from hammerbit.model.presets import preset
     from hammerbit.model.stepping import Stepper
     g = preset("paper-fig9")
     Stepper(g).advance(g.period)

@@ -19,10 +19,11 @@ import time
 import numpy as np
 import pytest
 
-from hammerbit.model import kernels as K
-from hammerbit.model.params import preset
-from hammerbit.model.stepping import (MaxStepsError, NonFiniteStateError, SolverOptions, StepSizeError,
-                                      Stepper)
+from hammerbit.model import kernel_driver, kernel_layouts
+from hammerbit.model.presets import preset
+from hammerbit.model.solver_errors import MaxStepsError, NonFiniteStateError, StepSizeError
+from hammerbit.model.solver_options import SolverOptions
+from hammerbit.model.stepping import Stepper
 from hammerbit.model.validation import ParameterError
 
 #: hang guard of a refusal: a check that runs before any integration returns at once, a hang never
@@ -164,7 +165,7 @@ def test_max_steps_raises_and_the_stepper_resumes():
             assert "max_steps=50" in str(e)
     # a cut at max_steps ends the current step where it is; the resumed run takes the same
     # steps (the proposal is carried in the state), so the result is the same to round-off
-    assert raised >= ref.istate[K.I_STEPS] // 50 - 1
+    assert raised >= ref.istate[kernel_layouts.I_STEPS] // 50 - 1
     np.testing.assert_allclose(st.y, ref.y, rtol=1e-9, atol=1e-12)
     assert st.counts == ref.counts
 
@@ -187,9 +188,8 @@ def test_set_state_refuses_a_non_finite_state():
 _KERNEL_PROBE = r"""
 import json, math, sys, time
 import numpy as np
-from hammerbit.model import kernels as K
-from hammerbit.model import kernels as K
-from hammerbit.model.params import preset
+from hammerbit.model import kernel_driver, kernel_layouts
+from hammerbit.model.presets import preset
 from hammerbit.model.stepping import Stepper
 
 g = preset("paper-fig9").replace(a=0.083)
@@ -201,10 +201,10 @@ def run(t_end, y=None, p_change=None):
     if p_change is not None:
         st.p[p_change[0]] = p_change[1]
     t0 = time.perf_counter()
-    status = K.advance_hammer(st.y, st.istate, st.fstate, t_end, st.p, st.opts,
-                              np.zeros((0, 5)), np.zeros(0), np.zeros((0, K.N_SAMPLE_COLS)),
-                              np.zeros((0, K.N_LOG_COLS)))
-    return {"status": int(status), "seconds": time.perf_counter() - t0, "time": float(st.fstate[K.F_T]),
+    status = kernel_driver.advance_hammer(st.y, st.istate, st.fstate, t_end, st.p, st.opts,
+                              np.zeros((0, 5)), np.zeros(0), np.zeros((0, kernel_layouts.N_SAMPLE_COLS)),
+                              np.zeros((0, kernel_layouts.N_LOG_COLS)))
+    return {"status": int(status), "seconds": time.perf_counter() - t0, "time": float(st.fstate[kernel_layouts.F_T]),
             "finite": bool(np.all(np.isfinite(st.y)))}
 
 run(0.0)  # compile or load the kernels
@@ -216,10 +216,10 @@ out = {
     "y_nan": run(T, y=[math.nan, 0.0, 0.0, 0.0]),
     "v_inf": run(T, y=[0.0, math.inf, 0.0, 0.0]),
     # a NaN forcing amplitude reaches the state first through the exact stick chunk
-    "stick_nan": run(T, p_change=(K.P_A, math.nan)),
+    "stick_nan": run(T, p_change=(kernel_layouts.P_A, math.nan)),
     "ok": run(T),
 }
-codes = {n: getattr(K, n) for n in ("ST_DONE", "ST_BAD_INPUT", "ST_NONFINITE")}
+codes = {n: getattr(kernel_layouts, n) for n in ("ST_DONE", "ST_BAD_INPUT", "ST_NONFINITE")}
 print(json.dumps({"runs": out, "codes": codes}))
 """
 
@@ -250,7 +250,7 @@ def test_stepper_reports_a_nan_parameter_as_non_finite_state():
     """A NaN that gets past validation (written into p directly) ends in NonFiniteStateError."""
     g = _groups()
     st = Stepper(g)
-    st.p[K.P_A] = math.nan
+    st.p[kernel_layouts.P_A] = math.nan
     box = within(600.0, st.advance, g.period)  # first call may compile the kernels
     assert isinstance(box.get("error"), NonFiniteStateError), box
 
@@ -273,3 +273,24 @@ def test_load_never_compiles(monkeypatch):
     st = Stepper(preset("paper-fig9"))
     monkeypatch.setattr(S.Stepper, "advance", lambda *a, **k: pytest.fail("load() ran the kernel"))
     assert st.load() is False
+
+
+def test_a_full_event_log_returns_log_full_and_the_next_call_resumes():
+    """With room for 3 events the stepper stops at the log's end and says 'log_full'; a call with
+    a fresh buffer goes on from there, and the two logs together are the one-call log."""
+    g = preset("paper-fig12").replace(a=0.06)
+    ref = Stepper(g)
+    big = np.zeros((500, kernel_layouts.N_LOG_COLS))
+    assert ref.advance(5 * g.period, log=big) == "done"
+    n_ref = int(ref.istate[kernel_layouts.I_NLOG])
+    assert n_ref > 6
+    st = Stepper(g)
+    small = np.zeros((3, kernel_layouts.N_LOG_COLS))
+    assert st.advance(5 * g.period, log=small) == "log_full"
+    assert st.time < 5 * g.period
+    st.istate[kernel_layouts.I_NLOG] = 0
+    rest = np.zeros((500, kernel_layouts.N_LOG_COLS))
+    assert st.advance(5 * g.period, log=rest) == "done"
+    joined = np.vstack([small, rest[:int(st.istate[kernel_layouts.I_NLOG])]])
+    assert np.array_equal(joined, big[:n_ref])
+    assert np.array_equal(st.y, ref.y)

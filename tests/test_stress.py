@@ -30,9 +30,10 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from hammerbit.scene.analysis import detect_period
-from hammerbit.model.params import preset
-from hammerbit.model.stepping import (EventStormError, MaxStepsError, NonFiniteStateError,
-                                      SolverError, SolverOptions, StepSizeError)
+from hammerbit.model.presets import preset
+from hammerbit.model.solver_errors import (EventStormError, MaxStepsError, NonFiniteStateError, SolverError,
+                                           StepSizeError)
+from hammerbit.model.solver_options import SolverOptions
 from hammerbit.scene.simulate import BounceWarning, Record, simulate
 
 RTOL = 1e-8
@@ -479,7 +480,7 @@ def test_step_below_time_resolution_raises_step_size_error():
     """At tau = 1e9 the spacing of doubles (1.2e-7, and the solver's floor of 10 ulp) exceeds
     the stable step of a contact of stiffness 1e12 (1.5 / sqrt(kc) = 1.5e-6 is below 10 ulp
     = 2.2e-6): StepSizeError where it stopped.  The same contact near tau = 0 integrates."""
-    from hammerbit.model import kernels as K
+    from hammerbit.model import kernel_driver, kernel_layouts
     from hammerbit.model.stepping import Stepper
     g = preset("paper-fig12").replace(a=0.06, kc=1e12, n=1.0, r=0.0, lam_hat=0.0)
     y0 = [0.01, 0.0, 0.0, 0.0]                 # in contact, 1e10 x 0.01 = 1e10 F0 of force
@@ -487,7 +488,7 @@ def test_step_below_time_resolution_raises_step_size_error():
     assert bounded(early.advance, 1e-3)[0] == "done"
     assert np.all(np.isfinite(early.y))
     late = Stepper(g, y0=y0)
-    late.fstate[K.F_T] = 1e9
+    late.fstate[kernel_layouts.F_T] = 1e9
     with pytest.raises(StepSizeError) as ei:
         bounded(late.advance, 1e9 + 1.0, timeout=60)
     assert ei.value.time == 1e9
@@ -499,24 +500,25 @@ import os
 import sys
 import threading
 import numpy as np
-from hammerbit.model import kernels as K
-from hammerbit.model.params import preset
-from hammerbit.model.stepping import SolverError, Stepper
+from hammerbit.model import kernel_driver, kernel_layouts
+from hammerbit.model.presets import preset
+from hammerbit.model.solver_errors import SolverError
+from hammerbit.model.stepping import Stepper
 g = preset("paper-fig12").replace(a=0.06)
 Stepper(g, y0=[0.0, 0.0, 0.0, 0.5]).advance(1.0)      # compiles or loads the kernels
 
 
 def late_start(t0, t1):
     st = Stepper(g, y0=[0.0, 0.0, 0.0, 0.5])
-    st.fstate[K.F_T] = t0
+    st.fstate[kernel_layouts.F_T] = t0
     box = {}
 
     def run():
         try:
             if t1 > 1e12:     # beyond the stepper's validated range: the kernel itself must end
-                status = K.advance_hammer(st.y, st.istate, st.fstate, t1, st.p, st.opts, np.zeros((0, 5)),
-                                          np.zeros(0), np.zeros((0, K.N_SAMPLE_COLS)),
-                                          np.zeros((0, K.N_LOG_COLS)))
+                status = kernel_driver.advance_hammer(st.y, st.istate, st.fstate, t1, st.p, st.opts, np.zeros((0, 5)),
+                                          np.zeros(0), np.zeros((0, kernel_layouts.N_SAMPLE_COLS)),
+                                          np.zeros((0, kernel_layouts.N_LOG_COLS)))
                 box["result"] = "status %d" % status
             else:
                 box["result"] = st.advance(t1)
@@ -739,7 +741,7 @@ AGREE = dict(xi=0.0625, eta=1.0, a=0.11055978514917525, b=0.5, r=0.625, mu=0.75)
 
 def test_event_state_accuracy():
     """The state at an event must be as accurate as a step end (<= 100 rtol here)."""
-    from hammerbit.model import kernels as K
+    from hammerbit.model import kernel_driver, kernel_layouts
     from hammerbit.model.stepping import Stepper
     g = preset("paper-fig12").replace(**AGREE)
     ref = Stepper(g, solver=SolverOptions(rtol=1e-13, atol=1e-15))
@@ -749,10 +751,10 @@ def test_event_state_accuracy():
     for rtol in (1e-13, 1e-8):
         st_ = Stepper(g, solver=SolverOptions(rtol=rtol, atol=rtol * 1e-2))
         st_.set_state(s0)
-        st_.fstate[K.F_H] = 1e-3
-        log = np.zeros((50, K.N_LOG_COLS))
+        st_.fstate[kernel_layouts.F_H] = 1e-3
+        log = np.zeros((50, kernel_layouts.N_LOG_COLS))
         bounded(st_.advance, 1427.0, log=log)
-        logs[rtol] = log[: st_.istate[K.I_NLOG]]
+        logs[rtol] = log[: st_.istate[kernel_layouts.I_NLOG]]
     assert logs[1e-8].shape == logs[1e-13].shape
     err = np.abs(logs[1e-8][:, 2:6] - logs[1e-13][:, 2:6]).max()
     assert err <= 100 * 1e-8, f"event-state error {err:.2e} at rtol 1e-8"

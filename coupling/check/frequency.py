@@ -79,19 +79,11 @@ from hammerbit.check.results import (
     ModeRow,
     Window,
 )
-from hammerbit.drillstring import (
-    Boundary,
-    DampingModel,
-    DrillString,
-    _check_number,
-    exact_dynamic_stiffness,
-    modes,
-    reference_impedance,
-    resolve_ends,
-    static_compliance,
-)
+from hammerbit.drillstring import Boundary, DampingModel, DrillString, exact_dynamic_stiffness, modes, reference_impedance, resolve_ends, static_compliance
+from hammerbit.drillstring.validation import check_number
 from hammerbit.drillstring.damping import boundary_impedance
-from hammerbit.drillstring.modes import _has_rigid_mode, _solve
+from hammerbit.drillstring.eigen import has_rigid_mode
+from hammerbit.drillstring.modes import solve_modes
 
 __all__ = [
     "CheckConfig", "ModeRow", "ConfigurationResult", "Window", "CheckResult", "resonance_factor", "check",
@@ -152,7 +144,7 @@ class _Config:
         m = modes(string, top, bottom, f_max=f_band, rtol=config.rtol, mass=config.mass)
         fine = string.with_elements(m.elements_per_section)
         # one mode above the band range classifies the last one
-        asm, _, lam_x, phi_x = _solve(fine, top, bottom, None, len(m) + 1, config.mass, True, first=len(m))
+        asm, _, lam_x, phi_x = solve_modes(fine, top, bottom, None, len(m) + 1, config.mass, True, first=len(m))
         phi = m.shapes[asm.start:asm.stop]
         lam_c = (2.0 * math.pi * m.frequencies_hz) ** 2
         self.asm = asm
@@ -163,7 +155,7 @@ class _Config:
         if m.error_estimate is not None:
             self.error_estimate[:len(m)] = m.error_estimate
         self.n_elements = fine.n_elements
-        self.rigid = _has_rigid_mode(asm.top, asm.bottom)
+        self.rigid = has_rigid_mode(asm.top, asm.bottom)
         self.elastic = self.freqs > 0.0
         if self.rigid:
             self.elastic[0] = False
@@ -501,7 +493,7 @@ def hammer_on_bottom_frequencies(string: DrillString, *, interface_stiffness: fl
     from hammerbit.drillstring import assemble
     for name, v in (("interface_stiffness", interface_stiffness), ("hammer_mass", hammer_mass),
                     ("hammer_stiffness", hammer_stiffness)):
-        _check_number("hammer boundary", name, v, 0.0, None, lo_open=True)
+        check_number("hammer boundary", name, v, 0.0, None, lo_open=True)
     if exact:
         return _hammer_on_bottom_exact(string, interface_stiffness, hammer_mass, hammer_stiffness, top, f_max)
     asm = assemble(string, top, "free", mass=mass)

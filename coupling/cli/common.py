@@ -100,7 +100,7 @@ def error(message: str, code: int = EXIT_BAD_INPUT, *, prog: str = "hammerbit") 
 
 def _classify(exc: BaseException) -> int:
     """Exit code of an exception that escaped a command."""
-    from hammerbit.model.stepping import SolverError
+    from hammerbit.model.solver_errors import SolverError
     from hammerbit.model.validation import ParameterError
     if isinstance(exc, (UsageError, ParameterError)):
         return EXIT_BAD_INPUT

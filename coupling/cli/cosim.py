@@ -115,13 +115,13 @@ def portable_target_for_fmu(args) -> None:
     """With ``--fmu``: this process's numba runs the FMU's portable CPU target.
 
     The FMU then loads the kernels it ships instead of compiling its own copy
-    in this process (:mod:`hammerbit.model.cpu_target`); the master's own
+    in this process (:mod:`hammerbit.model.numba_target`); the master's own
     kernels compile once for that target into the user cache.  Called before
     anything imports numba; without ``--fmu`` (or with ``--monolithic``) it
     does nothing.
     """
     if getattr(args, "fmu", None) is not None and not getattr(args, "monolithic", False):
-        from hammerbit.model.cpu_target import select_portable
+        from hammerbit.model.numba_target import select_portable
         select_portable()
 
 

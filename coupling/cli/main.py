@@ -76,12 +76,12 @@ def _parse_settings(pairs):
 
 
 def _groups_from_args(args):
-    from hammerbit.model.params import preset
+    from hammerbit.model.presets import preset
     return apply_user_settings(preset(args.preset), _parse_settings(args.set))
 
 
 def _solver_from_args(args):
-    from hammerbit.model.stepping import SolverOptions
+    from hammerbit.model.solver_options import SolverOptions
     from hammerbit.model.validation import ParameterError
     kw = {"method": args.method}
     if args.rtol is not None:
@@ -96,7 +96,7 @@ def _solver_from_args(args):
 
 
 def _add_scene_args(p):
-    from hammerbit.model.params import PRESETS
+    from hammerbit.model.presets import PRESETS
     p.add_argument("--preset", default="paper-fig9", choices=sorted(PRESETS),
                    help="parameter preset (docs/model.md, 'Presets')")
     add_set_argument(p)
@@ -134,7 +134,7 @@ def check_output_path(path: str, option: str, *, formats=None) -> str:
 
 def regime_warnings(g, bounces: int = 0) -> list:
     """Plain-language warnings for a scene outside the model's validity domain (SI figures)."""
-    from hammerbit.model.params import regime
+    from hammerbit.model.regime import regime
     reg = regime(g)
     F0 = g.scales.friction_force
     out = []
@@ -171,7 +171,7 @@ def cmd_simulate(args) -> int:
 
 
 def _simulate(args, worker) -> int:
-    from hammerbit.model.params import regime
+    from hammerbit.model.regime import regime
     from hammerbit.model.stepping import Stepper
     from hammerbit.model.validation import check
 

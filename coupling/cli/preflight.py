@@ -65,7 +65,7 @@ def _string_names() -> tuple:
 
 def known_name(name: str, option: str) -> None:
     """Refuse a parameter name ``--set`` would not take, listing the ones it takes (exit 2)."""
-    from hammerbit.model.params import setting_target
+    from hammerbit.model.settings import setting_target
     from hammerbit.model.validation import ParameterError
     try:
         setting_target(name)
@@ -147,7 +147,7 @@ def _cosim(args) -> None:
 
 def _bifurcation(args) -> None:
     from hammerbit.cli.common import parse_settings
-    from hammerbit.model.params import preset
+    from hammerbit.model.presets import preset
     from hammerbit.model.validation import ParameterError
     known_name(args.param, "--param")
     if args.num > 0 and args.periods > 0 and args.keep > 0:
@@ -165,7 +165,7 @@ def _bifurcation(args) -> None:
 
 def _optimize(args) -> None:
     from hammerbit.cli.common import parse_settings
-    from hammerbit.model.params import preset
+    from hammerbit.model.presets import preset
     from hammerbit.model.validation import ParameterError
     if args.grid > 0 and args.periods > 0:
         cells = args.grid ** max(1, len(args.bounds or ()) or 2)
@@ -222,7 +222,7 @@ def apply_user_settings(base, settings: dict):
     its value, and the range of that parameter that the groups allow at the
     other values of this scene, in its SI unit.
     """
-    from hammerbit.model.params import apply_settings
+    from hammerbit.model.settings import apply_settings
     from hammerbit.model.validation import ParameterError
     try:
         return apply_settings(base, settings)
@@ -236,7 +236,7 @@ def apply_user_settings(base, settings: dict):
 
 
 def _ok(base, settings) -> bool:
-    from hammerbit.model.params import apply_settings
+    from hammerbit.model.settings import apply_settings
     from hammerbit.model.validation import ParameterError
     try:
         apply_settings(base, settings)
@@ -247,7 +247,7 @@ def _ok(base, settings) -> bool:
 
 def _culprit(base, settings):
     """The SI name typed last whose value alone (with the others) makes the settings fail."""
-    from hammerbit.model.params import setting_target
+    from hammerbit.model.settings import setting_target
     for key in reversed(list(settings)):
         if setting_target(key)[0] == "group":
             continue
@@ -258,7 +258,7 @@ def _culprit(base, settings):
 
 
 def _si_range_error(base, settings, key, err):
-    from hammerbit.model.params import apply_settings, setting_target
+    from hammerbit.model.settings import apply_settings, setting_target
     from hammerbit.model.validation import RANGES, ParameterError
     field = setting_target(key)[1]
     others = {k: v for k, v in settings.items() if k != key}

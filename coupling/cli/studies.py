@@ -48,7 +48,7 @@ def _executor_options(args, *, default_workers=None):
 
 
 def _add_scene_args(p, *, default_preset="paper-fig9") -> None:
-    from hammerbit.model.params import PRESETS
+    from hammerbit.model.presets import PRESETS
     p.add_argument("--preset", default=default_preset, choices=sorted(PRESETS),
                    help=f"parameter preset (default {default_preset})")
     add_set_argument(p)
@@ -56,13 +56,13 @@ def _add_scene_args(p, *, default_preset="paper-fig9") -> None:
 
 
 def _groups(args):
+    from hammerbit.model.presets import preset
     from hammerbit.cli.preflight import apply_user_settings
-    from hammerbit.model.params import preset
     return apply_user_settings(preset(args.preset), parse_settings(args.set))
 
 
 def _solver(args):
-    from hammerbit.model.stepping import SolverOptions
+    from hammerbit.model.solver_options import SolverOptions
     if args.rtol is None:
         return SolverOptions()
     return SolverOptions(rtol=args.rtol, atol=args.rtol * 1e-2)

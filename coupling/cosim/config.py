@@ -13,7 +13,9 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from hammerbit.model.params import RIG, RigParameters, Scales
+from hammerbit.model.params import RigParameters
+from hammerbit.model.presets import RIG
+from hammerbit.model.scales import Scales
 from hammerbit.model.validation import check as _check
 
 from hammerbit.cosim.error import CouplingErrorEstimate

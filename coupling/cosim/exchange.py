@@ -16,7 +16,7 @@ from numba import njit as _njit
 
 from hammerbit.cosim.string_side import string_step_dense, string_step_modal
 
-__all__ = ["extrapolation_weights", "held_force", "exchange_step", "EXCHANGE_OUT_FORCE",
+__all__ = ["extrapolation_weights", "held_force", "exchange_step", "taylor_coefficients", "EXCHANGE_OUT_FORCE",
            "EXCHANGE_OUT_ENERGY_RESIDUAL", "EXCHANGE_OUT_STRING_FORCE", "EXCHANGE_OUT_DEFECT"]
 
 #: Slots of :func:`exchange_step`'s ``out``: the interface force at the step's end [N], the
@@ -68,7 +68,7 @@ def held_force(order, th, Fh, h, w):
 
 
 @_njit(cache=True)
-def _coefficients(gs, order, a, a2, h, wh, x_new, v_new, c):
+def taylor_coefficients(gs, order, a, a2, h, wh, x_new, v_new, c):
     """Taylor coefficients (x, v, x', v', x'', v'') at t_n of the hammer motion over
     the step ``h``: Jacobi extrapolates through the history ``wh`` (t_n, t_{n-1},
     t_{n-2}; spacings ``a``, ``a2``), Gauss–Seidel interpolates through the new value."""
@@ -114,7 +114,7 @@ def exchange_step(gs, order, h, modal, P, xi, buf, tmp, d, G, irow, icol, eta, f
     """
     a = th[0] - th[1]
     a2 = th[1] - th[2]
-    _coefficients(gs, order, a, a2, h, wh, x_new, v_new, c)
+    taylor_coefficients(gs, order, a, a2, h, wh, x_new, v_new, c)
     F_start = W + out[2] - ki * c[0] - ci * c[1]
     if modal:
         imp, f_xi = string_step_modal(d, G, irow, icol, eta, c, frow)

@@ -5,6 +5,7 @@ from typing import Optional
 
 import numpy as np
 
+from hammerbit.model.kernel_layouts import F_T, FREE, I_CONTACT, I_STICK, P_A, P_B, P_FEXT, STICK
 from hammerbit.model.params import RigParameters
 
 from hammerbit.cosim.config import CosimConfig, event_counts
@@ -26,17 +27,18 @@ class StepperHammer:
 
     def __init__(self, rig: RigParameters, wob: float, *, rtol: float = 1e-10, t0: float = 0.0,
                  ramp: Optional[CosimConfig] = None):
-        from hammerbit.model import kernels as K
-        from hammerbit.model.stepping import SolverOptions, Stepper
+        from hammerbit.model.kernel_forces import force_on_bit
+        from hammerbit.model.solver_options import SolverOptions
+        from hammerbit.model.stepping import Stepper
         self.rig = rig
         s = rig.scales
         self.F0, self.x0, self.Om, self.v0 = s.friction_force, s.length, s.omega, s.velocity
         g = rig.to_groups().replace(b=0.0)
         self.groups = g
-        self._K = K
+        self._force_on_bit = force_on_bit
         self.st = Stepper(g, solver=SolverOptions(rtol=rtol, atol=rtol * 1e-2),
                           y0=[wob / self.F0, 0.0, 0.0, 0.0])
-        self.st.fstate[K.F_T] = self.Om * t0
+        self.st.fstate[F_T] = self.Om * t0
         self.x_eq = wob / rig.stiffness
         self._ramp = ramp
         self._a = float(g.a)
@@ -45,11 +47,11 @@ class StepperHammer:
 
     def step(self, t: float, H: float, force: float) -> None:
         p = self.st.p
-        p[self._K.P_B] = force / self.F0
+        p[P_B] = force / self.F0
         if self.master_harmonic is not None:
-            p[self._K.P_FEXT] = self.master_harmonic.mean(t, H) / self.F0
+            p[P_FEXT] = self.master_harmonic.mean(t, H) / self.F0
         elif self._ramp is not None:
-            p[self._K.P_A] = self._a * self._ramp.ramp_factor(t + 0.5 * H)
+            p[P_A] = self._a * self._ramp.ramp_factor(t + 0.5 * H)
         self.st.advance(self.Om * (t + H))
 
     def get_state(self):
@@ -65,9 +67,8 @@ class StepperHammer:
 
     def read(self) -> np.ndarray:
         """(x_h [m], v_h [m/s], x_bit [m], v_bit [m/s], drive on bit [N])."""
-        K = self._K
         y = self.st.y
-        fd = K.force_on_bit(y, self.st.p, self.st.istate[K.I_CONTACT])
+        fd = self._force_on_bit(y, self.st.p, self.st.istate[I_CONTACT])
         out = np.empty(5)
         out[OUT_HAMMER_POSITION], out[OUT_HAMMER_VELOCITY] = y[0] * self.x0, y[1] * self.v0
         out[OUT_BIT_POSITION], out[OUT_BIT_VELOCITY] = y[2] * self.x0, y[3] * self.v0
@@ -76,9 +77,8 @@ class StepperHammer:
 
     def flags(self) -> tuple:
         """(stick, contact): 1.0 while the bit sticks / while the gap is closed."""
-        K = self._K
         ist = self.st.istate
-        return (1.0 if ist[K.I_STICK] == K.STICK else 0.0, 0.0 if ist[K.I_CONTACT] == K.FREE else 1.0)
+        return (1.0 if ist[I_STICK] == STICK else 0.0, 0.0 if ist[I_CONTACT] == FREE else 1.0)
 
     def counts(self) -> dict:
         """Event counts (:func:`~hammerbit.cosim.config.event_counts` names)."""

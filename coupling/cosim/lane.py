@@ -9,7 +9,7 @@ import inspect
 
 import numpy as np
 
-from hammerbit.model.dispatch import entry_point
+from hammerbit.model.numba_dispatch import entry_point
 
 from hammerbit.cosim.config import CosimConfig
 from hammerbit.cosim.exchange import (EXCHANGE_OUT_FORCE, EXCHANGE_OUT_STRING_FORCE, exchange_step,

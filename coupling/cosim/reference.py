@@ -40,8 +40,9 @@ def monolithic(string, config=None):
         ``interface_force``, ``step_size`` the sampling step; ``counts`` the
         events by kind; no estimate.
     """
-    from hammerbit.model import kernels as K
-    from hammerbit.model.stepping import LinearSubsystem, SolverOptions, Stepper
+    from hammerbit.model import kernel_forces, kernel_layouts
+    from hammerbit.model.solver_options import SolverOptions
+    from hammerbit.model.stepping import LinearSubsystem, Stepper
     c = CosimConfig() if config is None else config
     ts = _time.perf_counter()
     side = StringSide(string, c)
@@ -70,13 +71,13 @@ def monolithic(string, config=None):
     grp = rig.to_groups().replace(b=0.0)
     st = Stepper(grp, solver=SolverOptions(rtol=c.rtol, atol=c.rtol * 1e-2), linear=lin,
                  y0=[x1eq, 0.0, 0.0, 0.0])
-    st.fstate[K.F_T] = Om * c.start
+    st.fstate[kernel_layouts.F_T] = Om * c.start
     n_full, rem = c.whole_steps
     idx = np.arange(0, n_full + 1, c.record_every)
     t_s = c.start + idx * c.step
     if rem > 0.0 or idx[-1] != n_full:
         t_s = np.r_[t_s, c.stop]
-    samples = np.zeros((len(t_s), K.N_SAMPLE_COLS))
+    samples = np.zeros((len(t_s), kernel_layouts.N_SAMPLE_COLS))
     setup = _time.perf_counter() - ts
     t_loop = _time.perf_counter()
     if c.ramp > 0.0:
@@ -85,22 +86,22 @@ def monolithic(string, config=None):
         k = 0
         while t < min(c.start + c.ramp, c.stop) - 1e-12:
             h = min(c.step, c.stop - t)
-            st.p[K.P_A] = a * c.ramp_factor(t + 0.5 * h)
+            st.p[kernel_layouts.P_A] = a * c.ramp_factor(t + 0.5 * h)
             k += 1
             t = min(c.start + k * c.step, c.stop)
             st.advance(Om * t, sample_times=Om * t_s, samples=samples)
-        st.p[K.P_A] = a
+        st.p[kernel_layouts.P_A] = a
     st.advance(Om * c.stop, sample_times=Om * t_s, samples=samples)
     wall = _time.perf_counter() - t_loop
     data = np.full(len(t_s), np.nan, dtype=record_dtype(c.record))
     data["time"] = t_s
     x1, x2, x3, x4, fc, fl = (samples[:, i] for i in range(6))
     p = st.p
-    fk = np.array([K.spring_damper_force(row[:4], p) for row in samples])
+    fk = np.array([kernel_forces.spring_damper_force(row[:4], p) for row in samples])
     m = {"wob": (fk + fc) * F0, "interface_force": fl * F0, "hammer_force": fl * F0,
          "hammer_position": x1 * x0, "hammer_velocity": x2 * v0, "bit_position": x3 * x0,
-         "bit_velocity": x4 * v0, "stick": (samples[:, 6] == K.STICK).astype(float),
-         "contact": (samples[:, 7] != K.FREE).astype(float),
+         "bit_velocity": x4 * v0, "stick": (samples[:, 6] == kernel_layouts.STICK).astype(float),
+         "contact": (samples[:, 7] != kernel_layouts.FREE).astype(float),
          "step_size": np.r_[0.0, np.diff(t_s)]}
     for r in c.record:
         if r in m:

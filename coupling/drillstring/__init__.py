@@ -2,7 +2,10 @@
 
 One concept per module:
 
-* :mod:`.description` -- sections, end conditions, the TOML schema, mesh sizes;
+* :mod:`.validation` -- defaults, the input error and the number checks;
+* :mod:`.section`, :mod:`.boundary`, :mod:`.mesh` -- a section, the end conditions, the mesh sizes;
+* :mod:`.drill_string` -- the string: sections top to bottom and its ends;
+* :mod:`.loading` -- the TOML schema, the shipped examples;
 * :mod:`.assembly` -- tridiagonal stiffness, mass and damping;
 * :mod:`.eigen` -- selected eigenpairs of a tridiagonal pencil (Sturm bisection);
 * :mod:`.modes` -- discrete modes (impedance-corrected, accuracy target) and
@@ -15,7 +18,7 @@ One concept per module:
 Displacements are positive **downward**; depth ``z`` is 0 at the top node.
 
 Names are imported on first use (PEP 562): ``from hammerbit.drillstring import
-DEFAULT_RTOL`` loads :mod:`.description` only, not the numba kernels of
+DEFAULT_RTOL`` loads :mod:`.validation` only, not the numba kernels of
 :mod:`.eigen`, so a command that does not touch the string does not pay for it.
 """
 from __future__ import annotations
@@ -24,23 +27,21 @@ import importlib
 import sys
 import types
 
-#: the submodule that defines each public (and shared private) name
+#: the submodule that defines each public name
 _SOURCES = {name: module for module, names in {
     "assembly": ("Assembly", "assemble"),
     "damping": (
         "DampingModel", "bit_dynamic_stiffness", "bit_receptance", "exact_dynamic_stiffness",
         "exact_receptance", "reference_impedance",
     ),
-    "description": (
-        "DEFAULT_MASS", "DEFAULT_MAX_ELEMENT_LENGTH", "DEFAULT_RTOL", "G", "MASS_SCHEMES", "Boundary",
-        "DrillString", "DrillStringError", "Mesh", "Section", "_check_end", "_check_number",
-        "dispersion_error", "example_names", "example_path", "load_string", "loads_string",
-        "parse_boundary", "resolve_ends", "string_from_dict",
-    ),
-    "modes": (
-        "Modes", "_eigen", "_has_rigid_mode", "corrected_eigenvalues", "exact_frequencies",
-        "impedance_factor", "modes",
-    ),
+    "validation": ("DEFAULT_MASS", "DEFAULT_MAX_ELEMENT_LENGTH", "DEFAULT_RTOL", "G", "MASS_SCHEMES",
+                   "DrillStringError"),
+    "section": ("Section",),
+    "boundary": ("Boundary", "parse_boundary"),
+    "mesh": ("Mesh", "dispersion_error"),
+    "drill_string": ("DrillString", "resolve_ends"),
+    "loading": ("example_names", "example_path", "load_string", "loads_string", "string_from_dict"),
+    "modes": ("Modes", "corrected_eigenvalues", "exact_frequencies", "impedance_factor", "modes"),
     "state_space": ("StateSpace", "state_space"),
     "statics": ("StaticState", "static_compliance", "static_equilibrium"),
 }.items() for name in names}

@@ -14,23 +14,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .description import (
-    DEFAULT_MASS,
-    G,
-    Boundary,
-    DrillString,
-    DrillStringError,
-    Mesh,
-    _check_mass,
-    resolve_ends,
-)
+from .validation import DEFAULT_MASS, DrillStringError, G, check_mass
+from .boundary import Boundary
+from .drill_string import DrillString, resolve_ends
+from .eigen import assembly_eigenpairs
+from .mesh import Mesh
 
 # --------------------------------------------------------------------------
 # assembly
 # --------------------------------------------------------------------------
-def _element_pattern(mass: str) -> tuple[float, float]:
+def element_pattern(mass: str) -> tuple[float, float]:
     """(diagonal, off-diagonal) factors of the element mass ``m' h``."""
-    _check_mass(mass)
+    check_mass(mass)
     return {"lumped": (0.5, 0.0), "consistent": (1.0 / 3.0, 1.0 / 6.0),
             "mixed": (5.0 / 12.0, 1.0 / 12.0)}[mass]
 
@@ -102,7 +97,7 @@ class Assembly:
     @property
     def element_pattern(self) -> tuple[float, float]:
         """(diagonal, off-diagonal) factors of the element mass ``m' h``."""
-        return _element_pattern(self.mass)
+        return element_pattern(self.mass)
 
     @property
     def modal_damping_ratio(self) -> float:
@@ -151,8 +146,7 @@ class Assembly:
         zeta = self.modal_damping_ratio
         if zeta == 0.0:
             return np.zeros((self.n_dof, self.n_dof))
-        from .modes import _eigen
-        lam, phi = _eigen(self, None, None, all_modes=True)
+        lam, phi = assembly_eigenpairs(self, None, None, all_modes=True)
         mphi = self.M @ phi
         return (mphi * (2.0 * zeta * np.sqrt(lam))) @ mphi.T
 
@@ -193,7 +187,7 @@ def assemble(string: DrillString, top: "Boundary | str | None" = None,
     """
     top, bottom = resolve_ends(string, top, bottom)
     ms = string.mesh()
-    a, b = _element_pattern(mass)
+    a, b = element_pattern(mass)
     kel = ms.ea / ms.h
     mel = ms.m * ms.h
     cel = ms.cv * ms.h

@@ -37,8 +37,10 @@ from typing import Any
 
 import numpy as np
 
-from .assembly import _element_pattern
-from .description import DEFAULT_MASS, Boundary, DrillString, _check_number, resolve_ends
+from .assembly import element_pattern
+from .validation import DEFAULT_MASS, check_number
+from .boundary import Boundary
+from .drill_string import DrillString, resolve_ends
 
 __all__ = ["DampingModel", "boundary_impedance", "exact_dynamic_stiffness", "bit_dynamic_stiffness",
            "bit_receptance", "exact_receptance", "reference_impedance"]
@@ -54,8 +56,8 @@ class DampingModel:
     """Factor on each section's viscous damping per unit length c' [-]."""
 
     def __post_init__(self) -> None:
-        _check_number("damping", "loss_factor", self.loss_factor, 0.0, 2.0)
-        _check_number("damping", "viscous_scale", self.viscous_scale, 0.0, 1e6)
+        check_number("damping", "loss_factor", self.loss_factor, 0.0, 2.0)
+        check_number("damping", "viscous_scale", self.viscous_scale, 0.0, 1e6)
 
     @classmethod
     def of(cls, string: DrillString, scale: float = 1.0) -> "DampingModel":
@@ -146,7 +148,7 @@ def bit_dynamic_stiffness(string: DrillString, freqs_hz: Any, top: "Boundary | s
     w = _omega(freqs_hz)
     t, _ = resolve_ends(string, top, "free")
     damping = DampingModel.of(string) if damping is None else damping
-    a, b = _element_pattern(mass)
+    a, b = element_pattern(mass)
     ms = string.mesh()
     kel = ms.ea / ms.h * (1.0 + 1j * damping.loss_factor)                       # (n_el,)
     w2m = (w[:, None] ** 2) * (ms.m * ms.h) - 1j * w[:, None] * (ms.cv * ms.h * damping.viscous_scale)

@@ -21,7 +21,7 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["sturm_count", "pencil_eigenvalues", "pencil_eigenpairs"]
+__all__ = ["sturm_count", "pencil_eigenvalues", "pencil_eigenpairs", "assembly_eigenpairs", "has_rigid_mode"]
 
 
 @njit(cache=True)
@@ -212,3 +212,41 @@ def pencil_eigenpairs(kd, ke, md, me, *, upper: float | None = None,
         order = np.argsort(lam, kind="stable")
         lam, phi = lam[order], phi[:, order]
     return lam, phi
+
+
+def assembly_eigenpairs(asm, f_max: float | None, count: int | None, *,
+           all_modes: bool = False, first: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Lowest eigenpairs ``(omega^2 (n,), Phi (n_dof, n))`` of an assembled string
+    (:class:`~.assembly.Assembly`) with ``Phi^T M Phi = I``.
+
+    Only eigenvalues ``omega <= 2 pi f_max`` and/or the ``count`` lowest are
+    computed (both given: both limits apply; neither: 10).  ``all_modes``:
+    the whole spectrum (dense ``eigh``).
+    """
+    import scipy.linalg as sla  # noqa: PLC0415 -- imported where needed (a slow import)
+    kd, ke = asm.tridiagonal("K")
+    md, me = asm.tridiagonal("M")
+    n = kd.size
+    if all_modes:
+        lam, phi = sla.eigh(asm.K, asm.M)
+    else:
+        if f_max is None and count is None:
+            count = 10
+        hi = None if f_max is None else (2.0 * math.pi * f_max) ** 2
+        lam, phi = pencil_eigenpairs(kd, ke, md, me, upper=hi,
+                                     count=None if count is None else min(int(count), n), first=first)
+    lam = np.where(lam < 0.0, 0.0, lam)
+    if lam.size and first == 0 and has_rigid_mode(asm.top, asm.bottom):
+        lam[0] = 0.0  # exact zero instead of round-off (~eps * max eigenvalue)
+    # deterministic sign: bit (last DOF) displacement >= 0, else largest entry > 0
+    ref = phi[-1].copy()
+    weak = np.abs(ref) < 1e-9 * np.max(np.abs(phi), axis=0, initial=0.0)
+    ref[weak] = phi[np.argmax(np.abs(phi), axis=0), np.arange(phi.shape[1])][weak]
+    phi = phi * np.where(ref < 0.0, -1.0, 1.0)
+    return lam, phi
+
+
+def has_rigid_mode(top, bottom) -> bool:
+    """Both ends (:class:`~.boundary.Boundary`) unrestrained: no fixed end, no ground spring."""
+    return (not top.is_fixed and top.ground_stiffness == 0.0
+            and not bottom.is_fixed and bottom.ground_stiffness == 0.0)

@@ -36,66 +36,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .assembly import Assembly, _element_pattern, assemble
-from .description import (
-    DEFAULT_MASS,
-    DEFAULT_RTOL,
-    Boundary,
-    DrillString,
-    _check_mass,
-    _check_number,
-    resolve_ends,
-)
-from .eigen import pencil_eigenpairs
+from .assembly import Assembly, assemble, element_pattern
+from .validation import DEFAULT_MASS, DEFAULT_RTOL, check_mass, check_number
+from .boundary import Boundary
+from .drill_string import DrillString, resolve_ends
+from .eigen import assembly_eigenpairs, has_rigid_mode
 
-__all__ = ["Modes", "modes", "exact_frequencies", "impedance_factor", "corrected_eigenvalues"]
-
-
-# --------------------------------------------------------------------------
-# eigenvalues
-# --------------------------------------------------------------------------
-def _eigen(asm: Assembly, f_max: float | None, count: int | None, *,
-           all_modes: bool = False, first: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    """Lowest eigenpairs ``(omega^2 (n,), Phi (n_dof, n))`` with ``Phi^T M Phi = I``.
-
-    Only eigenvalues ``omega <= 2 pi f_max`` and/or the ``count`` lowest are
-    computed (both given: both limits apply; neither: 10).  ``all_modes``:
-    the whole spectrum (dense ``eigh``).
-    """
-    import scipy.linalg as sla  # noqa: PLC0415 -- imported where needed (a slow import)
-    kd, ke = asm.tridiagonal("K")
-    md, me = asm.tridiagonal("M")
-    n = kd.size
-    if all_modes:
-        lam, phi = sla.eigh(asm.K, asm.M)
-    else:
-        if f_max is None and count is None:
-            count = 10
-        hi = None if f_max is None else (2.0 * math.pi * f_max) ** 2
-        lam, phi = pencil_eigenpairs(kd, ke, md, me, upper=hi,
-                                     count=None if count is None else min(int(count), n), first=first)
-    lam = np.where(lam < 0.0, 0.0, lam)
-    if lam.size and first == 0 and _has_rigid_mode(asm.top, asm.bottom):
-        lam[0] = 0.0  # exact zero instead of round-off (~eps * max eigenvalue)
-    # deterministic sign: bit (last DOF) displacement >= 0, else largest entry > 0
-    ref = phi[-1].copy()
-    weak = np.abs(ref) < 1e-9 * np.max(np.abs(phi), axis=0, initial=0.0)
-    ref[weak] = phi[np.argmax(np.abs(phi), axis=0), np.arange(phi.shape[1])][weak]
-    phi = phi * np.where(ref < 0.0, -1.0, 1.0)
-    return lam, phi
-
-
-def _has_rigid_mode(top: Boundary, bottom: Boundary) -> bool:
-    """Both ends unrestrained (no fixed end, no ground spring)."""
-    return (not top.is_fixed and top.ground_stiffness == 0.0
-            and not bottom.is_fixed and bottom.ground_stiffness == 0.0)
+__all__ = ["Modes", "modes", "exact_frequencies", "impedance_factor", "corrected_eigenvalues", "solve_modes"]
 
 
 def impedance_factor(theta2: "float | complex | np.ndarray", mass: str = DEFAULT_MASS):
     """``rho = Z_h/Z`` of a two-node element with ``theta^2 = (omega h/c)^2``
     (complex with damping): ``sqrt(1 + (b - a) theta^2 / 2)``; mixed mass
     ``sqrt(1 - theta^2/6)``."""
-    a, b = _element_pattern(mass)
+    a, b = element_pattern(mass)
     return np.sqrt(1.0 + 0.5 * (b - a) * np.asarray(theta2))
 
 
@@ -163,11 +117,11 @@ class Modes:
         return d
 
 
-def _solve(string: DrillString, top, bottom, f_max, count, mass, correct, first=0):
+def solve_modes(string: DrillString, top, bottom, f_max, count, mass, correct, first=0):
     asm = assemble(string, top, bottom, mass=mass)
-    lam, phi = _eigen(asm, f_max, count, first=first)
+    lam, phi = assembly_eigenpairs(asm, f_max, count, first=first)
     lam_c = corrected_eigenvalues(asm, lam, phi) if correct else lam
-    if correct and lam.size and first == 0 and _has_rigid_mode(asm.top, asm.bottom):
+    if correct and lam.size and first == 0 and has_rigid_mode(asm.top, asm.bottom):
         lam_c[0] = 0.0
     return asm, lam, lam_c, phi
 
@@ -202,29 +156,29 @@ def modes(string: DrillString, top: "Boundary | str | None" = None,
     -------
     Modes
     """
-    _check_mass(mass)
+    check_mass(mass)
     if count is None and f_max is None:
         count = 10
     if rtol is None:
-        asm, lam, lam_c, phi = _solve(string, top, bottom, f_max, count, mass, correct)
+        asm, lam, lam_c, phi = solve_modes(string, top, bottom, f_max, count, mass, correct)
         est, fine = None, string
     else:
-        _check_number("modes", "rtol", rtol, 1e-12, 0.1, unit="(relative)")
+        check_number("modes", "rtol", rtol, 1e-12, 0.1, unit="(relative)")
         if f_max is not None:
             f_target = float(f_max)
         else:
             t_total = sum(x.length / x.wave_speed for x in string.sections)
             probe = string.with_travel_time(t_total / (4 * count + 8))
-            _, _, first, _ = _solve(probe, top, bottom, None, count, mass, correct)
+            _, _, first, _ = solve_modes(probe, top, bottom, None, count, mass, correct)
             f_target = math.sqrt(float(first.max(initial=0.0))) / (2.0 * math.pi) * 1.02
             if f_target <= 0.0:
                 f_target = 1.0
         fine = string.for_accuracy(f_target, 0.5 * rtol, mass)
         order = 4.0 if (mass == "mixed" and correct) else 2.0
         for _ in range(6):
-            asm, lam, lam_c, phi = _solve(fine, top, bottom, f_max, count, mass, correct)
+            asm, lam, lam_c, phi = solve_modes(fine, top, bottom, f_max, count, mass, correct)
             coarse = fine.with_elements([max(1, (n + 1) // 2) for n in fine.elements_per_section])
-            _, _, lam_h, _ = _solve(coarse, top, bottom, None, lam.size, mass, correct)
+            _, _, lam_h, _ = solve_modes(coarse, top, bottom, None, lam.size, mass, correct)
             f_f = np.sqrt(lam_c)
             f_c = np.sqrt(lam_h[: lam.size])
             if f_c.size < f_f.size:
@@ -305,7 +259,7 @@ def exact_frequencies(string: DrillString, top: "Boundary | str | None" = None,
     top, bottom = resolve_ends(string, top, bottom)
     if bottom.kind == "hammer":
         bottom = Boundary.free(string.bit_mass)
-    rigid = _has_rigid_mode(top, bottom)
+    rigid = has_rigid_mode(top, bottom)
     roots: list[float] = [0.0] if rigid else []
     spacing = 1.0 / (2.0 * sum(s.length / s.wave_speed for s in string.sections))  # Hz
     step = 2.0 * math.pi * spacing / points_per_mode

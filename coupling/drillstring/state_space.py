@@ -14,8 +14,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from .assembly import assemble
-from .description import DEFAULT_MASS, G, Boundary, DrillString
-from .modes import _eigen
+from .validation import DEFAULT_MASS, G
+from .boundary import Boundary
+from .drill_string import DrillString
+from .eigen import assembly_eigenpairs
 from .statics import static_compliance
 
 __all__ = ["StateSpace", "state_space"]
@@ -157,7 +159,7 @@ def state_space(string: DrillString, top: "Boundary | str | None" = None,
     Cv = asm.C_viscous
     lam_all = None
     if asm.modal_damping_ratio > 0.0:
-        lam_all, phi_all = _eigen(asm, None, None, all_modes=True)
+        lam_all, phi_all = assembly_eigenpairs(asm, None, None, all_modes=True)
         mphi = M @ phi_all
         Cfull = Cv + (mphi * (2.0 * asm.modal_damping_ratio * np.sqrt(lam_all))) @ mphi.T
     else:
@@ -205,7 +207,7 @@ def state_space(string: DrillString, top: "Boundary | str | None" = None,
         return StateSpace(A, B, C, np.zeros((3, 1)), d, x0, -wob_v, M, K, Cfull, load, bvec, None,
                           asm.nodes, asm.mesh.z, asm.n_nodes - 1, b_dof, asm.top, asm.bottom, wob_v,
                           weight - wob_v, x_eq_full, 0.0, math.sqrt(lam_top) / (2 * math.pi), np.zeros(3))
-    lam, phi = _eigen(asm, f_max, None)
+    lam, phi = assembly_eigenpairs(asm, f_max, None)
     m = lam.size
     if m == 0:
         raise ValueError(f"no mode below f_max = {f_max} Hz")

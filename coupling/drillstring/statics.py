@@ -14,7 +14,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .assembly import assemble
-from .description import G, Boundary, DrillString, _check_end, parse_boundary, resolve_ends
+from .validation import G
+from .boundary import Boundary, check_end, parse_boundary
+from .drill_string import DrillString, resolve_ends
 
 __all__ = ["StaticState", "static_equilibrium", "static_compliance"]
 
@@ -80,7 +82,7 @@ def static_equilibrium(string: DrillString, wob: float | None = None, hook_load:
     import scipy.linalg as sla  # noqa: PLC0415 -- imported where needed (a slow import)
     if mud_density is not None:
         string = string.replace(mud_density=mud_density)
-    topb = _check_end(parse_boundary(string.top if top is None else top), "top")
+    topb = check_end(parse_boundary(string.top if top is None else top), "top")
     if topb.kind == "free" or (topb.kind == "spring" and topb.stiffness == 0.0):
         raise ValueError("static equilibrium needs a hook: top must be 'fixed' or 'spring'")
     bottom_mass = string.bit_mass if bottom_mass is None else float(bottom_mass)

@@ -103,8 +103,8 @@ def runtime_files() -> list:
     """The runtime sources the FMU carries: every module of :mod:`hammerbit.model`."""
     files = sorted(runtime_dir().glob("*.py"))
     names = {p.name for p in files}
-    for required in ("__init__.py", "slave.py", "stepping.py", "kernels.py", "params.py",
-                     "_numba_cache.py", "build_info.py"):
+    for required in ("__init__.py", "slave.py", "stepping.py", "kernel_driver.py", "params.py",
+                     "numba_cache.py", "build_info.py"):
         if required not in names:
             raise FMUBuildError(f"the runtime package {runtime_dir()} lacks {required}")
     return files
@@ -157,7 +157,9 @@ _ctypes.pythonapi.Py_IncRef.argtypes = [_ctypes.py_object]
 _ctypes.pythonapi.Py_IncRef.restype = None
 _ctypes.pythonapi.Py_IncRef(globals())
 
-import {pkg}._numba_cache  # noqa: E402,F401  (picks the CPU target before numba is imported)
+from {pkg} import numba_cache_place as _place  # noqa: E402
+
+_place.select_shipped_target()  # before numba is imported: the shipped kernels' CPU target
 from {pkg}.slave import {model}  # noqa: E402,F401
 '''
 
@@ -176,9 +178,8 @@ _EXERCISE = textwrap.dedent('''
     import importlib, json, sys
     sys.path.insert(0, sys.argv[1])
     pkg = sys.argv[2]
-    nc = importlib.import_module(pkg + "._numba_cache")
+    nc = importlib.import_module(pkg + ".numba_cache")
     S = importlib.import_module(pkg + ".slave")
-    K = importlib.import_module(pkg + ".kernels")
 
     def run(impact):
         s = S.HammerBitRock(instance_name="compile")
@@ -189,20 +190,20 @@ _EXERCISE = textwrap.dedent('''
             s.set_real([vr["amplitude"]], [0.06 * s._F0])
         s.exit_initialization_mode()
         assert s.last_status in (0, 1), s.log_queue[-1].msg
-        reals = [k for k, v in s.vars.items() if type(v).__name__ in ("Real", "_RealVar")]
+        reals = [k for k, v in s.vars.items() if type(v).__name__ in ("Real", "RealVar")]
         for k in range(400):
             assert s.do_step(k * 5e-3, 5e-3), s.log_queue[-1].msg
             s.get_real(reals)
         return s.get_integer([vr["impact_count"]])[0]
 
     impacts = run(False), run(True)
-    hits, misses = nc.kernel_cache_counts(K)
+    hits, misses = nc.kernel_cache_counts()
     print(json.dumps({"decision": nc.DECISION, "hits": hits, "misses": misses, "impacts": impacts}))
 ''')
 
 
 def _exercise(python: str, staging: Path, pkg: str) -> dict:
-    from hammerbit.model._numba_cache import PORTABLE_ENV
+    from hammerbit.model.numba_target import PORTABLE_ENV
     env = dict(os.environ, PYTHONDONTWRITEBYTECODE="1", **PORTABLE_ENV)
     env.pop("PYTHONPATH", None)
     r = subprocess.run([python, "-c", _EXERCISE, str(staging), pkg], capture_output=True, text=True,
@@ -215,7 +216,7 @@ def _exercise(python: str, staging: Path, pkg: str) -> dict:
 
 def _portable_cache(pkg_dir: Path, python: str) -> dict:
     """Compile the kernels for the portable target into ``pkg_dir/_compiled``; check they load."""
-    from hammerbit.model._numba_cache import MANIFEST, user_cache_root
+    from hammerbit.model.numba_cache_place import MANIFEST, user_cache_root
     keep = Path(user_cache_root()) / "fmu-build" / pkg_dir.name
     try:
         keep.mkdir(parents=True, exist_ok=True)
@@ -347,7 +348,7 @@ def build_fmu(out=None, *, options: BuildOptions = BuildOptions(), **kw) -> Path
     files = runtime_files()
     tag = build_hash(files)
     pkg_name, entry_name = f"{RUNTIME_PREFIX}_{tag}", f"{ENTRY_PREFIX}_{tag}"
-    import hammerbit.model.kernels  # noqa: F401  (numba is imported here before the staged package)
+    import hammerbit.model.kernel_driver  # noqa: F401  (numba is imported here before the staged package)
     with tempfile.TemporaryDirectory(prefix="hammerbit_fmu_build_") as tmp:
         work = Path(tmp)
         staging = work / "stage"

@@ -13,7 +13,8 @@ import numpy as np
 from numba import njit
 
 from hammerbit.model.params import Groups
-from hammerbit.model.stepping import SolverOptions, Stepper
+from hammerbit.model.solver_options import SolverOptions
+from hammerbit.model.stepping import Stepper
 
 __all__ = ["relative_coordinates", "relative_rows", "detect_period", "period_n", "PERIOD_MAX", "PERIOD_TOL", "largest_lyapunov"]
 

@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 
-from hammerbit.model.stepping import SolverOptions
+from hammerbit.model.solver_options import SolverOptions
 
 from hammerbit.scene.figure import SceneFigure, draw_scene
 from hammerbit.scene.simulate import Record, simulate
@@ -97,7 +97,7 @@ def plot_scene(groups, periods, path, *, solver: SolverOptions = SolverOptions()
 
 def _scales(scales, res=None):
     """The scales of a figure: given, else the result's scene's, else the paper's rig."""
-    from hammerbit.model.params import DEFAULT_SCALES
+    from hammerbit.model.scales import DEFAULT_SCALES
     if scales is not None:
         return scales
     g = getattr(res, "groups", None)

@@ -16,9 +16,11 @@ from typing import Optional
 
 import numpy as np
 
-from hammerbit.model import kernels as K
-from hammerbit.model.params import Groups, ParameterError
-from hammerbit.model.stepping import EVENT_NAMES, SolverOptions, Stepper
+from hammerbit.model import kernel_forces, kernel_layouts
+from hammerbit.model.params import Groups
+from hammerbit.model.validation import ParameterError
+from hammerbit.model.solver_options import SolverOptions
+from hammerbit.model.stepping import EVENT_NAMES, Stepper
 from hammerbit.model.validation import RANGES, check
 
 __all__ = ["Record", "SimResult", "simulate", "BounceWarning", "POINCARE_DTYPE",
@@ -192,7 +194,7 @@ def simulate(groups: Groups, periods: float, *, record: Record = Record(),
     Parameters
     ----------
     groups : Groups
-        Nondimensional parameters (see :func:`hammerbit.model.params.preset`).
+        Nondimensional parameters (see :func:`hammerbit.model.presets.preset`).
     periods : float
         Horizon in forcing periods (> 0).
     record : Record
@@ -219,16 +221,16 @@ def simulate(groups: Groups, periods: float, *, record: Record = Record(),
     T = groups.period
     tau_end = periods * T
     st = Stepper(groups, solver=solver, energy=record.energy, y0=y0)
-    st.opts[K.O_POIN_T0] = record.poincare_phase * T
+    st.opts[kernel_layouts.O_POIN_T0] = record.poincare_phase * T
     poin = samp_t = samp = None
     if record.poincare:
         n_poin = int(math.floor(periods - record.poincare_phase + 1e-9)) + 1
         poin = np.zeros((n_poin, 5))
     if record.times is not None:
         samp_t = np.ascontiguousarray(record.times[record.times <= tau_end * (1 + 1e-15)])
-        samp = np.zeros((samp_t.shape[0], K.N_SAMPLE_COLS))
+        samp = np.zeros((samp_t.shape[0], kernel_layouts.N_SAMPLE_COLS))
     # the log starts small and doubles when full (status "log_full"), so a long run costs what it logs
-    log = np.zeros((min(max(64, int(8 * periods)), 65536) if record.events else 0, K.N_LOG_COLS))
+    log = np.zeros((min(max(64, int(8 * periods)), 65536) if record.events else 0, kernel_layouts.N_LOG_COLS))
     st.advance(st.time, poincare=poin, sample_times=samp_t, samples=samp, log=log)  # load compiled code
     t0 = _time.perf_counter()
     while True:
@@ -244,13 +246,13 @@ def simulate(groups: Groups, periods: float, *, record: Record = Record(),
                       f"model's validity", BounceWarning, stacklevel=2)
     res = SimResult(
         groups=groups, periods=periods, final=st.y[:4].copy(), counts=counts,
-        stats={"steps": int(st.istate[K.I_STEPS]), "rejected": int(st.istate[K.I_REJECTS]),
-               "rhs": int(st.istate[K.I_RHS])},
+        stats={"steps": int(st.istate[kernel_layouts.I_STEPS]), "rejected": int(st.istate[kernel_layouts.I_REJECTS]),
+               "rhs": int(st.istate[kernel_layouts.I_RHS])},
         wall_time_s=wall,
-        open_contact_peak=float(st.fstate[K.F_PEAK]) if counts["impact"] > counts["separation"] else 0.0,
+        open_contact_peak=float(st.fstate[kernel_layouts.F_PEAK]) if counts["impact"] > counts["separation"] else 0.0,
     )
     if poin is not None:
-        k = int(st.istate[K.I_POIN_NEXT])
+        k = int(st.istate[kernel_layouts.I_POIN_NEXT])
         res.poincare = np.rec.fromarrays(poin[:k].T, dtype=POINCARE_DTYPE).view(np.ndarray)
     if samp is not None:
         out = np.zeros(samp_t.shape[0], dtype=SAMPLE_DTYPE)
@@ -259,14 +261,14 @@ def simulate(groups: Groups, periods: float, *, record: Record = Record(),
             out[name] = samp[:, i]
         res.samples = out
     if record.events:
-        n = int(st.istate[K.I_NLOG])
+        n = int(st.istate[kernel_layouts.I_NLOG])
         ev = np.zeros(n, dtype=EVENT_DTYPE)
         rows = log[:n]
-        ev["time"] = rows[:, K.L_T]
-        ev["kind"] = np.asarray(EVENT_NAMES)[rows[:, K.L_KIND].astype(int)] if n else []
-        for name, col in (("hammer_position", K.L_X1), ("hammer_velocity", K.L_X2),
-                          ("bit_position", K.L_X3), ("bit_velocity", K.L_X4),
-                          ("relative_velocity", K.L_VREL), ("peak_contact_force", K.L_PEAK)):
+        ev["time"] = rows[:, kernel_layouts.L_T]
+        ev["kind"] = np.asarray(EVENT_NAMES)[rows[:, kernel_layouts.L_KIND].astype(int)] if n else []
+        for name, col in (("hammer_position", kernel_layouts.L_X1), ("hammer_velocity", kernel_layouts.L_X2),
+                          ("bit_position", kernel_layouts.L_X3), ("bit_velocity", kernel_layouts.L_X4),
+                          ("relative_velocity", kernel_layouts.L_VREL), ("peak_contact_force", kernel_layouts.L_PEAK)):
             ev[name] = rows[:, col]
         res.events = ev
     if record.energy:
@@ -310,14 +312,14 @@ def samples_si(result: SimResult) -> np.ndarray:
     for i in range(s.shape[0]):
         y[0], y[1], y[2], y[3] = (s["hammer_position"][i], s["hammer_velocity"][i],
                                   s["bit_position"][i], s["bit_velocity"][i])
-        fk[i] = K.spring_damper_force(y, p)
+        fk[i] = kernel_forces.spring_damper_force(y, p)
     mm = sc.length * 1e3
     return np.column_stack([
         s["time"] * sc.time, s["hammer_position"] * mm, s["hammer_velocity"] * sc.velocity,
         s["bit_position"] * mm, s["bit_velocity"] * sc.velocity,
         (s["hammer_position"] - s["bit_position"]) * mm,
         fk * sc.friction_force, s["contact_force"] * sc.friction_force,
-        (s["slip"] == K.SLIP).astype(float), (s["contact"] != K.FREE).astype(float),
+        (s["slip"] == kernel_layouts.SLIP).astype(float), (s["contact"] != kernel_layouts.FREE).astype(float),
     ])
 
 

@@ -13,10 +13,12 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from hammerbit.model import kernels as K
-from hammerbit.model.params import Groups, ParameterError, apply_settings, setting_target
-from hammerbit.model.validation import RANGES
-from hammerbit.model.stepping import SolverOptions, Stepper
+from hammerbit.model import kernel_layouts
+from hammerbit.model.params import Groups
+from hammerbit.model.settings import apply_settings, setting_target
+from hammerbit.model.validation import RANGES, ParameterError
+from hammerbit.model.solver_options import SolverOptions
+from hammerbit.model.stepping import Stepper
 
 from hammerbit.scene.analysis import detect_period
 from .executor import Executor, ExecutorOptions
@@ -107,10 +109,10 @@ def poincare_tail(groups: Groups, periods: int, keep: int, solver: SolverOptions
     """
     T = groups.period
     st = Stepper(groups, solver=solver)
-    st.opts[K.O_POIN_T0] = phase * T
+    st.opts[kernel_layouts.O_POIN_T0] = phase * T
     poin = np.zeros((periods + 1, 5))
     st.advance(periods * T + (phase * T if phase > 0 else 0.0), poincare=poin)
-    n = int(st.istate[K.I_POIN_NEXT])
+    n = int(st.istate[kernel_layouts.I_POIN_NEXT])
     return poin[max(n - keep, 0):n].copy()
 
 
@@ -140,7 +142,7 @@ def bifurcation(groups: Groups, param: str, values: Sequence[float], *, periods:
         Base parameters.
     param : str
         Parameter to sweep: a group (``a``, ``b``, ``eta`` ...) or an SI name
-        (``A``, ``f``, ``preload`` ...; :func:`hammerbit.model.params.apply_settings`).
+        (``A``, ``f``, ``preload`` ...; :func:`hammerbit.model.settings.apply_settings`).
     values : sequence of float
         Values of ``param``.
     periods : int

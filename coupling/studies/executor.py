@@ -149,23 +149,22 @@ LOCAL_CLUSTER_CONFIG = {
 
 
 def warm_worker() -> str:
-    """Import the studies and load the compiled kernels in this process (from the on-disk cache).
+    """Load the solver's compiled kernels in this process (from the on-disk cache).
 
     Runs once on every worker when a client connects, so that no task pays for
-    loading (or compiling) the kernels or importing the chunk functions.
+    loading (or compiling) the kernels.  The executor knows no study: a chunk
+    function's module (and its own small kernels) load with the first task
+    that needs them.
     """
-    import hammerbit.studies.bifurcation  # noqa: F401  (the chunk functions' modules)
-    import hammerbit.studies.sweep  # noqa: F401
-    from hammerbit.model.cpu_target import runs_portable
-    from hammerbit.model.params import preset
+    from hammerbit.model.numba_target import runs_portable
+    from hammerbit.model.presets import preset
     from hammerbit.model.stepping import Stepper
-    from hammerbit.studies.map import run_cell
     g = preset("paper-fig9")
     if runs_portable() and not Stepper(g).load():
         # a worker of a master that drives FMUs (their portable CPU target) with nothing compiled
         # for that target: its tasks may never run the in-process solver, so it compiles nothing here
         return "ok"
-    run_cell(g, 4)                          # the stepper's kernel and the map's cell_figures
+    Stepper(g).advance(4 * g.period)        # the stepper's kernel
     return "ok"
 
 

@@ -1,7 +1,7 @@
 """Regime maps: period-n, rate of penetration, impacts and regime flags on a grid.
 
 :func:`regime_map` runs one scene per cell of a grid over 1 to 3 parameters
-(any group or SI name, applied with :func:`hammerbit.model.params.apply_settings`,
+(any group or SI name, applied with :func:`hammerbit.model.settings.apply_settings`,
 which carries each cell's own scales) and returns an :class:`xarray.Dataset`.
 Per cell, from rest over ``periods`` forcing periods:
 
@@ -17,7 +17,7 @@ Per cell, from rest over ``periods`` forcing periods:
 ``peak_contact_force_n``
     largest hammer-bit contact force over the second half [N];
 ``bounce``, ``overload``, ``runaway``
-    the flags of :func:`hammerbit.model.params.regime` (1 = set);
+    the flags of :func:`hammerbit.model.regime.regime` (1 = set);
 ``status``
     0 when the scene ran, 1 when the solver stopped (the message is in the
     dataset's ``errors`` attribute), 2 when the cell's parameters are invalid.
@@ -39,17 +39,21 @@ from typing import Optional, Sequence
 import numpy as np
 from numba import njit
 
-from hammerbit.model import kernels as K
-from hammerbit.model.params import (Groups, ParameterError, apply_settings, regime,
-                                    setting_target)
-from hammerbit.model.stepping import MaxStepsError, SolverError, SolverOptions, Stepper
+from hammerbit.model import kernel_layouts
+from hammerbit.model.params import Groups
+from hammerbit.model.regime import regime
+from hammerbit.model.settings import apply_settings, setting_target
+from hammerbit.model.validation import ParameterError
+from hammerbit.model.solver_errors import MaxStepsError, SolverError
+from hammerbit.model.solver_options import SolverOptions
+from hammerbit.model.stepping import Stepper
 
 from hammerbit.scene.analysis import PERIOD_MAX, PERIOD_TOL, period_n, relative_rows
 from .bifurcation import SECONDS_PER_PERIOD
 from .executor import Executor, ExecutorOptions
 
 __all__ = ["Axis", "CELL_DTYPE", "MapCell", "run_cell", "cell_figures", "regime_map", "map_to_json", "axis_unit",
-           "STATUS_OK", "STATUS_SOLVER", "STATUS_INVALID"]
+           "STATUS_OK", "STATUS_SOLVER", "STATUS_INVALID", "map_chunk"]
 
 STATUS_OK, STATUS_SOLVER, STATUS_INVALID = 0, 1, 2
 
@@ -150,7 +154,7 @@ class _Buffers:
 
     def __init__(self, periods: int):
         self.poin = np.zeros((periods + 1, 5))
-        self.log = np.zeros((max(64, 8 * periods), K.N_LOG_COLS))
+        self.log = np.zeros((max(64, 8 * periods), kernel_layouts.N_LOG_COLS))
         self.figures = np.zeros(_N_FIGURES)
 
 
@@ -177,12 +181,12 @@ def cell_figures(poin, n_poin, y_bit, log, n_log, periods, t_half, max_period, t
     peak = 0.0
     seen = False
     for i in range(n_log):
-        if log[i, K.L_T] >= t_half:
-            kind = log[i, K.L_KIND]
-            if kind == K.EV_IMPACT:
+        if log[i, kernel_layouts.L_T] >= t_half:
+            kind = log[i, kernel_layouts.L_KIND]
+            if kind == kernel_layouts.EV_IMPACT:
                 impacts += 1
-            elif kind == K.EV_SEPARATION:
-                v = log[i, K.L_PEAK]
+            elif kind == kernel_layouts.EV_SEPARATION:
+                v = log[i, kernel_layouts.L_PEAK]
                 if not seen or v > peak or v != v:      # as numpy's max: a NaN wins
                     if seen and peak != peak:
                         continue
@@ -214,18 +218,18 @@ def run_cell(groups: Groups, periods: int, solver: SolverOptions = SolverOptions
         status = st.advance(periods * T, poincare=poin, log=log)
         if status == "max_steps":
             raise MaxStepsError(f"more than max_steps={solver.max_steps} steps in one call", time=st.time,
-                                status=K.ST_MAX_STEPS)
+                                status=kernel_layouts.ST_MAX_STEPS)
         if status != "log_full":
             break
         buf.log = log = np.concatenate([log, np.zeros_like(log)])
-    n_poin = int(st.istate[K.I_POIN_NEXT])
+    n_poin = int(st.istate[kernel_layouts.I_POIN_NEXT])
     fig = buf.figures
-    cell_figures(poin, n_poin, st.y[2], log, int(st.istate[K.I_NLOG]), periods, (periods // 2) * T,
+    cell_figures(poin, n_poin, st.y[2], log, int(st.istate[kernel_layouts.I_NLOG]), periods, (periods // 2) * T,
                  PERIOD_MAX, PERIOD_TOL, fig)
     rop = float(fig[_FIG_ROP])
     peak = float(fig[_FIG_PEAK])
-    if st.istate[K.I_CONTACT] != K.FREE:
-        peak = max(peak, float(st.fstate[K.F_PEAK]))
+    if st.istate[kernel_layouts.I_CONTACT] != kernel_layouts.FREE:
+        peak = max(peak, float(st.fstate[kernel_layouts.F_PEAK]))
     si = groups.rop(rop)
     n = int(fig[_FIG_PERIOD])
     return MapCell(period=n if n > 0 else None, rop=rop, rop_mm_per_period=si["mm_per_period"],
@@ -239,7 +243,7 @@ def _failed(status: int, message: str, groups: Optional[Groups]) -> MapCell:
                    status, message)
 
 
-def _map_chunk(cells, base, names, periods, solver):
+def map_chunk(cells, base, names, periods, solver):
     """Chunk function: one row of ``CELL_DTYPE`` and an error message per cell."""
     buf = _Buffers(periods)
     out = []
@@ -310,7 +314,7 @@ def regime_map(groups: Groups, axes: Sequence[Axis], *, periods: int = 300,
         ex.connect()
         t0 = _time.perf_counter()
         cpu0 = ex.cpu_s
-        res = ex.run(_map_chunk, cells, fixed=(groups, names, int(periods), solver),
+        res = ex.run(map_chunk, cells, fixed=(groups, names, int(periods), solver),
                      cost_s=periods * SECONDS_PER_PERIOD, label="map")
         wall = _time.perf_counter() - t0
         cpu = ex.cpu_s - cpu0

@@ -7,7 +7,7 @@
 * **static threshold**: ``a + b <= 1`` (preload plus amplitude below
   ``F0 = mu_e F_N``, the paper's domain);
 * **no runaway**: the preload stays below the kinetic friction floor
-  (:func:`hammerbit.model.params.regime`);
+  (:func:`hammerbit.model.regime.regime`);
 * **frequency check**: with a drillstring, the hammer frequency lies in a
   window where :func:`hammerbit.check.frequency.check` passes robustly (bit on
   and off bottom, over the check's damping range);
@@ -28,11 +28,15 @@ from typing import Optional
 
 import numpy as np
 
-from hammerbit.model.params import Groups, ParameterError, apply_settings, regime, setting_target
-from hammerbit.model.stepping import SolverError, SolverOptions
+from hammerbit.model.params import Groups
+from hammerbit.model.regime import regime
+from hammerbit.model.settings import apply_settings, setting_target
+from hammerbit.model.validation import ParameterError
+from hammerbit.model.solver_errors import SolverError
+from hammerbit.model.solver_options import SolverOptions
 
 from .executor import Executor, ExecutorOptions
-from .map import STATUS_OK, Axis, _map_chunk, axis_unit, run_cell
+from .map import STATUS_OK, Axis, map_chunk, axis_unit, run_cell
 from .bifurcation import SECONDS_PER_PERIOD
 
 __all__ = ["Bound", "OptimizeConfig", "Candidate", "OptimizeResult", "optimize", "frequency_windows"]
@@ -369,7 +373,7 @@ def optimize(groups: Groups, config: OptimizeConfig, *, string=None, executor: O
     own = executor is None
     ex = Executor(options) if own else executor
     try:
-        rows = ex.run(_map_chunk, cells, fixed=(groups, names, c.periods, c.solver),
+        rows = ex.run(map_chunk, cells, fixed=(groups, names, c.periods, c.solver),
                       cost_s=c.periods * SECONDS_PER_PERIOD, label="optimize: grid")
     finally:
         if own:

@@ -55,12 +55,12 @@ def _side_for(string, config: CosimConfig, fmu=None) -> StringSide:
     copy, so a result does not depend on which frequencies the worker ran
     before (the same bits whatever the chunking).  The one step runs in
     process, except in a process on the FMU's portable CPU target
-    (:mod:`hammerbit.model.cpu_target`, ``sweep --fmu``), where it runs
+    (:mod:`hammerbit.model.numba_target`, ``sweep --fmu``), where it runs
     through ``fmu``: there the in-process kernels are not compiled, while
     elsewhere they are loaded already (:func:`~hammerbit.studies.executor.warm_worker`)
     and a second FMU instance would only cost its start-up.
     """
-    from hammerbit.model.cpu_target import runs_portable
+    from hammerbit.model.numba_target import runs_portable
     key = _side_key(string, config)
     side = _SIDES.get(key)
     if side is None:
