@@ -359,3 +359,14 @@ def test_isolated_modes_against_a_brute_force_of_band_overlaps():
         want = [all(not (f[i] * (1 - m) <= f[j] * (1 + m) and f[j] * (1 - m) <= f[i] * (1 + m))
                     for j in range(f.size) if j != i) for i in range(f.size)]
         assert isolated_modes(f, m).tolist() == want
+
+
+def test_no_period_is_said_in_words(capsys):
+    """The chaos preset has no period (its Poincaré points never repeat; checked on them here)."""
+    from hammerbit.model.presets import preset
+    from hammerbit.scene.analysis import detect_period
+    from hammerbit.scene.simulate import Record, simulate
+    assert detect_period(simulate(preset("chaos"), 300, record=Record(poincare=True)).poincare) is None
+    code, out, err = run_cli(["simulate", "--preset", "chaos", "--periods", "300"], capsys)
+    assert code == 0, err
+    assert "no period found" in out and "none" not in out.split("period-n")[1].splitlines()[0]

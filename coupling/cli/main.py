@@ -265,7 +265,7 @@ def _simulate(args, worker) -> int:
         if rop is not None:
             print(f"rate of penetration (second half): {rop['mm_per_period']:.4g} mm/period = "
                   f"{rop['m_per_h']:.4g} m/h")
-        print(f"period-n of the bounded motion: {period if period else 'none up to 32'}")
+        print(f"period-n of the bounded motion: {period if period else 'no period found (up to 32)'}")
         print("events: " + (", ".join(f"{k}={v}" for k, v in res.counts.items() if v) or "none"))
         if peak is not None:
             print(f"peak contact force: {peak:.4g} N")
