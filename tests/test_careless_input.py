@@ -244,8 +244,7 @@ def test_ctrl_c_prints_one_line_and_exits_130(tmp_path, built_fmu):
 @pytest.mark.slow
 def test_ctrl_c_in_a_map_on_a_local_cluster_prints_one_line(tmp_path):
     """The same with the workers of a local cluster (they ignore SIGINT, so only the command
-    speaks).  A Ctrl-C while the cluster starts is ignored, so it is sent again, as a user would,
-    every few seconds until the command ends."""
+    speaks).  The Ctrl-C is sent again every few seconds until the command ends, as a user would."""
     p = subprocess.Popen(_hammerbit() + ["map", "--axis", "a=0.05:0.25:400", "--axis", "eta=0.6:1.4:400",
                                          "--workers", "2"], cwd=tmp_path, stdout=subprocess.PIPE,
                          stderr=subprocess.PIPE, text=True, start_new_session=True)
