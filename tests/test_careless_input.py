@@ -254,7 +254,7 @@ def test_ctrl_c_in_a_map_on_a_local_cluster_prints_one_line(tmp_path):
         if len(group) >= 4 or p.poll() is not None:
             break
         time.sleep(0.5)
-    time.sleep(3.0)                 # the workers load the kernels and run tasks
+    time.sleep(1.0)                 # the workers start (the moment a worker would print a traceback)
     assert p.poll() is None, "the map ended before the test could interrupt it"
     out = err = None
     for _ in range(int(CTRL_C_GUARD_S / 5.0)):
