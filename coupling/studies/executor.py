@@ -220,6 +220,8 @@ def _start_forkserver() -> None:
     of a second) runs with SIGINT ignored here.
     """
     from multiprocessing import forkserver
+    # nothing preloaded: the server would import the caller's __main__, which the workers never need
+    forkserver.set_forkserver_preload([])
     with _sigint_ignored():
         forkserver.ensure_running()
 
