@@ -209,7 +209,7 @@ def _sigint_deferred():
         raise KeyboardInterrupt
 
 
-def _start_forkserver() -> None:
+def _start_forkserver() -> bool:
     """Start multiprocessing's fork server with SIGINT ignored (once per process).
 
     The local cluster's workers are forked from it and get the server's
@@ -217,13 +217,18 @@ def _start_forkserver() -> None:
     group, interrupts only this process (which cancels the tasks and closes
     the cluster) instead of every worker printing its own
     ``KeyboardInterrupt`` traceback.  Only the server's own start (a fraction
-    of a second) runs with SIGINT ignored here.
+    of a second) runs with SIGINT ignored here.  False where the platform has
+    no fork server (Windows): the workers are then spawned as usual.
     """
+    import multiprocessing
+    if "forkserver" not in multiprocessing.get_all_start_methods():
+        return False
     from multiprocessing import forkserver
     # nothing preloaded: the server would import the caller's __main__, which the workers never need
     forkserver.set_forkserver_preload([])
     with _sigint_ignored():
         forkserver.ensure_running()
+    return True
 
 
 def _run_chunk(fn, items, fixed):
@@ -277,9 +282,9 @@ class Executor:
         else:
             # ":0": the scheduler's HTTP server on a free port (8787 may be taken by another study)
             import dask
-            _start_forkserver()
+            method = "forkserver" if _start_forkserver() else "spawn"
             with dask.config.set({**LOCAL_CLUSTER_CONFIG, "distributed.worker.multiprocessing-method":
-                                  "forkserver"}), _sigint_deferred():
+                                  method}), _sigint_deferred():
                 # the nannies hand the config to their workers
                 self.cluster = LocalCluster(n_workers=self.options.local_workers, threads_per_worker=1,
                                             processes=True, dashboard_address=":0",
