@@ -114,6 +114,10 @@ MORE = [
     (["bifurcation", "--range", "0", "1", "--out", "b.png", "--num", "1000000000000"], ["--num 1000000000000",
                                                                                       "memory"]),
     (["optimize", "--grid", "10000000"], ["--grid 10000000", "cells", "limit"]),
+    (["cosim", *FIELD, "--stop", "1", "--fmu", "adir"], ["--fmu adir", "directory"]),
+    (["cosim", *FIELD, "--stop", "1", "--fmu", "bad.toml"], ["--fmu bad.toml", "not an FMU"]),
+    (["check", *FIELD, "--rpm", "120", "--rpm-range", "0", "1e9"], ["--rpm-range HI", "1000000000", "rev/min"]),
+    (["simulate", "--csv", "x.csv", "--sample-dt", "1e-9"], ["--sample-dt 1e-09", "samples"]),
     (["sweep", *FIELD, "--frequencies", "15", "30", "1e12"], ["--frequencies 15 30 1000000000000", "limit"]),
 ]
 
