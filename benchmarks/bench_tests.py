@@ -28,7 +28,8 @@ GOAL_COLD_S = 180.0
 GOAL_WARM_S = 60.0
 
 
-def _run(args, env) -> dict:
+def run_pytest(args, env) -> dict:
+    """Run the test command with ``args`` in ``env``: wall and CPU time, exit code, counts, slowest phases."""
     t0 = time.perf_counter()
     c0 = os.times()
     p = subprocess.run(COMMAND + [f"--durations={SLOWEST}"] + list(args), cwd=REPO_ROOT, env=env,
@@ -49,8 +50,8 @@ def run(quick: bool = False) -> dict:
     cache = tempfile.mkdtemp(prefix="hammerbit-tests-cache-")
     env = dict(os.environ, HAMMERBIT_CACHE_DIR=cache)
     try:
-        cold = _run(args, env)
-        warm = _run(args, env)
+        cold = run_pytest(args, env)
+        warm = run_pytest(args, env)
     finally:
         shutil.rmtree(cache, ignore_errors=True)
     what = "python -m pytest -q" + (" tests/test_docs.py" if quick else "")

@@ -21,7 +21,7 @@ import tempfile
 import time
 
 from benchmarks import harness_command, save_result, summary_row
-from benchmarks.bench_tests import _run
+from benchmarks.bench_tests import run_pytest
 
 NAME = "tests_under_load"
 #: busy processes per core: with the test run's own workers the load is about 3 per core
@@ -52,9 +52,9 @@ def run(quick: bool = False) -> dict:
     try:
         time.sleep(5.0)                       # let the load average rise before the first run
         load_before = os.getloadavg()
-        cold = _run(args, env)
+        cold = run_pytest(args, env)
         load_mid = os.getloadavg()
-        warm = _run(args, env)
+        warm = run_pytest(args, env)
         load_after = os.getloadavg()
     finally:
         stop.set()

@@ -36,7 +36,8 @@ __all__ = ["EXIT_OK", "EXIT_FAILURE", "EXIT_BAD_INPUT", "EXIT_UNSTABLE", "EXIT_C
            "add_set_argument", "SET_HELP", "run_command", "error", "NETCDF_SUFFIXES",
            "MAX_WORKERS_PER_CORE", "MEMORY_FRACTION", "MAX_CPU_SECONDS", "max_workers", "check_workers",
            "check_output", "check_input_file", "output_errors", "available_memory", "check_fits",
-           "interruptible", "human_bytes", "human_seconds", "one_blas_thread"]
+           "interruptible", "human_bytes", "human_seconds", "one_blas_thread", "interrupt_or_exit",
+           "INTERRUPT_GRACE_S"]
 
 EXIT_OK = 0
 EXIT_FAILURE = 1
@@ -130,7 +131,8 @@ def run_command(func, args, *, prog: str = "hammerbit", before=None, rephrase=No
     try:
         if before is not None:
             before(args)
-        return int(func(args) or 0)
+        with interrupt_or_exit(prog=prog, always=False):
+            return int(func(args) or 0)
     except KeyboardInterrupt:
         print(f"{prog}: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
@@ -347,3 +349,68 @@ def one_blas_thread(func):
         with threadpool_limits(limits=1, user_api="blas"):
             return func(*args, **kwargs)
     return wrapper
+
+
+#: Seconds a Ctrl-C may take to end a command before :func:`interrupt_or_exit` ends the process.
+INTERRUPT_GRACE_S = 2.0
+
+
+@contextlib.contextmanager
+def interrupt_or_exit(grace_s: float = INTERRUPT_GRACE_S, prog: str = "hammerbit", *, always: bool = True):
+    """Ctrl-C raises ``KeyboardInterrupt`` as usual; where it cannot, the process ends ``grace_s``
+    later with the same one line and exit code 130.
+
+    Two places lose or garble a ``KeyboardInterrupt``: a foreign host running
+    Python code (an FMU's doStep called through C) can turn it into a failed
+    step, which the caller retries; and numba's compiler calls back into Python
+    through ctypes, where Python prints "Exception ignored" with a traceback.
+    Inside numba or llvmlite the handler does not raise; with ``always`` (an
+    FMU host) it raises and arms the timer too.  The timer is cancelled when
+    the exception leaves this block.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    import signal
+    timers = []
+
+    def arm():
+        if not timers:
+            t = threading.Timer(grace_s, _exit_interrupted, args=(prog,))
+            t.daemon = True
+            t.start()
+            timers.append(t)
+
+    def handler(signum, frame):
+        if _in_compiler(frame):
+            arm()
+            return
+        if always:
+            arm()
+        raise KeyboardInterrupt
+
+    old = signal.signal(signal.SIGINT, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
+        for t in timers:
+            t.cancel()
+
+
+_COMPILER_DIRS = (os.sep + "numba" + os.sep, os.sep + "llvmlite" + os.sep)
+
+
+def _in_compiler(frame) -> bool:
+    """True if ``frame`` or a caller runs numba's or llvmlite's code."""
+    while frame is not None:
+        name = frame.f_code.co_filename
+        if any(d in name for d in _COMPILER_DIRS):
+            return True
+        frame = frame.f_back
+    return False
+
+
+def _exit_interrupted(prog: str) -> None:
+    print(f"{prog}: interrupted", file=sys.stderr, flush=True)
+    os._exit(EXIT_INTERRUPTED)

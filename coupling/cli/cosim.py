@@ -26,7 +26,8 @@ import json
 import sys
 import time
 
-from hammerbit.cli.common import EXIT_INACCURATE, EXIT_OK, UsageError, add_set_argument, parse_settings
+from hammerbit.cli.common import (EXIT_INACCURATE, EXIT_OK, UsageError, add_set_argument, interrupt_or_exit,
+                                  parse_settings)
 
 __all__ = ["register", "cmd_cosim", "add_hammer_options", "add_cosim_options", "config_from_args", "top_from_args",
            "load_string_arg", "fmu_arg"]
@@ -237,7 +238,8 @@ def cmd_cosim(args) -> int:
                 raise UsageError("--monolithic runs the reference in process; it takes no --fmu")
             res = monolithic(string, cfg)
         else:
-            res = cosimulate(string, cfg, fmu=fmu)
+            with interrupt_or_exit():           # the FMU's host may swallow the Ctrl-C
+                res = cosimulate(string, cfg, fmu=fmu)
     except StepResolutionError as e:
         raise UsageError(str(e)) from None
     total = time.perf_counter() - t0

@@ -12,14 +12,13 @@ import gc
 import importlib
 import json
 import math
-import os
 import sys
 import warnings
 
 import numpy as np
 
-from hammerbit.cli.common import (EXIT_INTERRUPTED, UsageError, add_set_argument, interruptible, output_errors, parse_settings,
-                                  run_command)
+from hammerbit.cli.common import (EXIT_INTERRUPTED, UsageError, add_set_argument, check_output, interruptible,
+                                  output_errors, parse_settings, run_command)
 from hammerbit.cli.preflight import apply_user_settings, in_user_words, preflight
 
 __all__ = ["main", "console", "build_parser", "COMMAND_MODULES", "HelpFormatter", "version"]
@@ -110,29 +109,6 @@ def _add_scene_args(p):
                    help="rk4: steps per forcing period (default 1000)")
 
 
-def check_output_path(path: str, option: str, *, formats=None) -> str:
-    """Refuse, before a run, an output file that cannot be written.
-
-    Raises :class:`UsageError` (exit 2) when the directory does not exist or is
-    not writable, the path is a directory, or (with ``formats``) the extension
-    is not one of them.
-    """
-    full = os.path.abspath(os.path.expanduser(path))
-    if os.path.isdir(full):
-        raise UsageError(f"{option} {path}: is a directory, not a file")
-    parent = os.path.dirname(full)
-    if not os.path.isdir(parent):
-        raise UsageError(f"{option} {path}: the directory {parent} does not exist")
-    if not os.access(parent, os.W_OK):
-        raise UsageError(f"{option} {path}: the directory {parent} is not writable")
-    if formats is not None:
-        ext = os.path.splitext(path)[1].lower().lstrip(".")
-        if ext not in formats:
-            raise UsageError(f"{option} {path}: unsupported format {ext or '(none)'!r}; "
-                             f"use one of {', '.join(sorted(formats))}")
-    return full
-
-
 def regime_warnings(g, flags) -> list:
     """Plain-language warnings from a scene's own flags and the paper's domain (SI figures).
 
@@ -184,18 +160,16 @@ def _simulate(args, worker) -> int:
     g = _groups_from_args(args)
     solver = _solver_from_args(args)
     check("simulate.periods", args.periods, label="--periods")
-    # every output path is checked before the run, so a typo does not cost the run
+    # every output path is checked before the run, so a typo does not cost the run (the directory
+    # and writability by the preflight; the figure format here, from the worker's matplotlib)
     if args.plot:
-        check_output_path(args.plot, "--plot")  # the directory, before waiting for the worker's formats
         if worker is not None:  # load the kernels while the worker imports matplotlib
             Stepper(g, solver=solver).load()
         formats = worker.formats() if worker is not None else None
         if formats is None:
             from hammerbit.scene.figure_worker import figure_formats
             formats = figure_formats()
-        check_output_path(args.plot, "--plot", formats=formats)
-    if args.csv:
-        check_output_path(args.csv, "--csv")
+        check_output(args.plot, "--plot", formats=formats)
     times = None
     if args.sample_dt is not None and not args.csv:
         raise UsageError("--sample-dt sets the spacing of the --csv samples: give --csv FILE too")
@@ -269,7 +243,7 @@ def _simulate(args, worker) -> int:
         if rop is not None:
             print(f"rate of penetration (second half): {rop['mm_per_period']:.4g} mm/period = "
                   f"{rop['m_per_h']:.4g} m/h")
-        print(f"period-n of the bounded motion: {period if period else 'none up to 32'}")
+        print(f"period-n of the bounded motion: {period if period else 'no period found (up to 32)'}")
         print("events: " + (", ".join(f"{k}={v}" for k, v in res.counts.items() if v) or "none"))
         if peak is not None:
             print(f"peak contact force: {peak:.4g} N")

@@ -81,6 +81,9 @@ def preflight(args) -> None:
         return
     if getattr(args, "string", None) is not None:
         check_input_file(args.string, "--string", names=_string_names())
+    fmu = getattr(args, "fmu", None)
+    if isinstance(fmu, str) and os.path.isdir(os.path.expanduser(fmu)):
+        raise UsageError(f"--fmu {fmu}: is a directory, not an FMU file (build one with `hammerbit fmu build`)")
     for (command, dest), (option, formats) in OUTPUTS.items():
         value = getattr(args, dest, None)
         if command == cmd and value is not None:
@@ -206,7 +209,21 @@ def _sweep(args) -> None:
                hint="use fewer frequencies or a shorter --max-duration")
 
 
-_CHECKS = {"simulate": _simulate, "map": _map, "cosim": _cosim, "bifurcation": _bifurcation,
+def _check(args) -> None:
+    """``check --rpm-range``: in rev/min, the limit of the frequency range converted with --factor."""
+    from hammerbit.model.validation import RANGES, ParameterError
+    if not args.rpm_range:
+        return
+    factor = args.factor if args.factor and args.factor > 0 else 1.0
+    hz = RANGES["check.range"]
+    hi = hz.hi * 60.0 / factor
+    for end, v in zip(("LO", "HI"), args.rpm_range):
+        if not (math.isfinite(v) and 0.0 <= v <= hi):
+            raise ParameterError(f"--rpm-range {end}", v, f"[0, {hi:g}] rev/min (the frequency range "
+                                                         f"[{hz.lo:g}, {hz.hi:g}] Hz at --factor {factor:g})")
+
+
+_CHECKS = {"check": _check, "simulate": _simulate, "map": _map, "cosim": _cosim, "bifurcation": _bifurcation,
            "optimize": _optimize, "sweep": _sweep}
 
 

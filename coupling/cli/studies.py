@@ -210,6 +210,8 @@ def cmd_map(args) -> int:
             key = "none" if not np.isfinite(v) else f"P{int(v)}"
             counts[key] = counts.get(key, 0) + 1
         order = sorted(counts, key=lambda k: (k == "none", int(k[1:]) if k != "none" else 0))
+        counts["no period found"] = counts.pop("none", 0)
+        order = ["no period found" if k == "none" else k for k in order]
         tp = ds.attrs["total_periods"]
         print(f"map of {args.preset} over " + " x ".join(f"{a.name} ({len(a.values)})" for a in axes)
               + f": {n} cells x {args.periods} periods in {ds.attrs['wall_time_s']:.2f} s "

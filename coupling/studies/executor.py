@@ -23,7 +23,8 @@ more than one that stays stuck), and the chunks shrink from a few per worker
 to the minimum size, submitted largest first, so the workers finish together.
 A progress bar (tqdm) is drawn on stderr only when stderr is a terminal.  An
 interrupted run (Ctrl-C) cancels its tasks and closes the local cluster, so no
-worker process outlives it.
+worker process outlives it; the workers ignore the terminal's Ctrl-C (they are
+forked from a fork server that ignores it), so only this process reports it.
 """
 from __future__ import annotations
 
@@ -170,14 +171,12 @@ def warm_worker() -> str:
 
 @contextlib.contextmanager
 def _sigint_ignored():
-    """SIGINT ignored while a local cluster starts its processes.
+    """SIGINT ignored while the block runs (in the main thread; elsewhere a no-op).
 
-    The nannies and workers inherit the ignored signal (``SIG_IGN`` survives
-    ``exec``, and Python then leaves it alone), so a Ctrl-C in the terminal,
-    sent to the whole process group, interrupts only this process: it cancels
-    the tasks and closes the cluster, instead of every worker printing its own
-    ``KeyboardInterrupt`` traceback.  The price: a Ctrl-C during these seconds
-    of start-up is ignored (the next one interrupts).
+    Processes started meanwhile inherit the ignored signal (``SIG_IGN``
+    survives ``exec``, and Python then leaves it alone): the fork server of
+    :func:`_start_forkserver`.  Also around the cluster's shutdown, so that a
+    second Ctrl-C cannot cut it short and leave workers behind.
     """
     if threading.current_thread() is not threading.main_thread():
         yield
@@ -187,6 +186,49 @@ def _sigint_ignored():
         yield
     finally:
         signal.signal(signal.SIGINT, old)
+
+
+@contextlib.contextmanager
+def _sigint_deferred():
+    """A Ctrl-C while the block runs is raised when it ends.
+
+    Interrupted half-way, ``LocalCluster()`` leaves a cluster that nobody can
+    close but distributed's exit handler, which then fails with a traceback;
+    deferred, the cluster is assigned first and closed by :meth:`Executor.close`.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    hits = []
+    old = signal.signal(signal.SIGINT, lambda signum, frame: hits.append(signum))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
+    if hits:
+        raise KeyboardInterrupt
+
+
+def _start_forkserver() -> bool:
+    """Start multiprocessing's fork server with SIGINT ignored (once per process).
+
+    The local cluster's workers are forked from it and get the server's
+    signal handlers, so a Ctrl-C in the terminal, sent to the whole process
+    group, interrupts only this process (which cancels the tasks and closes
+    the cluster) instead of every worker printing its own
+    ``KeyboardInterrupt`` traceback.  Only the server's own start (a fraction
+    of a second) runs with SIGINT ignored here.  False where the platform has
+    no fork server (Windows): the workers are then spawned as usual.
+    """
+    import multiprocessing
+    if "forkserver" not in multiprocessing.get_all_start_methods():
+        return False
+    from multiprocessing import forkserver
+    # nothing preloaded: the server would import the caller's __main__, which the workers never need
+    forkserver.set_forkserver_preload([])
+    with _sigint_ignored():
+        forkserver.ensure_running()
+    return True
 
 
 def _run_chunk(fn, items, fixed):
@@ -240,8 +282,10 @@ class Executor:
         else:
             # ":0": the scheduler's HTTP server on a free port (8787 may be taken by another study)
             import dask
-            with dask.config.set(LOCAL_CLUSTER_CONFIG), _sigint_ignored():
-                # the nannies hand the config to their workers; a Ctrl-C reaches this process only
+            method = "forkserver" if _start_forkserver() else "spawn"
+            with dask.config.set({**LOCAL_CLUSTER_CONFIG, "distributed.worker.multiprocessing-method":
+                                  method}), _sigint_deferred():
+                # the nannies hand the config to their workers
                 self.cluster = LocalCluster(n_workers=self.options.local_workers, threads_per_worker=1,
                                             processes=True, dashboard_address=":0",
                                             silence_logs=logging.CRITICAL)
@@ -254,7 +298,6 @@ class Executor:
         """Close the client and the local cluster (its worker processes end)."""
         client, cluster = self.client, self.cluster
         self.client = self.cluster = None
-        # a second Ctrl-C (an impatient user) must not cut the shutdown short and leave workers behind
         with _sigint_ignored() if cluster is not None else contextlib.nullcontext():
             try:
                 if client is not None:
