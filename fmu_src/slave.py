@@ -338,6 +338,11 @@ class HammerBitRock(Fmi2Slave):
             if rng.lo <= value <= rng.hi:               # False for NaN
                 d[name] = value
                 return OK
+            if not self._ready and _isfinite(value):
+                # Initialization Mode: the parameters that set the bound (F0) may still change, even
+                # later in the same vector; fmi2ExitInitializationMode checks it
+                d[name] = value
+                return OK
             self._fail(f"input {name!r} = {value!r} is out of range: allowed {rng.text()} "
                        f"(1000 F0, F0 = mu_static normal_force = {self._F0!r} N, the static friction "
                        f"threshold); refused, {d[name]!r} N stays")

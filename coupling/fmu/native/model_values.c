@@ -113,6 +113,9 @@ static fmi2Status check_real(model *m, int k, double v) {
     char rv[40], err[1024];
     if (d->kind == HB_INPUT) {
         if (hb_input_ok(s, k, v)) return fmi2OK;   /* the hot path: no text */
+        /* Initialization Mode: the parameters that set the bound (F0) may still change, even later
+         * in the same vector; fmi2ExitInitializationMode checks it */
+        if (!s->ready && isfinite(v)) return fmi2OK;
         hb_input_error(s, k, v, err, sizeof err);
         return hb_fail(m, fmi2Error, "%s", err);
     }
