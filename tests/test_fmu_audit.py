@@ -372,6 +372,21 @@ def test_an_input_beyond_the_threshold_of_the_parameters_fails_initialisation(an
         inst.close()
 
 
+def test_an_input_set_with_the_parameters_that_allow_it_initialises(any_fmu):
+    """In Initialization Mode the bound follows the parameters set with the input, in any order,
+    even in one vector fmi2SetReal (a co-simulation master sets a 100 kN rig and its weight on bit
+    this way)."""
+    inst = Instance(any_fmu, init=False)
+    try:
+        preload = 10.0 * INPUT_LIMIT                       # beyond the start values' bound
+        inst.set(preload=preload, normal_force=100.0 * RIG.normal_force)
+        inst.fmu.exitInitializationMode()
+        assert inst.last_status() == FMI_OK and not inst.errors(), inst.errors()
+        assert inst.get("preload")[0] == pytest.approx(preload, rel=1e-15)
+    finally:
+        inst.close()
+
+
 # ---------------------------------------------------------------------------
 # pythonfmu flavour: where the compiled kernels come from
 # ---------------------------------------------------------------------------
