@@ -144,6 +144,9 @@ def advance(y, istate, fstate, t_end, p, opts,
     cf_chunk = min(2.0 * math.pi / p[P_ETA],
                    2.0 * math.pi / math.sqrt(max(1.0 - p[P_XI] * p[P_XI], TINY))) / STICK_CHUNKS_PER_PERIOD
     cf_chunk = min(cf_chunk, opts[O_HMAX])
+    # the event search's grouped arguments (see locate_event)
+    tableau = (rk_a, rk_b, rk_c, ns)
+    sub = (nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
     chunk_c = np.empty(6)
     e_abs = 0.0
     for j in range(ns + 1):
@@ -258,9 +261,8 @@ def advance(y, istate, fstate, t_end, p, opts,
                 code = sign_change(kd, y, ynew, stages[0], fs, p, mc, w0s[q], wtols[q], h_chunk, graze_stick)
                 if code == 0:
                     continue
-                te = locate_event(kd, code, t, t1, y, h_chunk, how_stick, opts[O_BISECT], graze, wtols[q],
-                                  interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ys, ytmp,
-                                  p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
+                te = locate_event(kd, code, t, t1, y, h_chunk, how_stick, (opts[O_BISECT], graze, wtols[q]),
+                                  (interp, act, n_act), tableau, (stages2, ytmp, ys, ytmp), p, ms, mc, sub)
                 if te > 0.0 and (hit_kind < 0 or te < t_hit):
                     hit_kind = kd
                     t_hit = te
@@ -404,9 +406,8 @@ def advance(y, istate, fstate, t_end, p, opts,
                     continue
                 dense_ok = interpolant(dense_ok, fixed, t, y, ynew, h, rk_a, rk_c, dense_w, ns, n_ext, stages, stages2, interp, ytmp, act, n_act,
                                        istate, p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
-                te = locate_event(kd, code, t, t1, y, h, how_rk, opts[O_BISECT], graze, wtols[q],
-                                  interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ys, fs,
-                                  p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
+                te = locate_event(kd, code, t, t1, y, h, how_rk, (opts[O_BISECT], graze, wtols[q]),
+                                  (interp, act, n_act), tableau, (stages2, ytmp, ys, fs), p, ms, mc, sub)
                 if te > 0.0 and (hit_kind < 0 or te < t_hit):
                     hit_kind = kd
                     t_hit = te

@@ -163,14 +163,23 @@ def sign_change(kind, y, ynew, f0, f1, p, mc, w0, wtol, h, graze_ok):
 
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
-def locate_event(kind, code, t0, t1, y0, h, how, bisect_tol, graze, wtol, interp, act, n_act, rk_a, rk_b, rk_c, ns,
-                 stages2, ytmp, ys, fscr, p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x):
+def locate_event(kind, code, t0, t1, y0, h, how, tols, dense, tableau, scratch, p, ms, mc, sub):
     """Event time of one indicator in (t0, t1] for a ``sign_change`` code, or -1.
+
+    Grouped arguments (tuples): ``tols = (bisect_tol, graze, wtol)``, ``dense =
+    (interp, act, n_act)`` (how the step is evaluated inside), ``tableau = (rk_a,
+    rk_b, rk_c, ns)``, ``scratch = (stages2, ytmp, ys, fscr)`` and the linear
+    subsystem ``sub = (nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)``.
 
     A grazing candidate (code 2) counts only if the indicator's maximum inside
     the step exceeds max(graze, wtol); the event is then localised between the
     step start and that maximum.
     """
+    bisect_tol, graze, wtol = tols
+    interp, act, n_act = dense
+    rk_a, rk_b, rk_c, ns = tableau
+    stages2, ytmp, ys, fscr = scratch
+    nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x = sub
     tb = t1
     if code == 2:
         tm = find_extremum(kind, t0, t1, y0, h, how, interp, act, n_act, ys, fscr,
