@@ -227,7 +227,8 @@ def test_cli_cosim_json(tmp_path, capsys):
     assert set(d["counts"]) == {"slips", "sticks", "impacts", "bounce_violations"}
     assert out.exists()
     head = out.read_text().splitlines()[0].split(",")
-    assert head[0] == "time" and "stick" in head and "contact" in head
+    names = [h.split(" [")[0] for h in head]
+    assert head[0] == "time [s]" and "stick" in names and "contact" in names
 
 
 def test_cli_sweep(tmp_path, capsys):
