@@ -167,7 +167,7 @@ def build_native_string_fmu(string_arg, out=None, *, steps=None, build=None, log
         select_platforms
     from hammerbit.fmu.native_build import find_compiler, MINGW_CC
     from hammerbit.fmu.native_kernels import build_objects, undefined_symbols
-    from hammerbit.model.string_model import INFO_FILE
+    from hammerbit.model.string_model import INFO_FILE, MODEL_FILE
     steps = tuple(float(h) for h in (DEFAULT_STEPS if steps is None else steps))
     for h in steps:
         if not (0.0 < h < float("inf")):
@@ -184,6 +184,7 @@ def build_native_string_fmu(string_arg, out=None, *, steps=None, build=None, log
         with zipfile.ZipFile(py_fmu) as zf:
             md = native_string_description(zf.read("modelDescription.xml"), steps)
             info_json = zf.read(f"resources/{INFO_FILE}")
+            arrays_npz = zf.read(f"resources/{MODEL_FILE}")
         write_tables(tmp / DATA_FILE, string_tables(build, steps))
         spec = read_model_description(md)
         (tmp / "hb_model.h").write_text(generate_header(spec, wrapper_file="", python_modules=()))
@@ -209,6 +210,8 @@ def build_native_string_fmu(string_arg, out=None, *, steps=None, build=None, log
                 zf.write(path, f"binaries/{plat}/{path.name}")
             zf.write(tmp / DATA_FILE, f"resources/{DATA_FILE}")
             zf.writestr(f"resources/{INFO_FILE}", info_json)
+            # not read by the binaries: the string side's arrays for hammerbit cosim --ssp
+            zf.writestr(f"resources/{MODEL_FILE}", arrays_npz)
             zf.writestr("resources/string.toml", build.source_text)
         tmp_out.replace(out)
     return out
