@@ -299,17 +299,18 @@ def string_step_dense(P, xi, buf, tmp):
     # P @ buf by hand: no BLAS call (its thread pool costs more than this small mat-vec)
     m4 = m - m % DENSE_LANES
     for i in range(n + 1):
+        row = P[i]                     # a contiguous row: the loads vectorise without reordering
         a0 = 0.0
         a1 = 0.0
         a2 = 0.0
         a3 = 0.0
         for k in range(0, m4, DENSE_LANES):
-            a0 += P[i, k] * buf[k]
-            a1 += P[i, k + 1] * buf[k + 1]
-            a2 += P[i, k + 2] * buf[k + 2]
-            a3 += P[i, k + 3] * buf[k + 3]
+            a0 += row[k] * buf[k]
+            a1 += row[k + 1] * buf[k + 1]
+            a2 += row[k + 2] * buf[k + 2]
+            a3 += row[k + 3] * buf[k + 3]
         for k in range(m4, m):
-            a0 += P[i, k] * buf[k]
+            a0 += row[k] * buf[k]
         tmp[i] = (a0 + a1) + (a2 + a3)
     for i in range(n):
         xi[i] = tmp[i]
