@@ -26,7 +26,6 @@ import struct
 import tempfile
 import zipfile
 from pathlib import Path
-from typing import Optional
 from xml.etree import ElementTree as ET
 
 import numpy as np
