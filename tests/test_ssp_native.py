@@ -49,6 +49,15 @@ def test_runners_give_the_pythonfmu_packages_penetration(native_ssp, built_ssp, 
                                                                                           py.penetration_m)
 
 
+def test_cosim_ssp_reads_the_native_package_as_the_pythonfmu_one(native_ssp, built_ssp):
+    """``hammerbit cosim --ssp`` on the native package: its string arrays and the native hammer."""
+    from hammerbit.ssp.run import cosimulate_ssp
+    nat, py = (cosimulate_ssp(p, stop=FAST_STOP, step=H, adaptive=False, estimate=False)
+               for p in (native_ssp, built_ssp))
+    assert py.penetration_m > 1e-4
+    assert abs(nat.penetration_m - py.penetration_m) <= SAME_RUN_REL * py.penetration_m
+
+
 def test_cli_ssp_build_bad_runtime_exits_2(capsys, tmp_path):
     code, _out, err = run_cli(["ssp", "build", "--string", "lab", "--runtime", "cython", "--out",
                                str(tmp_path / "x.ssp")], capsys)
