@@ -180,6 +180,30 @@ def test_a_step_size_it_does_not_carry_is_an_error_naming_it(fmus):
     assert "h = 0.002 s" in msg and "0.001 s" in msg and "--step" in msg, msg
 
 
+def test_a_bad_input_is_an_error_naming_it_and_changes_nothing(fmus):
+    from fmpy.fmi1 import FMICallException
+    fmu = _instance(fmus[1], "auto-driller")
+    try:
+        fmu.fmu.exitInitializationMode()
+        rest = fmu.get("hammer_position_at_rest")[0]
+        for i in range(5):
+            fmu.set(**dict(zip(("hammer_position", "hammer_velocity"), drive(i * H, rest))))
+            fmu.step(H)
+        before = fmu.get(*OUT)
+        saved = fmu.fmu.getFMUstate()
+        fmu.set(hammer_velocity=float("nan"))
+        with pytest.raises(FMICallException):
+            fmu.fmu.doStep(currentCommunicationPoint=fmu.t, communicationStepSize=H)
+        assert "input 'hammer_velocity' = nan is out of range" in _errors(fmu)[-1]
+        assert fmu.get(*OUT) == before
+        fmu.fmu.setFMUstate(saved)              # the way out of the Error state
+        fmu.set(hammer_velocity=0.0)
+        fmu.step(H)
+        assert fmu.get(*OUT) != before
+    finally:
+        fmu.close()
+
+
 def test_state_rollback_and_serialisation_repeat_the_run_exactly(fmus):
     """What the Python flavour cannot do: get, serialize, restore; the rerun gives the same bits."""
     fmu = _instance(fmus[1], "auto-driller")
