@@ -44,8 +44,8 @@ DEFAULT_STEPS = (1e-3,)
 
 def _sources():
     from hammerbit.fmu.native import SOURCE_DIR
-    return tuple(SOURCE_DIR / f for f in ("front.c", "resource_uri.c", "model_string.c", "real_repr.c",
-                                          "nrt_shim.c"))
+    return tuple(SOURCE_DIR / f for f in ("front.c", "resource_uri.c", "model_string.c",
+                                          "model_string_access.c", "real_repr.c", "nrt_shim.c"))
 
 
 #: C sources of the native string FMU (front, resource URIs, string backend, repr, runtime shim)

@@ -19,37 +19,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "front.h"
+#include "model_string.h"
 #include "string_api.h"
-#include "hs_string.h"
-
-#define N_COEFFS 6
-#define N_ROWS 5                 /* bottom u, v, top tension, top position, top velocity */
-#define ROW_HOOK 2
-#define ROW_TOP_U 3
-#define ROW_TOP_V 4
-#define TOP_FEED 1
-#define TOP_AUTO 2
-#define STATE_MAGIC 0x48425331u  /* "HBS1": layout version of the string model state */
-#define DATA_MAGIC "HBSTRN01"
-
-/* ------------------------------------------------------------------------------------------ */
-/* The exact step of one form over one step length, as read from the resources                 */
-/* ------------------------------------------------------------------------------------------ */
-typedef struct {
-    int64_t form;                /* 0 fixed (and feed), 1 auto-driller */
-    double h;                    /* the step length's key (12 significant digits) */
-    int64_t modal, n;            /* modal: n kept modes; dense: n states */
-    double *frow_r, *rows_r, *P; /* dense */
-    double _Complex *frow_c, *rows_c, *d, *G, *irow;   /* modal */
-    double icol[N_COEFFS];
-} block;
-
-typedef struct {
-    int64_t nblocks, nmax;       /* nmax: the longest state vector (in doubles: 2 nmax) */
-    block *b;
-    double *mem;
-} table;
 
 static int read_doubles(FILE *f, double *p, size_t k) { return fread(p, sizeof(double), k, f) == k; }
 
@@ -113,36 +84,9 @@ static int load_table(const char *dir, table *t, char *err, size_t en) {
     return ok;
 }
 
-/* ------------------------------------------------------------------------------------------ */
-/* State                                                                                       */
-/* ------------------------------------------------------------------------------------------ */
-typedef struct {
-    uint32_t magic, size;        /* size: of the whole state, its string vector included */
-    /* parameters and inputs as set */
-    double damping_ratio, wob, at_rest, feed_velocity, kp, kig, x_in, v_in;
-    int32_t extrapolation, top_condition;
-    /* outputs */
-    double interface_force, held, hook_load, top_position, top_velocity;
-    int32_t ready, terminated, started;
-    int64_t form, order, n, modal;
-    double W, hook_eq, t, t_start, F_held;
-    double feed[2], k3[3], th[3], wh[6], Fh[3], out[4], c[N_COEFFS], w[3];
-    char error[512];
-    double v[];                  /* the string's state: 2 n doubles (modal eta) or n (dense xi) */
-} sstate;
-
-typedef struct {
-    char *name;
-    fmi2CallbackFunctions cb;
-    table tab;
-    double *buf, *tmp;           /* scratch of the dense step */
-    size_t size;
-    sstate *s;
-} model;
-
 static size_t state_size(const table *t) { return sizeof(sstate) + 2 * (size_t)t->nmax * sizeof(double); }
 
-static void mlog(model *m, fmi2Status st, const char *fmt, ...) {
+void hs_log(model *m, fmi2Status st, const char *fmt, ...) {
     if (!m->cb.logger) return;
     char msg[2048];
     va_list ap;
@@ -153,8 +97,6 @@ static void mlog(model *m, fmi2Status st, const char *fmt, ...) {
                       : st == fmi2Discard ? "logStatusDiscard" : "logStatusError";
     m->cb.logger(m->cb.componentEnvironment, m->name, st, cat, msg);
 }
-
-#define FAIL(m, ...) (mlog((m), fmi2Error, __VA_ARGS__), fmi2Error)
 
 static void set_start_values(model *m) {
     sstate *s = m->s;
@@ -264,7 +206,7 @@ static const block *find_block(const table *t, int64_t form, double h) {
     return NULL;
 }
 
-static const block *any_block(const table *t, int64_t form) {
+const block *hs_any_block(const table *t, int64_t form) {
     for (int64_t i = 0; i < t->nblocks; i++)
         if (t->b[i].form == form) return &t->b[i];
     return NULL;
@@ -281,7 +223,7 @@ static void set_outputs(model *m) {
         s->top_velocity = V;
         return;
     }
-    const block *b = any_block(&m->tab, s->form);
+    const block *b = hs_any_block(&m->tab, s->form);
     double o[N_ROWS] = {0};
     for (int r = ROW_HOOK; r < N_ROWS; r++) {
         double acc = 0.0;
@@ -316,7 +258,7 @@ static fmi2Component s_instantiate(fmi2String name, fmi2Type type, fmi2String gu
     char err[4400];
     const char *dir = strncmp(uri, "file://", 7) == 0 ? uri + 7 : uri;   /* the front's plain path */
     if (!load_table(dir, &m->tab, err, sizeof err)) {
-        mlog(m, fmi2Error, "fmi2Instantiate: the string's matrices: %s", err);
+        hs_log(m, fmi2Error, "fmi2Instantiate: the string's matrices: %s", err);
         free(m->name);
         free(m);
         return NULL;
@@ -326,7 +268,7 @@ static fmi2Component s_instantiate(fmi2String name, fmi2Type type, fmi2String gu
     m->buf = calloc((size_t)m->tab.nmax + N_COEFFS, sizeof(double));
     m->tmp = calloc((size_t)m->tab.nmax + 1, sizeof(double));
     if (!m->s || !m->buf || !m->tmp) {
-        mlog(m, fmi2Error, "fmi2Instantiate: out of memory");
+        hs_log(m, fmi2Error, "fmi2Instantiate: out of memory");
         free(m->s), free(m->buf), free(m->tmp), free(m->tab.b), free(m->tab.mem), free(m->name);
         free(m);
         return NULL;
@@ -365,7 +307,7 @@ static fmi2Status s_exit_init(fmi2Component c) {
         return FAIL(m, "%s", s->error);
     }
     s->form = s->top_condition == TOP_AUTO ? 1 : 0;
-    const block *b = any_block(&m->tab, s->form);
+    const block *b = hs_any_block(&m->tab, s->form);
     s->n = b->n;
     s->modal = b->modal;
     s->W = s->wob;
@@ -465,184 +407,6 @@ static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
 }
 
 /* ------------------------------------------------------------------------------------------ */
-/* Values                                                                                       */
-/* ------------------------------------------------------------------------------------------ */
-static double *real_slot(sstate *s, fmi2ValueReference vr, int *settable) {
-    *settable = 1;
-    switch (vr) {
-    case HS_VR_damping_ratio: return &s->damping_ratio;
-    case HS_VR_wob: return &s->wob;
-    case HS_VR_hammer_position_at_rest: return &s->at_rest;
-    case HS_VR_feed_velocity: return &s->feed_velocity;
-    case HS_VR_proportional_gain: return &s->kp;
-    case HS_VR_integral_gain: return &s->kig;
-    case HS_VR_hammer_position: return &s->x_in;
-    case HS_VR_hammer_velocity: return &s->v_in;
-    default: break;
-    }
-    *settable = 0;
-    switch (vr) {
-    case HS_VR_interface_force: return &s->interface_force;
-    case HS_VR_held_force: return &s->held;
-    case HS_VR_hook_load: return &s->hook_load;
-    case HS_VR_top_position: return &s->top_position;
-    case HS_VR_top_velocity: return &s->top_velocity;
-    default: return NULL;
-    }
-}
-
-static fmi2Status s_get_real(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[]) {
-    model *m = c;
-    int settable;
-    for (size_t i = 0; i < nvr; i++) {
-        double *p = real_slot(m->s, vr[i], &settable);
-        switch (vr[i]) {
-        case HS_VR_held_force_change: value[i] = m->s->held - (m->s->ready ? m->s->W : m->s->wob); break;
-        case HS_VR_string_length: value[i] = HS_STRING_LENGTH; break;
-        case HS_VR_interface_stiffness: value[i] = HS_INTERFACE_STIFFNESS; break;
-        case HS_VR_interface_damping: value[i] = HS_INTERFACE_DAMPING; break;
-        case HS_VR_buoyed_weight: value[i] = HS_BUOYED_WEIGHT; break;
-        default:
-            if (!p) return FAIL(m, "fmi2GetReal: unknown value reference %u", vr[i]);
-            value[i] = *p;
-        }
-    }
-    return fmi2OK;
-}
-
-static fmi2Status s_set_real(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                             const fmi2Real value[]) {
-    model *m = c;
-    int settable;
-    for (size_t i = 0; i < nvr; i++) {   /* the front checked settability: all or none */
-        double *p = real_slot(m->s, vr[i], &settable);
-        if (!p || !settable) return FAIL(m, "fmi2SetReal: value reference %u cannot be set", vr[i]);
-    }
-    for (size_t i = 0; i < nvr; i++) *real_slot(m->s, vr[i], &settable) = value[i];
-    return fmi2OK;
-}
-
-static fmi2Status s_get_integer(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                                fmi2Integer value[]) {
-    model *m = c;
-    for (size_t i = 0; i < nvr; i++) {
-        switch (vr[i]) {
-        case HS_VR_extrapolation: value[i] = m->s->extrapolation; break;
-        case HS_VR_top_condition: value[i] = m->s->top_condition; break;
-        case HS_VR_string_states: value[i] = HS_STRING_STATES; break;
-        default: return FAIL(m, "fmi2GetInteger: unknown value reference %u", vr[i]);
-        }
-    }
-    return fmi2OK;
-}
-
-static fmi2Status s_set_integer(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                                const fmi2Integer value[]) {
-    model *m = c;
-    for (size_t i = 0; i < nvr; i++)
-        if (vr[i] != HS_VR_extrapolation && vr[i] != HS_VR_top_condition)
-            return FAIL(m, "fmi2SetInteger: value reference %u cannot be set", vr[i]);
-    for (size_t i = 0; i < nvr; i++) {
-        if (vr[i] == HS_VR_extrapolation) m->s->extrapolation = value[i];
-        else m->s->top_condition = value[i];
-    }
-    return fmi2OK;
-}
-
-static fmi2Status s_no_boolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Boolean v[]) {
-    (void)vr, (void)v;
-    return nvr ? FAIL(c, "fmi2GetBoolean: the model has no Boolean variable") : fmi2OK;
-}
-
-static fmi2Status s_no_set_boolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                                   const fmi2Boolean v[]) {
-    (void)vr, (void)v;
-    return nvr ? FAIL(c, "fmi2SetBoolean: the model has no Boolean variable") : fmi2OK;
-}
-
-static fmi2Status s_no_string(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String v[]) {
-    (void)vr, (void)v;
-    return nvr ? FAIL(c, "fmi2GetString: the model has no String variable") : fmi2OK;
-}
-
-static fmi2Status s_no_set_string(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                                  const fmi2String v[]) {
-    (void)vr, (void)v;
-    return nvr ? FAIL(c, "fmi2SetString: the model has no String variable") : fmi2OK;
-}
-
-/* ------------------------------------------------------------------------------------------ */
-/* FMU states: the whole state as plain data                                                   */
-/* ------------------------------------------------------------------------------------------ */
-static const char *state_invalid(const model *m, const sstate *s) {
-    if (s->magic != STATE_MAGIC || s->size != m->size) return "it is not a state of this build";
-    if ((s->ready | s->terminated | s->started) & ~1) return "a flag is neither 0 nor 1";
-    if (!isfinite(s->t) || !isfinite(s->t_start)) return "its time is not finite";
-    if (s->ready && (s->form < 0 || s->form > 1 || !any_block(&m->tab, s->form) ||
-                     s->n != any_block(&m->tab, s->form)->n || s->order < 0 || s->order > 2))
-        return "its form or extrapolation order is not one of this FMU";
-    size_t nv = 2 * (size_t)m->tab.nmax;
-    for (size_t i = 0; i < nv; i++)
-        if (!isfinite(s->v[i])) return "its string state holds a non-finite number";
-    return NULL;
-}
-
-static fmi2Status s_get_state(fmi2Component c, fmi2FMUstate *state) {
-    model *m = c;
-    sstate *copy = malloc(m->size);
-    if (!copy) return FAIL(m, "fmi2GetFMUstate: out of memory");
-    memcpy(copy, m->s, m->size);
-    *state = copy;
-    return fmi2OK;
-}
-
-static fmi2Status s_set_state(fmi2Component c, fmi2FMUstate state) {
-    model *m = c;
-    const char *why = state_invalid(m, state);
-    if (why) return FAIL(m, "fmi2SetFMUstate: %s; state unchanged", why);
-    memcpy(m->s, state, m->size);
-    return fmi2OK;
-}
-
-static fmi2Status s_free_state(fmi2Component c, fmi2FMUstate *state) {
-    (void)c;
-    free(*state);
-    *state = NULL;
-    return fmi2OK;
-}
-
-static fmi2Status s_state_size(fmi2Component c, fmi2FMUstate state, size_t *size) {
-    (void)state;
-    *size = ((model *)c)->size;
-    return fmi2OK;
-}
-
-static fmi2Status s_serialize(fmi2Component c, fmi2FMUstate state, fmi2Byte out[], size_t size) {
-    model *m = c;
-    if (size != m->size)
-        return FAIL(m, "fmi2SerializeFMUstate: size = %zu, the state needs %zu bytes", size, m->size);
-    memcpy(out, state, m->size);
-    return fmi2OK;
-}
-
-static fmi2Status s_deserialize(fmi2Component c, const fmi2Byte in[], size_t size, fmi2FMUstate *state) {
-    model *m = c;
-    if (size != m->size)
-        return FAIL(m, "fmi2DeSerializeFMUstate: %zu bytes, but a state of this build has %zu; state "
-                    "unchanged", size, m->size);
-    sstate *copy = malloc(m->size);
-    if (!copy) return FAIL(m, "fmi2DeSerializeFMUstate: out of memory");
-    memcpy(copy, in, m->size);
-    const char *why = state_invalid(m, copy);
-    if (why) {
-        free(copy);
-        return FAIL(m, "fmi2DeSerializeFMUstate: the bytes are corrupt (%s); state unchanged", why);
-    }
-    *state = copy;
-    return fmi2OK;
-}
-
-/* ------------------------------------------------------------------------------------------ */
 /* The backend table for front.c                                                                */
 /* ------------------------------------------------------------------------------------------ */
 hb_wrapper hb_W;
@@ -656,20 +420,7 @@ int hb_backend_load(char *err, size_t n) {
     hb_W.ExitInitializationMode = s_exit_init;
     hb_W.Terminate = s_terminate;
     hb_W.Reset = s_reset;
-    hb_W.GetReal = s_get_real;
-    hb_W.SetReal = s_set_real;
-    hb_W.GetInteger = s_get_integer;
-    hb_W.SetInteger = s_set_integer;
-    hb_W.GetBoolean = s_no_boolean;
-    hb_W.SetBoolean = s_no_set_boolean;
-    hb_W.GetString = s_no_string;
-    hb_W.SetString = s_no_set_string;
-    hb_W.GetFMUstate = s_get_state;
-    hb_W.SetFMUstate = s_set_state;
-    hb_W.FreeFMUstate = s_free_state;
-    hb_W.SerializedFMUstateSize = s_state_size;
-    hb_W.SerializeFMUstate = s_serialize;
-    hb_W.DeSerializeFMUstate = s_deserialize;
+    hs_access_fill(&hb_W);
     hb_W.DoStep = s_do_step;
     hb_W.Instantiate = s_instantiate;
     return 1;
