@@ -6,6 +6,10 @@
  *
  * Builds for Linux (dlopen) and, cross-compiled with mingw-w64, for Windows (LoadLibrary).
  *
+ * drive=VRX:VRV:OFFSET:AMP:FREQ sets two Real inputs before every step: a periodic parabola
+ * x = OFFSET + 4 AMP s (1 - s), s = frac(FREQ t), and its rate v = 4 AMP FREQ (1 - 2 s) (no libm:
+ * any host computes the same bits).  int=VR:VALUE sets an Integer in Initialization Mode.
+ *
  * threads=N runs N instances at once, each in its own thread, from instantiation to the end.
  * uri1=URI [uri2=URI ...] run one more instance after the first, one after the other, each with
  * its own resource URI (one process for several URI forms); each prints "result <i> <rc>", and
@@ -67,6 +71,8 @@ static struct {
     fmi2ExitInitializationModeTYPE *exit_init;
     fmi2DoStepTYPE *do_step;
     fmi2GetRealTYPE *get_real;
+    fmi2SetRealTYPE *set_real;
+    fmi2SetIntegerTYPE *set_integer;
     fmi2TerminateTYPE *terminate;
     fmi2FreeInstanceTYPE *free_instance;
 } F;
@@ -107,8 +113,30 @@ static int run(const char *name, const char *uri) {
     }
     CHECK(F.setup(c, fmi2False, 0.0, 0.0, fmi2False, 0.0));
     CHECK(F.enter(c));
+    const char *iv = opt(g_argc, g_argv, "int", NULL);
+    if (iv) {
+        fmi2ValueReference ivr = (fmi2ValueReference)strtoul(iv, NULL, 10);
+        fmi2Integer ival = atoi(strchr(iv, ':') + 1);
+        CHECK(F.set_integer(c, &ivr, 1, &ival));
+    }
     CHECK(F.exit_init(c));
-    for (long i = 0; i < steps; i++) CHECK(F.do_step(c, (double)i * hstep, hstep, fmi2True));
+    const char *drive = opt(g_argc, g_argv, "drive", NULL);
+    unsigned dx = 0, dv = 0;
+    double off = 0.0, amp = 0.0, freq = 0.0;
+    if (drive && sscanf(drive, "%u:%u:%lf:%lf:%lf", &dx, &dv, &off, &amp, &freq) != 5) {
+        printf("bad drive=%s\n", drive);
+        return 1;
+    }
+    for (long i = 0; i < steps; i++) {
+        double t = (double)i * hstep;
+        if (drive) {
+            double u = freq * t, sph = u - (double)(long)u;
+            fmi2ValueReference dvr[2] = {dx, dv};
+            double val[2] = {off + 4.0 * amp * sph * (1.0 - sph), 4.0 * amp * freq * (1.0 - 2.0 * sph)};
+            CHECK(F.set_real(c, dvr, 2, val));
+        }
+        CHECK(F.do_step(c, t, hstep, fmi2True));
+    }
     double values[32];
     CHECK(F.get_real(c, vrs, nvr, values));
     pthread_mutex_lock(&g_out);
@@ -151,6 +179,8 @@ int main(int argc, char **argv) {
     LOAD(ExitInitializationMode, exit_init)
     LOAD(DoStep, do_step)
     LOAD(GetReal, get_real)
+    LOAD(SetReal, set_real)
+    LOAD(SetInteger, set_integer)
     LOAD(Terminate, terminate)
     LOAD(FreeInstance, free_instance)
     int threads = atoi(opt(argc, argv, "threads", "1"));

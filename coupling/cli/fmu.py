@@ -1,6 +1,7 @@
 """``hammerbit fmu build``: build HammerBitRock.fmu from the installed package."""
 from __future__ import annotations
 
+import math
 import sys
 import time
 
@@ -38,8 +39,21 @@ def cmd_fmu_build_string(args) -> int:
         top = TopCondition.parse(args.top, where="--top")
     except ValueError as e:
         raise UsageError(str(e)) from None
+    steps = args.step or None
+    for h in steps or ():
+        if not (0.0 < h < math.inf):
+            raise UsageError(f"--step {h!r} is out of range: allowed a finite step size > 0 s")
+    if steps and args.runtime != "native":
+        raise UsageError("--step is an option of --runtime native (the pythonfmu flavour takes any step)")
     try:
-        path = build_string_fmu(args.string, args.out, top=top)
+        if args.runtime == "native":
+            from hammerbit.fmu.native_string import build_native_string_fmu
+            print("hammerbit fmu build-string: building Drillstring.fmu (native runtime; compiling the "
+                  "string's kernels) ...", file=sys.stderr, flush=True)
+            path = build_native_string_fmu(args.string, args.out, top=top, steps=steps,
+                                           log=lambda m: print(m, file=sys.stderr))
+        else:
+            path = build_string_fmu(args.string, args.out, top=top)
     except DrillStringError:
         raise
     except (OSError, ValueError) as e:
@@ -50,7 +64,7 @@ def cmd_fmu_build_string(args) -> int:
 
 def add_build_string(fsub) -> None:
     """``hammerbit fmu build-string``: the Drillstring FMU of a string."""
-    b = fsub.add_parser("build-string", help="build Drillstring.fmu of a drillstring (pythonfmu)",
+    b = fsub.add_parser("build-string", help="build Drillstring.fmu of a drillstring (pythonfmu or native)",
                         description="Build Drillstring.fmu: the string of a TOML file and its hammer "
                                     "interface, stepped exactly over any communication step (inputs: "
                                     "hammer position and velocity; outputs: the interface force, the "
@@ -61,6 +75,14 @@ def add_build_string(fsub) -> None:
     b.add_argument("--top", default="fixed", metavar="CONDITION",
                    help="start value of the top condition (a parameter of the FMU): fixed (default), "
                         "feed:RATE (m/h, downward) or auto-driller[:kp=..,ki=..]")
+    b.add_argument("--runtime", choices=("pythonfmu", "native"), default="pythonfmu",
+                   help="pythonfmu (default): the string runs in Python in the host, any step size, all "
+                        "parameters tunable; native: the binaries (linux64, and win64 with "
+                        "x86_64-w64-mingw32-gcc) hold the compiled step and need no Python; they carry "
+                        "the step sizes of --step and the build's damping ratio and auto-driller gains")
+    b.add_argument("--step", type=float, action="append", default=None, metavar="SECONDS",
+                   help="--runtime native: a communication step size [s] the FMU carries (repeatable; "
+                        "default 0.001, the default experiment's)")
     b.set_defaults(func=cmd_fmu_build_string)
 
 

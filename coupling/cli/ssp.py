@@ -74,7 +74,8 @@ def cmd_ssp_build(args) -> int:
         warnings.simplefilter("always")
         try:
             path = build_ssp(args.string, out, SSPOptions(hammer=args.hammer, stop=args.stop, step=args.step,
-                                                          wob=args.wob, rig=rig, top=top))
+                                                          wob=args.wob, rig=rig, top=top,
+                                                          runtime=args.runtime))
         except ValueError as e:          # the string cannot carry the hammer's WOB, ...
             raise UsageError(f"--string {args.string}: {e}") from None
     for w in caught:
@@ -174,5 +175,9 @@ def register(sub) -> None:
                    help="the string's top, the Drillstring FMU's start value: fixed (default), feed:RATE "
                         "(m/h, downward) or auto-driller[:kp=..,ki=..] (a PI controller on the hook load "
                         "holding the WOB; default gains from the string's stiffness)")
+    b.add_argument("--runtime", choices=("pythonfmu", "native"), default="pythonfmu",
+                   help="flavour of both FMUs: pythonfmu (default; the host needs Python, numpy, numba) "
+                        "or native (compiled binaries for linux64 and win64, no Python on the target; the "
+                        "string FMU carries the package's --step and its build's damping and gains)")
     add_set_argument(b)
     b.set_defaults(func=cmd_ssp_build)

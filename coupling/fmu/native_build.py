@@ -34,7 +34,7 @@ from hammerbit.fmu.native import SOURCE_DIR, FrontBuildError, c_string, find_com
 from hammerbit.fmu.native_kernels import TARGETS, ALLOWED_UNDEFINED, build_objects, undefined_symbols
 
 __all__ = ["NATIVE_GENERATION_TOOL", "MINGW_CC", "NATIVE_SOURCES", "STATES", "NativeBuildError", "native_header",
-           "select_platforms", "build_binaries",
+           "select_platforms", "build_binaries", "link_binary", "nm_for",
            "native_model_description", "assemble_native_fmu"]
 
 #: ``generationTool`` of the native flavour's model description (how a host tells the flavours apart)
@@ -44,7 +44,7 @@ MINGW_CC = "x86_64-w64-mingw32-gcc"
 #: C sources of the native flavour (front, resource URIs, model backend, runtime shim)
 NATIVE_SOURCES = tuple(SOURCE_DIR / f for f in ("front.c", "resource_uri.c", "model_native.c",
                                                 "model_values.c", "model_me.c", "model_state.c",
-                                                "nrt_shim.c"))
+                                                "real_repr.c", "nrt_shim.c"))
 _GROUP_NAMES = ("rho", "xi", "eta", "a", "b", "r", "mu", "gamma_hat", "kc", "n", "lam_hat", "phi")
 #: the nondimensional group whose range bounds each input, in units of the static friction
 #: threshold F0 (preload b = B/F0, forcing amplitude a = A/F0): |input| <= hi * F0
@@ -133,14 +133,16 @@ def _run(cmd, what: str) -> None:
         raise NativeBuildError(f"{what} failed ({' '.join(map(str, cmd))}):\n{r.stderr.strip()[-4000:]}")
 
 
-def _nm_for(platform: str) -> str:
+def nm_for(platform: str) -> str:
+    """The ``nm`` that reads the objects of ``platform``."""
     if platform == "win64":
         return shutil.which("x86_64-w64-mingw32-nm") or "nm"
     return "nm"
 
 
-def _link(platform: str, cc: str, obj: Path, include: Path, out: Path) -> None:
-    srcs = [str(s) for s in NATIVE_SOURCES]
+def link_binary(platform: str, cc: str, obj: Path, include: Path, out: Path, sources=NATIVE_SOURCES) -> None:
+    """Link ``sources`` and the kernel object ``obj`` (generated headers in ``include``) into ``out``."""
+    srcs = [str(s) for s in sources]
     common = ["-std=gnu11", "-O2", "-Wall", "-Wextra", "-Wno-unused-parameter", "-DHB_NATIVE_MODEL",
               "-I", str(include), "-I", str(SOURCE_DIR)]
     if platform == "linux64":
@@ -199,13 +201,13 @@ def build_binaries(model_description_xml, out_dir, *, start_values=None, platfor
                                                        summary["layout"]))
         for plat in platforms:
             obj = tmp / f"kernels_{plat}.o"
-            extra = undefined_symbols(obj, nm=_nm_for(plat)) - ALLOWED_UNDEFINED
+            extra = undefined_symbols(obj, nm=nm_for(plat)) - ALLOWED_UNDEFINED
             if extra:
                 raise NativeBuildError(f"the {plat} kernel object needs symbols no shim provides: "
                                        f"{sorted(extra)}")
             dest = out_dir / plat / f"{spec.model_identifier}{TARGETS[plat].suffix}"
             dest.parent.mkdir(parents=True, exist_ok=True)
-            _link(plat, compilers[plat], obj, tmp, dest)
+            link_binary(plat, compilers[plat], obj, tmp, dest)
             built[plat] = dest
     return built
 

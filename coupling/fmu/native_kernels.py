@@ -209,8 +209,9 @@ def _llvm():
     return llvm
 
 
-def linked_ir(funcs: dict) -> str:
-    """One LLVM module with every entry point under its C name and nothing else exported."""
+def linked_ir(funcs: dict, entry_points=None) -> str:
+    """One LLVM module with every entry point under its C name and nothing else exported
+    (``entry_points``: the C names it must hold, default :data:`ENTRY_POINTS`)."""
     llvm = _llvm()
     module = None
     names = {}
@@ -234,7 +235,7 @@ def linked_ir(funcs: dict) -> str:
     for g in module.global_variables:
         if not g.is_declaration:
             g.linkage = llvm.Linkage.internal
-    missing = set(ENTRY_POINTS) - {f.name for f in module.functions if not f.is_declaration}
+    missing = set(ENTRY_POINTS if entry_points is None else entry_points) - {f.name for f in module.functions if not f.is_declaration}
     if missing:
         raise KernelBuildError(f"the linked kernel module lacks the entry points {sorted(missing)}")
     module.verify()
@@ -269,16 +270,36 @@ def undefined_symbols(obj: Path, *, nm: str = "nm") -> set:
     return {line.split()[-1] for line in r.stdout.splitlines() if line.strip()}
 
 
+def _kernel_set(name: str):
+    """``(compile function, entry points)`` of a kernel set: ``hammer`` (HammerBitRock) or
+    ``string`` (Drillstring)."""
+    if name == "string":
+        from hammerbit.fmu.native_string_kernels import STRING_ENTRY_POINTS, compile_string_entry_points
+        return compile_string_entry_points, STRING_ENTRY_POINTS
+    if name == "hammer":
+        return compile_entry_points, ENTRY_POINTS
+    raise KernelBuildError(f"unknown kernel set {name!r}; known: hammer, string")
+
+
+#: the kernel sets of :func:`build_objects`
+KERNEL_SETS = ("hammer", "string")
+
+
 def main(argv=None) -> int:
-    """``python -m hammerbit.fmu.native_kernels OUT_DIR PLATFORM...``: write ``kernels_<platform>.o``.
+    """``python -m hammerbit.fmu.native_kernels [--kernels SET] OUT_DIR PLATFORM...``: write
+    ``kernels_<platform>.o`` of the kernel set (``hammer``, default, or ``string``).
 
     Run by :func:`build_objects` in a process with the portable CPU target and
     an empty kernel cache.  Prints a JSON summary (layout, object sizes).
     """
-    argv = sys.argv[1:] if argv is None else argv
+    argv = list(sys.argv[1:] if argv is None else argv)
+    kernels = "hammer"
+    if argv and argv[0] == "--kernels":
+        kernels, argv = argv[1], argv[2:]
+    compile_fn, entry_points = _kernel_set(kernels)
     out_dir = Path(argv[0])
-    funcs = compile_entry_points()
-    ir = linked_ir(funcs)
+    funcs = compile_fn()
+    ir = linked_ir(funcs, entry_points)
     sizes = {}
     for plat in argv[1:]:
         obj = emit_object(ir, TARGETS[plat])
@@ -289,7 +310,7 @@ def main(argv=None) -> int:
     return 0
 
 
-def sources_key(platforms) -> str:
+def sources_key(platforms, kernels: str = "hammer") -> str:
     """Hash of what the objects are made of: the runtime's sources, this module, numba, llvmlite."""
     import hashlib
     from importlib.metadata import version
@@ -300,7 +321,8 @@ def sources_key(platforms) -> str:
         if f.name != "build_info.py":          # rewritten by the Python flavour's build
             h.update(f.name.encode() + b"\0" + f.read_bytes() + b"\0")
     h.update(Path(__file__).read_bytes())
-    h.update(f"numba {version('numba')} llvmlite {version('llvmlite')} {sorted(platforms)}".encode())
+    h.update((Path(__file__).parent / "native_string_kernels.py").read_bytes())
+    h.update(f"kernels {kernels} numba {version('numba')} llvmlite {version('llvmlite')} {sorted(platforms)}".encode())
     return h.hexdigest()[:16]
 
 
@@ -316,7 +338,7 @@ def _kept_dir(key: str):
 
 
 def build_objects(out_dir, platforms=("linux64", "win64"), *, python: str = sys.executable,
-                  timeout: float = 1800) -> dict:
+                  timeout: float = 1800, kernels: str = "hammer") -> dict:
     """Compile the kernels into ``out_dir/kernels_<platform>.o``; return ``{"layout", "sizes"}``.
 
     Runs :func:`main` in a subprocess: numba there compiles for the portable
@@ -327,13 +349,13 @@ def build_objects(out_dir, platforms=("linux64", "win64"), *, python: str = sys.
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    kept = _kept_dir(sources_key(platforms))
+    kept = _kept_dir(sources_key(platforms, kernels))
     summary = kept / "summary.json" if kept else None
     if summary is not None and summary.is_file():
         for plat in platforms:
             shutil.copyfile(kept / f"kernels_{plat}.o", out_dir / f"kernels_{plat}.o")
         return json.loads(summary.read_text())
-    result = _compile_objects(out_dir, platforms, python=python, timeout=timeout)
+    result = _compile_objects(out_dir, platforms, python=python, timeout=timeout, kernels=kernels)
     if kept is not None:
         for plat in platforms:
             shutil.copyfile(out_dir / f"kernels_{plat}.o", kept / f"kernels_{plat}.o")
@@ -343,13 +365,14 @@ def build_objects(out_dir, platforms=("linux64", "win64"), *, python: str = sys.
     return result
 
 
-def _compile_objects(out_dir: Path, platforms, *, python: str, timeout: float) -> dict:
+def _compile_objects(out_dir: Path, platforms, *, python: str, timeout: float, kernels: str) -> dict:
     from hammerbit.model.numba_target import PORTABLE_ENV
     with tempfile.TemporaryDirectory(prefix="hammerbit_kernels_") as cache:
         env = dict(os.environ, HAMMERBIT_CACHE_DIR=cache, NUMBA_CACHE_DIR=cache,
                    PYTHONDONTWRITEBYTECODE="1", **PORTABLE_ENV)
         try:
-            r = subprocess.run([python, "-m", "hammerbit.fmu.native_kernels", str(out_dir), *platforms],
+            r = subprocess.run([python, "-m", "hammerbit.fmu.native_kernels", "--kernels", kernels,
+                                str(out_dir), *platforms],
                                capture_output=True, text=True, env=env, timeout=timeout)
         except subprocess.TimeoutExpired:
             raise KernelBuildError(f"compiling the kernels took more than {timeout:g} s") from None

@@ -25,7 +25,7 @@ from typing import Optional
 
 from hammerbit.ssp.document import SSD_NAME, Component, Connection, SystemDescription, write_ssd
 
-__all__ = ["SSPOptions", "build_ssp", "STRING", "HAMMER", "CONNECTIONS", "hammer_parameters"]
+__all__ = ["SSPOptions", "RUNTIMES", "build_ssp", "STRING", "HAMMER", "CONNECTIONS", "hammer_parameters"]
 
 #: component names in the system
 STRING, HAMMER = "string", "hammer"
@@ -43,6 +43,8 @@ _STRING_CONNECTORS = {"hammer_position": ("input", "m"), "hammer_velocity": ("in
                       "hook_load": ("output", "N")}
 #: extrapolation order of the string's exchange in the system (the Drillstring FMU's default)
 STRING_EXTRAPOLATION = 2
+#: the flavours of the packed FMUs
+RUNTIMES = ("pythonfmu", "native")
 #: tolerance of the hammer FMU's integrator in the system (the master's default ``rtol``)
 HAMMER_TOLERANCE = 1e-10
 
@@ -55,7 +57,9 @@ class SSPOptions:
     ``stop``, ``step``: the default experiment and libcosim's fixed step [s]; ``wob``: weight on
     bit [N] (default: the hammer's preload); ``rig``: the hammer's ``RigParameters`` (default:
     :func:`hammerbit.cosim.config.default_hammer` of the string); ``top``: the string's
-    ``TopCondition`` (default fixed)."""
+    ``TopCondition`` (default fixed); ``runtime``: the FMUs' flavour, ``pythonfmu`` (the host
+    needs Python) or ``native`` (both FMUs compiled: no Python on the target; the string FMU
+    carries the package's step size)."""
 
     hammer: Optional[str] = None
     stop: float = 2.0
@@ -63,8 +67,11 @@ class SSPOptions:
     wob: Optional[float] = None
     rig: Optional[object] = None
     top: Optional[object] = None
+    runtime: str = "pythonfmu"
 
     def __post_init__(self):
+        if self.runtime not in RUNTIMES:
+            raise ValueError(f"--runtime = {self.runtime!r}: allowed {', '.join(RUNTIMES)}")
         for name in ("stop", "step"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
@@ -118,11 +125,16 @@ def build_ssp(string_arg, out, options: SSPOptions = SSPOptions()) -> Path:
     rig, W = sb.config.rig, sb.config.weight_on_bit
     with tempfile.TemporaryDirectory(prefix="hammerbit_ssp_") as tmp:
         work = Path(tmp)
-        string_fmu = build_string_fmu(string_arg, work / f"{MODEL_NAME}.fmu", build=sb)
+        if options.runtime == "native":
+            from hammerbit.fmu.native_string import build_native_string_fmu
+            string_fmu = build_native_string_fmu(string_arg, work / f"{MODEL_NAME}.fmu", build=sb,
+                                                 steps=(options.step,), log=lambda m: None)
+        else:
+            string_fmu = build_string_fmu(string_arg, work / f"{MODEL_NAME}.fmu", build=sb)
         if options.hammer is None:
             params = _system_hammer_values(rig, W)
             hammer_fmu = build_fmu(work / "HammerBitRock.fmu",
-                                   options=BuildOptions(start_values=dict(params)))
+                                   options=BuildOptions(start_values=dict(params), runtime=options.runtime))
         else:
             hammer_fmu = work / "HammerBitRock.fmu"
             shutil.copy2(options.hammer, hammer_fmu)

@@ -82,6 +82,10 @@ extern hb_wrapper hb_W;
  * Not thread-safe: the caller serialises. */
 int hb_load_wrapper(const char *file, char *err, size_t n);
 
+/* real_repr.c: v as Python's repr() writes it (shortest round-trip digits, exponent form below
+ * 1e-4 and from 1e16 on, ".0" on integral values) */
+void hb_repr(double v, char *out, size_t n);
+
 /* resource_uri.c ------------------------------------------------------------------------------
  * file:/x, file://localhost/x, file:///x (percent-decoded) or an absolute path -> an existing
  * directory path in out; 1, or 0 with the reason in err. */

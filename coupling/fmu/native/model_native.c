@@ -37,35 +37,6 @@
 /* ------------------------------------------------------------------------------------------ */
 /* Messages                                                                                    */
 /* ------------------------------------------------------------------------------------------ */
-/* A float as Python's repr() writes it (the slave's messages): shortest round-trip digits,
- * exponent form below 1e-4 and from 1e16 on, ".0" on integral values. */
-void hb_repr(double v, char *out, size_t n) {
-    if (isnan(v)) {
-        snprintf(out, n, "nan");
-        return;
-    }
-    if (isinf(v)) {
-        snprintf(out, n, v > 0 ? "inf" : "-inf");
-        return;
-    }
-    char e[40];
-    int prec = 1;
-    for (; prec <= 17; prec++) {
-        snprintf(e, sizeof e, "%.*e", prec - 1, v);
-        if (strtod(e, NULL) == v) break;
-    }
-    int exp10 = atoi(strchr(e, 'e') + 1);
-    if (v != 0.0 && (exp10 < -4 || exp10 >= 16)) {
-        char mant[40];
-        snprintf(mant, sizeof mant, "%.*s", (int)(strchr(e, 'e') - e), e);
-        snprintf(out, n, "%se%c%02d", mant, exp10 < 0 ? '-' : '+', abs(exp10));
-        return;
-    }
-    int decimals = prec - 1 - exp10;
-    snprintf(out, n, "%.*f", decimals > 0 ? decimals : 0, v);
-    if (!strchr(out, '.')) strncat(out, ".0", n - strlen(out) - 1);
-}
-
 void hb_mlog(model *m, fmi2Status st, const char *fmt, ...) {
     if (!m->cb.logger) return;
     char msg[2048];

@@ -1,0 +1,427 @@
+/* The native model backend of the Drillstring FMU: the string's co-simulation slave in C around
+ * the library's compiled step kernels (string_api.h; no Python in the process).
+ *
+ * front.c keeps the FMI state machine, the checks of value references and settability, the
+ * resource URI, the logging rules and the FMU-state header; this file does what the Python slave
+ * (hammerbit.model.string_slave) does per call, with the same messages:
+ *   - parameters checked at fmi2ExitInitializationMode as a whole;
+ *   - fmi2DoStep: the inputs checked, one call of the compiled exchange_step and held_force;
+ *   - outputs from the state (the output rows of the string side);
+ *   - FMU states: the whole model state as plain data, the string's state vector included.
+ * The exact step's matrices of each form and communication step size the FMU was built for are
+ * read from resources/string_native.bin (written by hammerbit.fmu.native_string): the matrices
+ * need an eigendecomposition and a matrix exponential, done at build time.  So the parameters
+ * they depend on (damping_ratio, and the auto-driller's gains) keep their build values here. */
+#include <math.h>
+#include <stdarg.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "model_string.h"
+#include "string_api.h"
+
+static int read_doubles(FILE *f, double *p, size_t k) { return fread(p, sizeof(double), k, f) == k; }
+
+/* the table from <resources>/string_native.bin; 1, or 0 with the reason in err */
+static int load_table(const char *dir, table *t, char *err, size_t en) {
+    char path[4200];
+    snprintf(path, sizeof path, "%s/%s", dir, HS_DATA_FILE);
+    FILE *f = fopen(path, "rb");
+    if (!f) {
+        snprintf(err, en, "cannot open %s", path);
+        return 0;
+    }
+    char magic[8];
+    int64_t hdr[2];
+    memset(t, 0, sizeof *t);
+    int ok = fread(magic, 1, 8, f) == 8 && memcmp(magic, DATA_MAGIC, 8) == 0 &&
+             fread(hdr, sizeof(int64_t), 2, f) == 2 && hdr[0] > 0 && hdr[0] < 1000 && hdr[1] > 0;
+    if (ok) {
+        t->nblocks = hdr[0];
+        size_t total = (size_t)hdr[1];
+        t->b = calloc((size_t)t->nblocks, sizeof *t->b);
+        t->mem = malloc(total * sizeof(double));
+        ok = t->b && t->mem && read_doubles(f, t->mem, total);
+        double *p = t->mem, *end = t->mem + total;
+        for (int64_t i = 0; ok && i < t->nblocks; i++) {
+            block *b = &t->b[i];
+            if (end - p < 4) { ok = 0; break; }
+            b->form = (int64_t)p[0];
+            b->h = p[1];
+            b->modal = (int64_t)p[2];
+            b->n = (int64_t)p[3];
+            p += 4;
+            int64_t n = b->n;
+            size_t need = b->modal ? (size_t)(2 * n + 2 * N_ROWS * n + 2 * n + 2 * n * N_COEFFS + 2 * n +
+                                              N_COEFFS)
+                                   : (size_t)(n + N_ROWS * n + (n + 1) * (n + N_COEFFS));
+            if (n <= 0 || (size_t)(end - p) < need) { ok = 0; break; }
+            if (n > t->nmax) t->nmax = n;
+            if (b->modal) {
+                b->frow_c = (double _Complex *)p; p += 2 * n;
+                b->rows_c = (double _Complex *)p; p += 2 * N_ROWS * n;
+                b->d = (double _Complex *)p; p += 2 * n;
+                b->G = (double _Complex *)p; p += 2 * n * N_COEFFS;
+                b->irow = (double _Complex *)p; p += 2 * n;
+                memcpy(b->icol, p, sizeof b->icol); p += N_COEFFS;
+            } else {
+                b->frow_r = p; p += n;
+                b->rows_r = p; p += N_ROWS * n;
+                b->P = p; p += (n + 1) * (n + N_COEFFS);
+            }
+        }
+        ok = ok && p == end;
+    }
+    fclose(f);
+    if (!ok) {
+        free(t->b);
+        free(t->mem);
+        memset(t, 0, sizeof *t);
+        snprintf(err, en, "%s is corrupt or of another build", path);
+    }
+    return ok;
+}
+
+static size_t state_size(const table *t) { return sizeof(sstate) + 2 * (size_t)t->nmax * sizeof(double); }
+
+void hs_log(model *m, fmi2Status st, const char *fmt, ...) {
+    if (!m->cb.logger) return;
+    char msg[2048];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    const char *cat = st == fmi2OK ? "logAll" : st == fmi2Warning ? "logStatusWarning"
+                      : st == fmi2Discard ? "logStatusDiscard" : "logStatusError";
+    m->cb.logger(m->cb.componentEnvironment, m->name, st, cat, msg);
+}
+
+static void set_start_values(model *m) {
+    sstate *s = m->s;
+    memset(s, 0, m->size);
+    s->magic = STATE_MAGIC;
+    s->size = (uint32_t)m->size;
+    s->damping_ratio = HS_START_damping_ratio;
+    s->wob = HS_START_wob;
+    s->at_rest = HS_START_hammer_position_at_rest;
+    s->feed_velocity = HS_START_feed_velocity;
+    s->kp = HS_START_proportional_gain;
+    s->kig = HS_START_integral_gain;
+    s->extrapolation = HS_START_extrapolation;
+    s->top_condition = HS_START_top_condition;
+    s->x_in = s->at_rest;
+    s->interface_force = s->held = HS_START_wob;
+    s->hook_load = HS_START_hook_load;
+    s->top_position = s->top_velocity = 0.0;
+    snprintf(s->error, sizeof s->error, "not initialised (fmi2ExitInitializationMode)");
+}
+
+/* ------------------------------------------------------------------------------------------ */
+/* Parameters                                                                                  */
+/* ------------------------------------------------------------------------------------------ */
+static int in_range(double v, double lo, double hi, int hi_open) {
+    return isfinite(v) && lo <= v && (hi_open ? v < hi : v <= hi);
+}
+
+/* the first bad parameter as the Python slave words it (then the native flavour's own refusal
+ * of a value the build's matrices do not cover); 1 if all are fine */
+static int check_parameters(const sstate *s, char *out, size_t n) {
+    char r[40], r2[40];
+    const struct { const char *name; double v, lo, hi; int open; const char *text; } checks[] = {
+        {"damping_ratio", s->damping_ratio, 0.0, 1.0, 1, "[0, 1)"},
+        {"wob", s->wob, 0.0, HS_BUOYED_WEIGHT * (1.0 + 1e-12), 0, HS_WOB_RANGE_TEXT},
+        {"hammer_position_at_rest", s->at_rest, -HS_INPUT_LIMIT, HS_INPUT_LIMIT, 0, HS_POSITION_RANGE_TEXT},
+    };
+    for (size_t i = 0; i < sizeof checks / sizeof checks[0]; i++)
+        if (!in_range(checks[i].v, checks[i].lo, checks[i].hi, checks[i].open)) {
+            hb_repr(checks[i].v, r, sizeof r);
+            snprintf(out, n, "parameter '%s' = %s is out of range: allowed %s", checks[i].name, r,
+                     checks[i].text);
+            return 0;
+        }
+    if (s->extrapolation < 0 || s->extrapolation > 2) {
+        snprintf(out, n, "parameter 'extrapolation' = %d is out of range: allowed 0, 1, 2", s->extrapolation);
+        return 0;
+    }
+    if (s->top_condition < 0 || s->top_condition > 2) {
+        snprintf(out, n, "parameter 'top_condition' = %d is out of range: allowed 0 (fixed), 1 (feed), "
+                 "2 (auto-driller)", s->top_condition);
+        return 0;
+    }
+    hb_repr(s->feed_velocity, r, sizeof r);
+    if (!(isfinite(s->feed_velocity) && fabs(s->feed_velocity) <= HS_MAX_FEED)) {
+        snprintf(out, n, "parameter 'feed_velocity' = %s is out of range: allowed %s", r, HS_FEED_RANGE_TEXT);
+        return 0;
+    }
+    if (s->feed_velocity != 0.0 && s->top_condition != TOP_FEED) {
+        snprintf(out, n, "parameter 'feed_velocity' = %s: only top_condition = 1 (feed) takes a feed "
+                 "velocity; allowed 0 with top_condition = %d", r, s->top_condition);
+        return 0;
+    }
+    const char *gn[2] = {"proportional_gain", "integral_gain"};
+    double gv[2] = {s->kp, s->kig}, gb[2] = {HS_BUILD_proportional_gain, HS_BUILD_integral_gain};
+    for (int i = 0; i < 2; i++)
+        if (!(isfinite(gv[i]) && 0.0 <= gv[i] && gv[i] <= HS_MAX_GAIN)) {
+            hb_repr(gv[i], r, sizeof r);
+            snprintf(out, n, "parameter '%s' = %s is out of range: allowed [0, %g]", gn[i], r, HS_MAX_GAIN);
+            return 0;
+        }
+    if (s->top_condition == TOP_AUTO && !HS_HAS_AUTO) {
+        snprintf(out, n, "parameter 'top_condition' = %d: this string has no auto-driller (%s); allowed "
+                 "0 (fixed), 1 (feed)", s->top_condition, HS_AUTO_REFUSED);
+        return 0;
+    }
+    /* the native flavour: the matrices are those of the build's values */
+    if (s->damping_ratio != HS_BUILD_damping_ratio) {
+        hb_repr(s->damping_ratio, r, sizeof r);
+        hb_repr(HS_BUILD_damping_ratio, r2, sizeof r2);
+        snprintf(out, n, "parameter 'damping_ratio' = %s: the native Drillstring FMU carries the string's "
+                 "matrices at its build value only; allowed %s (rebuild the FMU with that damping ratio "
+                 "in the string's file, or use the Python flavour, which recomputes them)", r, r2);
+        return 0;
+    }
+    for (int i = 0; s->top_condition == TOP_AUTO && i < 2; i++)
+        if (gv[i] != gb[i]) {
+            hb_repr(gv[i], r, sizeof r);
+            hb_repr(gb[i], r2, sizeof r2);
+            snprintf(out, n, "parameter '%s' = %s: the native Drillstring FMU carries the auto-driller's "
+                     "matrices at its build gains only; allowed %s (rebuild the FMU with --top "
+                     "auto-driller and these gains, or use the Python flavour)", gn[i], r, r2);
+            return 0;
+        }
+    return 1;
+}
+
+/* ------------------------------------------------------------------------------------------ */
+/* Outputs                                                                                     */
+/* ------------------------------------------------------------------------------------------ */
+static const block *find_block(const table *t, int64_t form, double h) {
+    char key[40];
+    snprintf(key, sizeof key, "%.12g", h);   /* step_key(h): steps equal to 12 digits share one */
+    double k = strtod(key, NULL);
+    for (int64_t i = 0; i < t->nblocks; i++)
+        if (t->b[i].form == form && t->b[i].h == k) return &t->b[i];
+    return NULL;
+}
+
+const block *hs_any_block(const table *t, int64_t form) {
+    for (int64_t i = 0; i < t->nblocks; i++)
+        if (t->b[i].form == form) return &t->b[i];
+    return NULL;
+}
+
+static void set_outputs(model *m) {
+    sstate *s = m->s;
+    s->interface_force = s->out[0];
+    s->held = s->F_held;
+    double V = s->feed[0], t0 = s->feed[1];
+    if (!s->started) {           /* the static equilibrium (a feed's block at its start) */
+        s->hook_load = s->hook_eq;
+        s->top_position = 0.0;
+        s->top_velocity = V;
+        return;
+    }
+    const block *b = hs_any_block(&m->tab, s->form);
+    double o[N_ROWS] = {0};
+    for (int r = ROW_HOOK; r < N_ROWS; r++) {
+        double acc = 0.0;
+        if (s->modal) {
+            const double _Complex *eta = (const double _Complex *)s->v;
+            double _Complex z = 0.0;
+            for (int64_t i = 0; i < s->n; i++) z += b->rows_c[r * s->n + i] * eta[i];
+            acc = creal(z);
+        } else {
+            for (int64_t i = 0; i < s->n; i++) acc += b->rows_r[r * s->n + i] * s->v[i];
+        }
+        o[r] = acc;
+    }
+    s->hook_load = o[ROW_HOOK] + s->hook_eq;
+    s->top_position = o[ROW_TOP_U] + V * (s->t - t0);
+    s->top_velocity = o[ROW_TOP_V] + V;
+}
+
+/* ------------------------------------------------------------------------------------------ */
+/* Life cycle                                                                                  */
+/* ------------------------------------------------------------------------------------------ */
+static fmi2Component s_instantiate(fmi2String name, fmi2Type type, fmi2String guid, fmi2String uri,
+                                   const fmi2CallbackFunctions *cb, fmi2Boolean visible,
+                                   fmi2Boolean logging) {
+    (void)type, (void)guid, (void)visible, (void)logging;
+    model *m = calloc(1, sizeof *m);
+    if (!m || !(m->name = strdup(name))) {
+        free(m);
+        return NULL;
+    }
+    m->cb = *cb;
+    char err[4400];
+    const char *dir = strncmp(uri, "file://", 7) == 0 ? uri + 7 : uri;   /* the front's plain path */
+    if (!load_table(dir, &m->tab, err, sizeof err)) {
+        hs_log(m, fmi2Error, "fmi2Instantiate: the string's matrices: %s", err);
+        free(m->name);
+        free(m);
+        return NULL;
+    }
+    m->size = state_size(&m->tab);
+    m->s = calloc(1, m->size);
+    m->buf = calloc((size_t)m->tab.nmax + N_COEFFS, sizeof(double));
+    m->tmp = calloc((size_t)m->tab.nmax + 1, sizeof(double));
+    if (!m->s || !m->buf || !m->tmp) {
+        hs_log(m, fmi2Error, "fmi2Instantiate: out of memory");
+        free(m->s), free(m->buf), free(m->tmp), free(m->tab.b), free(m->tab.mem), free(m->name);
+        free(m);
+        return NULL;
+    }
+    set_start_values(m);
+    return m;
+}
+
+static void s_free_instance(fmi2Component c) {
+    model *m = c;
+    if (!m) return;
+    free(m->s), free(m->buf), free(m->tmp), free(m->tab.b), free(m->tab.mem), free(m->name);
+    free(m);
+}
+
+static fmi2Status s_setup_experiment(fmi2Component c, fmi2Boolean tol_defined, fmi2Real tol,
+                                     fmi2Real start, fmi2Boolean stop_defined, fmi2Real stop) {
+    (void)tol_defined, (void)tol, (void)stop_defined, (void)stop;
+    sstate *s = ((model *)c)->s;
+    if (isfinite(start)) s->t_start = s->t = start;
+    return fmi2OK;
+}
+
+static fmi2Status s_enter_init(fmi2Component c) {
+    (void)c;
+    return fmi2OK;
+}
+
+static fmi2Status s_exit_init(fmi2Component c) {
+    model *m = c;
+    sstate *s = m->s;
+    char bad[1024];
+    if (!check_parameters(s, bad, sizeof bad)) {
+        s->ready = 0;
+        snprintf(s->error, sizeof s->error, "initialisation failed: %s", bad);
+        return FAIL(m, "%s", s->error);
+    }
+    s->form = s->top_condition == TOP_AUTO ? 1 : 0;
+    const block *b = hs_any_block(&m->tab, s->form);
+    s->n = b->n;
+    s->modal = b->modal;
+    s->W = s->wob;
+    s->hook_eq = HS_BUOYED_WEIGHT - s->W;
+    double feed = s->top_condition == TOP_FEED ? s->feed_velocity : 0.0;
+    s->feed[0] = feed;
+    s->feed[1] = s->t_start;
+    s->k3[0] = HS_INTERFACE_STIFFNESS;
+    s->k3[1] = HS_INTERFACE_DAMPING;
+    s->k3[2] = s->W;
+    s->order = s->extrapolation;
+    s->started = 0;
+    memset(s->th, 0, sizeof s->th), memset(s->wh, 0, sizeof s->wh), memset(s->out, 0, sizeof s->out);
+    memset(s->c, 0, sizeof s->c), memset(s->w, 0, sizeof s->w);
+    memset(s->v, 0, 2 * (size_t)m->tab.nmax * sizeof(double));
+    /* the string moves with a feed's block from the start, the hammer rests: the interface dashpot */
+    double F0 = s->W + HS_INTERFACE_DAMPING * feed;
+    for (int i = 0; i < 3; i++) s->Fh[i] = F0;
+    s->out[0] = F0;
+    s->F_held = F0;
+    s->t = s->t_start;
+    s->ready = 1;
+    s->error[0] = '\0';
+    set_outputs(m);
+    return fmi2OK;
+}
+
+static fmi2Status s_terminate(fmi2Component c) {
+    sstate *s = ((model *)c)->s;
+    s->ready = 0;
+    s->terminated = 1;
+    snprintf(s->error, sizeof s->error, "terminated (fmi2Terminate)");
+    return fmi2OK;
+}
+
+static fmi2Status s_reset(fmi2Component c) {
+    set_start_values(c);
+    return fmi2OK;
+}
+
+/* ------------------------------------------------------------------------------------------ */
+/* fmi2DoStep                                                                                   */
+/* ------------------------------------------------------------------------------------------ */
+static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_prior) {
+    (void)no_prior;
+    model *m = c;
+    sstate *s = m->s;
+    char a[40], b2[40];
+    if (!s->ready) return FAIL(m, "fmi2DoStep refused: %s", s->error);
+    if (!(0.0 < h && h < INFINITY)) {
+        hb_repr(h, a, sizeof a);
+        return FAIL(m, "communication step size h = %s s is invalid: it must be > 0 and finite; step "
+                    "refused, state unchanged", a);
+    }
+    if (t != s->t && !(fabs(t - s->t) <= HS_TIME_TOLERANCE * fmax(fabs(s->t), h))) {
+        hb_repr(t, a, sizeof a);
+        hb_repr(s->t, b2, sizeof b2);
+        return FAIL(m, "currentCommunicationPoint = %s s is not the current time of the FMU, %s s; step "
+                    "refused, state unchanged", a, b2);
+    }
+    const block *b = find_block(&m->tab, s->form, h);
+    if (!b) {
+        hb_repr(h, a, sizeof a);
+        return FAIL(m, "communication step size h = %s s is not one this native FMU was built for: "
+                    "allowed %s (build it with --step to add step sizes); step refused, state "
+                    "unchanged", a, HS_STEPS_TEXT);
+    }
+    double x = 0.0, v = 0.0;      /* the first step: the hammer at rest in the static equilibrium */
+    if (s->started) {
+        const char *names[2] = {"hammer_position", "hammer_velocity"}, *units[2] = {"m", "m/s"};
+        double vals[2] = {s->x_in, s->v_in};
+        for (int i = 0; i < 2; i++)
+            if (!(isfinite(vals[i]) && fabs(vals[i]) <= HS_INPUT_LIMIT)) {
+                hb_repr(vals[i], a, sizeof a);
+                return FAIL(m, "input '%s' = %s is out of range: allowed [-%g, %g] %s; step refused, "
+                            "state unchanged", names[i], a, HS_INPUT_LIMIT, HS_INPUT_LIMIT, units[i]);
+            }
+        x = s->x_in - s->at_rest;
+        v = s->v_in;
+    } else {
+        s->th[0] = s->t_start, s->th[1] = s->t_start - h, s->th[2] = s->t_start - 2 * h;
+        for (int i = 0; i < 3; i++) s->wh[2 * i] = x, s->wh[2 * i + 1] = v;
+        s->started = 1;
+    }
+    s->wh[0] = x, s->wh[1] = v;
+    double *xi = s->modal ? m->buf : s->v;
+    double _Complex *eta = s->modal ? (double _Complex *)s->v : NULL;
+    hb_kernel_raised();
+    hs_exchange(s->order, h, s->modal, s->n, b->P ? b->P : m->tmp, xi, m->buf, m->tmp,
+                b->frow_r ? b->frow_r : m->tmp, b->d, b->G, b->irow, (double *)b->icol, eta, b->frow_c,
+                s->k3, s->th, s->wh, s->Fh, s->out, s->F_held, s->c, s->feed);
+    s->F_held = hs_held_force(s->order, s->th, s->Fh, h, s->w);
+    if (hb_kernel_raised()) return FAIL(m, "fmi2DoStep failed: a kernel raised an exception");
+    s->t = t + h;
+    set_outputs(m);
+    return fmi2OK;
+}
+
+/* ------------------------------------------------------------------------------------------ */
+/* The backend table for front.c                                                                */
+/* ------------------------------------------------------------------------------------------ */
+hb_wrapper hb_W;
+
+int hb_backend_load(char *err, size_t n) {
+    (void)err, (void)n;
+    if (hb_W.Instantiate) return 1;
+    hb_W.FreeInstance = s_free_instance;
+    hb_W.SetupExperiment = s_setup_experiment;
+    hb_W.EnterInitializationMode = s_enter_init;
+    hb_W.ExitInitializationMode = s_exit_init;
+    hb_W.Terminate = s_terminate;
+    hb_W.Reset = s_reset;
+    hs_access_fill(&hb_W);
+    hb_W.DoStep = s_do_step;
+    hb_W.Instantiate = s_instantiate;
+    return 1;
+}

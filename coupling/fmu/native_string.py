@@ -1,0 +1,216 @@
+"""The native flavour of ``Drillstring.fmu``: the string's exact step compiled, no Python on the target.
+
+``hammerbit fmu build-string --runtime native`` builds the FMU whose
+``binaries/linux64/Drillstring.so`` and ``binaries/win64/Drillstring.dll`` run
+the library's own step kernels (:mod:`hammerbit.model.string_step`:
+``exchange_step`` and ``held_force``, compiled through
+:mod:`hammerbit.fmu.native_kernels`) behind the native FMI front
+(``native/front.c``) with the string backend ``native/model_string.c``.
+
+The exact step over a communication step ``h`` needs the matrix exponential
+of the string side (and its eigendecomposition for the modal form): the build
+computes them with the library, for each form (fixed hook and feed; the
+auto-driller) and each step size it is given (default: the default
+experiment's step), and writes them into ``resources/string_native.bin``.
+So the native FMU takes the step sizes it was built for, and the parameters
+that change the matrices (``damping_ratio``; the auto-driller's gains) keep
+their build values: another value gives ``fmi2Error`` at
+``fmi2ExitInitializationMode`` naming the parameter (the Python flavour
+recomputes them).  Everything else is the Python flavour's: the model
+description's variables, causality, start values and messages.
+"""
+from __future__ import annotations
+
+import shutil
+import struct
+import tempfile
+import zipfile
+from pathlib import Path
+from xml.etree import ElementTree as ET
+
+import numpy as np
+
+__all__ = ["NATIVE_STRING_TOOL", "DATA_FILE", "STRING_SOURCES", "DEFAULT_STEPS", "string_tables",
+           "write_tables", "string_header", "build_native_string_fmu"]
+
+#: ``generationTool`` of the native string FMU's model description
+NATIVE_STRING_TOOL = "hammerbit fmu build-string --runtime native"
+#: the exact step's matrices in the FMU's resources directory
+DATA_FILE = "string_native.bin"
+_DATA_MAGIC = b"HBSTRN01"
+#: the communication step sizes the FMU carries by default [s] (the default experiment's)
+DEFAULT_STEPS = (1e-3,)
+
+
+def _sources():
+    from hammerbit.fmu.native import SOURCE_DIR
+    return tuple(SOURCE_DIR / f for f in ("front.c", "resource_uri.c", "model_string.c",
+                                          "model_string_access.c", "real_repr.c", "nrt_shim.c"))
+
+
+#: C sources of the native string FMU (front, resource URIs, string backend, repr, runtime shim)
+STRING_SOURCES = _sources()
+
+
+def string_tables(build, steps) -> list:
+    """The exact step of every form of ``build`` (a :class:`~hammerbit.fmu.build_string.StringBuild`)
+    over every step size of ``steps``: ``[(form index, step key, Discretisation, ExactStep)]``.
+
+    The form (modal or dense) is decided at the first step size, as the Python flavour decides
+    it at the first step."""
+    from hammerbit.model.string_model import FORMS, string_matrices
+    from hammerbit.model.string_step import ExactStep, step_key
+    arrays = build.arrays
+    sc = build.info["scalars"]
+    out = []
+    for k, form in enumerate(FORMS):
+        if form not in arrays["forms"]:
+            continue
+        A1, E, frow, rows = string_matrices(arrays, form, arrays["build_values"])
+        side = ExactStep(A1, E, frow, sc["interface_stiffness"], sc["interface_damping"], rows, 0.0)
+        for h in steps:
+            out.append((k, step_key(h), side.discretisation(h), side))
+    return out
+
+
+def _block(form: int, key: float, d, side) -> np.ndarray:
+    """One block of :data:`DATA_FILE` (as ``model_string.c`` reads it), as doubles."""
+    if d.modal:
+        parts = [side.m_frow, side.m_rows3, d.m_d, d.m_G, d.m_irow]
+        n = side.m_frow.shape[0]
+        body = [np.ascontiguousarray(p, dtype=np.complex128).view(np.float64).ravel() for p in parts]
+        body.append(np.asarray(d.m_icol, dtype=float))
+    else:
+        n = side.n
+        body = [side.frow, side.rows3, d.P]
+        body = [np.ascontiguousarray(p, dtype=float).ravel() for p in body]
+    return np.concatenate([np.array([form, key, 1.0 if d.modal else 0.0, n], dtype=float), *body])
+
+
+def write_tables(path: Path, tables) -> None:
+    """Write :func:`string_tables` into ``path`` (little-endian doubles behind a header)."""
+    blocks = [_block(*t) for t in tables]
+    data = np.concatenate(blocks).astype("<f8")
+    with open(path, "wb") as fh:
+        fh.write(_DATA_MAGIC + struct.pack("<qq", len(blocks), data.size))
+        fh.write(data.tobytes())
+
+
+def _c_str(text: str) -> str:
+    from hammerbit.fmu.native import c_string
+    return c_string(text)
+
+
+def _c_ident(name: str) -> str:
+    return "".join(c if c.isalnum() or c == "_" else "_" for c in name)
+
+
+def string_header(md_xml: bytes, build, steps) -> str:
+    """Text of ``hs_string.h``: value references, start and build values, ranges, constants."""
+    from hammerbit.model.string_slave import INPUT_LIMIT, MAX_FEED, MAX_GAIN, TIME_TOLERANCE
+    root = ET.fromstring(md_xml)
+    vrs = {sv.get("name"): int(sv.get("valueReference")) for sv in root.find("ModelVariables")}
+    info, sc, bv = build.info, build.info["scalars"], build.arrays["build_values"]
+    starts = {"damping_ratio": sc["damping_ratio"], "wob": sc["wob"],
+              "hammer_position_at_rest": info["hammer_position_at_rest"],
+              "feed_velocity": info["feed_velocity"], "proportional_gain": info["proportional_gain"],
+              "integral_gain": info["integral_gain"], "extrapolation": 2,
+              "top_condition": info["top_condition"], "hook_load": sc["hook_load"]}
+    buoyed = sc["buoyed_weight"]
+    lines = ["/* generated by hammerbit.fmu.native_string from the string and modelDescription.xml */"]
+    lines += [f"#define HS_VR_{_c_ident(n)} {vr}u" for n, vr in sorted(vrs.items())]
+    lines += [f"#define HS_START_{n} {float(v)!r}" if n not in ("extrapolation", "top_condition")
+              else f"#define HS_START_{n} {int(v)}" for n, v in starts.items()]
+    lines += [f"#define HS_BUILD_{n} {float(v)!r}" for n, v in bv.items()]
+    lines += [f"#define HS_BUOYED_WEIGHT {float(buoyed)!r}",
+              f"#define HS_INTERFACE_STIFFNESS {float(sc['interface_stiffness'])!r}",
+              f"#define HS_INTERFACE_DAMPING {float(sc['interface_damping'])!r}",
+              f"#define HS_STRING_LENGTH {float(info['length_m'])!r}",
+              f"#define HS_STRING_STATES {int(sc['string_states'])}",
+              f"#define HS_HAS_AUTO {int('auto' in build.arrays['forms'])}",
+              f"#define HS_AUTO_REFUSED {_c_str(str(info.get('auto_driller_refused')))}",
+              f"#define HS_INPUT_LIMIT {float(INPUT_LIMIT)!r}",
+              f"#define HS_MAX_FEED {float(MAX_FEED)!r}",
+              f"#define HS_MAX_GAIN {float(MAX_GAIN)!r}",
+              f"#define HS_TIME_TOLERANCE {float(TIME_TOLERANCE)!r}",
+              f"#define HS_WOB_RANGE_TEXT {_c_str(f'[0, {buoyed:.6g}] N (the buoyed weight)')}",
+              f"#define HS_POSITION_RANGE_TEXT {_c_str(f'[-{INPUT_LIMIT:g}, {INPUT_LIMIT:g}] m')}",
+              f"#define HS_FEED_RANGE_TEXT {_c_str(f'[-{MAX_FEED:.4g}, {MAX_FEED:.4g}] m/s (1000 m/h)')}",
+              f"#define HS_STEPS_TEXT {_c_str(', '.join(f'{h:g} s' for h in steps))}",
+              f"#define HS_DATA_FILE {_c_str(DATA_FILE)}", ""]
+    return "\n".join(lines)
+
+
+def native_string_description(xml: bytes, steps) -> bytes:
+    """The Python flavour's model description for the native binaries: no execution tool, FMU
+    states, a variable step only when more than one step size is carried."""
+    root = ET.fromstring(xml)
+    root.set("generationTool", NATIVE_STRING_TOOL)
+    cs = root.find("CoSimulation")
+    cs.attrib.pop("needsExecutionTool", None)
+    cs.set("canGetAndSetFMUstate", "true")
+    cs.set("canSerializeFMUstate", "true")
+    cs.set("canHandleVariableCommunicationStepSize", "true" if len(steps) > 1 else "false")
+    ET.indent(root, space="  ")
+    return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8") + b"\n"
+
+
+def build_native_string_fmu(string_arg, out=None, *, steps=None, build=None, log=print, **kw) -> Path:
+    """Build the native ``Drillstring.fmu`` of ``string_arg`` (TOML path or example name).
+
+    ``steps``: the communication step sizes [s] it carries (default :data:`DEFAULT_STEPS`);
+    ``kw`` go to :func:`~hammerbit.fmu.build_string.string_build`."""
+    from hammerbit.fmu.build_string import MODEL_NAME, build_string_fmu, default_string_output, string_build
+    from hammerbit.fmu.native import generate_header, read_model_description
+    from hammerbit.fmu.native_build import ALLOWED_UNDEFINED, TARGETS, NativeBuildError, link_binary, nm_for, \
+        select_platforms
+    from hammerbit.fmu.native_build import find_compiler, MINGW_CC
+    from hammerbit.fmu.native_kernels import build_objects, undefined_symbols
+    from hammerbit.model.string_model import INFO_FILE, MODEL_FILE
+    steps = tuple(float(h) for h in (DEFAULT_STEPS if steps is None else steps))
+    for h in steps:
+        if not (0.0 < h < float("inf")):
+            raise ValueError(f"--step = {h!r} is out of range: allowed a finite step size > 0 s")
+    build = string_build(string_arg, **kw) if build is None else build
+    out = Path(out) if out is not None else default_string_output()
+    if out.suffix != ".fmu":
+        out = out / f"{MODEL_NAME}.fmu"
+    out = out.resolve()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix="hammerbit_native_string_") as tmp:
+        tmp = Path(tmp)
+        py_fmu = build_string_fmu(string_arg, tmp / "python" / f"{MODEL_NAME}.fmu", build=build)
+        with zipfile.ZipFile(py_fmu) as zf:
+            md = native_string_description(zf.read("modelDescription.xml"), steps)
+            info_json = zf.read(f"resources/{INFO_FILE}")
+            arrays_npz = zf.read(f"resources/{MODEL_FILE}")
+        write_tables(tmp / DATA_FILE, string_tables(build, steps))
+        spec = read_model_description(md)
+        (tmp / "hb_model.h").write_text(generate_header(spec, wrapper_file="", python_modules=()))
+        (tmp / "hs_string.h").write_text(string_header(md, build, steps))
+        platforms = select_platforms(log)
+        build_objects(tmp, platforms, kernels="string")
+        built = {}
+        for plat in platforms:
+            obj = tmp / f"kernels_{plat}.o"
+            extra = undefined_symbols(obj, nm=nm_for(plat)) - ALLOWED_UNDEFINED
+            if extra:
+                raise NativeBuildError(f"the {plat} string kernel object needs symbols no shim provides: "
+                                       f"{sorted(extra)}")
+            cc = find_compiler() if plat == "linux64" else shutil.which(MINGW_CC)
+            dest = tmp / "bin" / plat / f"{spec.model_identifier}{TARGETS[plat].suffix}"
+            dest.parent.mkdir(parents=True, exist_ok=True)
+            link_binary(plat, cc, obj, tmp, dest, sources=STRING_SOURCES)
+            built[plat] = dest
+        tmp_out = out.with_name(out.name + ".tmp")
+        with zipfile.ZipFile(tmp_out, "w", zipfile.ZIP_DEFLATED) as zf:
+            zf.writestr("modelDescription.xml", md)
+            for plat, path in sorted(built.items()):
+                zf.write(path, f"binaries/{plat}/{path.name}")
+            zf.write(tmp / DATA_FILE, f"resources/{DATA_FILE}")
+            zf.writestr(f"resources/{INFO_FILE}", info_json)
+            # not read by the binaries: the string side's arrays for hammerbit cosim --ssp
+            zf.writestr(f"resources/{MODEL_FILE}", arrays_npz)
+            zf.writestr("resources/string.toml", build.source_text)
+        tmp_out.replace(out)
+    return out

@@ -1,0 +1,65 @@
+"""The Drillstring FMU's numba step kernels as C entry points for the native flavour.
+
+The native ``Drillstring.fmu`` steps the string with the library's own
+kernels of :mod:`hammerbit.model.string_step` (:func:`exchange_step`, the
+master's Jacobi exchange in its FMU form, and :func:`held_force`), compiled
+ahead of time by :mod:`hammerbit.fmu.native_kernels` exactly as the hammer's
+kernels are.  The entry points take flat C arrays; the complex modal arrays
+are ``double _Complex`` (interleaved real and imaginary parts).
+"""
+from __future__ import annotations
+
+__all__ = ["STRING_ENTRY_POINTS", "compile_string_entry_points"]
+
+#: C names of the entry points and their C prototypes (string_api.h in native/ declares the same)
+STRING_ENTRY_POINTS = {
+    "hs_exchange": "double hs_exchange(int64_t order, double h, int64_t modal, int64_t n, double *P, "
+                   "double *xi, double *buf, double *tmp, double *frow_real, double _Complex *d, "
+                   "double _Complex *G, double _Complex *irow, double *icol, double _Complex *eta, "
+                   "double _Complex *frow, double *k3, double *th, double *wh, double *Fh, double *out, "
+                   "double F_held, double *c, double *feed)",
+    "hs_held_force": "double hs_held_force(int64_t order, double *th, double *Fh, double h, double *w)",
+}
+
+
+def compile_string_entry_points() -> dict:
+    """``{C name: numba cfunc}`` of :data:`STRING_ENTRY_POINTS` (compiles them in this process)."""
+    from numba import carray, cfunc
+    from numba.core.types import CPointer, complex128, float64, int64
+
+    from hammerbit.model.string_step import N_COEFFS, exchange_step, held_force
+
+    f64p, c128p = CPointer(float64), CPointer(complex128)
+    NC = N_COEFFS
+
+    @cfunc(float64(int64, float64, int64, int64, f64p, f64p, f64p, f64p, f64p, c128p, c128p, c128p, f64p,
+                   c128p, c128p, f64p, f64p, f64p, f64p, f64p, float64, f64p, f64p))
+    def hs_exchange(order, h, modal, n, Pp, xip, bufp, tmpp, frp, dp, Gp, irp, icp, etap, fcp, k3p, thp,
+                    whp, Fhp, outp, F_held, cp, feedp):
+        # n: states of the dense form, or kept modes of the modal form; k3 = (ki, ci, W);
+        # th (3), wh (3 x 2), Fh (3), out (4) as exchange_step takes them; returns out[0]
+        th, wh, Fh, out = carray(thp, (3,)), carray(whp, (3, 2)), carray(Fhp, (3,)), carray(outp, (4,))
+        k3 = carray(k3p, (3,))
+        c = carray(cp, (NC,))
+        feed = carray(feedp, (2,))
+        icol = carray(icp, (NC,))
+        if modal:
+            exchange_step(False, order, h, True, carray(Pp, (0, 0)), carray(xip, (0,)), carray(bufp, (0,)),
+                          carray(tmpp, (0,)), carray(dp, (n,)), carray(Gp, (n, NC)), carray(irp, (n,)),
+                          icol, carray(etap, (n,)), carray(fcp, (n,)), k3[0], k3[1], k3[2], th, wh, Fh,
+                          0.0, 0.0, F_held, c, out, feed, True)
+        else:
+            exchange_step(False, order, h, False, carray(Pp, (n + 1, n + NC)), carray(xip, (n,)),
+                          carray(bufp, (n + NC,)), carray(tmpp, (n + 1,)), carray(dp, (0,)),
+                          carray(Gp, (0, NC)), carray(irp, (0,)), icol, carray(etap, (0,)),
+                          carray(frp, (n,)), k3[0], k3[1], k3[2], th, wh, Fh, 0.0, 0.0, F_held, c, out,
+                          feed, True)
+        return out[0]
+
+    @cfunc(float64(int64, f64p, f64p, float64, f64p))
+    def hs_held_force(order, thp, Fhp, h, wp):
+        return held_force(order, carray(thp, (3,)), carray(Fhp, (3,)), h, carray(wp, (3,)))
+
+    funcs = {"hs_exchange": hs_exchange, "hs_held_force": hs_held_force}
+    assert set(funcs) == set(STRING_ENTRY_POINTS)
+    return funcs
