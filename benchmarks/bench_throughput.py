@@ -81,7 +81,7 @@ def _cli_cmd() -> list:
     exe = os.path.join(os.path.dirname(sys.executable), "hammerbit")
     if os.path.isfile(exe) and os.access(exe, os.X_OK):
         return [exe]
-    return [sys.executable, "-m", "hammerbit.cli.main"]
+    return [sys.executable, "-m", "hammerbit"]
 
 
 def _timed_subprocess(cmd, env, timeout=600.0, cwd=REPO_ROOT) -> dict:

@@ -373,8 +373,8 @@ def test_ctrl_c_in_a_map_on_local_workers_exits_130_and_leaves_no_processes(monk
 def test_cli_map_interrupted_leaves_no_processes(tmp_path):
     """Ctrl-C during a map on 2 local workers: exit 130 and no worker process left behind."""
     psutil = pytest.importorskip("psutil")
-    cmd = [sys.executable, "-m", "hammerbit.cli.main", "map", "--axis", "a=0.05:0.25:30", "--axis",
-           "eta=0.6:1.4:40", "--periods", "300", "--workers", "2"]
+    cmd = [sys.executable, "-m", "hammerbit", "map", "--axis", "a=0.05:0.25:60", "--axis",
+           "eta=0.6:1.4:80", "--periods", "1000", "--workers", "2"]
     p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     proc = psutil.Process(p.pid)
 
