@@ -379,13 +379,14 @@ def test_cli_map_interrupted_leaves_no_processes(tmp_path):
     proc = psutil.Process(p.pid)
 
     def worker_cpu_s():
-        """CPU time [s] of each worker process (the resource tracker and the fork server left out)."""
+        """CPU time [s] of each worker process (the resource tracker and the fork server left out;
+        the workers are forked by the fork server, so they carry its command line)."""
         out = []
         for k in proc.children(recursive=True):
             try:
                 line = " ".join(k.cmdline())
-                if "python" in k.name().lower() and "resource_tracker" not in line \
-                        and "forkserver import main" not in line:
+                fork_server = "forkserver import main" in line and k.ppid() == proc.pid
+                if "python" in k.name().lower() and "resource_tracker" not in line and not fork_server:
                     out.append(sum(k.cpu_times()[:2]))
             except psutil.Error:        # ended or not yet readable
                 pass
