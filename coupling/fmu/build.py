@@ -308,7 +308,7 @@ def _add_front(files: dict, md_xml: str, model_identifier: str, work: Path) -> O
 # ---------------------------------------------------------------------------
 # the build
 # ---------------------------------------------------------------------------
-def _forget_staged_modules(staging: Path, names) -> None:
+def forget_staged_modules(staging: Path, names) -> None:
     """Undo what pythonfmu's builder left in this process (sys.path entry, imported modules)."""
     for name in list(sys.modules):
         if any(name == n or name.startswith(n + ".") for n in names):
@@ -375,7 +375,7 @@ def build_fmu(out=None, *, options: BuildOptions = BuildOptions(), **kw) -> Path
         script.write_text(_ENTRY_SOURCE.format(model=MODEL_NAME, hash=tag, pkg=pkg_name))
         if options.portable_cache:
             _portable_cache(pkg, options.python)
-        _forget_staged_modules(staging, (entry_name, pkg_name))
+        forget_staged_modules(staging, (entry_name, pkg_name))
         try:
             raw = FmuBuilder.build_FMU(
                 script, dest=work / f"{MODEL_NAME}.fmu",
@@ -384,7 +384,7 @@ def build_fmu(out=None, *, options: BuildOptions = BuildOptions(), **kw) -> Path
                 canHandleVariableCommunicationStepSize=True,
             )
         finally:
-            _forget_staged_modules(staging, (entry_name, pkg_name))
+            forget_staged_modules(staging, (entry_name, pkg_name))
         with zipfile.ZipFile(raw) as zf:
             contents = {n: zf.read(n) for n in zf.namelist() if not n.endswith("/")}
         md = _edit_model_description(contents["modelDescription.xml"])

@@ -20,7 +20,6 @@ from __future__ import annotations
 import hashlib
 import json
 import shutil
-import sys
 import tempfile
 import zipfile
 from dataclasses import dataclass
@@ -28,6 +27,8 @@ from pathlib import Path
 from typing import Optional
 
 import numpy as np
+
+from hammerbit.fmu.build import forget_staged_modules
 
 __all__ = ["MODEL_NAME", "StringBuild", "build_string_fmu", "string_build",
            "default_string_output"]
@@ -200,19 +201,6 @@ def _hash(files) -> str:
     return h.hexdigest()[:_HASH_LEN]
 
 
-def _forget(staging: Path, names) -> None:
-    """Undo what pythonfmu's builder left in this process (sys.path entry, imported modules)."""
-    for name in list(sys.modules):
-        if any(name == n or name.startswith(n + ".") for n in names):
-            del sys.modules[name]
-    for entry in list(sys.path):
-        try:
-            if Path(entry).resolve() == staging.resolve():
-                sys.path.remove(entry)
-        except (OSError, ValueError):
-            continue
-
-
 def build_string_fmu(string_arg, out=None, *, build: Optional[StringBuild] = None, **kw) -> Path:
     """Build ``Drillstring.fmu`` of ``string_arg`` (TOML path or example name) and return its path.
 
@@ -241,14 +229,14 @@ def build_string_fmu(string_arg, out=None, *, build: Optional[StringBuild] = Non
         (staging / "string.toml").write_text(build.source_text)
         script = staging / f"{entry_name}.py"
         script.write_text(_ENTRY_SOURCE.format(model=MODEL_NAME, hash=tag, pkg=pkg_name))
-        _forget(staging, (entry_name, pkg_name))
+        forget_staged_modules(staging, (entry_name, pkg_name))
         try:
             raw = FmuBuilder.build_FMU(script, dest=work / f"{MODEL_NAME}.fmu",
                                        project_files=[pkg, staging / MODEL_FILE, staging / INFO_FILE,
                                                       staging / "string.toml"],
                                        canHandleVariableCommunicationStepSize=True)
         finally:
-            _forget(staging, (entry_name, pkg_name))
+            forget_staged_modules(staging, (entry_name, pkg_name))
         with zipfile.ZipFile(raw) as zf:
             contents = {n: zf.read(n) for n in zf.namelist() if not n.endswith("/")}
         tmp_out = out.with_name(out.name + ".tmp")
