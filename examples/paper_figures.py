@@ -62,7 +62,8 @@ def main(argv=None):
     plot_penetration(a, {"no impact (paper-fig9)": p9, "impact r=0.84 (paper-fig12)": p12},
                      OUT / "penetration_fig14.png", periods=100, scales=preset("paper-fig9").scales)
     mm = preset("paper-fig9").scales.length * 1e3
-    print(f"  penetration_fig14.png: penetration after 100 periods against a = 0..0.4; at a = 0.4 "
+    print(f"  penetration_fig14.png: penetration after 100 periods against a = {a[0]:g}..{a[-1]:g}; at "
+          f"a = {a[-1]:g} "
           f"{p9[-1] * mm:.4g} mm without impact, {p12[-1] * mm:.4g} mm with impact", flush=True)
     plot_scene(preset("paper-fig9").replace(a=0.083), 300, OUT / "scene_fig9_a0.083.png", preset="paper-fig9")
     plot_scene(preset("paper-fig12").replace(a=0.06), 300, OUT / "scene_fig12_a0.06.png", preset="paper-fig12")
