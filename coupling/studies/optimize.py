@@ -19,9 +19,9 @@ The ROP landscape is piecewise smooth, with steps where the period-n of the
 motion changes.  A global stage evaluates a grid (41 points per variable for
 one or two variables, 15 for three) through the study executor; a local
 stage (:func:`hammerbit.studies.refine.pattern_search`) refines from the best
-feasible cells along the grid directions and bisects back to the feasible
-boundary where a constraint blocks a faster point, so it follows active
-constraints.  The optimum is the best feasible point evaluated, never below
+feasible cells along the grid directions and diagonals, halving its step when
+no move improves, so a faster point cut off by a constraint is approached from
+the feasible side and the search ends on the active constraint.  The optimum is the best feasible point evaluated, never below
 the best feasible grid cell.  Runners-up are the best drilling points
 (a period found, a positive ROP) of other periods.
 """
