@@ -31,6 +31,7 @@ from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFr
 
 from hammerbit.fmu.native import (FrontBuildError, build_front, find_compiler,  # noqa: E402
                                   generate_header, read_model_description as read_spec)
+from native_hosts import ecos_or_skip  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 HOST_SOURCE = HERE / "fmu_native_host.c"
@@ -685,24 +686,8 @@ def test_stub_fatal_step_does_not_crash_the_host(stub_dir):
 # another native master: ecos (from the ecospy wheel)
 # ---------------------------------------------------------------------------
 def _ecos_or_skip(tmp: Path) -> tuple[Path, dict]:
-    try:
-        import importlib.metadata as md
-        import importlib.util
-        spec = importlib.util.find_spec("ecospy")
-        tbb = [Path(str(f.locate())).resolve() for f in md.files("tbb") or ()
-               if f.name.startswith("libtbb.so.")]
-    except Exception as e:  # noqa: BLE001 - any packaging problem means: not available here
-        pytest.skip(f"ecospy/tbb not usable: {e!r}")
-    if spec is None or not tbb:
-        pytest.skip("ecospy or tbb is not installed")
-    binaries = Path(spec.origin).parent / "binaries"
-    for name in ("ecos", "libecosc.so"):
-        if not (binaries / name).exists():
-            pytest.skip(f"ecospy ships no {name}")
-        shutil.copy(binaries / name, tmp / name)
-    (tmp / "ecos").chmod(0o755)      # the wheel installs it without the execute bit
-    env = host_env(HAMMERBIT_PYTHON=sys.executable, LD_LIBRARY_PATH=f"{tbb[0].parent}:{tmp}")
-    return tmp / "ecos", env
+    ecos, tbb = ecos_or_skip(tmp)
+    return ecos, host_env(HAMMERBIT_PYTHON=sys.executable, LD_LIBRARY_PATH=f"{tbb}:{tmp}")
 
 
 def test_ecos_runs_the_fmu_natively(any_fmu, plain_dir, tmp_path, request):

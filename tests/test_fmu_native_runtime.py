@@ -28,6 +28,7 @@ from fmpy.fmi2 import (FMU2Model, FMU2Slave, fmi2CallbackAllocateMemoryTYPE,  # 
 
 from hammerbit.fmu.native import find_compiler  # noqa: E402
 from hammerbit.fmu.native_build import MINGW_CC, select_platforms  # noqa: E402
+from native_hosts import ecos_or_skip, windows_host_or_skip  # noqa: E402
 from hammerbit.model.kernel_layouts import P_B, P_FEXT  # noqa: E402
 from hammerbit.model.params import RigParameters  # noqa: E402
 from hammerbit.model.presets import preset  # noqa: E402
@@ -228,16 +229,7 @@ def test_c_host_without_python_equals_the_library(linux_host, native_dir, md, vr
 
 def test_windows_host_under_wine_equals_the_linux_run(linux_host, native_dir, md, vrs, tmp_path):
     dll = native_dir / "binaries" / "win64" / f"{ID}.dll"
-    wine = shutil.which("wine") or shutil.which("wine64") or next(
-        (w for w in ("/usr/lib/wine/wine64",) if os.access(w, os.X_OK)), None)   # Debian's wine64 alone
-    if not shutil.which(MINGW_CC) or not dll.exists():
-        pytest.skip(f"no {MINGW_CC} (Debian: gcc-mingw-w64-x86-64): no win64 binary or host")
-    if not wine:
-        pytest.skip("no wine (Debian: wine64) to run the Windows host")
-    exe = tmp_path / "fmu_native_host.exe"
-    include = Path(fmpy.__file__).parent / "c-code"
-    subprocess.run([MINGW_CC, "-O1", "-I", str(include), "-o", str(exe), str(HOST_SOURCE), "-static",
-                    "-lpthread"], check=True)
+    wine, exe = windows_host_or_skip(dll, tmp_path)
     uri = "file:///Z:" + urllib_quote((native_dir / "resources").as_posix())
     outs = "out=" + ",".join(str(vrs[n]) for n in COMPARED)
     env = {"PATH": "/usr/bin:/bin", "HOME": str(tmp_path), "WINEDEBUG": "-all",
@@ -382,25 +374,9 @@ def test_libcosim_runs_the_native_fmu_like_the_library(native_fmu):
 
 
 def _ecos_or_skip(tmp: Path) -> tuple[Path, dict]:
-    try:
-        import importlib.metadata as imd
-        import importlib.util
-        spec = importlib.util.find_spec("ecospy")
-        tbb = [Path(str(f.locate())).resolve() for f in imd.files("tbb") or ()
-               if f.name.startswith("libtbb.so.")]
-    except Exception as e:  # noqa: BLE001 - any packaging problem means: not available here
-        pytest.skip(f"ecospy/tbb not usable: {e!r}")
-    if spec is None or not tbb:
-        pytest.skip("ecospy or tbb is not installed")
-    binaries = Path(spec.origin).parent / "binaries"
-    for name in ("ecos", "libecosc.so"):
-        if not (binaries / name).exists():
-            pytest.skip(f"ecospy ships no {name}")
-        shutil.copy(binaries / name, tmp / name)
-    (tmp / "ecos").chmod(0o755)
+    ecos, tbb = ecos_or_skip(tmp)
     # nothing that points at a Python (no HAMMERBIT_PYTHON, no PYTHONPATH); PATH for ecos's unzip
-    return tmp / "ecos", {"PATH": "/usr/bin:/bin", "HOME": str(tmp),
-                          "LD_LIBRARY_PATH": f"{tbb[0].parent}:{tmp}"}
+    return ecos, {"PATH": "/usr/bin:/bin", "HOME": str(tmp), "LD_LIBRARY_PATH": f"{tbb}:{tmp}"}
 
 
 def test_ecos_runs_the_native_fmu(native_fmu, tmp_path):

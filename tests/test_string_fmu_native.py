@@ -9,7 +9,6 @@ the modal form, its auto-driller in the dense form.
 import json
 import os
 import re
-import shutil
 import subprocess
 import zipfile
 from pathlib import Path
@@ -20,7 +19,7 @@ import pytest
 fmpy = pytest.importorskip("fmpy")
 
 from hammerbit.fmu.native import find_compiler  # noqa: E402
-from hammerbit.fmu.native_build import MINGW_CC  # noqa: E402
+from native_hosts import windows_host_or_skip  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 HOST_SOURCE = HERE / "fmu_native_host.c"
@@ -295,16 +294,7 @@ def test_c_host_without_python_equals_the_python_flavour(fmus, native_dir, linux
 def test_windows_host_under_wine_equals_the_linux_run(native_dir, linux_host, tmp_path):
     import urllib.parse
     dll = native_dir / "binaries" / "win64" / "Drillstring.dll"
-    wine = shutil.which("wine") or shutil.which("wine64") or next(
-        (w for w in ("/usr/lib/wine/wine64",) if os.access(w, os.X_OK)), None)
-    if not shutil.which(MINGW_CC) or not dll.exists():
-        pytest.skip(f"no {MINGW_CC} (Debian: gcc-mingw-w64-x86-64): no win64 binary or host")
-    if not wine:
-        pytest.skip("no wine (Debian: wine64) to run the Windows host")
-    exe = tmp_path / "fmu_native_host.exe"
-    include = Path(fmpy.__file__).parent / "c-code"
-    subprocess.run([MINGW_CC, "-O1", "-I", str(include), "-o", str(exe), str(HOST_SOURCE), "-static",
-                    "-lpthread"], check=True)
+    wine, exe = windows_host_or_skip(dll, tmp_path)
     uri = "file:///Z:" + urllib.parse.quote((native_dir / "resources").as_posix())
     env = {"PATH": "/usr/bin:/bin", "HOME": str(tmp_path), "WINEDEBUG": "-all",
            "WINEPREFIX": os.environ.get("WINEPREFIX", str(Path.home() / ".wine"))}

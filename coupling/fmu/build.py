@@ -107,12 +107,17 @@ def runtime_dir() -> Path:
     return Path(model.__file__).resolve().parent
 
 
-def runtime_files() -> list:
-    """The runtime sources the FMU carries: every module of :mod:`hammerbit.model`."""
+#: modules the HammerBitRock FMU's runtime cannot do without
+HAMMER_RUNTIME_MODULES = ("__init__.py", "slave.py", "stepping.py", "kernel_driver.py", "params.py",
+                          "numba_cache.py", "build_info.py")
+
+
+def runtime_files(needed=HAMMER_RUNTIME_MODULES) -> list:
+    """The runtime sources an FMU carries: every module of :mod:`hammerbit.model` (the build
+    refuses a runtime package that lacks one of ``needed``)."""
     files = sorted(runtime_dir().glob("*.py"))
     names = {p.name for p in files}
-    for required in ("__init__.py", "slave.py", "stepping.py", "kernel_driver.py", "params.py",
-                     "numba_cache.py", "build_info.py"):
+    for required in needed:
         if required not in names:
             raise FMUBuildError(f"the runtime package {runtime_dir()} lacks {required}")
     return files

@@ -17,7 +17,6 @@ From the shell: ``hammerbit fmu build-string --string FILE [--out PATH]``.
 """
 from __future__ import annotations
 
-import hashlib
 import json
 import shutil
 import tempfile
@@ -28,7 +27,7 @@ from typing import Optional
 
 import numpy as np
 
-from hammerbit.fmu.build import forget_staged_modules
+from hammerbit.fmu.build import build_hash, forget_staged_modules, runtime_files
 
 __all__ = ["MODEL_NAME", "StringBuild", "build_string_fmu", "string_build",
            "default_string_output"]
@@ -36,7 +35,6 @@ __all__ = ["MODEL_NAME", "StringBuild", "build_string_fmu", "string_build",
 MODEL_NAME = "Drillstring"
 RUNTIME_PREFIX = "hammerbit_string_runtime"   # + "_<hash>": the runtime package inside the FMU
 ENTRY_PREFIX = "hammerbit_string_slave"       # + "_<hash>": pythonfmu's slave module
-_HASH_LEN = 12
 #: damping ratio of the second side when the file's is 0 (the derivative in the ratio from two sides)
 _DAMPING_PROBE = 0.5
 
@@ -182,23 +180,8 @@ def string_build(string_arg, *, wob: Optional[float] = None, rig=None, top=None,
     return StringBuild(string, info["toml"], config, arrays, info)
 
 
-def _runtime_files() -> list:
-    from hammerbit import model
-    files = sorted(Path(model.__file__).resolve().parent.glob("*.py"))
-    names = {p.name for p in files}
-    for required in ("string_slave.py", "string_step.py", "string_model.py", "numba_cache.py"):
-        if required not in names:
-            from hammerbit.fmu.build import FMUBuildError
-            raise FMUBuildError(f"the runtime package lacks {required}")
-    return files
-
-
-def _hash(files) -> str:
-    h = hashlib.sha256()
-    for f in files:
-        h.update(f.name.encode())
-        h.update(f.read_bytes())
-    return h.hexdigest()[:_HASH_LEN]
+#: modules the Drillstring FMU's runtime cannot do without
+STRING_RUNTIME_MODULES = ("string_slave.py", "string_step.py", "string_model.py", "numba_cache.py")
 
 
 def build_string_fmu(string_arg, out=None, *, build: Optional[StringBuild] = None, **kw) -> Path:
@@ -214,8 +197,8 @@ def build_string_fmu(string_arg, out=None, *, build: Optional[StringBuild] = Non
         out = out / f"{MODEL_NAME}.fmu"
     out = out.resolve()
     out.parent.mkdir(parents=True, exist_ok=True)
-    files = _runtime_files()
-    tag = _hash(files)
+    files = runtime_files(needed=STRING_RUNTIME_MODULES)
+    tag = build_hash(files)
     pkg_name, entry_name = f"{RUNTIME_PREFIX}_{tag}", f"{ENTRY_PREFIX}_{tag}"
     with tempfile.TemporaryDirectory(prefix="hammerbit_string_fmu_") as tmp:
         work = Path(tmp)
