@@ -1,34 +1,68 @@
-"""Warm solver speed of one checkout, to compare two checkouts in one session.
+"""Warm solver speed of one checkout: the probe that ``bench_warm_speed`` runs in two checkouts.
 
-Run it with each checkout's own Python (for example a venv with ``pip install --no-deps -e``
-of an older commit), alternating, and compare the JSON it prints: the best of N timings of
-200 forcing periods of a few fixed scenes. The paper presets' calibration changed, so the
-paper scenes are given the old groups in both checkouts.
+It prints JSON: for each scene the best of N timings (kernels compiled and cached
+by a warm-up call first) of 200 forcing periods of ``simulate``, and of a small
+single-worker bifurcation sweep (the throughput benchmark's scene, shortened).
+The paper presets' calibration changed after the code it is compared with, so the
+paper scenes are given the old groups in both checkouts: the same dynamics, the
+same events, the same work.
 
-    python benchmarks/warm_speed.py 30
+    python -m benchmarks --only warm_speed      # this checkout against the code before, same run
+    python benchmarks/warm_speed.py 30          # one checkout, best of 30
 """
-import json, sys, time
-try:
+import json
+import sys
+import time
+
+import numpy as np
+
+try:  # the layout of this checkout
     from hammerbit.model.presets import preset
     from hammerbit.model.solver_options import SolverOptions
     from hammerbit.scene.simulate import simulate
-except ImportError:
+except ImportError:  # the layout before the split into packages (13a99bd)
     from hammerbit.model.params import preset
     from hammerbit.model.stepping import SolverOptions
     from hammerbit.simulate import simulate
+from hammerbit.studies.bifurcation import bifurcation
+from hammerbit.studies.executor import ExecutorOptions
+
 SCENES = [("paper-fig9", {"a": 0.083}, "adaptive"), ("paper-fig12", {"a": 0.06}, "adaptive"),
           ("paper-fig9", {"a": 0.083}, "dp54"), ("paper-fig9", {"a": 0.083}, "rk4"), ("lab", {}, "adaptive")]
-# the same groups in both checkouts: the paper presets' calibration changed, so the old values are set
-OLD = {"xi": 0.074, "mu": 0.85}
-out = {}
-for name, ch, method in SCENES:
-    g = preset(name).replace(**ch)
-    if name.startswith("paper"):
-        g = g.replace(**OLD)
-    opts = SolverOptions(method=method)
-    simulate(g, 20, solver=opts)
+#: the paper presets' groups before their calibration changed, set in both checkouts
+OLD_PAPER_GROUPS = {"xi": 0.074, "mu": 0.85}
+PERIODS = 200
+#: the throughput benchmark's sweep (a in [0, 0.25], rtol 1e-8), fewer values
+SWEEP = {"values": np.linspace(0.0, 0.25, 24), "periods": 300, "keep": 64, "rtol": 1e-8, "atol": 1e-10}
+
+
+def _groups(name, changes):
+    g = preset(name).replace(**changes)
+    return g.replace(**OLD_PAPER_GROUPS) if name.startswith("paper") else g
+
+
+def best_of(fn, repeats):
+    fn()  # compile or load the kernels, warm the caches
     best = float("inf")
-    for _ in range(int(sys.argv[1]) if len(sys.argv) > 1 else 15):
-        t = time.perf_counter(); simulate(g, 200, solver=opts); best = min(best, time.perf_counter() - t)
-    out[f"{name} {ch} {method}"] = best
-print(json.dumps(out))
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def measure(repeats):
+    out = {}
+    for name, changes, method in SCENES:
+        g, opts = _groups(name, changes), SolverOptions(method=method)
+        out[f"{name} {changes} {method}"] = best_of(lambda: simulate(g, PERIODS, solver=opts), repeats)
+    g = _groups("paper-fig9", {})
+    solver = SolverOptions(rtol=SWEEP["rtol"], atol=SWEEP["atol"])
+    out["bifurcation sweep, 1 worker"] = best_of(
+        lambda: bifurcation(g, "a", SWEEP["values"], periods=SWEEP["periods"], keep=SWEEP["keep"], solver=solver,
+                            options=ExecutorOptions(workers=1)), max(3, repeats // 5))
+    return out
+
+
+if __name__ == "__main__":
+    print(json.dumps(measure(int(sys.argv[1]) if len(sys.argv) > 1 else 15)))
