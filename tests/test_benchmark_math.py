@@ -217,3 +217,29 @@ def test_own_cost_ratio_takes_the_call_floor_off_both():
     assert r["own_ratio"] == pytest.approx(0.2) and r["own_ratio_q1"] == pytest.approx(0.2)
     assert r["ours_own_s"] == pytest.approx(0.4) and r["floor_own_s"] == pytest.approx(2.0)
     assert r["call_floor_s"] == pytest.approx(1.0)
+
+
+def test_warm_speed_compares_the_best_of_each_checkout_over_all_rounds():
+    from benchmarks.bench_warm_speed import compare
+    base = [{"s": 2.0, "t": 5.0}, {"s": 1.0, "t": 6.0}]
+    ours = [{"s": 1.5, "t": 4.0}, {"s": 3.0, "t": 4.5}]
+    got = compare(base, ours)
+    assert got["s"] == {"before_s": 1.0, "ours_s": 1.5, "ratio": 1.5}
+    assert got["t"] == {"before_s": 5.0, "ours_s": 4.0, "ratio": 0.8}
+
+
+def test_warm_speed_boot_maps_a_checkout_without_installing_it(tmp_path):
+    """The probe of the code before runs on that checkout's sources, not on the installed package."""
+    import subprocess
+    import sys
+    from benchmarks.bench_warm_speed import _BOOT
+    for pkg, body in (("coupling", "WHERE = 'checkout'\n"), ("fmu_src", "WHERE = 'checkout model'\n")):
+        (tmp_path / pkg).mkdir()
+        (tmp_path / pkg / "__init__.py").write_text(body)
+    probe = tmp_path / "probe.py"
+    probe.write_text("import hammerbit, hammerbit.model, sys\nprint(hammerbit.WHERE, '|', hammerbit.model.WHERE,"
+                     " '|', sys.argv[1])\n")
+    r = subprocess.run([sys.executable, "-c", _BOOT, str(tmp_path), str(probe), "7"], capture_output=True, text=True,
+                       timeout=60)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip() == "checkout | checkout model | 7"
