@@ -35,7 +35,9 @@ typedef struct {
 /* The solver driver allocates the same dozen small scratch arrays at every call (every
  * fmi2DoStep) and releases them all before it returns.  They are cut from a per-thread arena:
  * taking one moves a pointer, releasing one counts down, and the arena is reused from its start
- * once nothing of it is held.  A request the arena cannot hold goes to malloc.
+ * once nothing of it is held.  A request the arena cannot hold goes to malloc.  The arena is
+ * thread-local storage, which the C runtime gives each thread that calls a kernel and takes
+ * back when the thread ends.
  *
  * A block: [head][padding to `align`][data]; dtor_info holds the head. */
 typedef struct thread_pool thread_pool;
@@ -45,15 +47,15 @@ typedef struct {
 } block_head;
 
 #define ARENA_BYTES 8192               /* the driver holds about 3 kB at once */
-#define BLOCK_ALIGN 16                 /* blocks start on this boundary (block_head's alignment) */
+#define BLOCK_ALIGN 64                 /* blocks start on a cache line (and so on block_head's alignment) */
 
 /* Everything a thread keeps in one variable: each access to thread-local storage from a shared
  * library is a call (__tls_get_addr), so an allocation makes one and a release none. */
 struct thread_pool {
-    int raised;                /* a kernel raised on this thread since the last check */
-    int live;                  /* blocks of the arena not released yet */
+    _Alignas(BLOCK_ALIGN) unsigned char arena[ARENA_BYTES];
     size_t used;               /* bytes of the arena handed out since it was last empty */
-    unsigned char *arena;      /* ARENA_BYTES, allocated at the thread's first kernel call */
+    int live;                  /* blocks of the arena not released yet */
+    int raised;                /* a kernel raised on this thread since the last check */
 };
 
 static _Thread_local thread_pool g_pool;
@@ -79,8 +81,7 @@ static void release_block(void *ptr, size_t size, void *info) {
 static block_head *take_block(size_t need) {
     thread_pool *tp = &g_pool;
     need = (need + BLOCK_ALIGN - 1) & ~(size_t)(BLOCK_ALIGN - 1);
-    if (!tp->arena) tp->arena = malloc(ARENA_BYTES);
-    if (tp->arena && need <= ARENA_BYTES - tp->used) {
+    if (need <= ARENA_BYTES - tp->used) {
         block_head *b = (block_head *)(tp->arena + tp->used);
         tp->used += need;
         tp->live++;
