@@ -83,3 +83,9 @@ def test_host_refuses_bad_arguments_with_usage(host):
     assert "STEPS and PAIRS must be >= 1" in r.stderr
     r = subprocess.run([str(host), "5", "1", "1e-3", "--", "only-a-name"], capture_output=True, text=True)
     assert r.returncode == 1 and "usage:" in r.stderr
+
+
+def test_no_compiler_is_a_clear_skip_reason(tmp_path, monkeypatch):
+    monkeypatch.setenv("CC", str(tmp_path / "no-such-cc"))
+    with pytest.raises(HostUnavailable, match="no C compiler for the C timing host.*CC="):
+        build_step_host(tmp_path)
