@@ -395,7 +395,13 @@ def run(quick: bool = False, *, verbose: bool = True) -> dict:
         first = measure_first_start(fmu_dir, work, quick, log)
         first.update(measure_c_host(fmu_dir, work, log))
         step = measure_step(fmu_path, trivial, work, quick, log)
-        step["c_host"] = measure_c_step(fmu_dir, trivial, work, quick, log)
+        step["c_host"] = c = measure_c_step(fmu_dir, trivial, work, quick, log)
+        if "skipped" not in c:
+            # the pythonfmu FMU at its cheapest: its own cost called from a Python host
+            c["ratio_to_floor_own_cost_from_python"] = c["ours_s"] / step["raw"]["floor_own_s"]
+            log(f"the native step from C against the trivial pythonfmu FMU's own cost from Python (its "
+                f"cheapest setting, {step['raw']['floor_own_s'] * 1e6:.2f} us): "
+                f"{c['ratio_to_floor_own_cost_from_python']:.3f}x")
         me = measure_me_vs_cs(fmu_path, quick, log)
     finally:
         _writable(work)
