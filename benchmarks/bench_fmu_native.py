@@ -270,9 +270,9 @@ def own_cost_ratio(ours, floor, noop) -> dict:
 
 def measure_step(fmu_path: Path, trivial: Path, work: Path, quick: bool, log) -> dict:
     from benchmarks import REPO_ROOT
-    from benchmarks.bench_fmu import _no_event_scene, step_statistics
+    from benchmarks.bench_fmu import no_event_scene, step_statistics
     n, pairs = (1000, 21) if quick else (2000, 101)
-    reals, preload = _no_event_scene()
+    reals, preload = no_event_scene()
     r = subprocess.run([sys.executable, "-c", _STEP_PROBE, REPO_ROOT, str(fmu_path), str(trivial), str(n),
                         str(pairs), repr(STEP), json.dumps(reals), repr(preload), str(_noop_library(work))],
                        capture_output=True, text=True, timeout=1800)
@@ -303,10 +303,10 @@ def measure_step(fmu_path: Path, trivial: Path, work: Path, quick: bool, log) ->
 
 def measure_c_step(fmu_dir: Path, trivial: Path, work: Path, quick: bool, log) -> dict:
     """The warm step from a C host: the native FMU and the trivial pythonfmu FMU in one process."""
-    from benchmarks.bench_fmu import _no_event_scene, step_statistics
+    from benchmarks.bench_fmu import no_event_scene, step_statistics
     from benchmarks.c_step_host import HostUnavailable, build_step_host, hosted_fmu, run_step_host
     n, pairs = (1000, 21) if quick else (2000, 101)
-    reals, preload = _no_event_scene()
+    reals, preload = no_event_scene()
     trivial_dir = work / "trivial_x"
     with zipfile.ZipFile(trivial) as zf:
         zf.extractall(trivial_dir)
