@@ -96,7 +96,7 @@ _LOAD_PROBE = textwrap.dedent('''
 # ---------------------------------------------------------------------------
 # helpers
 # ---------------------------------------------------------------------------
-def _no_event_scene():
+def no_event_scene():
     """Parameters of the no-event scene: no harmonic force, hammer in equilibrium under the preload."""
     from hammerbit.model.params import RigParameters
     rig = RigParameters()
@@ -187,7 +187,7 @@ def step_statistics(t_ours, t_floor) -> dict:
 def measure_step_overhead(fmu_path, trivial_path, quick: bool, log) -> dict:
     n = 1000 if quick else 2000            # steps per block
     pairs = 21 if quick else 101
-    reals, preload = _no_event_scene()
+    reals, preload = no_event_scene()
     from benchmarks import REPO_ROOT
     r = subprocess.run([sys.executable, "-c", _STEP_PROBE, REPO_ROOT, str(fmu_path), str(trivial_path),
                         str(n), str(pairs), repr(STEP), json.dumps(reals), repr(preload)],

@@ -95,7 +95,13 @@ def native_header(model_description_xml, start_values: dict, layout: dict) -> st
     for n, kind in stored:
         lines.append(f"    {{{vrs[n]}u, {kind}, {c_string(n)}, {_c_double(starts[n])}, "
                      f"{_c_range(variable_range(n))}}},")
-    lines += ["};", f"#define HB_START_IMPACT_ENABLED {int(bool(starts['impact_enabled']))}"]
+    # value reference -> slot in HB_STORED (-1: not stored), so that get and set find it at once
+    slot_of = [-1] * (max(vrs.values()) + 1)
+    for i, (n, _) in enumerate(stored):
+        slot_of[vrs[n]] = i
+    lines += ["};", f"#define HB_SLOT_INDEX_LEN {len(slot_of)}u",
+              f"static const signed char HB_SLOT_OF_VR[HB_SLOT_INDEX_LEN] = {{{', '.join(map(str, slot_of))}}};",
+              f"#define HB_START_IMPACT_ENABLED {int(bool(starts['impact_enabled']))}"]
     lines += [f"#define HB_INPUT_LIMIT_F0_{n} {_c_double(RANGES[g].hi)}" for n, g in INPUT_GROUPS.items()]
     slots = {n: i for i, (n, _) in enumerate(stored)}
     order = ", ".join("-1" if f == "preload" else f"HBS_{f}" for f in _RIG_ORDER)

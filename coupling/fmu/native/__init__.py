@@ -44,6 +44,9 @@ PYTHON_MODULES = ("numpy", "numba")
 # instance states of front.c in which fmi2Set* may write a variable (bit masks)
 _ST_INSTANTIATED, _ST_INIT, _ST_STEP = 1, 2, 4
 _TYPES = ("Real", "Integer", "Boolean", "String")
+#: value references below this get a direct index in the front's tables (4 x this many shorts at
+#: most); a model description with larger ones is searched by bisection instead
+VR_INDEX_LIMIT = 4096
 
 
 class FrontBuildError(RuntimeError):
@@ -150,6 +153,21 @@ def c_string(s: str) -> str:
     return '"' + "".join(out) + '"'
 
 
+def _vr_index(order) -> list:
+    """``HB_VAR_INDEX[type][vr]``: the row of each variable in ``HB_VARS`` (-1: none), so that the
+    front finds a value reference at once; with ``HB_VR_INDEX_LEN`` 0 (value references beyond
+    :data:`VR_INDEX_LIMIT`) the front searches ``HB_VARS`` instead."""
+    top = max((v.value_reference for v in order), default=0)
+    if top >= VR_INDEX_LIMIT:
+        return ["#define HB_VR_INDEX_LEN 0u"]
+    index = [[-1] * (top + 1) for _ in _TYPES]
+    for row, v in enumerate(order):
+        index[_TYPES.index(v.type)][v.value_reference] = row
+    return [f"#define HB_VR_INDEX_LEN {top + 1}u",
+            f"static const short HB_VAR_INDEX[{len(_TYPES)}][HB_VR_INDEX_LEN] = {{",
+            *(f"    {{{', '.join(map(str, r))}}}," for r in index), "};"]
+
+
 def generate_header(spec: FrontSpec, *, wrapper_file: str, python_modules=PYTHON_MODULES) -> str:
     """Text of ``hb_model.h``: the model's tables for front.c (included there only)."""
     order = sorted(spec.variables, key=lambda v: (_TYPES.index(v.type), v.value_reference))
@@ -170,6 +188,7 @@ def generate_header(spec: FrontSpec, *, wrapper_file: str, python_modules=PYTHON
         f"static const hb_var HB_VARS[{max(len(order), 1)}] = {{",
         *(rows or ["    {0, 0u, 0, \"\", \"\"},"]),
         "};",
+        *_vr_index(order),
         f"#define HB_NCATEGORIES {len(spec.log_categories)}u",
         f"static const char *const HB_CATEGORIES[{max(len(spec.log_categories), 1)}] = {{{cats}}};",
         "",

@@ -215,6 +215,11 @@ static fmi2Status record(hb_inst *I, fmi2Status st) {
 }
 
 static const hb_var *find_var(int type, fmi2ValueReference vr) {
+#if HB_VR_INDEX_LEN
+    if (vr >= HB_VR_INDEX_LEN) return NULL;
+    int row = HB_VAR_INDEX[type][vr];
+    return row < 0 ? NULL : &HB_VARS[row];
+#else
     size_t lo = 0, hi = HB_NVARS;
     while (lo < hi) {   /* HB_VARS is sorted by (type, vr) */
         size_t mid = (lo + hi) / 2;
@@ -226,6 +231,7 @@ static const hb_var *find_var(int type, fmi2ValueReference vr) {
     }
     if (lo < HB_NVARS && HB_VARS[lo].type == type && HB_VARS[lo].vr == vr) return &HB_VARS[lo];
     return NULL;
+#endif
 }
 
 static const char *var_name_any_type(fmi2ValueReference vr, int *type) {
@@ -552,11 +558,11 @@ EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint
                              fmi2Boolean noSetFMUStatePriorToCurrentPoint) {
     BEGIN("fmi2DoStep", ST_STEP_COMPLETE);
     char a[32], b[32], c2[32];
-    double off = currentCommunicationPoint - I->time;
-    if (!(off <= time_tol(I->time) && -off <= time_tol(I->time))) {   /* also NaN */
+    double off = currentCommunicationPoint - I->time, tol = time_tol(I->time);
+    if (!(off <= tol && -off <= tol)) {   /* also NaN */
         LOG(I, fmi2Error, "fmi2DoStep: currentCommunicationPoint = %s s is not the current time of "
                           "the FMU, %s s (tolerance %g s); step refused, state unchanged",
-            fmt_real(a, currentCommunicationPoint), fmt_real(b, I->time), time_tol(I->time));
+            fmt_real(a, currentCommunicationPoint), fmt_real(b, I->time), tol);
         return settle(I, fmi2Error);
     }
     if (I->stop_defined && communicationStepSize > 0 &&

@@ -10,9 +10,7 @@
 
 /* ------------------------------------------------------------------------------------------ */
 static int stored_slot(fmi2ValueReference vr) {
-    for (int i = 0; i < HB_NSTORED; i++)
-        if (HB_STORED[i].vr == vr) return i;
-    return -1;
+    return vr < HB_SLOT_INDEX_LEN ? HB_SLOT_OF_VR[vr] : -1;
 }
 
 /* Initialization Mode: outputs follow the parameters set so far (invalid ones: reported at exit) */

@@ -3,8 +3,8 @@
  * The kernel objects (hammerbit.fmu.native_kernels) reference
  *   - NRT allocation: the solver driver allocates its scratch arrays with np.empty at entry and
  *     releases them on return (NRT_MemInfo_alloc_aligned, NRT_MemInfo_call_dtor, NRT_Free);
- *     here they live on malloc/free (released blocks kept per thread for the next call), in
- *     numba's MemInfo layout (the kernels read its fields);
+ *     here they are cut from a per-thread arena (malloc beyond it), in numba's MemInfo
+ *     layout (the kernels read its fields);
  *   - the error path of a numba cfunc: if a kernel raised (a ZeroDivisionError, ...), the cfunc
  *     takes the GIL and writes the exception to Python's "unraisable" hook.  There is no Python
  *     here: the stubs record that a kernel raised, and the model turns that into an FMI status
@@ -32,44 +32,64 @@ typedef struct {
     void *external_allocator;
 } nrt_meminfo;
 
-static _Thread_local int g_raised;   /* a kernel raised on this thread since the last check */
-
-int hb_kernel_raised(void) {
-    int r = g_raised;
-    g_raised = 0;
-    return r;
-}
-
-/* A block: [capacity][meminfo][padding to `align`][data]; dtor_info holds the block.  The solver
- * driver allocates the same dozen small scratch arrays at every call (every fmi2DoStep), so
- * released blocks are kept per thread and handed out again instead of a malloc/free each. */
-#define KEPT_BLOCKS 32
+/* The solver driver allocates the same dozen small scratch arrays at every call (every
+ * fmi2DoStep) and releases them all before it returns.  They are cut from a per-thread arena:
+ * taking one moves a pointer, releasing one counts down, and the arena is reused from its start
+ * once nothing of it is held.  A request the arena cannot hold goes to malloc.  The arena is
+ * thread-local storage, which the C runtime gives each thread that calls a kernel and takes
+ * back when the thread ends.
+ *
+ * A block: [head][padding to `align`][data]; dtor_info holds the head. */
+typedef struct thread_pool thread_pool;
 typedef struct {
-    size_t capacity;           /* bytes of the whole block */
+    thread_pool *owner;        /* the arena the block was cut from; NULL: from malloc */
     nrt_meminfo mi;
 } block_head;
 
-static _Thread_local block_head *g_kept[KEPT_BLOCKS];
-static _Thread_local int g_nkept;
+#define ARENA_BYTES 8192               /* the driver holds about 3 kB at once */
+#define BLOCK_ALIGN 64                 /* blocks start on a cache line (and so on block_head's alignment) */
+
+/* Everything a thread keeps in one variable: each access to thread-local storage from a shared
+ * library is a call (__tls_get_addr), so an allocation makes one and a release none. */
+struct thread_pool {
+    _Alignas(BLOCK_ALIGN) unsigned char arena[ARENA_BYTES];
+    size_t used;               /* bytes of the arena handed out since it was last empty */
+    int live;                  /* blocks of the arena not released yet */
+    int raised;                /* a kernel raised on this thread since the last check */
+};
+
+static _Thread_local thread_pool g_pool;
+
+int hb_kernel_raised(void) {
+    thread_pool *tp = &g_pool;
+    int r = tp->raised;
+    tp->raised = 0;
+    return r;
+}
 
 static void release_block(void *ptr, size_t size, void *info) {
     (void)ptr, (void)size;
-    if (g_nkept < KEPT_BLOCKS)
-        g_kept[g_nkept++] = info;
-    else
-        free(info);
+    block_head *b = info;
+    thread_pool *tp = b->owner;
+    if (!tp) {
+        free(b);
+        return;
+    }
+    if (--tp->live == 0) tp->used = 0;
 }
 
 static block_head *take_block(size_t need) {
-    for (int i = g_nkept - 1; i >= 0; i--) {
-        block_head *b = g_kept[i];
-        if (b->capacity >= need) {
-            g_kept[i] = g_kept[--g_nkept];
-            return b;
-        }
+    thread_pool *tp = &g_pool;
+    need = (need + BLOCK_ALIGN - 1) & ~(size_t)(BLOCK_ALIGN - 1);
+    if (need <= ARENA_BYTES - tp->used) {
+        block_head *b = (block_head *)(tp->arena + tp->used);
+        tp->used += need;
+        tp->live++;
+        b->owner = tp;
+        return b;
     }
     block_head *b = malloc(need);
-    if (b) b->capacity = need;
+    if (b) b->owner = NULL;
     return b;
 }
 
@@ -105,11 +125,11 @@ SHIM_EXPORT void *numba_unpickle(const char *data, int n, const char *hash) {
 }
 SHIM_EXPORT void numba_do_raise(void *excinfo) {
     (void)excinfo;
-    g_raised = 1;
+    g_pool.raised = 1;
 }
 SHIM_EXPORT void *numba_runtime_build_excinfo_struct(void *a, void *b) {
     (void)a, (void)b;
-    g_raised = 1;
+    g_pool.raised = 1;
     return NULL;
 }
 SHIM_EXPORT void *PyUnicode_FromString(const char *s) {
@@ -122,11 +142,11 @@ SHIM_EXPORT void *PyBytes_FromStringAndSize(const char *s, intptr_t n) {
 }
 SHIM_EXPORT void PyErr_WriteUnraisable(void *obj) {
     (void)obj;
-    g_raised = 1;
+    g_pool.raised = 1;
 }
 SHIM_EXPORT void PyErr_SetString(void *type, const char *msg) {
     (void)type, (void)msg;
-    g_raised = 1;
+    g_pool.raised = 1;
 }
 SHIM_EXPORT void PyErr_Clear(void) {}
 SHIM_EXPORT void Py_DecRef(void *obj) { (void)obj; }
