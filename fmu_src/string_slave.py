@@ -44,7 +44,8 @@ from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Initial, Fmi2Slave, 
 from pythonfmu.enums import Fmi2Status
 
 from .string_model import TOP_CONDITIONS, form_of, load_model, string_matrices
-from .string_step import ExactStep, StringState, exchange_step, held_force
+from .string_step import (DenseForm, ExactStep, ExchangeHistory, ExchangeScheme, HammerStep, Interface, ModalForm,
+                          StringState, exchange_kernel, held_force)
 
 __all__ = ["Drillstring", "INPUT_LIMIT"]
 
@@ -60,10 +61,6 @@ ROW_HOOK, ROW_TOP_U, ROW_TOP_V = 2, 3, 4
 ORDERS = (0, 1, 2)
 #: relative tolerance on the communication point (a master computing t0 + n h is fine)
 TIME_TOLERANCE = 1e-9
-_EMPTY_C = np.zeros(0, dtype=np.complex128)
-_EMPTY_C2 = np.zeros((0, 6), dtype=np.complex128)
-_EMPTY_F = np.zeros(0)
-_EMPTY_P = np.zeros((0, 0))
 
 
 class Drillstring(Fmi2Slave):
@@ -237,6 +234,8 @@ class Drillstring(Fmi2Slave):
         self._sc[0] = F0
         self._w = np.zeros(3)
         self._c = np.zeros(6)
+        self._scheme = ExchangeScheme(False, self._order, True)   # the master's Jacobi exchange, fmi form
+        self._iface = Interface(self._side.ki, self._side.ci, self._W, self._side.feed)
         self._F_held = F0
         self._t = self._t_start
         self._ready = True
@@ -291,13 +290,11 @@ class Drillstring(Fmi2Slave):
         side, st = self._side, self._state
         d = side.discretisation(h)
         if st.modal:
-            exchange_step(False, self._order, h, True, _EMPTY_P, _EMPTY_F, _EMPTY_F, _EMPTY_F, d.m_d, d.m_G,
-                          d.m_irow, d.m_icol, st.v, side.m_frow, side.ki, side.ci, self._W, self._th,
-                          self._wh, self._Fh, 0.0, 0.0, self._F_held, self._c, self._sc, side.feed, True)
+            form = ModalForm(d.m_d, d.m_G, d.m_irow, d.m_icol, st.v, side.m_frow)
         else:
-            exchange_step(False, self._order, h, False, d.P, st.v, st.buf, st.tmp, _EMPTY_C, _EMPTY_C2,
-                          _EMPTY_C, _EMPTY_F, _EMPTY_C, side.frow, side.ki, side.ci, self._W, self._th,
-                          self._wh, self._Fh, 0.0, 0.0, self._F_held, self._c, self._sc, side.feed, True)
+            form = DenseForm(d.P, st.v, st.buf, st.tmp, side.frow)
+        hist = ExchangeHistory(self._th, self._wh, self._Fh, self._sc, self._c)
+        exchange_kernel(form)(self._scheme, h, form, self._iface, hist, HammerStep(0.0, 0.0, self._F_held))
         self._F_held = held_force(self._order, self._th, self._Fh, h, self._w)
 
     def _set_outputs(self) -> None:

@@ -22,7 +22,7 @@ energy residual, force defect).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional
+from typing import NamedTuple, Optional
 
 import contextlib
 
@@ -32,7 +32,9 @@ from numba import njit
 from . import numba_cache  # noqa: F401  (registers the content-hash cache locator)
 
 __all__ = ["ExactStep", "Discretisation", "StringState", "string_step_dense", "string_step_modal",
-           "held_weights", "held_force", "taylor_coefficients", "exchange_step", "N_COEFFS",
+           "held_weights", "held_force", "taylor_coefficients", "exchange_step", "exchange_kernel",
+           "exchange_step_modal", "exchange_step_dense", "exchange_begin", "exchange_end", "ExchangeScheme",
+           "Interface", "ModalForm", "DenseForm", "ExchangeHistory", "HammerStep", "N_COEFFS",
            "MODAL_TOLERANCE", "step_key", "one_blas_thread"]
 
 #: Taylor coefficients of the hammer motion over a step: (x, v, x', v', x'', v'')
@@ -394,51 +396,125 @@ def taylor_coefficients(gs, order, a, a2, h, wh, x_new, v_new, c):
                 c[4 + k] = 2.0 * f3
 
 
+# ---------------------------------------------------------------------------
+# the exchange: its records and kernels
+# ---------------------------------------------------------------------------
+class ExchangeScheme(NamedTuple):
+    """How the string side takes the hammer motion over a step (fixed for a run)."""
+
+    #: True: Gauss-Seidel (the polynomial interpolates through the hammer's new value); False: Jacobi
+    gauss_seidel: bool
+    #: degree of the extrapolation polynomial: 0, 1 or 2
+    order: int
+    #: True: the force at the step's end takes the step's own polynomial (what a string FMU outputs)
+    fmi: bool
+
+
+class Interface(NamedTuple):
+    """The interface spring-dashpot, the static load and a feed top (fixed for a run)."""
+
+    #: interface stiffness [N/m]
+    ki: float
+    #: interface damping [N s/m]
+    ci: float
+    #: weight on bit of the static equilibrium [N]
+    wob: float
+    #: (2,): ``(V [m/s], t0 [s])`` of a feed top: its block moves as ``V (t - t0)``; ``V = 0``: a
+    #: fixed hook, or an auto-driller whose block is a state of the string side
+    feed: np.ndarray
+
+
+class ModalForm(NamedTuple):
+    """The string's exact step over one step length in modal form, and the state it advances."""
+
+    #: (m,) complex: ``exp(lam h)`` of the kept modes
+    d: np.ndarray
+    #: (m, 6) complex: the modes' response to the Taylor coefficients
+    G: np.ndarray
+    #: (m,) complex: ``int (F_i - W) dt`` over the step from the modes
+    irow: np.ndarray
+    #: (6,): ... and from the coefficients
+    icol: np.ndarray
+    #: (m,) complex: the modal state (advanced in place)
+    eta: np.ndarray
+    #: (m,) complex: ``frow`` on the modes (weight 2 on a conjugate pair's kept half)
+    frow: np.ndarray
+
+
+class DenseForm(NamedTuple):
+    """The string's exact step over one step length in dense form, and the state it advances."""
+
+    #: (n + 1, n + 6): maps ``[xi, c]`` to ``[xi, int (F_i - W) dt]``
+    P: np.ndarray
+    #: (n,): the state (advanced in place)
+    xi: np.ndarray
+    #: (n + 6,): scratch
+    buf: np.ndarray
+    #: (n + 1,): scratch
+    tmp: np.ndarray
+    #: (n,): ``F_i - W = frow . xi - k_i x_h - c_i v_h``
+    frow: np.ndarray
+
+
+class ExchangeHistory(NamedTuple):
+    """The exchange's histories (shifted each step), its outputs and its scratch."""
+
+    #: (3,): communication times t_n, t_{n-1}, t_{n-2} [s]
+    th: np.ndarray
+    #: (3, 2): hammer (x deviation [m], v [m/s]) at those times
+    wh: np.ndarray
+    #: (3,): interface forces at those times [N]
+    Fh: np.ndarray
+    #: (4,): ``[F(t_{n+1}), energy residual of the step, frow.xi at t_{n+1}, force defect
+    #: F_held - mean F_i]``; ``out[2]`` on entry is ``frow.xi`` at ``t_n``
+    out: np.ndarray
+    #: (6,): scratch for the Taylor coefficients
+    coeffs: np.ndarray
+
+
+class HammerStep(NamedTuple):
+    """What the hammer did over the step: its new motion and the force it held."""
+
+    #: hammer position at t_{n+1}, deviation from the static equilibrium [m]
+    x_new: float
+    #: hammer velocity at t_{n+1} [m/s]
+    v_new: float
+    #: the interface force the hammer held over the step [N]
+    F_held: float
+
+
 @njit(cache=True)
-def exchange_step(gs, order, h, modal, P, xi, buf, tmp, d, G, irow, icol, eta, frow, ki, ci, W,
-                  th, wh, Fh, x_new, v_new, F_held, c, out, feed, fmi):
-    """One macro step of the string side after the hammer's step.
-
-    ``th`` (3,): communication times t_n, t_{n-1}, t_{n-2}; ``wh`` (3, 2): hammer
-    (x deviation, v) at those times; ``Fh`` (3,): interface forces.  Builds the
-    Taylor coefficients of the hammer motion, advances the string (modal ``eta``
-    or dense ``xi``), shifts the histories and writes ``out = [F(t_{n+1}), energy
-    residual of the step, frow.xi at t_{n+1}, force defect F_held - mean F_i]``;
-    ``out[2]`` on entry is ``frow.xi`` at ``t_n``.  ``feed = (V, t0)``: the block of a
-    feed top moves as ``V (t - t0)``; the string sees the hammer relative to it, an
-    exact polynomial whatever the extrapolation order (``V = 0``: a fixed hook, or an
-    auto-driller whose block is a state of the string side).
-
-    ``fmi``: the interface force at ``t_{n+1}`` takes the hammer motion of the
-    step's own polynomial at ``t_{n+1}`` instead of the new value ``(x_new, v_new)``:
-    what a string FMU can output at the end of its step, whose inputs a
-    fixed-step master sets only before the next step.
-    """
+def exchange_begin(scheme, h, iface, hist, hammer):
+    """The first half of :func:`exchange_step`: the Taylor coefficients of the hammer motion
+    relative to a feed's block into ``hist.coeffs``; returns ``(u_top, F_start)``, the block's
+    position at t_n and the interface force at t_n."""
+    th, c = hist.th, hist.coeffs
     a = th[0] - th[1]
     a2 = th[1] - th[2]
-    taylor_coefficients(gs, order, a, a2, h, wh, x_new, v_new, c)
-    V = feed[0]
-    u_top = V * (th[0] - feed[1])
+    taylor_coefficients(scheme.gauss_seidel, scheme.order, a, a2, h, hist.wh, hammer.x_new, hammer.v_new, c)
+    V = iface.feed[0]
+    u_top = V * (th[0] - iface.feed[1])
     c[0] -= u_top
     c[1] -= V
     c[2] -= V
-    F_start = W + out[2] - ki * c[0] - ci * c[1]
-    if modal:
-        imp, f_xi = string_step_modal(d, G, irow, icol, eta, c, frow)
-    else:
-        n = xi.shape[0]
-        for k in range(6):
-            buf[n + k] = c[k]
-        imp = string_step_dense(P, xi, buf, tmp)
-        f_xi = 0.0
-        for i in range(n):
-            f_xi += frow[i].real * xi[i]
+    F_start = iface.wob + hist.out[2] - iface.ki * c[0] - iface.ci * c[1]
+    return u_top, F_start
+
+
+@njit(cache=True)
+def exchange_end(scheme, h, iface, hist, hammer, u_top, F_start, imp, f_xi):
+    """The second half of :func:`exchange_step`, after the string's step (``imp`` its
+    ``int (F_i - W) dt``, ``f_xi`` its ``frow . xi`` at the end): the interface force, the
+    energy residual and the force defect into ``hist.out``; the histories shifted."""
+    c, th, wh, Fh, out = hist.coeffs, hist.th, hist.wh, hist.Fh, hist.out
+    ki, ci, W, V = iface.ki, iface.ci, iface.wob, iface.feed[0]
+    x_new, v_new, F_held = hammer.x_new, hammer.v_new, hammer.F_held
     xe = c[0] + c[2] * h + 0.5 * c[4] * h * h
     ve = c[1] + c[3] * h + 0.5 * c[5] * h * h
     F_end = W + f_xi - ki * xe - ci * ve
     e_string = 0.5 * h * (F_start * (c[1] + V) + F_end * (ve + V))
     e_hammer = F_held * (x_new - wh[0, 0])
-    F = F_end if fmi else W + f_xi - ki * (x_new - (u_top + V * h)) - ci * (v_new - V)
+    F = F_end if scheme.fmi else W + f_xi - ki * (x_new - (u_top + V * h)) - ci * (v_new - V)
     for j in (2, 1):
         th[j] = th[j - 1]
         wh[j, 0] = wh[j - 1, 0]
@@ -452,3 +528,51 @@ def exchange_step(gs, order, h, modal, P, xi, buf, tmp, d, G, irow, icol, eta, f
     out[1] = e_string - e_hammer
     out[2] = f_xi
     out[3] = F_held - (W + imp / h)
+
+
+@njit(cache=True)
+def exchange_step_modal(scheme, h, form, iface, hist, hammer):
+    """:func:`exchange_step` on a :class:`ModalForm`."""
+    u_top, F_start = exchange_begin(scheme, h, iface, hist, hammer)
+    imp, f_xi = string_step_modal(form.d, form.G, form.irow, form.icol, form.eta, hist.coeffs, form.frow)
+    exchange_end(scheme, h, iface, hist, hammer, u_top, F_start, imp, f_xi)
+
+
+@njit(cache=True)
+def exchange_step_dense(scheme, h, form, iface, hist, hammer):
+    """:func:`exchange_step` on a :class:`DenseForm`."""
+    u_top, F_start = exchange_begin(scheme, h, iface, hist, hammer)
+    xi, buf, frow, c = form.xi, form.buf, form.frow, hist.coeffs
+    n = xi.shape[0]
+    for k in range(N_COEFFS):
+        buf[n + k] = c[k]
+    imp = string_step_dense(form.P, xi, form.buf, form.tmp)
+    f_xi = 0.0
+    for i in range(n):
+        f_xi += frow[i] * xi[i]
+    exchange_end(scheme, h, iface, hist, hammer, u_top, F_start, imp, f_xi)
+
+
+def exchange_kernel(form):
+    """The compiled :func:`exchange_step` of a string form (:class:`ModalForm` or :class:`DenseForm`)."""
+    return exchange_step_modal if isinstance(form, ModalForm) else exchange_step_dense
+
+
+def exchange_step(scheme: ExchangeScheme, h: float, form, iface: Interface, hist: ExchangeHistory,
+                  hammer: HammerStep) -> None:
+    """One macro step of the string side after the hammer's step.
+
+    Builds the Taylor coefficients of the hammer motion over ``[t_n, t_n + h]`` from the
+    histories ``hist`` (Jacobi extrapolates, Gauss-Seidel interpolates through the hammer's
+    new value ``hammer``), advances the string (``form``: a :class:`ModalForm` or a
+    :class:`DenseForm` over ``h``), shifts the histories and writes ``hist.out``.  The hammer
+    motion the string sees is relative to a feed's block (``iface.feed``): an exact
+    polynomial whatever the extrapolation order.
+
+    ``scheme.fmi``: the interface force at ``t_{n+1}`` takes the hammer motion of the
+    step's own polynomial at ``t_{n+1}`` instead of the new value: what a string FMU can
+    output at the end of its step, whose inputs a fixed-step master sets only before the
+    next step.  A stepping loop calls :func:`exchange_kernel` once instead (this dispatch
+    per call costs a lookup).
+    """
+    exchange_kernel(form)(scheme, h, form, iface, hist, hammer)
