@@ -32,7 +32,8 @@ from numba import njit
 from . import numba_cache  # noqa: F401  (registers the content-hash cache locator)
 
 __all__ = ["ExactStep", "Discretisation", "StringState", "string_step_dense", "string_step_modal",
-           "held_weights", "held_force", "taylor_coefficients", "exchange_step", "exchange_kernel",
+           "held_weights", "held_weight_values", "held_mean", "held_force", "taylor_coefficients", "exchange_step",
+           "exchange_kernel",
            "exchange_step_modal", "exchange_step_dense", "exchange_begin", "exchange_end", "ExchangeScheme",
            "Interface", "ModalForm", "DenseForm", "ExchangeHistory", "HammerStep", "N_COEFFS",
            "MODAL_TOLERANCE", "step_key", "one_blas_thread"]
@@ -339,26 +340,39 @@ def string_step_modal(d, G, irow, icol, eta, c, frow):
 
 
 @njit(cache=True)
-def held_weights(order, a, a2, h, w):
-    """Weights on (F_n, F_{n-1}, F_{n-2}) of the mean over [t_n, t_n + h] of the
+def held_weight_values(order, a, a2, h):
+    """Weights ``(w0, w1, w2)`` on (F_n, F_{n-1}, F_{n-2}) of the mean over [t_n, t_n + h] of the
     polynomial of degree ``order`` through them; ``a = t_n - t_{n-1}``,
     ``a2 = t_{n-1} - t_{n-2}`` (Newton form)."""
     if order == 0:
-        w[0], w[1], w[2] = 1.0, 0.0, 0.0
-    elif order == 1:
+        return 1.0, 0.0, 0.0
+    if order == 1:
         r = 0.5 * h / a
-        w[0], w[1], w[2] = 1.0 + r, -r, 0.0
-    else:
-        m2 = h * h / 3.0 + 0.5 * a * h          # mean of s (s + a) over [0, h]
-        q = 1.0 / (a + a2)
-        w[0] = 1.0 + 0.5 * h / a + m2 * q / a
-        w[1] = -0.5 * h / a - m2 * q * (1.0 / a + 1.0 / a2)
-        w[2] = m2 * q / a2
+        return 1.0 + r, -r, 0.0
+    m2 = h * h / 3.0 + 0.5 * a * h          # mean of s (s + a) over [0, h]
+    q = 1.0 / (a + a2)
+    return (1.0 + 0.5 * h / a + m2 * q / a,
+            -0.5 * h / a - m2 * q * (1.0 / a + 1.0 / a2),
+            m2 * q / a2)
+
+
+@njit(cache=True)
+def held_weights(order, a, a2, h, w):
+    """:func:`held_weight_values` into ``w`` (3,)."""
+    w[0], w[1], w[2] = held_weight_values(order, a, a2, h)
+
+
+@njit(cache=True)
+def held_mean(order, th, Fh, h):
+    """The force the hammer holds over [t_n, t_n + h]: the mean of the polynomial through the
+    history (``th`` times, ``Fh`` forces, newest first)."""
+    w0, w1, w2 = held_weight_values(order, th[0] - th[1], th[1] - th[2], h)
+    return w0 * Fh[0] + w1 * Fh[1] + w2 * Fh[2]
 
 
 @njit(cache=True)
 def held_force(order, th, Fh, h, w):
-    """The force the hammer holds over [t_n, t_n + h]: :func:`held_weights` on the history."""
+    """:func:`held_mean`, its weights left in ``w`` (3,)."""
     held_weights(order, th[0] - th[1], th[1] - th[2], h, w)
     return w[0] * Fh[0] + w[1] * Fh[1] + w[2] * Fh[2]
 
@@ -505,7 +519,8 @@ def exchange_begin(scheme, h, iface, hist, hammer):
 def exchange_end(scheme, h, iface, hist, hammer, u_top, F_start, imp, f_xi):
     """The second half of :func:`exchange_step`, after the string's step (``imp`` its
     ``int (F_i - W) dt``, ``f_xi`` its ``frow . xi`` at the end): the interface force, the
-    energy residual and the force defect into ``hist.out``; the histories shifted."""
+    energy residual and the force defect into ``hist.out``; the histories shifted.  Returns
+    :func:`exchange_step`'s ``(F, residual, defect, held)``."""
     c, th, wh, Fh, out = hist.coeffs, hist.th, hist.wh, hist.Fh, hist.out
     ki, ci, W, V = iface.ki, iface.ci, iface.wob, iface.feed[0]
     x_new, v_new, F_held = hammer.x_new, hammer.v_new, hammer.F_held
@@ -528,6 +543,7 @@ def exchange_end(scheme, h, iface, hist, hammer, u_top, F_start, imp, f_xi):
     out[1] = e_string - e_hammer
     out[2] = f_xi
     out[3] = F_held - (W + imp / h)
+    return F, out[1], out[3], held_mean(scheme.order, th, Fh, h)
 
 
 @njit(cache=True)
@@ -535,7 +551,7 @@ def exchange_step_modal(scheme, h, form, iface, hist, hammer):
     """:func:`exchange_step` on a :class:`ModalForm`."""
     u_top, F_start = exchange_begin(scheme, h, iface, hist, hammer)
     imp, f_xi = string_step_modal(form.d, form.G, form.irow, form.icol, form.eta, hist.coeffs, form.frow)
-    exchange_end(scheme, h, iface, hist, hammer, u_top, F_start, imp, f_xi)
+    return exchange_end(scheme, h, iface, hist, hammer, u_top, F_start, imp, f_xi)
 
 
 @njit(cache=True)
@@ -550,7 +566,7 @@ def exchange_step_dense(scheme, h, form, iface, hist, hammer):
     f_xi = 0.0
     for i in range(n):
         f_xi += frow[i] * xi[i]
-    exchange_end(scheme, h, iface, hist, hammer, u_top, F_start, imp, f_xi)
+    return exchange_end(scheme, h, iface, hist, hammer, u_top, F_start, imp, f_xi)
 
 
 def exchange_kernel(form):
@@ -559,7 +575,7 @@ def exchange_kernel(form):
 
 
 def exchange_step(scheme: ExchangeScheme, h: float, form, iface: Interface, hist: ExchangeHistory,
-                  hammer: HammerStep) -> None:
+                  hammer: HammerStep) -> tuple:
     """One macro step of the string side after the hammer's step.
 
     Builds the Taylor coefficients of the hammer motion over ``[t_n, t_n + h]`` from the
@@ -574,5 +590,9 @@ def exchange_step(scheme: ExchangeScheme, h: float, form, iface: Interface, hist
     output at the end of its step, whose inputs a fixed-step master sets only before the
     next step.  A stepping loop calls :func:`exchange_kernel` once instead (this dispatch
     per call costs a lookup).
+
+    Returns ``(F, residual, defect, held)``: ``hist.out``'s interface force, energy residual and
+    force defect, and :func:`held_mean` over a next step of the same length ``h`` (a loop with a
+    fixed step needs no other call for the force the hammer holds).
     """
-    exchange_kernel(form)(scheme, h, form, iface, hist, hammer)
+    return exchange_kernel(form)(scheme, h, form, iface, hist, hammer)

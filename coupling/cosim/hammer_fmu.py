@@ -102,6 +102,7 @@ class FMUHammer:
         self.force_input = force_input
         self.wob = wob
         self.vr_force = self.vr_in if force_input == "preload" else self.vr["harmonic_force"]
+        self._vr_preload = [self.vr_in] if force_input == "preload" else None   # step() sets it every step
         self.fmu.exitInitializationMode()
         out = [self._find(k) for k in ("hammer_position", "hammer_velocity", "bit_position", "bit_velocity")]
         self.vr_rock = self._find("rock_force", required=False)
@@ -128,8 +129,8 @@ class FMUHammer:
         if self.master_harmonic is not None:
             self.fmu.setReal([self.vr_in, self.vr["harmonic_force"]],
                              [force, self.master_harmonic.mean(t, H)])
-        elif self.force_input == "preload":
-            self.fmu.setReal([self.vr_in], [force])
+        elif self._vr_preload is not None:
+            self.fmu.setReal(self._vr_preload, [force])
         else:
             self.fmu.setReal([self.vr_force], [force - self.wob])
         self.fmu.doStep(t, H)

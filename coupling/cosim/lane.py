@@ -10,7 +10,8 @@ import numpy as np
 from hammerbit.model.numba_dispatch import entry_point
 
 from hammerbit.cosim.config import CosimConfig
-from hammerbit.cosim.exchange import (EXCHANGE_OUT_FORCE, EXCHANGE_OUT_STRING_FORCE, DenseForm,
+from hammerbit.cosim.exchange import (EXCHANGE_OUT_DEFECT, EXCHANGE_OUT_ENERGY_RESIDUAL, EXCHANGE_OUT_FORCE,
+                                      EXCHANGE_OUT_STRING_FORCE, DenseForm,
                                       ExchangeHistory, ExchangeScheme, HammerStep, Interface, ModalForm,
                                       exchange_kernel, held_force)
 from hammerbit.cosim.hammer_interface import OUT_HAMMER_POSITION, OUT_HAMMER_VELOCITY
@@ -51,6 +52,11 @@ class Lane:
         self.sc[EXCHANGE_OUT_FORCE] = F
         self.Fh[:] = F
         self.F_held = F
+        # the exchange's outputs as floats (the kernel returns them; hist holds them for a snapshot):
+        # the interface force [N], the step's energy residual [J] and force defect [N]
+        self.F, self.residual, self.defect = float(F), 0.0, 0.0
+        # the held force over a next step of length _next_h (the exchange computes it for its own h)
+        self._next_held, self._next_h = F, None
         self.w = np.zeros(3)
         self.frow = side.m_frow if self.string.modal else side.frow.astype(np.float64)
         self.scheme = ExchangeScheme(self.gs, self.order, self.fmi)
@@ -62,14 +68,10 @@ class Lane:
         self._calls, self._call = {}, None
         self._held = held_force
 
-    @property
-    def F(self) -> float:
-        return float(self.sc[EXCHANGE_OUT_FORCE])
-
     def step(self, t: float, h: float) -> None:
         """One macro step [t, t + h]: hammer first, then the string (both schemes;
         Jacobi's string input does not use the new hammer value)."""
-        F_held = self._held(self.order, self.th, self.Fh, h, self.w)
+        F_held = self._next_held if h == self._next_h else self._held(self.order, self.th, self.Fh, h, self.w)
         self.F_held = F_held
         self.hammer.step(t, h, F_held)
         out = self.out = self.hammer.read()
@@ -84,7 +86,8 @@ class Lane:
         call = self._call
         args = call[1]
         args[HAMMER_ARG] = HammerStep(out[OUT_HAMMER_POSITION] - self.x_eq, out[OUT_HAMMER_VELOCITY], F_held)
-        call[0](*args)
+        self.F, self.residual, self.defect, self._next_held = call[0](*args)
+        self._next_h = h
         if call[0] is call[2]:  # compiled by now: later steps of this length skip the type dispatch
             call[0] = entry_point(call[2], args)
             if self._held is held_force:
@@ -109,6 +112,10 @@ class Lane:
         self.string.restore(v)
         self.hist[:] = hist
         self.out = out.copy()
+        self.F = float(self.sc[EXCHANGE_OUT_FORCE])
+        self.residual = float(self.sc[EXCHANGE_OUT_ENERGY_RESIDUAL])
+        self.defect = float(self.sc[EXCHANGE_OUT_DEFECT])
+        self._next_h = None
 
     def free(self, snap) -> None:
         self.hammer.free_state(snap[0])
