@@ -6,8 +6,6 @@ import zipfile
 from dataclasses import fields
 from pathlib import Path
 
-import numpy as np
-
 from hammerbit.model.params import RigParameters
 
 from hammerbit.cosim.hammer_interface import (OUT_BIT_POSITION, OUT_BIT_VELOCITY, OUT_HAMMER_POSITION,
@@ -146,16 +144,17 @@ class FMUHammer:
     def free_state(self, state) -> None:
         self.fmu.freeFMUState(state)
 
-    def read(self) -> np.ndarray:
+    def read(self) -> list:
+        """The outputs laid out by the ``OUT_*`` indexes, as a list of floats (the master indexes it
+        a few times a step: a list's items are cheaper to read than an array's)."""
         v = self.fmu.getReal(self.vr_out)
         if self.vr_rock is not None:
-            return np.array(v)               # the rock force is the WOB
+            return v                         # the rock force is the WOB
         # without a rock force, the WOB's slot holds the contact force (zero when absent)
         fc = v[OUT_WOB] if len(v) > OUT_WOB else 0.0
         wob = (self._K * (v[OUT_HAMMER_POSITION] - v[OUT_BIT_POSITION])
                + self._C * (v[OUT_HAMMER_VELOCITY] - v[OUT_BIT_VELOCITY]) + fc)
-        return np.array([v[OUT_HAMMER_POSITION], v[OUT_HAMMER_VELOCITY], v[OUT_BIT_POSITION],
-                         v[OUT_BIT_VELOCITY], wob])
+        return [v[OUT_HAMMER_POSITION], v[OUT_HAMMER_VELOCITY], v[OUT_BIT_POSITION], v[OUT_BIT_VELOCITY], wob]
 
     def flags(self) -> tuple:
         """(stick, contact): 1.0 while the bit sticks / while the gap is closed (0.0 for a flag
