@@ -327,8 +327,15 @@ def string_step_modal(d, G, irow, icol, eta, c, frow):
         e0 = eta[i]
         imp += (irow[i] * e0).real
         e = d[i] * e0
+        # G c with c real: its real and imaginary parts apart (a complex product would also
+        # multiply by c's zero imaginary part, which numba cannot drop without fastmath)
+        er = e.real
+        ei = e.imag
         for k in range(6):
-            e += G[i, k] * c[k]
+            g = G[i, k]
+            er += g.real * c[k]
+            ei += g.imag * c[k]
+        e = complex(er, ei)
         eta[i] = e
         f_xi += (frow[i] * e).real
     return imp, f_xi
