@@ -44,7 +44,7 @@ from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Initial, Fmi2Slave, 
 from pythonfmu.enums import Fmi2Status
 
 from .string_model import TOP_CONDITIONS, form_of, load_model, string_matrices
-from .string_exchange import (DenseForm, ExchangeHistory, ExchangeScheme, HammerStep, Interface, ModalForm,
+from .string_kernels import (DenseForm, ExchangeHistory, ExchangeScheme, HammerStep, Interface, ModalForm,
                               exchange_kernel, held_force)
 from .string_step import ExactStep, StringState
 

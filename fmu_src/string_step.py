@@ -15,8 +15,8 @@ state gives one autonomous linear system; its matrix exponential maps
 This module is the one source of that step: the co-simulation master's string
 side (``hammerbit.cosim.string_side``) and the ``Drillstring`` FMU
 (:mod:`string_slave`) both use :class:`ExactStep`, :class:`StringState` and
-the kernels below; :mod:`string_exchange` builds the per-step exchange of a
-Jacobi or Gauss-Seidel scheme on them.
+the kernels of :mod:`string_kernels`, which also hold the per-step exchange of a
+Jacobi or Gauss-Seidel scheme.
 """
 from __future__ import annotations
 
@@ -26,15 +26,10 @@ from typing import Optional
 import contextlib
 
 import numpy as np
-from numba import njit
+from .string_kernels import N_COEFFS, string_step_dense, string_step_modal
 
-from . import numba_cache  # noqa: F401  (registers the content-hash cache locator)
+__all__ = ["ExactStep", "Discretisation", "StringState", "MODAL_TOLERANCE", "step_key", "one_blas_thread"]
 
-__all__ = ["ExactStep", "Discretisation", "StringState", "string_step_dense", "string_step_modal", "N_COEFFS",
-           "MODAL_TOLERANCE", "step_key", "one_blas_thread"]
-
-#: Taylor coefficients of the hammer motion over a step: (x, v, x', v', x'', v'')
-N_COEFFS = 6
 #: the modal form is used when the eigenbasis reproduces the dense step to this (relative)
 MODAL_TOLERANCE = 1e-10
 #: significant digits of a step length in the cache key (steps that differ by rounding share one)
@@ -273,69 +268,3 @@ class StringState:
             return string_step_modal(d.m_d, d.m_G, d.m_irow, d.m_icol, self.v, coeffs, self.side.m_frow)[0]
         self.buf[self.side.n:] = coeffs
         return string_step_dense(d.P, self.v, self.buf, self.tmp)
-
-
-# ---------------------------------------------------------------------------
-# kernels
-# ---------------------------------------------------------------------------
-#: independent partial sums of the dense step's dot products (a fixed order: see string_step_dense)
-DENSE_LANES = 4
-
-
-@njit(cache=True)
-def string_step_dense(P, xi, buf, tmp):
-    """xi <- P[:n] [xi, c]; returns int (F_i - W) dt (row n).  ``buf[n:]`` holds c.
-
-    Each dot product sums in :data:`DENSE_LANES` fixed partial sums, without fastmath: the
-    order does not depend on the CPU's vector width, so every machine (and the native FMU,
-    compiled for the baseline x86-64) gets the same bits, while the lanes keep the loop fast.
-    The auto-driller's dense step turns a last-bit difference of its state into 1e-7 N of force."""
-    n = xi.shape[0]
-    m = buf.shape[0]
-    for i in range(n):
-        buf[i] = xi[i]
-    # P @ buf by hand: no BLAS call (its thread pool costs more than this small mat-vec)
-    m4 = m - m % DENSE_LANES
-    for i in range(n + 1):
-        row = P[i]                     # a contiguous row: the loads vectorise without reordering
-        a0 = 0.0
-        a1 = 0.0
-        a2 = 0.0
-        a3 = 0.0
-        for k in range(0, m4, DENSE_LANES):
-            a0 += row[k] * buf[k]
-            a1 += row[k + 1] * buf[k + 1]
-            a2 += row[k + 2] * buf[k + 2]
-            a3 += row[k + 3] * buf[k + 3]
-        for k in range(m4, m):
-            a0 += row[k] * buf[k]
-        tmp[i] = (a0 + a1) + (a2 + a3)
-    for i in range(n):
-        xi[i] = tmp[i]
-    return tmp[n]
-
-
-@njit(cache=True)
-def string_step_modal(d, G, irow, icol, eta, c, frow):
-    """eta <- d * eta + G c (modal exact step); returns (int (F_i - W) dt, Re(frow . eta) after
-    the step), the second in the same pass."""
-    imp = 0.0
-    for k in range(6):
-        imp += icol[k] * c[k]
-    f_xi = 0.0
-    for i in range(eta.shape[0]):
-        e0 = eta[i]
-        imp += (irow[i] * e0).real
-        e = d[i] * e0
-        # G c with c real: its real and imaginary parts apart (a complex product would also
-        # multiply by c's zero imaginary part, which numba cannot drop without fastmath)
-        er = e.real
-        ei = e.imag
-        for k in range(6):
-            g = G[i, k]
-            er += g.real * c[k]
-            ei += g.imag * c[k]
-        e = complex(er, ei)
-        eta[i] = e
-        f_xi += (frow[i] * e).real
-    return imp, f_xi

@@ -73,3 +73,26 @@ def test_no_kernel_is_called_with_more_than_ten_arguments():
             if name in names and len(node.args) + len(node.keywords) > MAX_PARAMS:
                 bad.append(f"{path.relative_to(ROOT)}:{node.lineno} {name}")
     assert not bad, bad
+
+
+def test_a_kernel_calls_only_kernels_of_its_own_module():
+    """numba's cache entry of a kernel holds its callees' code and is invalidated by a change
+    of the kernel's own file only (the hammer's kernel_*.py share one digest for this reason):
+    a string-side kernel calling a kernel of another module would keep stale code."""
+    per_file = {}
+    for path in _files():
+        if path.parent.name != "fmu_src":
+            continue
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        per_file[path] = [n for n in ast.walk(tree) if isinstance(n, ast.FunctionDef) and any(
+            _decorator_name(d) in KERNEL_DECORATORS for d in n.decorator_list)]
+    owner = {f.name: path for path, fs in per_file.items() for f in fs}
+    bad = []
+    for path, kernels in per_file.items():
+        for f in kernels:
+            for node in ast.walk(f):
+                if isinstance(node, ast.Call) and isinstance(node.func, ast.Name):
+                    other = owner.get(node.func.id)
+                    if other is not None and other != path:
+                        bad.append(f"{path.name}::{f.name} calls {other.name}::{node.func.id}")
+    assert per_file and not bad, bad

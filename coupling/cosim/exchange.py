@@ -7,16 +7,16 @@ mean over the step of the interface force extrapolated the same way.  Both
 use the actual spacing of the communication points (a shorter last step,
 adaptive steps).  :func:`exchange_step` builds the polynomial, steps the string
 exactly (:mod:`hammerbit.cosim.string_side`; the kernels are those of
-:mod:`hammerbit.model.string_exchange`, which the Drillstring FMU carries), and returns the interface force, the
+:mod:`hammerbit.model.string_kernels`, which the Drillstring FMU carries), and returns the interface force, the
 energy residual of the step and the force defect ``F_held - mean F_i``.  Its arguments are
 records (:class:`ExchangeScheme`, :class:`Interface`, :class:`ModalForm` or :class:`DenseForm`,
-:class:`ExchangeHistory`, :class:`HammerStep`), documented in :mod:`hammerbit.model.string_exchange`.
+:class:`ExchangeHistory`, :class:`HammerStep`), documented in :mod:`hammerbit.model.string_kernels`.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from hammerbit.model.string_exchange import (DenseForm, ExchangeHistory, ExchangeScheme, HammerStep, Interface,
+from hammerbit.model.string_kernels import (DenseForm, ExchangeHistory, ExchangeScheme, HammerStep, Interface,
                                              ModalForm, exchange_kernel, exchange_step, held_force, held_weights,
                                              taylor_coefficients)
 

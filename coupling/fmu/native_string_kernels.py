@@ -1,7 +1,7 @@
 """The Drillstring FMU's numba step kernels as C entry points for the native flavour.
 
 The native ``Drillstring.fmu`` steps the string with the library's own
-kernels of :mod:`hammerbit.model.string_exchange` (:func:`exchange_step`, the
+kernels of :mod:`hammerbit.model.string_kernels` (:func:`exchange_step`, the
 master's Jacobi exchange in its FMU form, and :func:`held_force`), compiled
 ahead of time by :mod:`hammerbit.fmu.native_kernels` exactly as the hammer's
 kernels are.  The entry points take flat C arrays; the complex modal arrays
@@ -27,9 +27,9 @@ def compile_string_entry_points() -> dict:
     from numba import carray, cfunc
     from numba.core.types import CPointer, complex128, float64, int64
 
-    from hammerbit.model.string_exchange import (DenseForm, ExchangeHistory, ExchangeScheme, HammerStep, Interface,
-                                                 ModalForm, exchange_step_dense, exchange_step_modal, held_force)
-    from hammerbit.model.string_step import N_COEFFS
+    from hammerbit.model.string_kernels import (N_COEFFS, DenseForm, ExchangeHistory, ExchangeScheme, HammerStep,
+                                                Interface, ModalForm, exchange_step_dense, exchange_step_modal,
+                                                held_force)
 
     f64p, c128p = CPointer(float64), CPointer(complex128)
     NC = N_COEFFS

@@ -1,10 +1,15 @@
-"""The per-step exchange of the string side with the hammer: its records and kernels.
+"""The numba kernels of the string side: its exact step and its per-step exchange with the hammer.
 
-Each macro step ``[t_n, t_n + h]`` of a Jacobi or Gauss-Seidel scheme the string side
-takes the hammer motion as a polynomial (Taylor coefficients, :func:`taylor_coefficients`),
-steps exactly (:mod:`string_step`), and gives the interface force at ``t_{n+1}``, the energy
-residual of the step and the force defect ``F_held - mean F_i``; the hammer holds, over the
-next step, the mean of the interface force extrapolated the same way (:func:`held_mean`).
+The exact step advances the string's state over a step (:func:`string_step_modal`,
+:func:`string_step_dense`; :class:`string_step.ExactStep` builds their matrices).  Each macro
+step ``[t_n, t_n + h]`` of a Jacobi or Gauss-Seidel scheme the string side takes the hammer
+motion as a polynomial (Taylor coefficients, :func:`taylor_coefficients`), steps exactly, and
+gives the interface force at ``t_{n+1}``, the energy residual of the step and the force defect
+``F_held - mean F_i``; the hammer holds, over the next step, the mean of the interface force
+extrapolated the same way (:func:`held_mean`).
+
+Every kernel here calls only kernels of this module: numba's cache entry of a kernel holds its
+callees' code, and numba invalidates it on a change of the kernel's own file only.
 
 The exchange's arguments are records (named tuples of arrays and scalars, which numba
 compiles as such): :class:`ExchangeScheme` and :class:`Interface` fixed for a run, a
@@ -21,12 +26,81 @@ import numpy as np
 from numba import njit
 
 from . import numba_cache  # noqa: F401  (registers the content-hash cache locator)
-from .string_step import N_COEFFS, string_step_dense, string_step_modal
 
-__all__ = ["held_weights", "held_weight_values", "held_mean", "held_force", "taylor_coefficients",
-           "exchange_step", "exchange_kernel", "exchange_step_modal", "exchange_step_dense", "exchange_begin",
+__all__ = ["N_COEFFS", "DENSE_LANES", "string_step_dense", "string_step_modal", "held_weights",
+           "held_weight_values", "held_mean", "held_force", "taylor_coefficients", "exchange_step", "exchange_kernel", "exchange_step_modal", "exchange_step_dense", "exchange_begin",
            "exchange_end", "ExchangeScheme", "Interface", "ModalForm", "DenseForm", "ExchangeHistory",
            "HammerStep"]
+
+
+#: Taylor coefficients of the hammer motion over a step: (x, v, x', v', x'', v'')
+N_COEFFS = 6
+
+
+# ---------------------------------------------------------------------------
+# the exact step
+# ---------------------------------------------------------------------------
+#: independent partial sums of the dense step's dot products (a fixed order: see string_step_dense)
+DENSE_LANES = 4
+
+
+@njit(cache=True)
+def string_step_dense(P, xi, buf, tmp):
+    """xi <- P[:n] [xi, c]; returns int (F_i - W) dt (row n).  ``buf[n:]`` holds c.
+
+    Each dot product sums in :data:`DENSE_LANES` fixed partial sums, without fastmath: the
+    order does not depend on the CPU's vector width, so every machine (and the native FMU,
+    compiled for the baseline x86-64) gets the same bits, while the lanes keep the loop fast.
+    The auto-driller's dense step turns a last-bit difference of its state into 1e-7 N of force."""
+    n = xi.shape[0]
+    m = buf.shape[0]
+    for i in range(n):
+        buf[i] = xi[i]
+    # P @ buf by hand: no BLAS call (its thread pool costs more than this small mat-vec)
+    m4 = m - m % DENSE_LANES
+    for i in range(n + 1):
+        row = P[i]                     # a contiguous row: the loads vectorise without reordering
+        a0 = 0.0
+        a1 = 0.0
+        a2 = 0.0
+        a3 = 0.0
+        for k in range(0, m4, DENSE_LANES):
+            a0 += row[k] * buf[k]
+            a1 += row[k + 1] * buf[k + 1]
+            a2 += row[k + 2] * buf[k + 2]
+            a3 += row[k + 3] * buf[k + 3]
+        for k in range(m4, m):
+            a0 += row[k] * buf[k]
+        tmp[i] = (a0 + a1) + (a2 + a3)
+    for i in range(n):
+        xi[i] = tmp[i]
+    return tmp[n]
+
+
+@njit(cache=True)
+def string_step_modal(d, G, irow, icol, eta, c, frow):
+    """eta <- d * eta + G c (modal exact step); returns (int (F_i - W) dt, Re(frow . eta) after
+    the step), the second in the same pass."""
+    imp = 0.0
+    for k in range(6):
+        imp += icol[k] * c[k]
+    f_xi = 0.0
+    for i in range(eta.shape[0]):
+        e0 = eta[i]
+        imp += (irow[i] * e0).real
+        e = d[i] * e0
+        # G c with c real: its real and imaginary parts apart (a complex product would also
+        # multiply by c's zero imaginary part, which numba cannot drop without fastmath)
+        er = e.real
+        ei = e.imag
+        for k in range(6):
+            g = G[i, k]
+            er += g.real * c[k]
+            ei += g.imag * c[k]
+        e = complex(er, ei)
+        eta[i] = e
+        f_xi += (frow[i] * e).real
+    return imp, f_xi
 
 
 # ---------------------------------------------------------------------------
