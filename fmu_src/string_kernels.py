@@ -27,7 +27,7 @@ from numba import njit
 
 from . import numba_cache  # noqa: F401  (registers the content-hash cache locator)
 
-__all__ = ["N_COEFFS", "DENSE_LANES", "string_step_dense", "string_step_modal", "held_weights",
+__all__ = ["N_COEFFS", "HAMMER_ARG", "EXCHANGE_HELD", "DENSE_LANES", "string_step_dense", "string_step_modal", "held_weights",
            "held_weight_values", "held_mean", "held_force", "taylor_coefficients", "exchange_step", "exchange_kernel", "exchange_step_modal", "exchange_step_dense", "exchange_begin",
            "exchange_end", "ExchangeScheme", "Interface", "ModalForm", "DenseForm", "ExchangeHistory",
            "HammerStep"]
@@ -35,6 +35,10 @@ __all__ = ["N_COEFFS", "DENSE_LANES", "string_step_dense", "string_step_modal", 
 
 #: Taylor coefficients of the hammer motion over a step: (x, v, x', v', x'', v'')
 N_COEFFS = 6
+#: position of the :class:`HammerStep` in the exchange's arguments (the one new every step)
+HAMMER_ARG = 5
+#: the held force of a next step of the same length in the exchange's returned tuple
+EXCHANGE_HELD = 3
 
 
 # ---------------------------------------------------------------------------

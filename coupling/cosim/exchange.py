@@ -16,12 +16,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from hammerbit.model.string_kernels import (DenseForm, ExchangeHistory, ExchangeScheme, HammerStep, Interface,
-                                             ModalForm, exchange_kernel, exchange_step, held_force, held_weights,
-                                             taylor_coefficients)
+from hammerbit.model.string_kernels import (HAMMER_ARG, DenseForm, ExchangeHistory, ExchangeScheme, HammerStep,
+                                            Interface, ModalForm, exchange_kernel, exchange_step, held_force,
+                                            held_weights, taylor_coefficients)
 
-__all__ = ["extrapolation_weights", "held_force", "exchange_step", "exchange_kernel", "taylor_coefficients",
-           "ExchangeScheme", "Interface", "ModalForm", "DenseForm", "ExchangeHistory", "HammerStep",
+__all__ = ["HAMMER_ARG", "extrapolation_weights", "held_force", "exchange_step", "exchange_kernel",
+           "taylor_coefficients", "ExchangeScheme", "Interface", "ModalForm", "DenseForm", "ExchangeHistory", "HammerStep",
            "EXCHANGE_OUT_FORCE", "EXCHANGE_OUT_ENERGY_RESIDUAL", "EXCHANGE_OUT_STRING_FORCE", "EXCHANGE_OUT_DEFECT"]
 
 #: Slots of :func:`exchange_step`'s ``hist.out``: the interface force at the step's end [N], the

@@ -11,15 +11,12 @@ from hammerbit.model.numba_dispatch import entry_point
 
 from hammerbit.cosim.config import CosimConfig
 from hammerbit.cosim.exchange import (EXCHANGE_OUT_DEFECT, EXCHANGE_OUT_ENERGY_RESIDUAL, EXCHANGE_OUT_FORCE,
-                                      EXCHANGE_OUT_STRING_FORCE, DenseForm, ExchangeHistory, ExchangeScheme,
-                                      HammerStep, Interface, ModalForm, exchange_kernel, held_force)
+                                      EXCHANGE_OUT_STRING_FORCE, HAMMER_ARG, DenseForm, ExchangeHistory,
+                                      ExchangeScheme, HammerStep, Interface, ModalForm, exchange_kernel, held_force)
 from hammerbit.cosim.hammer_interface import OUT_HAMMER_POSITION, OUT_HAMMER_VELOCITY
 from hammerbit.cosim.string_side import StringSide, StringState
 
-__all__ = ["Lane", "HAMMER_ARG"]
-
-#: position of the :class:`HammerStep` in the exchange's arguments (the one set per step)
-HAMMER_ARG = 5
+__all__ = ["Lane"]
 
 
 class Lane:
