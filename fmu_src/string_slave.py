@@ -44,7 +44,10 @@ from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Initial, Fmi2Slave, 
 from pythonfmu.enums import Fmi2Status
 
 from .string_model import TOP_CONDITIONS, form_of, load_model, string_matrices
-from .string_step import ExactStep, StringState, exchange_step, held_force
+from .numba_dispatch import entry_point
+from .string_kernels import (EXCHANGE_HELD, HAMMER_ARG, DenseForm, ExchangeHistory, ExchangeScheme, HammerStep,
+                             Interface, ModalForm, exchange_kernel)
+from .string_step import ExactStep, StringState
 
 __all__ = ["Drillstring", "INPUT_LIMIT"]
 
@@ -60,10 +63,6 @@ ROW_HOOK, ROW_TOP_U, ROW_TOP_V = 2, 3, 4
 ORDERS = (0, 1, 2)
 #: relative tolerance on the communication point (a master computing t0 + n h is fine)
 TIME_TOLERANCE = 1e-9
-_EMPTY_C = np.zeros(0, dtype=np.complex128)
-_EMPTY_C2 = np.zeros((0, 6), dtype=np.complex128)
-_EMPTY_F = np.zeros(0)
-_EMPTY_P = np.zeros((0, 0))
 
 
 class Drillstring(Fmi2Slave):
@@ -235,8 +234,10 @@ class Drillstring(Fmi2Slave):
         F0 = self._W + sc["interface_damping"] * feed
         self._Fh[:] = F0
         self._sc[0] = F0
-        self._w = np.zeros(3)
-        self._c = np.zeros(6)
+        self._xhist = ExchangeHistory(self._th, self._wh, self._Fh, self._sc, np.zeros(6))
+        self._calls = {}                          # step length -> [kernel or its entry point, its arguments, kernel]
+        self._scheme = ExchangeScheme(False, self._order, True)   # the master's Jacobi exchange, fmi form
+        self._iface = Interface(self._side.ki, self._side.ci, self._W, self._side.feed)
         self._F_held = F0
         self._t = self._t_start
         self._ready = True
@@ -287,18 +288,23 @@ class Drillstring(Fmi2Slave):
         return True
 
     def _exchange(self, h: float) -> None:
-        """The master's Jacobi exchange (fmi form) over ``h``, then the held force of the next step."""
-        side, st = self._side, self._state
-        d = side.discretisation(h)
-        if st.modal:
-            exchange_step(False, self._order, h, True, _EMPTY_P, _EMPTY_F, _EMPTY_F, _EMPTY_F, d.m_d, d.m_G,
-                          d.m_irow, d.m_icol, st.v, side.m_frow, side.ki, side.ci, self._W, self._th,
-                          self._wh, self._Fh, 0.0, 0.0, self._F_held, self._c, self._sc, side.feed, True)
-        else:
-            exchange_step(False, self._order, h, False, d.P, st.v, st.buf, st.tmp, _EMPTY_C, _EMPTY_C2,
-                          _EMPTY_C, _EMPTY_F, _EMPTY_C, side.frow, side.ki, side.ci, self._W, self._th,
-                          self._wh, self._Fh, 0.0, 0.0, self._F_held, self._c, self._sc, side.feed, True)
-        self._F_held = held_force(self._order, self._th, self._Fh, h, self._w)
+        """The master's Jacobi exchange (fmi form) over ``h``; the held force of a next step of
+        the same length comes with it."""
+        call = self._calls.get(h)
+        if call is None:  # a new step length: its records, typed by numba's dispatcher once
+            side, st = self._side, self._state
+            d = side.discretisation(h)
+            if st.modal:
+                form = ModalForm(d.m_d, d.m_G, d.m_irow, d.m_icol, st.v, side.m_frow)
+            else:
+                form = DenseForm(d.P, st.v, st.buf, st.tmp, side.frow)
+            kernel = exchange_kernel(form)
+            call = self._calls[h] = [kernel, [self._scheme, h, form, self._iface, self._xhist, None], kernel]
+        args = call[1]
+        args[HAMMER_ARG] = HammerStep(0.0, 0.0, self._F_held)
+        self._F_held = call[0](*args)[EXCHANGE_HELD]
+        if call[0] is call[2]:  # compiled by now: later steps of this length skip the dispatcher's typing
+            call[0] = entry_point(call[2], args)
 
     def _set_outputs(self) -> None:
         self.interface_force = float(self._sc[0])

@@ -15,9 +15,8 @@ state gives one autonomous linear system; its matrix exponential maps
 This module is the one source of that step: the co-simulation master's string
 side (``hammerbit.cosim.string_side``) and the ``Drillstring`` FMU
 (:mod:`string_slave`) both use :class:`ExactStep`, :class:`StringState` and
-the kernels below, including :func:`exchange_step`, the per-step exchange of a
-Jacobi or Gauss-Seidel scheme (coefficients, string step, interface force,
-energy residual, force defect).
+the kernels of :mod:`string_kernels`, which also hold the per-step exchange of a
+Jacobi or Gauss-Seidel scheme.
 """
 from __future__ import annotations
 
@@ -27,16 +26,10 @@ from typing import Optional
 import contextlib
 
 import numpy as np
-from numba import njit
+from .string_kernels import N_COEFFS, string_step_dense, string_step_modal
 
-from . import numba_cache  # noqa: F401  (registers the content-hash cache locator)
+__all__ = ["ExactStep", "Discretisation", "StringState", "MODAL_TOLERANCE", "step_key", "one_blas_thread"]
 
-__all__ = ["ExactStep", "Discretisation", "StringState", "string_step_dense", "string_step_modal",
-           "held_weights", "held_force", "taylor_coefficients", "exchange_step", "N_COEFFS",
-           "MODAL_TOLERANCE", "step_key", "one_blas_thread"]
-
-#: Taylor coefficients of the hammer motion over a step: (x, v, x', v', x'', v'')
-N_COEFFS = 6
 #: the modal form is used when the eigenbasis reproduces the dense step to this (relative)
 MODAL_TOLERANCE = 1e-10
 #: significant digits of a step length in the cache key (steps that differ by rounding share one)
@@ -275,180 +268,3 @@ class StringState:
             return string_step_modal(d.m_d, d.m_G, d.m_irow, d.m_icol, self.v, coeffs, self.side.m_frow)[0]
         self.buf[self.side.n:] = coeffs
         return string_step_dense(d.P, self.v, self.buf, self.tmp)
-
-
-# ---------------------------------------------------------------------------
-# kernels
-# ---------------------------------------------------------------------------
-#: independent partial sums of the dense step's dot products (a fixed order: see string_step_dense)
-DENSE_LANES = 4
-
-
-@njit(cache=True)
-def string_step_dense(P, xi, buf, tmp):
-    """xi <- P[:n] [xi, c]; returns int (F_i - W) dt (row n).  ``buf[n:]`` holds c.
-
-    Each dot product sums in :data:`DENSE_LANES` fixed partial sums, without fastmath: the
-    order does not depend on the CPU's vector width, so every machine (and the native FMU,
-    compiled for the baseline x86-64) gets the same bits, while the lanes keep the loop fast.
-    The auto-driller's dense step turns a last-bit difference of its state into 1e-7 N of force."""
-    n = xi.shape[0]
-    m = buf.shape[0]
-    for i in range(n):
-        buf[i] = xi[i]
-    # P @ buf by hand: no BLAS call (its thread pool costs more than this small mat-vec)
-    m4 = m - m % DENSE_LANES
-    for i in range(n + 1):
-        row = P[i]                     # a contiguous row: the loads vectorise without reordering
-        a0 = 0.0
-        a1 = 0.0
-        a2 = 0.0
-        a3 = 0.0
-        for k in range(0, m4, DENSE_LANES):
-            a0 += row[k] * buf[k]
-            a1 += row[k + 1] * buf[k + 1]
-            a2 += row[k + 2] * buf[k + 2]
-            a3 += row[k + 3] * buf[k + 3]
-        for k in range(m4, m):
-            a0 += row[k] * buf[k]
-        tmp[i] = (a0 + a1) + (a2 + a3)
-    for i in range(n):
-        xi[i] = tmp[i]
-    return tmp[n]
-
-
-@njit(cache=True)
-def string_step_modal(d, G, irow, icol, eta, c, frow):
-    """eta <- d * eta + G c (modal exact step); returns (int (F_i - W) dt, Re(frow . eta) after
-    the step), the second in the same pass."""
-    imp = 0.0
-    for k in range(6):
-        imp += icol[k] * c[k]
-    f_xi = 0.0
-    for i in range(eta.shape[0]):
-        e0 = eta[i]
-        imp += (irow[i] * e0).real
-        e = d[i] * e0
-        for k in range(6):
-            e += G[i, k] * c[k]
-        eta[i] = e
-        f_xi += (frow[i] * e).real
-    return imp, f_xi
-
-
-@njit(cache=True)
-def held_weights(order, a, a2, h, w):
-    """Weights on (F_n, F_{n-1}, F_{n-2}) of the mean over [t_n, t_n + h] of the
-    polynomial of degree ``order`` through them; ``a = t_n - t_{n-1}``,
-    ``a2 = t_{n-1} - t_{n-2}`` (Newton form)."""
-    if order == 0:
-        w[0], w[1], w[2] = 1.0, 0.0, 0.0
-    elif order == 1:
-        r = 0.5 * h / a
-        w[0], w[1], w[2] = 1.0 + r, -r, 0.0
-    else:
-        m2 = h * h / 3.0 + 0.5 * a * h          # mean of s (s + a) over [0, h]
-        q = 1.0 / (a + a2)
-        w[0] = 1.0 + 0.5 * h / a + m2 * q / a
-        w[1] = -0.5 * h / a - m2 * q * (1.0 / a + 1.0 / a2)
-        w[2] = m2 * q / a2
-
-
-@njit(cache=True)
-def held_force(order, th, Fh, h, w):
-    """The force the hammer holds over [t_n, t_n + h]: :func:`held_weights` on the history."""
-    held_weights(order, th[0] - th[1], th[1] - th[2], h, w)
-    return w[0] * Fh[0] + w[1] * Fh[1] + w[2] * Fh[2]
-
-
-@njit(cache=True)
-def taylor_coefficients(gs, order, a, a2, h, wh, x_new, v_new, c):
-    """Taylor coefficients (x, v, x', v', x'', v'') at t_n of the hammer motion over
-    the step ``h``: Jacobi extrapolates through the history ``wh`` (t_n, t_{n-1},
-    t_{n-2}; spacings ``a``, ``a2``), Gauss-Seidel interpolates through the new value."""
-    for k in range(2):
-        w0 = wh[0, k]
-        w1 = wh[1, k]
-        w2 = wh[2, k]
-        wn = x_new if k == 0 else v_new
-        c[k] = w0
-        c[2 + k] = 0.0
-        c[4 + k] = 0.0
-        if not gs:
-            if order == 1:
-                c[2 + k] = (w0 - w1) / a
-            elif order == 2:
-                f01 = (w0 - w1) / a
-                f012 = (f01 - (w1 - w2) / a2) / (a + a2)
-                c[2 + k] = f01 + f012 * a
-                c[4 + k] = 2.0 * f012
-        else:
-            if order == 0:
-                c[k] = wn
-            elif order == 1:
-                c[2 + k] = (wn - w0) / h
-            else:
-                f0h = (wn - w0) / h
-                f3 = (f0h - (w0 - w1) / a) / (h + a)
-                c[2 + k] = f0h - f3 * h
-                c[4 + k] = 2.0 * f3
-
-
-@njit(cache=True)
-def exchange_step(gs, order, h, modal, P, xi, buf, tmp, d, G, irow, icol, eta, frow, ki, ci, W,
-                  th, wh, Fh, x_new, v_new, F_held, c, out, feed, fmi):
-    """One macro step of the string side after the hammer's step.
-
-    ``th`` (3,): communication times t_n, t_{n-1}, t_{n-2}; ``wh`` (3, 2): hammer
-    (x deviation, v) at those times; ``Fh`` (3,): interface forces.  Builds the
-    Taylor coefficients of the hammer motion, advances the string (modal ``eta``
-    or dense ``xi``), shifts the histories and writes ``out = [F(t_{n+1}), energy
-    residual of the step, frow.xi at t_{n+1}, force defect F_held - mean F_i]``;
-    ``out[2]`` on entry is ``frow.xi`` at ``t_n``.  ``feed = (V, t0)``: the block of a
-    feed top moves as ``V (t - t0)``; the string sees the hammer relative to it, an
-    exact polynomial whatever the extrapolation order (``V = 0``: a fixed hook, or an
-    auto-driller whose block is a state of the string side).
-
-    ``fmi``: the interface force at ``t_{n+1}`` takes the hammer motion of the
-    step's own polynomial at ``t_{n+1}`` instead of the new value ``(x_new, v_new)``:
-    what a string FMU can output at the end of its step, whose inputs a
-    fixed-step master sets only before the next step.
-    """
-    a = th[0] - th[1]
-    a2 = th[1] - th[2]
-    taylor_coefficients(gs, order, a, a2, h, wh, x_new, v_new, c)
-    V = feed[0]
-    u_top = V * (th[0] - feed[1])
-    c[0] -= u_top
-    c[1] -= V
-    c[2] -= V
-    F_start = W + out[2] - ki * c[0] - ci * c[1]
-    if modal:
-        imp, f_xi = string_step_modal(d, G, irow, icol, eta, c, frow)
-    else:
-        n = xi.shape[0]
-        for k in range(6):
-            buf[n + k] = c[k]
-        imp = string_step_dense(P, xi, buf, tmp)
-        f_xi = 0.0
-        for i in range(n):
-            f_xi += frow[i].real * xi[i]
-    xe = c[0] + c[2] * h + 0.5 * c[4] * h * h
-    ve = c[1] + c[3] * h + 0.5 * c[5] * h * h
-    F_end = W + f_xi - ki * xe - ci * ve
-    e_string = 0.5 * h * (F_start * (c[1] + V) + F_end * (ve + V))
-    e_hammer = F_held * (x_new - wh[0, 0])
-    F = F_end if fmi else W + f_xi - ki * (x_new - (u_top + V * h)) - ci * (v_new - V)
-    for j in (2, 1):
-        th[j] = th[j - 1]
-        wh[j, 0] = wh[j - 1, 0]
-        wh[j, 1] = wh[j - 1, 1]
-        Fh[j] = Fh[j - 1]
-    th[0] = th[0] + h
-    wh[0, 0] = x_new
-    wh[0, 1] = v_new
-    Fh[0] = F
-    out[0] = F
-    out[1] = e_string - e_hammer
-    out[2] = f_xi
-    out[3] = F_held - (W + imp / h)

@@ -6,8 +6,6 @@ import zipfile
 from dataclasses import fields
 from pathlib import Path
 
-import numpy as np
-
 from hammerbit.model.params import RigParameters
 
 from hammerbit.cosim.hammer_interface import (OUT_BIT_POSITION, OUT_BIT_VELOCITY, OUT_HAMMER_POSITION,
@@ -102,6 +100,7 @@ class FMUHammer:
         self.force_input = force_input
         self.wob = wob
         self.vr_force = self.vr_in if force_input == "preload" else self.vr["harmonic_force"]
+        self._vr_preload = [self.vr_in] if force_input == "preload" else None   # step() sets it every step
         self.fmu.exitInitializationMode()
         out = [self._find(k) for k in ("hammer_position", "hammer_velocity", "bit_position", "bit_velocity")]
         self.vr_rock = self._find("rock_force", required=False)
@@ -128,8 +127,8 @@ class FMUHammer:
         if self.master_harmonic is not None:
             self.fmu.setReal([self.vr_in, self.vr["harmonic_force"]],
                              [force, self.master_harmonic.mean(t, H)])
-        elif self.force_input == "preload":
-            self.fmu.setReal([self.vr_in], [force])
+        elif self._vr_preload is not None:
+            self.fmu.setReal(self._vr_preload, [force])
         else:
             self.fmu.setReal([self.vr_force], [force - self.wob])
         self.fmu.doStep(t, H)
@@ -145,16 +144,17 @@ class FMUHammer:
     def free_state(self, state) -> None:
         self.fmu.freeFMUState(state)
 
-    def read(self) -> np.ndarray:
+    def read(self) -> list:
+        """The outputs laid out by the ``OUT_*`` indexes, as a list of floats (the master indexes it
+        a few times a step: a list's items are cheaper to read than an array's)."""
         v = self.fmu.getReal(self.vr_out)
         if self.vr_rock is not None:
-            return np.array(v)               # the rock force is the WOB
+            return v                         # the rock force is the WOB
         # without a rock force, the WOB's slot holds the contact force (zero when absent)
         fc = v[OUT_WOB] if len(v) > OUT_WOB else 0.0
         wob = (self._K * (v[OUT_HAMMER_POSITION] - v[OUT_BIT_POSITION])
                + self._C * (v[OUT_HAMMER_VELOCITY] - v[OUT_BIT_VELOCITY]) + fc)
-        return np.array([v[OUT_HAMMER_POSITION], v[OUT_HAMMER_VELOCITY], v[OUT_BIT_POSITION],
-                         v[OUT_BIT_VELOCITY], wob])
+        return [v[OUT_HAMMER_POSITION], v[OUT_HAMMER_VELOCITY], v[OUT_BIT_POSITION], v[OUT_BIT_VELOCITY], wob]
 
     def flags(self) -> tuple:
         """(stick, contact): 1.0 while the bit sticks / while the gap is closed (0.0 for a flag

@@ -3,7 +3,7 @@
 A hammer side (:class:`~hammerbit.cosim.hammer_inprocess.StepperHammer`,
 :class:`~hammerbit.cosim.hammer_fmu.FMUHammer`, or one a user passes to
 :func:`~hammerbit.cosim.master.cosimulate`) has ``step(t, H, force)``,
-``read()`` (the array laid out by the ``OUT_*`` indexes below), ``flags()``,
+``read()`` (a sequence of floats, list or array, laid out by the ``OUT_*`` indexes below), ``flags()``,
 ``counts()``, ``get_state``/``set_state``/``free_state``, ``close()``, the
 hammer's equilibrium position ``x_eq`` [m] and ``master_harmonic`` (a
 :class:`~hammerbit.cosim.harmonic.MasterHarmonic` or None).

@@ -5,26 +5,18 @@ The run and its half-step companion are two lanes on one
 """
 from __future__ import annotations
 
-import inspect
-
 import numpy as np
 
 from hammerbit.model.numba_dispatch import entry_point
 
 from hammerbit.cosim.config import CosimConfig
-from hammerbit.cosim.exchange import (EXCHANGE_OUT_FORCE, EXCHANGE_OUT_STRING_FORCE, exchange_step,
-                                      held_force)
+from hammerbit.cosim.exchange import (EXCHANGE_OUT_DEFECT, EXCHANGE_OUT_ENERGY_RESIDUAL, EXCHANGE_OUT_FORCE,
+                                      EXCHANGE_OUT_STRING_FORCE, HAMMER_ARG, DenseForm, ExchangeHistory,
+                                      ExchangeScheme, HammerStep, Interface, ModalForm, exchange_kernel, held_force)
 from hammerbit.cosim.hammer_interface import OUT_HAMMER_POSITION, OUT_HAMMER_VELOCITY
 from hammerbit.cosim.string_side import StringSide, StringState
 
-__all__ = ["Lane", "X_NEW_ARG"]
-
-_NONE_C = np.zeros(0, dtype=np.complex128)
-_NONE_2 = np.zeros((0, 6), dtype=np.complex128)
-_NONE_F = np.zeros(0)
-_NONE_P = np.zeros((0, 0))
-#: position of ``x_new`` in :func:`exchange_step`'s arguments (then ``v_new``, ``F_held``)
-X_NEW_ARG = list(inspect.signature(exchange_step.py_func).parameters).index("x_new")
+__all__ = ["Lane"]
 
 
 class Lane:
@@ -56,23 +48,26 @@ class Lane:
         self.sc[EXCHANGE_OUT_FORCE] = F
         self.Fh[:] = F
         self.F_held = F
+        # the exchange's outputs as floats (the kernel returns them; hist holds them for a snapshot):
+        # the interface force [N], the step's energy residual [J] and force defect [N]
+        self.F, self.residual, self.defect = float(F), 0.0, 0.0
+        # the held force over a next step of length _next_h (the exchange computes it for its own h)
+        self._next_held, self._next_h = F, None
         self.w = np.zeros(3)
-        self.cbuf = np.zeros(6)
         self.frow = side.m_frow if self.string.modal else side.frow.astype(np.float64)
+        self.scheme = ExchangeScheme(self.gs, self.order, self.fmi)
+        self.iface = Interface(side.ki, side.ci, side.wob, side.feed)
+        self.exchange_hist = ExchangeHistory(self.th, self.wh, self.Fh, self.sc, np.zeros(6))
         self._h = None                           # the last step length
         # per step length: [the exchange (its compiled entry point after the first call), its
-        # arguments (exchange_args)]; the held force's entry point after the first step
+        # arguments (exchange_args), its dispatcher]; the held force's entry point after the first step
         self._calls, self._call = {}, None
         self._held = held_force
-
-    @property
-    def F(self) -> float:
-        return float(self.sc[EXCHANGE_OUT_FORCE])
 
     def step(self, t: float, h: float) -> None:
         """One macro step [t, t + h]: hammer first, then the string (both schemes;
         Jacobi's string input does not use the new hammer value)."""
-        F_held = self._held(self.order, self.th, self.Fh, h, self.w)
+        F_held = self._next_held if h == self._next_h else self._held(self.order, self.th, self.Fh, h, self.w)
         self.F_held = F_held
         self.hammer.step(t, h, F_held)
         out = self.out = self.hammer.read()
@@ -80,30 +75,29 @@ class Lane:
             self._h = h
             call = self._calls.get(h)
             if call is None:  # a new step length: its arrays, typed by the dispatcher once
-                call = self._calls[h] = [exchange_step, self.exchange_args(h, self.side.discretisation(h))]
+                args = self.exchange_args(h, self.side.discretisation(h))
+                kernel = exchange_kernel(args[2])
+                call = self._calls[h] = [kernel, args, kernel]
             self._call = call
         call = self._call
         args = call[1]
-        args[X_NEW_ARG] = out[OUT_HAMMER_POSITION] - self.x_eq
-        args[X_NEW_ARG + 1] = out[OUT_HAMMER_VELOCITY]
-        args[X_NEW_ARG + 2] = F_held
-        call[0](*args)
-        if call[0] is exchange_step:  # compiled by now: later steps of this length skip the type dispatch
-            call[0] = entry_point(exchange_step, args)
+        args[HAMMER_ARG] = HammerStep(out[OUT_HAMMER_POSITION] - self.x_eq, out[OUT_HAMMER_VELOCITY], F_held)
+        self.F, self.residual, self.defect, self._next_held = call[0](*args)
+        self._next_h = h
+        if call[0] is call[2]:  # compiled by now: later steps of this length skip the type dispatch
+            call[0] = entry_point(call[2], args)
             if self._held is held_force:
                 self._held = entry_point(held_force, (self.order, self.th, self.Fh, h, self.w))
 
     def exchange_args(self, h: float, d) -> list:
-        """The arguments of :func:`exchange_step` for steps of length ``h`` (discretisation ``d``);
-        the hammer's new position, velocity and held force (from ``X_NEW_ARG``) are set per step."""
-        s, side = self.string, self.side
+        """The arguments of the exchange kernel for steps of length ``h`` (discretisation ``d``);
+        the hammer's step (at ``HAMMER_ARG``) is set per step."""
+        s = self.string
         if s.modal:
-            return [self.gs, self.order, h, True, _NONE_P, _NONE_F, _NONE_F, _NONE_F, d.m_d, d.m_G,
-                    d.m_irow, d.m_icol, s.v, self.frow, side.ki, side.ci, side.wob,
-                    self.th, self.wh, self.Fh, 0.0, 0.0, 0.0, self.cbuf, self.sc, side.feed, self.fmi]
-        return [self.gs, self.order, h, False, d.P, s.v, s.buf, s.tmp, _NONE_C, _NONE_2, _NONE_C,
-                _NONE_F, _NONE_C, self.frow, side.ki, side.ci, side.wob,
-                self.th, self.wh, self.Fh, 0.0, 0.0, 0.0, self.cbuf, self.sc, side.feed, self.fmi]
+            form = ModalForm(d.m_d, d.m_G, d.m_irow, d.m_icol, s.v, self.frow)
+        else:
+            form = DenseForm(d.P, s.v, s.buf, s.tmp, self.frow)
+        return [self.scheme, h, form, self.iface, self.exchange_hist, None]
 
     def snapshot(self):
         return self.hammer.get_state(), self.string.copy_state(), self.hist.copy(), self.out.copy()
@@ -114,6 +108,10 @@ class Lane:
         self.string.restore(v)
         self.hist[:] = hist
         self.out = out.copy()
+        self.F = float(self.sc[EXCHANGE_OUT_FORCE])
+        self.residual = float(self.sc[EXCHANGE_OUT_ENERGY_RESIDUAL])
+        self.defect = float(self.sc[EXCHANGE_OUT_DEFECT])
+        self._next_h = None
 
     def free(self, snap) -> None:
         self.hammer.free_state(snap[0])

@@ -88,7 +88,6 @@ import numpy as np
 from hammerbit.cosim.config import CosimConfig, CosimResult, CouplingInstabilityError, steady_start
 from hammerbit.cosim.amplitude import fundamental
 from hammerbit.cosim.error import check_step, measured_order, richardson, step_limits, unclaimed, SAFETY_FACTOR
-from hammerbit.cosim.exchange import EXCHANGE_OUT_DEFECT, EXCHANGE_OUT_ENERGY_RESIDUAL
 from hammerbit.cosim.hammer_interface import OUT_BIT_POSITION, OUT_WOB, counts_of
 from hammerbit.cosim.hammers import hammer_side
 from hammerbit.cosim.lane import Lane
@@ -306,7 +305,7 @@ def _run(side: StringSide, c: CosimConfig, *, fmu, hammer, defect_tol) -> CosimR
                 except Exception as err:
                     watch.hammer_failed(err, t, n, h, main.F_held)
                     raise
-                defect = float(main.sc[EXCHANGE_OUT_DEFECT])
+                defect = main.defect
                 if defect_tol is not None:
                     rel = abs(defect) / max(W, 1.0)
                     if not math.isfinite(rel):
@@ -330,19 +329,19 @@ def _run(side: StringSide, c: CosimConfig, *, fmu, hammer, defect_tol) -> CosimR
                     k_t += int(round(h / unit))
                 if fine is not None:
                     fine.step(t, 0.5 * h)
-                    d_fine.append(float(fine.sc[EXCHANGE_OUT_DEFECT]))
+                    d_fine.append(fine.defect)
                     fine.step(t + 0.5 * h, t_end - (t + 0.5 * h))
-                    d_fine.append(float(fine.sc[EXCHANGE_OUT_DEFECT]))
+                    d_fine.append(fine.defect)
                     csteps += 2
                     wob_f.append(fine.out[OUT_WOB])
                     d_main.append(defect)           # the histories the estimate reads
                     wob_m.append(main.out[OUT_WOB])
                     t_all.append(t_end)
-                update(t_end, n, h, main.F, main.out, float(main.sc[EXCHANGE_OUT_ENERGY_RESIDUAL]))
+                update(t_end, n, h, main.F, main.out, main.residual)
                 n += 1
                 accepted += 1
                 if (n % record_every == 0) or t_end >= at_stop:
-                    rec.add(t_end, h, float(main.sc[EXCHANGE_OUT_ENERGY_RESIDUAL]), defect,
+                    rec.add(t_end, h, main.residual, defect,
                             main.out[OUT_WOB] - fine.out[OUT_WOB] if fine is not None else math.nan)
                 if bar is not None:
                     bar.update(t_end - t)

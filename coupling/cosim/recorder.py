@@ -4,7 +4,6 @@ from __future__ import annotations
 import numpy as np
 
 from hammerbit.cosim.config import CosimConfig, record_dtype
-from hammerbit.cosim.exchange import EXCHANGE_OUT_FORCE
 from hammerbit.cosim.hammer_interface import (OUT_BIT_POSITION, OUT_BIT_VELOCITY, OUT_HAMMER_POSITION,
                                               OUT_HAMMER_VELOCITY, OUT_WOB, flags_of)
 from hammerbit.cosim.lane import Lane
@@ -48,30 +47,37 @@ class Recorder:
             else:                                   # interface_force, hammer_force
                 cols["lane"].append((i, n))
         self.cols = cols
+        # the column lists as tuples, the empty ones None: add() runs every step
+        self._out_cols = tuple(cols["out"]) or None
+        self._arg_cols = tuple(cols["arg"]) or None
+        self._lane_cols = tuple(cols["lane"]) or None
+        self._flag_cols = tuple(cols["flag"]) if self.need_flags else None
+        self._str_cols = tuple(cols["str"]) if self.need_string else None
 
     def add(self, t, h, r_step, defect, wob_diff) -> None:
         if self.j == len(self.data):
             self.data = np.concatenate([self.data, np.zeros_like(self.data)])
         lane = self.lane
-        out = lane.out
         row = self.data[self.j]
         row[0] = t
-        cols = self.cols
-        for i, k in cols["out"]:
-            row[i] = out[k]
-        if cols["arg"]:
+        if self._out_cols is not None:
+            out = lane.out
+            for i, k in self._out_cols:
+                row[i] = out[k]
+        if self._arg_cols is not None:
             args = (h, r_step, defect, wob_diff)     # wob_diff: the difference now, the factor at the end
-            for i, k in cols["arg"]:
+            for i, k in self._arg_cols:
                 row[i] = args[k]
-        for i, n in cols["lane"]:
-            row[i] = lane.sc[EXCHANGE_OUT_FORCE] if n == "interface_force" else lane.F_held
-        if self.need_flags:
+        if self._lane_cols is not None:
+            for i, n in self._lane_cols:
+                row[i] = lane.F if n == "interface_force" else lane.F_held
+        if self._flag_cols is not None:
             fl = flags_of(lane.hammer)
-            for i, k in cols["flag"]:
+            for i, k in self._flag_cols:
                 row[i] = fl[k]
-        if self.need_string:
+        if self._str_cols is not None:
             so = lane.string.outputs(t)
-            for i, k in cols["str"]:
+            for i, k in self._str_cols:
                 row[i] = so[k]
         self.j += 1
 

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+from math import isfinite
 
 from hammerbit.cosim.config import CosimConfig, CouplingInstabilityError
 from hammerbit.cosim.hammer_interface import OUT_HAMMER_POSITION, OUT_HAMMER_VELOCITY
@@ -25,6 +26,8 @@ class StabilityWatch:
         self.max_win = self.max_steady = 0.0
         self.total = 0.0
         self.t_steady = t_steady
+        # the options update() reads every step
+        self.check, self.window = c.check_stability, c.stability_window
 
     def hammer_failed(self, err, t, n, H, F_held):
         # the hammer side gave up; if the interface was already growing, that is the cause
@@ -38,16 +41,16 @@ class StabilityWatch:
                 reference=self.E_ref) from err
 
     def update(self, t_end, n, H, F, out, r_step) -> None:
-        c = self.c
         self.total += r_step
-        if not c.check_stability:
+        if not self.check:
             return
-        if not (math.isfinite(F) and math.isfinite(out[OUT_HAMMER_POSITION]) and math.isfinite(out[OUT_HAMMER_VELOCITY])):
+        if not (isfinite(F) and isfinite(out[OUT_HAMMER_POSITION]) and isfinite(out[OUT_HAMMER_VELOCITY])):
             raise CouplingInstabilityError(
                 f"coupling unstable: non-finite interface values at t = {t_end:.6g} s "
                 f"(step {n + 1}, H = {H:g} s, k_i = {self.ki:g} N/m)",
                 time=t_end, step=n + 1, residual=math.inf, reference=self.E_ref)
         if abs(F - self.W) > self.F_scale:
+            c = self.c
             raise CouplingInstabilityError(
                 f"coupling unstable: interface force {F:.4g} N left {c.blowup:g} x its scale "
                 f"at t = {t_end:.6g} s (step {n + 1}, H = {H:g} s, k_i = {self.ki:g} N/m); "
@@ -55,8 +58,9 @@ class StabilityWatch:
                 time=t_end, step=n + 1, residual=self.win_sum, reference=self.E_ref)
         self.win_sum += abs(r_step)
         self.k_in_win += 1
-        if self.k_in_win < c.stability_window:
+        if self.k_in_win < self.window:
             return
+        c = self.c
         w = self.win_sum
         self.max_win = max(self.max_win, w)
         if t_end >= self.t_steady + c.stability_window * H:

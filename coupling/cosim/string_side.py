@@ -29,7 +29,8 @@ from typing import Optional
 
 import numpy as np
 
-from hammerbit.model.string_step import ExactStep, one_blas_thread, string_step_dense, string_step_modal
+from hammerbit.model.string_kernels import string_step_dense, string_step_modal
+from hammerbit.model.string_step import ExactStep, one_blas_thread
 from hammerbit.model.string_step import StringState as RunState
 
 __all__ = ["StringSide", "StringState", "string_step_dense", "string_step_modal"]

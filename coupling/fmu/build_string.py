@@ -181,7 +181,8 @@ def string_build(string_arg, *, wob: Optional[float] = None, rig=None, top=None,
 
 
 #: modules the Drillstring FMU's runtime cannot do without
-STRING_RUNTIME_MODULES = ("string_slave.py", "string_step.py", "string_model.py", "numba_cache.py")
+STRING_RUNTIME_MODULES = ("string_slave.py", "string_step.py", "string_kernels.py", "string_model.py",
+                          "numba_cache.py")
 
 
 def build_string_fmu(string_arg, out=None, *, build: Optional[StringBuild] = None, **kw) -> Path:

@@ -1,7 +1,7 @@
 """The Drillstring FMU's numba step kernels as C entry points for the native flavour.
 
 The native ``Drillstring.fmu`` steps the string with the library's own
-kernels of :mod:`hammerbit.model.string_step` (:func:`exchange_step`, the
+kernels of :mod:`hammerbit.model.string_kernels` (:func:`exchange_step`, the
 master's Jacobi exchange in its FMU form, and :func:`held_force`), compiled
 ahead of time by :mod:`hammerbit.fmu.native_kernels` exactly as the hammer's
 kernels are.  The entry points take flat C arrays; the complex modal arrays
@@ -27,33 +27,34 @@ def compile_string_entry_points() -> dict:
     from numba import carray, cfunc
     from numba.core.types import CPointer, complex128, float64, int64
 
-    from hammerbit.model.string_step import N_COEFFS, exchange_step, held_force
+    from hammerbit.model.string_kernels import (N_COEFFS, DenseForm, ExchangeHistory, ExchangeScheme, HammerStep,
+                                                Interface, ModalForm, exchange_step_dense, exchange_step_modal,
+                                                held_force)
 
     f64p, c128p = CPointer(float64), CPointer(complex128)
     NC = N_COEFFS
 
+    # the C ABI (string_api.h) is flat; the body groups it into the exchange's records
     @cfunc(float64(int64, float64, int64, int64, f64p, f64p, f64p, f64p, f64p, c128p, c128p, c128p, f64p,
                    c128p, c128p, f64p, f64p, f64p, f64p, f64p, float64, f64p, f64p))
     def hs_exchange(order, h, modal, n, Pp, xip, bufp, tmpp, frp, dp, Gp, irp, icp, etap, fcp, k3p, thp,
                     whp, Fhp, outp, F_held, cp, feedp):
         # n: states of the dense form, or kept modes of the modal form; k3 = (ki, ci, W);
-        # th (3), wh (3 x 2), Fh (3), out (4) as exchange_step takes them; returns out[0]
-        th, wh, Fh, out = carray(thp, (3,)), carray(whp, (3, 2)), carray(Fhp, (3,)), carray(outp, (4,))
+        # th (3), wh (3 x 2), Fh (3), out (4), c (6) the ExchangeHistory; returns out[0]
+        out = carray(outp, (4,))
         k3 = carray(k3p, (3,))
-        c = carray(cp, (NC,))
-        feed = carray(feedp, (2,))
-        icol = carray(icp, (NC,))
+        scheme = ExchangeScheme(False, order, True)
+        iface = Interface(k3[0], k3[1], k3[2], carray(feedp, (2,)))
+        hist = ExchangeHistory(carray(thp, (3,)), carray(whp, (3, 2)), carray(Fhp, (3,)), out, carray(cp, (NC,)))
+        hammer = HammerStep(0.0, 0.0, F_held)
         if modal:
-            exchange_step(False, order, h, True, carray(Pp, (0, 0)), carray(xip, (0,)), carray(bufp, (0,)),
-                          carray(tmpp, (0,)), carray(dp, (n,)), carray(Gp, (n, NC)), carray(irp, (n,)),
-                          icol, carray(etap, (n,)), carray(fcp, (n,)), k3[0], k3[1], k3[2], th, wh, Fh,
-                          0.0, 0.0, F_held, c, out, feed, True)
+            form = ModalForm(carray(dp, (n,)), carray(Gp, (n, NC)), carray(irp, (n,)), carray(icp, (NC,)),
+                             carray(etap, (n,)), carray(fcp, (n,)))
+            exchange_step_modal(scheme, h, form, iface, hist, hammer)
         else:
-            exchange_step(False, order, h, False, carray(Pp, (n + 1, n + NC)), carray(xip, (n,)),
-                          carray(bufp, (n + NC,)), carray(tmpp, (n + 1,)), carray(dp, (0,)),
-                          carray(Gp, (0, NC)), carray(irp, (0,)), icol, carray(etap, (0,)),
-                          carray(frp, (n,)), k3[0], k3[1], k3[2], th, wh, Fh, 0.0, 0.0, F_held, c, out,
-                          feed, True)
+            form = DenseForm(carray(Pp, (n + 1, n + NC)), carray(xip, (n,)), carray(bufp, (n + NC,)),
+                             carray(tmpp, (n + 1,)), carray(frp, (n,)))
+            exchange_step_dense(scheme, h, form, iface, hist, hammer)
         return out[0]
 
     @cfunc(float64(int64, f64p, f64p, float64, f64p))
