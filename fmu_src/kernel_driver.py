@@ -17,8 +17,8 @@ from numba import njit
 from . import numba_cache  # noqa: F401  (registers the content-hash cache locator first)
 from . import tableaux as _T
 from .numba_partial import bind
-from .kernel_events import watch_tol, watch_value, watched
-from .kernel_forces import contact_force_at, overlap, rhs, force_on_bit
+from .kernel_events import drive_rate, watch_tol, watch_value, watched
+from .kernel_forces import contact_force_at, force_on_bit, overlap, rhs, spring_damper_force
 from .kernel_layouts import (CHUNK_SLIVER, CONTACT, CONTACT_STABILITY_LIMIT, EPS, ERRACC_FLOOR, EV_SEPARATION,
                              EV_STICK, F_DRIVE_MIN, F_ERRACC, F_H, F_H_MODE, F_HACC, F_PEAK, F_T, F_T_STICK,
                              F_V4_PEAK, FREE, HOW_DENSE, HOW_RESTEP, HOW_STICK, I_CONTACT, I_NLOG, I_REJECTS,
@@ -30,8 +30,8 @@ from .kernel_layouts import (CHUNK_SLIVER, CONTACT, CONTACT_STABILITY_LIMIT, EPS
                              ST_NONFINITE, ST_STEP_STORM, ST_STEP_TOO_SMALL, STICK, STICK_CHUNKS_PER_PERIOD,
                              STOP_OVERSHOOT, STOP_SHRINK_FLOOR, TIME_RESOLUTION, TINY, V_BIT, V_HAMMER, X_BIT,
                              X_HAMMER)
-from .kernel_localise import (locate_event, peak_in_step, plain, sign_change, state_at, drive_end,
-                              drive_inside)
+from .kernel_localise import (drive_dips, drive_inside, locate_event, peak_in_step, plain, sign_change,
+                              state_at)
 from .kernel_recording import needs_record, record_until
 from .kernel_reset import apply_event
 from .kernel_runge_kutta import dense_eval, error_norm, friction_layer_err, interpolant, rk_step
@@ -185,9 +185,15 @@ def advance(y, istate, fstate, t_end, p, opts,
     n_act = set_active(istate, n, act)
     ms = istate[I_STICK]
     mc = istate[I_CONTACT]
-    d_start = force_on_bit(y, p, mc)
-    if d_start < fstate[F_DRIVE_MIN]:
-        fstate[F_DRIVE_MIN] = d_start
+    # the lowest drive on the bit, kept in a register and stored at every return; the drive at
+    # y in mode mc and its rate along stages[0] carry from the end of a step to the start of the
+    # next (recomputing them cost a tenth of the solver's time); the rate is known after a step
+    d_min = fstate[F_DRIVE_MIN]
+    d_y = force_on_bit(y, p, mc)
+    if d_y < d_min:
+        d_min = d_y
+    r_y = 0.0
+    r_known = False
     rhs(t, y, p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, stages[0])
     istate[I_RHS] += 1
     steps_here = 0
@@ -203,10 +209,12 @@ def advance(y, istate, fstate, t_end, p, opts,
             break
         if log_cap > 0 and istate[I_NLOG] >= log_cap:
             fstate[F_T] = t
+            fstate[F_DRIVE_MIN] = d_min
             fstate[F_H] = h
             return ST_LOG_FULL
         if maxsteps > 0 and steps_here >= maxsteps:
             fstate[F_T] = t
+            fstate[F_DRIVE_MIN] = d_min
             fstate[F_H] = h
             return ST_MAX_STEPS
 
@@ -245,6 +253,7 @@ def advance(y, istate, fstate, t_end, p, opts,
                 cs1 = 0.0
             if not (math.isfinite(ynew[X_HAMMER]) and math.isfinite(ynew[V_HAMMER])):
                 fstate[F_T] = t
+                fstate[F_DRIVE_MIN] = d_min
                 return ST_NONFINITE
             stick_rate(ynew, sn1, p, fs)  # = rhs(t1, ynew) in stick with the gap open
             istate[I_RHS] += 1
@@ -252,6 +261,7 @@ def advance(y, istate, fstate, t_end, p, opts,
             steps_here += 1
             if count_step(t1, period, istate, stepcap):
                 fstate[F_T] = t
+                fstate[F_DRIVE_MIN] = d_min
                 fstate[F_H] = h
                 return ST_STEP_STORM
             # (this loop mirrors the RK step's detection below on purpose: one loop shared
@@ -267,9 +277,18 @@ def advance(y, istate, fstate, t_end, p, opts,
                     hit_kind = kd
                     t_hit = te
             if hit_kind < 0:
-                if drive_end(y, ynew, stages[0], fs, h_chunk, p, mc, fstate):
-                    drive_inside(t, t1, y, h_chunk, how_stick, interp, act, n_act, ys, ytmp,
-                                 p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, fstate)
+                if not r_known:
+                    r_y = drive_rate(y, stages[0], p, mc)
+                d1 = force_on_bit(ynew, p, mc)
+                if d1 < d_min:
+                    d_min = d1
+                r1 = drive_rate(ynew, fs, p, mc)
+                if drive_dips(d_y, r_y * h_chunk, d1, r1 * h_chunk, d_min):
+                    d_min = drive_inside(t, t1, y, h_chunk, how_stick, interp, act, n_act, ys, ytmp,
+                                         p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, d_min)
+                d_y = d1
+                r_y = r1
+                r_known = True
                 if needs_record(t1, istate, opts, poin, samp_t):
                     record_until(t1, ynew, t, y, h_chunk, how_stick, interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ys,
                                  p, istate, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, opts, poin, samp_t, samp)
@@ -283,9 +302,9 @@ def advance(y, istate, fstate, t_end, p, opts,
                     sc_c = cs1
                 continue
             stick_state(t_hit, y, interp, p, ys)
-            d_hit = force_on_bit(ys, p, mc)
-            if d_hit < fstate[F_DRIVE_MIN]:
-                fstate[F_DRIVE_MIN] = d_hit
+            d_y = force_on_bit(ys, p, mc)
+            if d_y < d_min:
+                d_min = d_y
             if needs_record(t_hit, istate, opts, poin, samp_t):
                 record_until(t_hit, ys, t, y, h_chunk, how_stick, interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ynew,
                              p, istate, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, opts, poin, samp_t, samp)
@@ -302,6 +321,7 @@ def advance(y, istate, fstate, t_end, p, opts,
                 for i in range(n):
                     if not math.isfinite(ynew[i]):
                         fstate[F_T] = t
+                        fstate[F_DRIVE_MIN] = d_min
                         return ST_NONFINITE
             else:
                 hmin = TIME_RESOLUTION * max(abs(t), 1.0)
@@ -334,6 +354,7 @@ def advance(y, istate, fstate, t_end, p, opts,
                         h = remaining
                     if h < hmin:
                         fstate[F_T] = t
+                        fstate[F_DRIVE_MIN] = d_min
                         fstate[F_H] = h
                         return ST_STEP_TOO_SMALL
                     rk_step(t, y, h, rk_a, rk_b, rk_c, ns, stages, ynew, ytmp, act, n_act,
@@ -394,6 +415,7 @@ def advance(y, istate, fstate, t_end, p, opts,
                 t1 = t_end
             if count_step(t1, period, istate, stepcap):
                 fstate[F_T] = t
+                fstate[F_DRIVE_MIN] = d_min
                 fstate[F_H] = h
                 return ST_STEP_STORM
 
@@ -420,20 +442,29 @@ def advance(y, istate, fstate, t_end, p, opts,
                                        istate, p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
                     record_until(t1, ynew, t, y, h, how_rk, interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ys,
                                  p, istate, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, opts, poin, samp_t, samp)
+                f_contact1 = contact_force_at(ynew, p, mc)  # 0 out of contact
                 if mc == CONTACT:
                     if not fixed and y[V_HAMMER] - y[V_BIT] > 0.0 and ynew[V_HAMMER] - ynew[V_BIT] <= 0.0:
                         dense_ok = interpolant(dense_ok, fixed, t, y, ynew, h, rk_a, rk_c, dense_w, ns, n_ext, stages, stages2, interp, ytmp, act, n_act,
                                        istate, p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
                         peak_in_step(t, t1, y, h, interp, act, n_act, ys, fs, p, ms, mc, nz, ne,
                                      Ap, Ai, Ax, sub_in, sub_out, link_x, fstate)
-                    f_contact1 = contact_force_at(ynew, p, mc)
                     if f_contact1 > fstate[F_PEAK]:
                         fstate[F_PEAK] = f_contact1
-                if drive_end(y, ynew, stages[0], stages[ns], h, p, mc, fstate) and not fixed:
+                if not r_known:
+                    r_y = drive_rate(y, stages[0], p, mc)
+                d1 = spring_damper_force(ynew, p) + f_contact1  # = force_on_bit(ynew, p, mc)
+                if d1 < d_min:
+                    d_min = d1
+                r1 = drive_rate(ynew, stages[ns], p, mc)
+                if drive_dips(d_y, r_y * h, d1, r1 * h, d_min) and not fixed:
                     dense_ok = interpolant(dense_ok, fixed, t, y, ynew, h, rk_a, rk_c, dense_w, ns, n_ext, stages, stages2, interp, ytmp, act, n_act,
                                            istate, p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
-                    drive_inside(t, t1, y, h, how_dense, interp, act, n_act, ys, fs,
-                                 p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, fstate)
+                    d_min = drive_inside(t, t1, y, h, how_dense, interp, act, n_act, ys, fs,
+                                         p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, d_min)
+                d_y = d1
+                r_y = r1
+                r_known = True
                 for i in range(n):
                     y[i] = ynew[i]
                     stages[0, i] = stages[ns, i]
@@ -473,9 +504,10 @@ def advance(y, istate, fstate, t_end, p, opts,
             if mc == CONTACT and not fixed and y[V_HAMMER] - y[V_BIT] > 0.0 and ys[V_HAMMER] - ys[V_BIT] <= 0.0 and dense_ok:
                 peak_in_step(t, t_hit, y, h, interp, act, n_act, ynew, fs, p, ms, mc, nz, ne,
                              Ap, Ai, Ax, sub_in, sub_out, link_x, fstate)
-            d_hit = force_on_bit(ys, p, mc)
-            if d_hit < fstate[F_DRIVE_MIN]:
-                fstate[F_DRIVE_MIN] = d_hit
+            d_y = force_on_bit(ys, p, mc)
+            if d_y < d_min:
+                d_min = d_y
+            r_known = False  # stages[0] changes below, or the reset map follows
             if needs_record(t_hit, istate, opts, poin, samp_t):
                 record_until(t_hit, ys, t, y, h, how_rk, interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ynew,
                              p, istate, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, opts, poin, samp_t, samp)
@@ -503,9 +535,10 @@ def advance(y, istate, fstate, t_end, p, opts,
         fstate[F_ERRACC] = 0.0  # the new regime starts its own step-size history
         if taken == EV_STICK:
             fstate[F_T_STICK] = t
-        d_reset = force_on_bit(y, p, istate[I_CONTACT])
-        if d_reset < fstate[F_DRIVE_MIN]:
-            fstate[F_DRIVE_MIN] = d_reset
+        d_y = force_on_bit(y, p, istate[I_CONTACT])
+        if d_y < d_min:
+            d_min = d_y
+        r_known = False
         if log_cap > 0:
             r = istate[I_NLOG]
             log[r, L_T] = t
@@ -524,6 +557,7 @@ def advance(y, istate, fstate, t_end, p, opts,
         istate[I_WIN_EVENTS] += 1
         if istate[I_WIN_EVENTS] > evcap:
             fstate[F_T] = t
+            fstate[F_DRIVE_MIN] = d_min
             fstate[F_H] = h
             return ST_EVENT_STORM
         ms = istate[I_STICK]
@@ -537,6 +571,7 @@ def advance(y, istate, fstate, t_end, p, opts,
     # final: samples that sit exactly on t_end
     t = t_end
     fstate[F_T] = t
+    fstate[F_DRIVE_MIN] = d_min
     fstate[F_H] = h
     if needs_record(t, istate, opts, poin, samp_t):
         for i in range(n):

@@ -152,7 +152,7 @@ STOP_SHRINK_FLOOR = 1e-3
 #: polynomial (a trial stage past the stop cannot blow up), and exp(-FRICTION_TAYLOR_FROM)
 FRICTION_TAYLOR_FROM = -4.0
 EXP_FRICTION_TAYLOR = 54.598150033144236  # = math.exp(4.0), exactly (a literal: numba folds it)
-DRIVE_GATE = 1e-2    # drive_end: the exact search runs when the Hermite minimum is this close (x |rate| h)
+DRIVE_GATE = 1e-2    # drive_dips: the exact search runs when the Hermite minimum is this close (x |rate| h)
 
 
 # how a state inside the current step is evaluated

@@ -13,7 +13,7 @@ from numba import njit
 from . import numba_cache  # noqa: F401  (registers the content-hash cache locator first)
 from .kernel_events import watch_slope, watch_value
 from .kernel_forces import contact_force_at, force_on_bit, rhs
-from .kernel_layouts import (DRIVE_GATE, EPS, EV_BOUNCE, EV_IMPACT, EV_SLIP_START, F_DRIVE_MIN, F_PEAK, HOW_DENSE,
+from .kernel_layouts import (DRIVE_GATE, EPS, EV_BOUNCE, EV_IMPACT, F_PEAK, HOW_DENSE,
                              HOW_RESTEP, HOW_STICK)
 from .kernel_runge_kutta import dense_eval, dense_eval_rate, rk_step
 from .kernel_stick import stick_rate, stick_state
@@ -207,30 +207,25 @@ def peak_in_step(t0, t1, y0, h, interp, act, n_act, ys, fs, p, ms, mc, nz, ne, A
 
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
-def drive_end(y0, y1, f0, f1, h, p, mc, fstate):
-    """The drive on the bit at the end of an accepted step into ``fstate[F_DRIVE_MIN]``.
+def drive_dips(d0, s0, d1, s1, d_min):
+    """True when a step holds an interior minimum of the drive on the bit worth locating.
 
-    Returns True when the step holds an interior minimum worth locating: the
-    drive's rate turns from - to + and the cubic Hermite estimate of that
-    minimum comes near the lowest drive so far (``drive_inside`` locates it).
+    ``d0``, ``d1`` are the drive at the step's ends, ``s0``, ``s1`` its rate
+    there times the step, ``d_min`` the lowest drive so far (``d1`` included).
+    The rate must turn from - to + and the cubic Hermite estimate of the minimum
+    come near ``d_min`` (``drive_inside`` then locates it).
     """
-    d0 = force_on_bit(y0, p, mc)
-    d1 = force_on_bit(y1, p, mc)
-    if d1 < fstate[F_DRIVE_MIN]:
-        fstate[F_DRIVE_MIN] = d1
-    s0 = watch_slope(EV_SLIP_START, y0, f0, p, mc) * h
-    s1 = watch_slope(EV_SLIP_START, y1, f1, p, mc) * h
     if not (s0 < 0.0 and s1 > 0.0):
         return False
     low = -hermite_peak(-d0, -d1, -s0, -s1)
-    return low <= fstate[F_DRIVE_MIN] + DRIVE_GATE * (abs(s0) + abs(s1))
+    return low <= d_min + DRIVE_GATE * (abs(s0) + abs(s1))
 
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
 def drive_inside(t0, t1, y0, h, how, interp, act, n_act, ys, fs,
-                 p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, fstate):
-    """The drive's minimum inside a step (its rate turns from - to +) into ``fstate[F_DRIVE_MIN]``,
-    on the dense output or the exact stick solution."""
+                 p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, d_min):
+    """The lowest drive so far, ``d_min``, lowered by the drive's minimum inside a step (its rate
+    turns from - to +), on the dense output or the exact stick solution."""
     tm = find_extremum(plain(EV_BOUNCE, n_act), t0, t1, y0, h, how, interp, act, n_act, ys, fs,
                        p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
     if how == HOW_STICK:
@@ -238,8 +233,7 @@ def drive_inside(t0, t1, y0, h, how, interp, act, n_act, ys, fs,
     else:
         dense_eval((tm - t0) / h, y0, interp, act, n_act, ys)
     d = force_on_bit(ys, p, mc)
-    if d < fstate[F_DRIVE_MIN]:
-        fstate[F_DRIVE_MIN] = d
+    return d if d < d_min else d_min
 
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
