@@ -173,6 +173,7 @@ def advance(y, istate, fstate, t_end, p, opts,
     act = np.empty(n, dtype=np.int64)
     kinds = np.empty(4, dtype=np.int64)
     w0s = np.empty(4)
+    w1s = np.empty(4)
     wtols = np.empty(4)
 
     t = fstate[F_T]
@@ -185,15 +186,16 @@ def advance(y, istate, fstate, t_end, p, opts,
     n_act = set_active(istate, n, act)
     ms = istate[I_STICK]
     mc = istate[I_CONTACT]
-    # the lowest drive on the bit, kept in a register and stored at every return; the drive at
-    # y in mode mc and its rate along stages[0] carry from the end of a step to the start of the
-    # next (recomputing them cost a tenth of the solver's time); the rate is known after a step
+    # the lowest drive on the bit, kept in a register and stored at every return.  The drive at
+    # y in mode mc, its rate along stages[0] and the watched indicators carry from the end of an
+    # accepted step to the start of the next (``carried``; recomputing them cost a tenth of the
+    # solver's time); an event or a reset starts afresh
     d_min = fstate[F_DRIVE_MIN]
     d_y = force_on_bit(y, p, mc)
     if d_y < d_min:
         d_min = d_y
     r_y = 0.0
-    r_known = False
+    carried = False
     rhs(t, y, p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, stages[0])
     istate[I_RHS] += 1
     steps_here = 0
@@ -222,7 +224,7 @@ def advance(y, istate, fstate, t_end, p, opts,
         nw = watched(istate, p, kinds)
         immediate = -1
         for q in range(nw):
-            w0s[q] = watch_value(kinds[q], y, p, mc)
+            w0s[q] = w1s[q] if carried else watch_value(kinds[q], y, p, mc)
             wtols[q] = watch_tol(kinds[q], y, p)
             if w0s[q] > wtols[q]:
                 immediate = kinds[q]
@@ -268,7 +270,8 @@ def advance(y, istate, fstate, t_end, p, opts,
             # by both paths measured 5-7 % slower, the per-path constants no longer fold)
             for q in range(nw):
                 kd = kinds[q]
-                code = sign_change(kd, y, ynew, stages[0], fs, p, mc, w0s[q], wtols[q], h_chunk, graze_stick)
+                w1s[q] = watch_value(kd, ynew, p, mc)
+                code = sign_change(kd, y, ynew, stages[0], fs, p, mc, (w0s[q], w1s[q], wtols[q]), h_chunk, graze_stick)
                 if code == 0:
                     continue
                 te = locate_event(kd, code, t, t1, y, h_chunk, how_stick, (opts[O_BISECT], graze, wtols[q]),
@@ -277,7 +280,7 @@ def advance(y, istate, fstate, t_end, p, opts,
                     hit_kind = kd
                     t_hit = te
             if hit_kind < 0:
-                if not r_known:
+                if not carried:
                     r_y = drive_rate(y, stages[0], p, mc)
                 d1 = force_on_bit(ynew, p, mc)
                 if d1 < d_min:
@@ -288,7 +291,7 @@ def advance(y, istate, fstate, t_end, p, opts,
                                          p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, d_min)
                 d_y = d1
                 r_y = r1
-                r_known = True
+                carried = True
                 if needs_record(t1, istate, opts, poin, samp_t):
                     record_until(t1, ynew, t, y, h_chunk, how_stick, interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ys,
                                  p, istate, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, opts, poin, samp_t, samp)
@@ -423,7 +426,8 @@ def advance(y, istate, fstate, t_end, p, opts,
             dense_ok = no_act > 0  # False, as a plain bool (see ``plain``)
             for q in range(nw):
                 kd = kinds[q]
-                code = sign_change(kd, y, ynew, stages[0], stages[ns], p, mc, w0s[q], wtols[q], h, not fixed)
+                w1s[q] = watch_value(kd, ynew, p, mc)
+                code = sign_change(kd, y, ynew, stages[0], stages[ns], p, mc, (w0s[q], w1s[q], wtols[q]), h, not fixed)
                 if code == 0:
                     continue
                 dense_ok = interpolant(dense_ok, fixed, t, y, ynew, h, rk_a, rk_c, dense_w, ns, n_ext, stages, stages2, interp, ytmp, act, n_act,
@@ -451,20 +455,22 @@ def advance(y, istate, fstate, t_end, p, opts,
                                      Ap, Ai, Ax, sub_in, sub_out, link_x, fstate)
                     if f_contact1 > fstate[F_PEAK]:
                         fstate[F_PEAK] = f_contact1
-                if not r_known:
-                    r_y = drive_rate(y, stages[0], p, mc)
                 d1 = spring_damper_force(ynew, p) + f_contact1  # = force_on_bit(ynew, p, mc)
                 if d1 < d_min:
                     d_min = d1
-                r1 = drive_rate(ynew, stages[ns], p, mc)
-                if drive_dips(d_y, r_y * h, d1, r1 * h, d_min) and not fixed:
-                    dense_ok = interpolant(dense_ok, fixed, t, y, ynew, h, rk_a, rk_c, dense_w, ns, n_ext, stages, stages2, interp, ytmp, act, n_act,
-                                           istate, p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
-                    d_min = drive_inside(t, t1, y, h, how_dense, interp, act, n_act, ys, fs,
-                                         p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, d_min)
+                if not fixed:
+                    # (the fixed-step method tracks the drive at the step ends only)
+                    if not carried:
+                        r_y = drive_rate(y, stages[0], p, mc)
+                    r1 = drive_rate(ynew, stages[ns], p, mc)
+                    if drive_dips(d_y, r_y * h, d1, r1 * h, d_min):
+                        dense_ok = interpolant(dense_ok, fixed, t, y, ynew, h, rk_a, rk_c, dense_w, ns, n_ext, stages, stages2, interp, ytmp, act, n_act,
+                                               istate, p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
+                        d_min = drive_inside(t, t1, y, h, how_dense, interp, act, n_act, ys, fs,
+                                             p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, d_min)
+                    r_y = r1
                 d_y = d1
-                r_y = r1
-                r_known = True
+                carried = True
                 for i in range(n):
                     y[i] = ynew[i]
                     stages[0, i] = stages[ns, i]
@@ -507,7 +513,7 @@ def advance(y, istate, fstate, t_end, p, opts,
             d_y = force_on_bit(ys, p, mc)
             if d_y < d_min:
                 d_min = d_y
-            r_known = False  # stages[0] changes below, or the reset map follows
+            carried = False  # stages[0] changes below, or the reset map follows
             if needs_record(t_hit, istate, opts, poin, samp_t):
                 record_until(t_hit, ys, t, y, h, how_rk, interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ynew,
                              p, istate, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, opts, poin, samp_t, samp)
@@ -538,7 +544,7 @@ def advance(y, istate, fstate, t_end, p, opts,
         d_y = force_on_bit(y, p, istate[I_CONTACT])
         if d_y < d_min:
             d_min = d_y
-        r_known = False
+        carried = False
         if log_cap > 0:
             r = istate[I_NLOG]
             log[r, L_T] = t
