@@ -174,6 +174,7 @@ def advance(y, istate, fstate, t_end, p, opts,
     kinds = np.empty(4, dtype=np.int64)
     w0s = np.empty(4)
     w1s = np.empty(4)
+    s1s = np.empty(4)   # their slopes at the step end (NaN: not computed)
     wtols = np.empty(4)
 
     t = fstate[F_T]
@@ -225,6 +226,8 @@ def advance(y, istate, fstate, t_end, p, opts,
         immediate = -1
         for q in range(nw):
             w0s[q] = w1s[q] if carried else watch_value(kinds[q], y, p, mc)
+            if not carried:
+                s1s[q] = math.nan
             wtols[q] = watch_tol(kinds[q], y, p)
             if w0s[q] > wtols[q]:
                 immediate = kinds[q]
@@ -271,7 +274,8 @@ def advance(y, istate, fstate, t_end, p, opts,
             for q in range(nw):
                 kd = kinds[q]
                 w1s[q] = watch_value(kd, ynew, p, mc)
-                code = sign_change(kd, y, ynew, stages[0], fs, p, mc, (w0s[q], w1s[q], wtols[q]), h_chunk, graze_stick)
+                code, s1s[q] = sign_change(kd, y, ynew, stages[0], fs, p, mc, (w0s[q], w1s[q], wtols[q], s1s[q]),
+                                           h_chunk, graze_stick)
                 if code == 0:
                     continue
                 te = locate_event(kd, code, t, t1, y, h_chunk, how_stick, (opts[O_BISECT], graze, wtols[q]),
@@ -427,7 +431,8 @@ def advance(y, istate, fstate, t_end, p, opts,
             for q in range(nw):
                 kd = kinds[q]
                 w1s[q] = watch_value(kd, ynew, p, mc)
-                code = sign_change(kd, y, ynew, stages[0], stages[ns], p, mc, (w0s[q], w1s[q], wtols[q]), h, not fixed)
+                code, s1s[q] = sign_change(kd, y, ynew, stages[0], stages[ns], p, mc, (w0s[q], w1s[q], wtols[q], s1s[q]),
+                                           h, not fixed)
                 if code == 0:
                     continue
                 dense_ok = interpolant(dense_ok, fixed, t, y, ynew, h, rk_a, rk_c, dense_w, ns, n_ext, stages, stages2, interp, ytmp, act, n_act,

@@ -144,26 +144,29 @@ def find_extremum(kind, t0, t1, y0, h, how, interp, act, n_act, ys, fs,
 def sign_change(kind, y, ynew, f0, f1, p, mc, w, h, graze_ok):
     """Sign-change detection of one indicator over a step.
 
-    ``w = (w0, w1, wtol)``: the indicator at the step's ends (``watch_value``;
-    the caller carries w1 on as the next step's w0) and its round-off level.
-    Returns 1 when the indicator ends above its round-off level (a crossing
-    inside the step), 2 when its slope turns from + to - with a cheap
-    Hermite estimate of the maximum near zero (a possible grazing extremum,
-    only if ``graze_ok``), else 0.
+    ``w = (w0, w1, wtol, s0)``: the indicator at the step's ends (``watch_value``),
+    its round-off level and its slope at the start (``watch_slope``, NaN if not
+    known: then computed here when needed).  The caller carries w1 and the
+    returned end slope on to the next step.
+
+    Returns (code, s1): code 1 when the indicator ends above its round-off
+    level (a crossing inside the step), 2 when its slope turns from + to - with
+    a cheap Hermite estimate of the maximum near zero (a possible grazing
+    extremum, only if ``graze_ok``), else 0; s1 the slope at the end (NaN when
+    not needed).
     """
-    w0, w1, wtol = w
-    if w1 > wtol:
-        return 1
-    if not graze_ok:
-        return 0
+    w0, w1, wtol, s0 = w
+    if w1 > wtol or not graze_ok:
+        return (1 if w1 > wtol else 0), math.nan
     s1 = watch_slope(kind, ynew, f1, p, mc)
     if not s1 < 0.0:
-        return 0
-    s0 = watch_slope(kind, y, f0, p, mc)
+        return 0, s1
+    if s0 != s0:
+        s0 = watch_slope(kind, y, f0, p, mc)
     if s0 > 0.0 and hermite_peak(w0, w1, s0 * h, s1 * h) > -0.1 * (
             abs(w0) + abs(w1) + abs(s0 * h) + abs(s1 * h)):
-        return 2
-    return 0
+        return 2, s1
+    return 0, s1
 
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
