@@ -17,7 +17,7 @@ from numba import njit
 from . import numba_cache  # noqa: F401  (registers the content-hash cache locator first)
 from . import tableaux as _T
 from .numba_partial import bind
-from .kernel_events import drive_rate, watch_tol, watch_value, watched
+from .kernel_events import drive_rate, watch_tol, watch_value, watch_value_drive, watched
 from .kernel_forces import contact_force_at, force_on_bit, overlap, rhs, spring_damper_force
 from .kernel_layouts import (CHUNK_SLIVER, CONTACT, CONTACT_STABILITY_LIMIT, EPS, ERRACC_FLOOR, EV_SEPARATION,
                              EV_STICK, F_DRIVE_MIN, F_ERRACC, F_H, F_H_MODE, F_HACC, F_PEAK, F_T, F_T_STICK,
@@ -271,10 +271,12 @@ def advance(y, istate, fstate, t_end, p, opts,
                 return ST_STEP_STORM
             # (this loop mirrors the RK step's detection below on purpose: one loop shared
             # by both paths measured 5-7 % slower, the per-path constants no longer fold)
+            d1 = force_on_bit(ynew, p, mc)
+            r1 = drive_rate(ynew, fs, p, mc)
             for q in range(nw):
                 kd = kinds[q]
-                w1s[q] = watch_value(kd, ynew, p, mc)
-                code, s1s[q] = sign_change(kd, y, ynew, stages[0], fs, p, mc, (w0s[q], w1s[q], wtols[q], s1s[q]),
+                w1s[q] = watch_value_drive(kd, ynew, p, mc, d1)
+                code, s1s[q] = sign_change(kd, y, ynew, stages[0], fs, p, mc, (w0s[q], w1s[q], wtols[q], s1s[q], r1),
                                            h_chunk, graze_stick)
                 if code == 0:
                     continue
@@ -286,10 +288,8 @@ def advance(y, istate, fstate, t_end, p, opts,
             if hit_kind < 0:
                 if not carried:
                     r_y = drive_rate(y, stages[0], p, mc)
-                d1 = force_on_bit(ynew, p, mc)
                 if d1 < d_min:
                     d_min = d1
-                r1 = drive_rate(ynew, fs, p, mc)
                 if drive_dips(d_y, r_y * h_chunk, d1, r1 * h_chunk, d_min):
                     d_min = drive_inside(t, t1, y, h_chunk, how_stick, interp, act, n_act, ys, ytmp,
                                          p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, d_min)
@@ -428,10 +428,14 @@ def advance(y, istate, fstate, t_end, p, opts,
 
             # -- detection over [t, t1] ------------------------------------
             dense_ok = no_act > 0  # False, as a plain bool (see ``plain``)
+            # the drive on the bit at the step end, for the drive indicators and the drive tracker
+            f_contact1 = contact_force_at(ynew, p, mc)  # 0 out of contact
+            d1 = spring_damper_force(ynew, p) + f_contact1  # = force_on_bit(ynew, p, mc)
+            r1 = 0.0 if fixed else drive_rate(ynew, stages[ns], p, mc)  # (no grazing search in fixed steps)
             for q in range(nw):
                 kd = kinds[q]
-                w1s[q] = watch_value(kd, ynew, p, mc)
-                code, s1s[q] = sign_change(kd, y, ynew, stages[0], stages[ns], p, mc, (w0s[q], w1s[q], wtols[q], s1s[q]),
+                w1s[q] = watch_value_drive(kd, ynew, p, mc, d1)
+                code, s1s[q] = sign_change(kd, y, ynew, stages[0], stages[ns], p, mc, (w0s[q], w1s[q], wtols[q], s1s[q], r1),
                                            h, not fixed)
                 if code == 0:
                     continue
@@ -451,7 +455,6 @@ def advance(y, istate, fstate, t_end, p, opts,
                                        istate, p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
                     record_until(t1, ynew, t, y, h, how_rk, interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ys,
                                  p, istate, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, opts, poin, samp_t, samp)
-                f_contact1 = contact_force_at(ynew, p, mc)  # 0 out of contact
                 if mc == CONTACT:
                     if not fixed and y[V_HAMMER] - y[V_BIT] > 0.0 and ynew[V_HAMMER] - ynew[V_BIT] <= 0.0:
                         dense_ok = interpolant(dense_ok, fixed, t, y, ynew, h, rk_a, rk_c, dense_w, ns, n_ext, stages, stages2, interp, ytmp, act, n_act,
@@ -460,14 +463,12 @@ def advance(y, istate, fstate, t_end, p, opts,
                                      Ap, Ai, Ax, sub_in, sub_out, link_x, fstate)
                     if f_contact1 > fstate[F_PEAK]:
                         fstate[F_PEAK] = f_contact1
-                d1 = spring_damper_force(ynew, p) + f_contact1  # = force_on_bit(ynew, p, mc)
                 if d1 < d_min:
                     d_min = d1
                 if not fixed:
                     # (the fixed-step method tracks the drive at the step ends only)
                     if not carried:
                         r_y = drive_rate(y, stages[0], p, mc)
-                    r1 = drive_rate(ynew, stages[ns], p, mc)
                     if drive_dips(d_y, r_y * h, d1, r1 * h, d_min):
                         dense_ok = interpolant(dense_ok, fixed, t, y, ynew, h, rk_a, rk_c, dense_w, ns, n_ext, stages, stages2, interp, ytmp, act, n_act,
                                                istate, p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)

@@ -11,7 +11,7 @@ import math
 from numba import njit
 
 from . import numba_cache  # noqa: F401  (registers the content-hash cache locator first)
-from .kernel_events import watch_slope, watch_value
+from .kernel_events import watch_slope, watch_slope_drive, watch_value
 from .kernel_forces import contact_force_at, force_on_bit, rhs
 from .kernel_layouts import (DRIVE_GATE, EPS, EV_BOUNCE, EV_IMPACT, F_PEAK, HOW_DENSE,
                              HOW_RESTEP, HOW_STICK)
@@ -144,10 +144,11 @@ def find_extremum(kind, t0, t1, y0, h, how, interp, act, n_act, ys, fs,
 def sign_change(kind, y, ynew, f0, f1, p, mc, w, h, graze_ok):
     """Sign-change detection of one indicator over a step.
 
-    ``w = (w0, w1, wtol, s0)``: the indicator at the step's ends (``watch_value``),
-    its round-off level and its slope at the start (``watch_slope``, NaN if not
-    known: then computed here when needed).  The caller carries w1 and the
-    returned end slope on to the next step.
+    ``w = (w0, w1, wtol, s0, r1)``: the indicator at the step's ends (``watch_value``),
+    its round-off level, its slope at the start (``watch_slope``, NaN if not
+    known: then computed here when needed) and the drive's rate at the end
+    (``drive_rate``; used only by the drive indicators).  The caller carries w1
+    and the returned end slope on to the next step.
 
     Returns (code, s1): code 1 when the indicator ends above its round-off
     level (a crossing inside the step), 2 when its slope turns from + to - with
@@ -155,10 +156,10 @@ def sign_change(kind, y, ynew, f0, f1, p, mc, w, h, graze_ok):
     extremum, only if ``graze_ok``), else 0; s1 the slope at the end (NaN when
     not needed).
     """
-    w0, w1, wtol, s0 = w
+    w0, w1, wtol, s0, r1 = w
     if w1 > wtol or not graze_ok:
         return (1 if w1 > wtol else 0), math.nan
-    s1 = watch_slope(kind, ynew, f1, p, mc)
+    s1 = watch_slope_drive(kind, ynew, f1, p, mc, r1)
     if not s1 < 0.0:
         return 0, s1
     if s0 != s0:
