@@ -120,8 +120,9 @@ def advance(y, istate, fstate, t_end, p, opts, method, sub, rec):
         ``ST_*`` code.
     """
     rk_a, rk_b, rk_c, err_w, err_w3, dense_w, ns, err_kind, err_exp = method
+    tableau = (rk_a, rk_b, rk_c, ns)  # what a step needs (fewer arguments to the calls per step)
     nz, ne = sub[0], sub[1]
-    log = rec[3]
+    poin, samp_t, _, log = rec
     n = y.shape[0]
     n_ext = rk_a.shape[0]
     fixed = err_kind == 0
@@ -271,7 +272,7 @@ def advance(y, istate, fstate, t_end, p, opts, method, sub, rec):
                                            h_chunk, graze_stick)
                 if code == 0:
                     continue
-                te = locate_event(kd, code, t1, stp, (opts[O_BISECT], graze, wtols[q]), method, field,
+                te = locate_event(kd, code, t1, stp, (opts[O_BISECT], graze, wtols[q]), tableau, field,
                                   (stages2, ytmp, ys, ytmp))
                 if te > 0.0 and (hit_kind < 0 or te < t_hit):
                     hit_kind = kd
@@ -286,8 +287,8 @@ def advance(y, istate, fstate, t_end, p, opts, method, sub, rec):
                 d_y = d1
                 r_y = r1
                 carried = True
-                if needs_record(t1, istate, opts, rec):
-                    record_until(t1, ynew, stp, method, field, (stages2, ytmp, ys, fs), istate, opts, rec)
+                if needs_record(t1, istate, opts, poin, samp_t):
+                    record_until(t1, ynew, stp, tableau, field, (stages2, ytmp, ys, fs), istate, opts, rec)
                 for i in range(n):
                     y[i] = ynew[i]
                     stages[0, i] = fs[i]
@@ -301,8 +302,8 @@ def advance(y, istate, fstate, t_end, p, opts, method, sub, rec):
             d_y = force_on_bit(ys, p, mc)
             if d_y < d_min:
                 d_min = d_y
-            if needs_record(t_hit, istate, opts, rec):
-                record_until(t_hit, ys, stp, method, field, (stages2, ytmp, ynew, fs), istate, opts, rec)
+            if needs_record(t_hit, istate, opts, poin, samp_t):
+                record_until(t_hit, ys, stp, tableau, field, (stages2, ytmp, ynew, fs), istate, opts, rec)
             for i in range(n):
                 y[i] = ys[i]
             t = t_hit
@@ -310,7 +311,7 @@ def advance(y, istate, fstate, t_end, p, opts, method, sub, rec):
             # -- one accepted step -------------------------------------------
             if fixed:
                 h = min(opts[O_HFIXED], remaining)
-                rk_step(t, y, h, method, stages, ynew, ytmp, act, n_act, field)
+                rk_step(t, y, h, tableau, stages, ynew, ytmp, act, n_act, field)
                 istate[I_RHS] += ns
                 for i in range(n):
                     if not math.isfinite(ynew[i]):
@@ -351,7 +352,7 @@ def advance(y, istate, fstate, t_end, p, opts, method, sub, rec):
                         fstate[F_DRIVE_MIN] = d_min
                         fstate[F_H] = h
                         return ST_STEP_TOO_SMALL
-                    rk_step(t, y, h, method, stages, ynew, ytmp, act, n_act, field)
+                    rk_step(t, y, h, tableau, stages, ynew, ytmp, act, n_act, field)
                     istate[I_RHS] += ns
                     err = error_norm(y, ynew, h, stages, method, act, n_act, (rtol, atol, fstate[F_V4_PEAK]))
                     finite = math.isfinite(err)
@@ -425,8 +426,8 @@ def advance(y, istate, fstate, t_end, p, opts, method, sub, rec):
                                            h, not fixed)
                 if code == 0:
                     continue
-                dense_ok = interpolant(dense_ok, stp, ynew, method, stages, stages2, ytmp, istate, field)
-                te = locate_event(kd, code, t1, stp, (opts[O_BISECT], graze, wtols[q]), method, field,
+                dense_ok = interpolant(dense_ok, stp, ynew, tableau, dense_w, stages, stages2, ytmp, istate, field)
+                te = locate_event(kd, code, t1, stp, (opts[O_BISECT], graze, wtols[q]), tableau, field,
                                   (stages2, ytmp, ys, fs))
                 if te > 0.0 and (hit_kind < 0 or te < t_hit):
                     hit_kind = kd
@@ -435,12 +436,12 @@ def advance(y, istate, fstate, t_end, p, opts, method, sub, rec):
 
             if hit_kind < 0:
                 # -- no event: record and accept ----------------------------
-                if needs_record(t1, istate, opts, rec):
-                    dense_ok = interpolant(dense_ok, stp, ynew, method, stages, stages2, ytmp, istate, field)
-                    record_until(t1, ynew, stp, method, field, (stages2, ytmp, ys, fs), istate, opts, rec)
+                if needs_record(t1, istate, opts, poin, samp_t):
+                    dense_ok = interpolant(dense_ok, stp, ynew, tableau, dense_w, stages, stages2, ytmp, istate, field)
+                    record_until(t1, ynew, stp, tableau, field, (stages2, ytmp, ys, fs), istate, opts, rec)
                 if mc == CONTACT:
                     if not fixed and y[V_HAMMER] - y[V_BIT] > 0.0 and ynew[V_HAMMER] - ynew[V_BIT] <= 0.0:
-                        dense_ok = interpolant(dense_ok, stp, ynew, method, stages, stages2, ytmp, istate, field)
+                        dense_ok = interpolant(dense_ok, stp, ynew, tableau, dense_w, stages, stages2, ytmp, istate, field)
                         peak_in_step(t1, stp, field, ys, fs, fstate)
                     if f_contact1 > fstate[F_PEAK]:
                         fstate[F_PEAK] = f_contact1
@@ -451,7 +452,7 @@ def advance(y, istate, fstate, t_end, p, opts, method, sub, rec):
                     if not carried:
                         r_y = drive_rate(y, stages[0], p, mc)
                     if drive_dips(d_y, r_y * h, d1, r1 * h, d_min):
-                        dense_ok = interpolant(dense_ok, stp, ynew, method, stages, stages2, ytmp, istate, field)
+                        dense_ok = interpolant(dense_ok, stp, ynew, tableau, dense_w, stages, stages2, ytmp, istate, field)
                         d_min = drive_inside(t1, stp, field, ys, fs, d_min)
                     r_y = r1
                 d_y = d1
@@ -473,12 +474,12 @@ def advance(y, istate, fstate, t_end, p, opts, method, sub, rec):
             # yet, move there and locate again from nearer (at most twice).
             for i in range(n):
                 stages2[0, i] = stages[0, i]
-            rk_step(t, y, t_hit - t, method, stages2, ys, ytmp, act, n_act, field)
+            rk_step(t, y, t_hit - t, tableau, stages2, ys, ytmp, act, n_act, field)
             istate[I_RHS] += ns
             confirmed = fixed or watch_value(hit_kind, ys, p, mc) > wtol_hit
             if not confirmed and refine >= 2:
                 # give up refining: take the dense-output state, crossed by construction
-                state_at(t_hit, (t, y, h, how_dense, interp, act, n_act), method, field, stages2, ytmp, ys)
+                state_at(t_hit, (t, y, h, how_dense, interp, act, n_act), tableau, field, stages2, ytmp, ys)
                 confirmed = True
             if not confirmed:
                 refine += 1
@@ -496,8 +497,8 @@ def advance(y, istate, fstate, t_end, p, opts, method, sub, rec):
             if d_y < d_min:
                 d_min = d_y
             carried = False  # stages[0] changes below, or the reset map follows
-            if needs_record(t_hit, istate, opts, rec):
-                record_until(t_hit, ys, stp, method, field, (stages2, ytmp, ynew, fs), istate, opts, rec)
+            if needs_record(t_hit, istate, opts, poin, samp_t):
+                record_until(t_hit, ys, stp, tableau, field, (stages2, ytmp, ynew, fs), istate, opts, rec)
             for i in range(n):
                 y[i] = ys[i]
             t = t_hit
@@ -561,10 +562,10 @@ def advance(y, istate, fstate, t_end, p, opts, method, sub, rec):
     fstate[F_T] = t
     fstate[F_DRIVE_MIN] = d_min
     fstate[F_H] = h
-    if needs_record(t, istate, opts, rec):
+    if needs_record(t, istate, opts, poin, samp_t):
         for i in range(n):
             ynew[i] = y[i]
-        record_until(t, ynew, (t, y, 1.0, how_dense, interp, act, no_act), method, field, (stages2, ytmp, ys, fs),
+        record_until(t, ynew, (t, y, 1.0, how_dense, interp, act, no_act), tableau, field, (stages2, ytmp, ys, fs),
                      istate, opts, rec)
     return ST_DONE
 

@@ -26,6 +26,9 @@ tuple is a compile-time constant), under the same names in every module::
         of the 5th- and 3rd-order estimates, nested dense-output weights
         (nF, n_ext); the number of stages; the error-estimate kind (0: fixed
         step); the controller exponent 1 / (error order + 1)
+    tableau = (rk_a, rk_b, rk_c, ns)
+        the part of ``method`` a step needs (the calls made at every step pass
+        fewer arguments); ``dense_w`` goes alongside where the dense output is built
     sub     = (nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
         the linear subsystem (nz = sub_in.shape[0], may be 0) and the size of
         the energy block (ne = 4 or 0): A in CSR form, H, G and g (see above)

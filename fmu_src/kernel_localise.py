@@ -19,7 +19,7 @@ from .kernel_runge_kutta import dense_eval, dense_eval_rate, rk_step
 from .kernel_stick import stick_rate, stick_state
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
-def state_at(tq, step, method, field, stages2, ytmp, out):
+def state_at(tq, step, tableau, field, stages2, ytmp, out):
     """State at time ``tq`` inside the current ``step`` (its ``how``: HOW_*).
 
     Adaptive methods evaluate their dense output.  The fixed-step method (the
@@ -28,7 +28,7 @@ def state_at(tq, step, method, field, stages2, ytmp, out):
     """
     t0, y0, h, how, interp, act, n_act = step
     if how == HOW_RESTEP:
-        rk_step(t0, y0, tq - t0, method, stages2, out, ytmp, act, n_act, field)
+        rk_step(t0, y0, tq - t0, tableau, stages2, out, ytmp, act, n_act, field)
     elif how == HOW_STICK:
         stick_state(tq, y0, interp, field[0], out)
     else:
@@ -37,7 +37,7 @@ def state_at(tq, step, method, field, stages2, ytmp, out):
 
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
-def localise_bisect(kind, ta, tb, tols, step, method, field, scratch):
+def localise_bisect(kind, ta, tb, tols, step, tableau, field, scratch):
     """The paper's localisation for the fixed-step method: bisection down to ``tol``
     (``tols = (tol, wtol)``).
 
@@ -54,7 +54,7 @@ def localise_bisect(kind, ta, tb, tols, step, method, field, scratch):
         if tb - ta <= tol:
             break
         tm = 0.5 * (ta + tb)
-        rk_step(t0, y0, tm - t0, method, stages2, ys, ytmp, act, n_act, field)
+        rk_step(t0, y0, tm - t0, tableau, stages2, ys, ytmp, act, n_act, field)
         if watch_value(kind, ys, p, mc) - wtol > 0.0:
             tb = tm
         else:
@@ -176,10 +176,10 @@ def sign_change(kind, y, ynew, f0, f1, p, mc, w, h, graze_ok):
 
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
-def locate_event(kind, code, t1, step, tols, method, field, scratch):
+def locate_event(kind, code, t1, step, tols, tableau, field, scratch):
     """Event time of one indicator in (t0, t1] for a ``sign_change`` code, or -1.
 
-    ``tols = (bisect_tol, graze, wtol)``; ``step``, ``method``, ``field`` and
+    ``tols = (bisect_tol, graze, wtol)``; ``step``, ``tableau``, ``field`` and
     ``scratch = (stages2, ytmp, ys, fscr)`` are the groups of :mod:`.kernel_layouts`.
 
     A grazing candidate (code 2) counts only if the indicator's maximum inside
@@ -193,13 +193,13 @@ def locate_event(kind, code, t1, step, tols, method, field, scratch):
     tb = t1
     if code == 2:
         tm = find_extremum(kind, t1, step, field, ys, fscr)
-        state_at(tm, step, method, field, stages2, ytmp, ys)
+        state_at(tm, step, tableau, field, stages2, ytmp, ys)
         if watch_value(kind, ys, p, mc) <= max(graze, wtol):
             return -1.0
         tb = tm
     if how == HOW_STICK or how == HOW_DENSE:
         return localise_newton(kind, t0, tb, wtol, step, p, mc, ys, fscr)
-    return localise_bisect(kind, t0, tb, (bisect_tol, wtol), step, method, field, scratch)
+    return localise_bisect(kind, t0, tb, (bisect_tol, wtol), step, tableau, field, scratch)
 
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)

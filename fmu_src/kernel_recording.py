@@ -24,7 +24,7 @@ def write_sample(row, y, p, istate, nz, sub_out, link_x):
 
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
-def record_until(t_stop, y_stop, step, method, field, scratch, istate, opts, rec):
+def record_until(t_stop, y_stop, step, tableau, field, scratch, istate, opts, rec):
     """Record Poincaré samples and requested samples with times in (t0, t_stop] of ``step``.
 
     ``field`` holds the modes of ``istate``; ``scratch = (stages2, ytmp, ys, _)``;
@@ -47,7 +47,7 @@ def record_until(t_stop, y_stop, step, method, field, scratch, istate, opts, rec
             for i in range(ys.shape[0]):
                 ys[i] = y_stop[i]
         else:
-            state_at(tk, step, method, field, stages2, ytmp, ys)
+            state_at(tk, step, tableau, field, stages2, ytmp, ys)
         poin[k, 0] = tk
         poin[k, 1] = ys[X_HAMMER]
         poin[k, 2] = ys[V_HAMMER]
@@ -67,7 +67,7 @@ def record_until(t_stop, y_stop, step, method, field, scratch, istate, opts, rec
             for i in range(ys.shape[0]):
                 ys[i] = y_stop[i]
         else:
-            state_at(max(tj, t0), step, method, field, stages2, ytmp, ys)
+            state_at(max(tj, t0), step, tableau, field, stages2, ytmp, ys)
         if j > 0 and ys[X_BIT] < samp[j - 1, 2]:
             ys[X_BIT] = samp[j - 1, 2]  # monotone drift, as for the Poincaré samples
         write_sample(samp[j], ys, p, istate, nz, sub_out, link_x)
@@ -76,9 +76,8 @@ def record_until(t_stop, y_stop, step, method, field, scratch, istate, opts, rec
 
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
-def needs_record(t_stop, istate, opts, rec):
-    """True if a Poincaré or requested sample (``rec``) falls in the step ending at t_stop."""
-    poin, samp_t = rec[0], rec[1]
+def needs_record(t_stop, istate, opts, poin, samp_t):
+    """True if a Poincaré or requested sample falls in the step ending at t_stop."""
     tol = 8.0 * EPS * max(abs(t_stop), 1.0)
     k = istate[I_POIN_NEXT]
     if k < poin.shape[0] and opts[O_POIN_T0] + k * opts[O_POIN_DT] <= t_stop + tol:

@@ -6,17 +6,17 @@ from numba import njit
 
 from . import numba_cache  # noqa: F401  (registers the content-hash cache locator first)
 from .kernel_forces import harmonic_shifted, rhs_forced
-from .kernel_layouts import I_RHS, P_ETA, P_GAMMA, P_MU, P_PHI, P_RHO, X_BIT, X_HAMMER
+from .kernel_layouts import HOW_RESTEP, I_RHS, P_ETA, P_GAMMA, P_MU, P_PHI, P_RHO, X_BIT, X_HAMMER
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
-def rk_stages(t, y, h, method, stage_range, stages, ytmp, act, n_act, field):
+def rk_stages(t, y, h, tableau, stage_range, stages, ytmp, act, n_act, field):
     """Stages ``s_from <= s < s_to`` (``stage_range``) of an explicit RK method into ``stages[s]``.
 
-    ``method`` and ``field`` are the groups of :mod:`.kernel_layouts`.
+    ``tableau`` and ``field`` are the groups of :mod:`.kernel_layouts`.
     Returns sin and cos of the forcing phase at ``t`` (for the caller's FSAL stage).
     """
-    rk_a = method[0]
-    rk_c = method[2]
+    rk_a = tableau[0]
+    rk_c = tableau[2]
     p = field[0]
     s_from, s_to = stage_range
     for i in range(y.shape[0]):
@@ -45,14 +45,14 @@ def rk_stages(t, y, h, method, stage_range, stages, ytmp, act, n_act, field):
 
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
-def rk_step(t, y, h, method, stages, ynew, ytmp, act, n_act, field):
-    """One step of any explicit tableau (``method``); ``stages[0]`` must hold f(t, y).
+def rk_step(t, y, h, tableau, stages, ynew, ytmp, act, n_act, field):
+    """One step of any explicit ``tableau``; ``stages[0]`` must hold f(t, y).
 
     Writes the solution ``ynew`` and the FSAL stage ``stages[ns] = f(t + h, ynew)``.
     """
-    rk_b = method[1]
-    ns = method[6]
-    s0, c0 = rk_stages(t, y, h, method, (1, ns), stages, ytmp, act, n_act, field)
+    rk_b = tableau[1]
+    ns = tableau[3]
+    s0, c0 = rk_stages(t, y, h, tableau, (1, ns), stages, ytmp, act, n_act, field)
     for i in range(y.shape[0]):
         ynew[i] = y[i]
     for q in range(n_act):
@@ -180,14 +180,14 @@ def friction_layer_err(h, x4, f4, p, method, e_abs, n_act, sc):
 
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
-def dense_prepare(step, ynew, method, stages, ytmp, field):
+def dense_prepare(step, ynew, tableau, dense_w, stages, ytmp, field):
     """Extra stages (if the method has them) and nested coefficients ``interp`` of the dense output
     of ``step`` (the groups: :mod:`.kernel_layouts`)."""
     t, y, h, _, interp, act, n_act = step
-    rk_a, dense_w, ns = method[0], method[5], method[6]
+    rk_a, ns = tableau[0], tableau[3]
     n_ext = rk_a.shape[0]
     if n_ext > ns + 1:
-        rk_stages(t, y, h, method, (ns + 1, n_ext), stages, ytmp, act, n_act, field)
+        rk_stages(t, y, h, tableau, (ns + 1, n_ext), stages, ytmp, act, n_act, field)
     nF = dense_w.shape[0]
     for q in range(n_act):
         i = act[q]
@@ -202,7 +202,7 @@ def dense_prepare(step, ynew, method, stages, ytmp, field):
 
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
-def interpolant(ready, step, ynew, method, stages, stages2, ytmp, istate, field):
+def interpolant(ready, step, ynew, tableau, dense_w, stages, stages2, ytmp, istate, field):
     """Make the interpolant of ``step`` usable, once per step; returns True.
 
     Adaptive methods: the dense-output coefficients (and their extra stages).
@@ -210,12 +210,12 @@ def interpolant(ready, step, ynew, method, stages, stages2, ytmp, istate, field)
     """
     if ready:
         return True
-    if method[7] == 0:  # the fixed-step method
+    if step[3] == HOW_RESTEP:  # the fixed-step method
         for i in range(step[1].shape[0]):
             stages2[0, i] = stages[0, i]
     else:
-        dense_prepare(step, ynew, method, stages, ytmp, field)
-        istate[I_RHS] += method[0].shape[0] - method[6] - 1
+        dense_prepare(step, ynew, tableau, dense_w, stages, ytmp, field)
+        istate[I_RHS] += tableau[0].shape[0] - tableau[3] - 1
     return True
 
 
