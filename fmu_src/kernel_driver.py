@@ -354,8 +354,7 @@ def advance(y, istate, fstate, t_end, p, opts, method, sub, rec):
                         return ST_STEP_TOO_SMALL
                     rk_step(t, y, h, tableau, stages, ynew, ytmp, act, n_act, field)
                     istate[I_RHS] += ns
-                    err = error_norm(y, ynew, h, stages, (err_w, err_w3, ns, err_kind), act, n_act,
-                                     (rtol, atol, fstate[F_V4_PEAK]))
+                    err = error_norm(y, ynew, h, stages, method, act, n_act, (rtol, atol, fstate[F_V4_PEAK]))
                     finite = math.isfinite(err)
                     if finite:
                         for i in range(n):

@@ -29,8 +29,6 @@ tuple is a compile-time constant), under the same names in every module::
     tableau = (rk_a, rk_b, rk_c, ns)
         the part of ``method`` a step needs (the calls made at every step pass
         fewer arguments); ``dense_w`` goes alongside where the dense output is built
-    estimate = (err_w, err_w3, ns, err_kind)
-        the part of ``method`` the error norm needs
     sub     = (nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
         the linear subsystem (nz = sub_in.shape[0], may be 0) and the size of
         the energy block (ne = 4 or 0): A in CSR form, H, G and g (see above)

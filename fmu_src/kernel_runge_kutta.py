@@ -65,9 +65,9 @@ def rk_step(t, y, h, tableau, stages, ynew, ytmp, act, n_act, field):
 
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
-def error_norm(y, ynew, h, stages, estimate, act, n_act, tols):
-    """RMS norm of the embedded error estimate ``estimate = (err_w, err_w3, ns, err_kind)`` (of
-    ``method``), scaled by atol + rtol |y| (``tols = (rtol, atol, v4_peak)``).
+def error_norm(y, ynew, h, stages, method, act, n_act, tols):
+    """RMS norm of the embedded error estimate of ``method``, scaled by atol + rtol |y|
+    (``tols = (rtol, atol, v4_peak)``).
 
     The bit velocity x4 is scaled by its peak in the current slip instead of
     its instantaneous value: as the bit decelerates to a stop, a scale that
@@ -78,7 +78,7 @@ def error_norm(y, ynew, h, stages, estimate, act, n_act, tols):
     2: Hairer's DOP853 combination of the 5th (err_w) and 3rd (err_w3) order estimates.
     Returns inf when the estimate is not finite (the step is then rejected).
     """
-    err_w, err_w3, ns, err_kind = estimate
+    err_w, err_w3, ns, err_kind = method[3], method[4], method[6], method[7]
     rtol, atol, v4_peak = tols
     e5 = 0.0
     e3 = 0.0
