@@ -247,7 +247,7 @@ def _in_process_split(n, reals, preload, rounds: int = 15) -> dict:
     def kernel_calls():
         t = s._t
         for k in range(1, n + 1):
-            kernel(y, ist, fst, (t + k * STEP) * om, p, opts, NO_POINCARE, NO_SAMPLE_TIMES, NO_SAMPLES, NO_LOG)
+            kernel(y, ist, fst, (t + k * STEP) * om, p, opts, (NO_POINCARE, NO_SAMPLE_TIMES, NO_SAMPLES, NO_LOG))
         s._t = t + n * STEP
 
     times = {"slave_do_step_s": [], "stepper_advance_s": [], "kernel_call_s": []}

@@ -17,8 +17,8 @@ from numba import njit
 from . import numba_cache  # noqa: F401  (registers the content-hash cache locator first)
 from . import tableaux as _T
 from .numba_partial import bind
-from .kernel_events import watch_tol, watch_value, watched
-from .kernel_forces import contact_force_at, overlap, rhs, force_on_bit
+from .kernel_events import drive_rate, watch_tol, watch_value, watch_value_drive, watched
+from .kernel_forces import contact_force_at, force_on_bit, overlap, rhs, spring_damper_force
 from .kernel_layouts import (CHUNK_SLIVER, CONTACT, CONTACT_STABILITY_LIMIT, EPS, ERRACC_FLOOR, EV_SEPARATION,
                              EV_STICK, F_DRIVE_MIN, F_ERRACC, F_H, F_H_MODE, F_HACC, F_PEAK, F_T, F_T_STICK,
                              F_V4_PEAK, FREE, HOW_DENSE, HOW_RESTEP, HOW_STICK, I_CONTACT, I_NLOG, I_REJECTS,
@@ -30,8 +30,8 @@ from .kernel_layouts import (CHUNK_SLIVER, CONTACT, CONTACT_STABILITY_LIMIT, EPS
                              ST_NONFINITE, ST_STEP_STORM, ST_STEP_TOO_SMALL, STICK, STICK_CHUNKS_PER_PERIOD,
                              STOP_OVERSHOOT, STOP_SHRINK_FLOOR, TIME_RESOLUTION, TINY, V_BIT, V_HAMMER, X_BIT,
                              X_HAMMER)
-from .kernel_localise import (locate_event, peak_in_step, plain, sign_change, state_at, drive_end,
-                              drive_inside)
+from .kernel_localise import (drive_dips, drive_inside, locate_event, peak_in_step, plain, sign_change,
+                              state_at)
 from .kernel_recording import needs_record, record_until
 from .kernel_reset import apply_event
 from .kernel_runge_kutta import dense_eval, error_norm, friction_layer_err, interpolant, rk_step
@@ -79,10 +79,7 @@ def set_active(istate, n, act):
 
 
 @njit(cache=True, nogil=True)
-def advance(y, istate, fstate, t_end, p, opts,
-            rk_a, rk_b, rk_c, err_w, err_w3, dense_w, ns, err_kind, err_exp,
-            Ap, Ai, Ax, sub_in, sub_out, link_x, ne,
-            poin, samp_t, samp, log):
+def advance(y, istate, fstate, t_end, p, opts, method, sub, rec):
     """Advance the hybrid system from ``fstate[F_T]`` to ``t_end``.
 
     Resumable: all solver state lives in ``y``, ``istate`` and ``fstate``, so a
@@ -103,34 +100,30 @@ def advance(y, istate, fstate, t_end, p, opts,
         Kernel parameters.
     opts : ndarray, shape (N_OPTS,)
         Solver options (``O_*``).
-    rk_a, rk_b, rk_c, err_w, err_w3, dense_w : ndarray
-        Tableau (``tableaux``: A, B, C, E, E3, W): stage coefficients (n_ext, n_ext),
-        weights (ns,), nodes (n_ext,), error weights (ns + 1,) of the 5th- and
-        3rd-order estimates, nested dense-output weights (nF, n_ext).
-    ns, err_kind : int
-        Number of stages of the step; error-estimate kind (0 = fixed step).
-    err_exp : float
-        Controller exponent 1 / (error order + 1).
-    Ap, Ai, Ax, sub_in, sub_out, link_x : ndarray
-        Linear subsystem (see ``rhs_forced``); nz = sub_in.shape[0] may be 0.
-    ne : int
-        4 to accumulate energies, else 0.
-    poin : ndarray, shape (n_poin, 5)
-        Poincaré samples [tau, x1, x2, x3, x4] at O_POIN_T0 + k O_POIN_DT.
-    samp_t : ndarray, shape (n_samp,)
-        Requested sample times, sorted.
-    samp : ndarray, shape (n_samp, N_SAMPLE_COLS)
-        Samples (written).
-    log : ndarray, shape (cap, N_LOG_COLS)
-        Event log (written while rows remain; cap 0 disables it).
+    method : tuple
+        The Runge–Kutta method ``(rk_a, rk_b, rk_c, err_w, err_w3, dense_w, ns,
+        err_kind, err_exp)`` (``tableaux.METHODS``; :mod:`.kernel_layouts` lists the groups).
+    sub : tuple
+        The linear subsystem and the energy block ``(nz, ne, Ap, Ai, Ax, sub_in,
+        sub_out, link_x)``; nz = sub_in.shape[0] may be 0, ne is 4 to accumulate
+        energies, else 0.
+    rec : tuple
+        The record buffers ``(poin, samp_t, samp, log)``: Poincaré samples
+        [tau, x1, x2, x3, x4] at O_POIN_T0 + k O_POIN_DT, shape (n_poin, 5);
+        requested sample times, sorted, shape (n_samp,), and their samples
+        (written), shape (n_samp, N_SAMPLE_COLS); the event log (written while rows
+        remain; cap 0 disables it), shape (cap, N_LOG_COLS).
 
     Returns
     -------
     status : int
         ``ST_*`` code.
     """
+    rk_a, rk_b, rk_c, err_w, err_w3, dense_w, ns, err_kind, err_exp = method
+    tableau = (rk_a, rk_b, rk_c, ns)  # what a step needs (fewer arguments to the calls per step)
+    nz, ne = sub[0], sub[1]
+    poin, samp_t, _, log = rec
     n = y.shape[0]
-    nz = sub_in.shape[0]
     n_ext = rk_a.shape[0]
     fixed = err_kind == 0
     how_rk = plain(HOW_RESTEP if fixed else HOW_DENSE, n)
@@ -144,9 +137,6 @@ def advance(y, istate, fstate, t_end, p, opts,
     cf_chunk = min(2.0 * math.pi / p[P_ETA],
                    2.0 * math.pi / math.sqrt(max(1.0 - p[P_XI] * p[P_XI], TINY))) / STICK_CHUNKS_PER_PERIOD
     cf_chunk = min(cf_chunk, opts[O_HMAX])
-    # the event search's grouped arguments (see locate_event)
-    tableau = (rk_a, rk_b, rk_c, ns)
-    sub = (nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
     chunk_c = np.empty(6)
     e_abs = 0.0
     for j in range(ns + 1):
@@ -173,6 +163,8 @@ def advance(y, istate, fstate, t_end, p, opts,
     act = np.empty(n, dtype=np.int64)
     kinds = np.empty(4, dtype=np.int64)
     w0s = np.empty(4)
+    w1s = np.empty(4)
+    s1s = np.empty(4)   # their slopes at the step end (NaN: not computed)
     wtols = np.empty(4)
 
     t = fstate[F_T]
@@ -185,10 +177,18 @@ def advance(y, istate, fstate, t_end, p, opts,
     n_act = set_active(istate, n, act)
     ms = istate[I_STICK]
     mc = istate[I_CONTACT]
-    d_start = force_on_bit(y, p, mc)
-    if d_start < fstate[F_DRIVE_MIN]:
-        fstate[F_DRIVE_MIN] = d_start
-    rhs(t, y, p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, stages[0])
+    field = (p, ms, mc, sub)
+    # the lowest drive on the bit, kept in a register and stored at every return.  The drive at
+    # y in mode mc, its rate along stages[0] and the watched indicators carry from the end of an
+    # accepted step to the start of the next (``carried``; recomputing them cost a tenth of the
+    # solver's time); an event or a reset starts afresh
+    d_min = fstate[F_DRIVE_MIN]
+    d_y = force_on_bit(y, p, mc)
+    if d_y < d_min:
+        d_min = d_y
+    r_y = 0.0
+    carried = False
+    rhs(t, y, field, stages[0])
     istate[I_RHS] += 1
     steps_here = 0
     refine = 0
@@ -203,10 +203,12 @@ def advance(y, istate, fstate, t_end, p, opts,
             break
         if log_cap > 0 and istate[I_NLOG] >= log_cap:
             fstate[F_T] = t
+            fstate[F_DRIVE_MIN] = d_min
             fstate[F_H] = h
             return ST_LOG_FULL
         if maxsteps > 0 and steps_here >= maxsteps:
             fstate[F_T] = t
+            fstate[F_DRIVE_MIN] = d_min
             fstate[F_H] = h
             return ST_MAX_STEPS
 
@@ -214,7 +216,9 @@ def advance(y, istate, fstate, t_end, p, opts,
         nw = watched(istate, p, kinds)
         immediate = -1
         for q in range(nw):
-            w0s[q] = watch_value(kinds[q], y, p, mc)
+            w0s[q] = w1s[q] if carried else watch_value(kinds[q], y, p, mc)
+            if not carried:
+                s1s[q] = math.nan
             wtols[q] = watch_tol(kinds[q], y, p)
             if w0s[q] > wtols[q]:
                 immediate = kinds[q]
@@ -233,6 +237,7 @@ def advance(y, istate, fstate, t_end, p, opts,
                 h_chunk = remaining
                 t1 = t_end
                 full = False
+            stp = (t, y, h_chunk, how_stick, interp, act, n_act)
             if t == sc_t:
                 stick_prepare_phase(t, y, p, interp, sc_s, sc_c)  # phase carried from the last chunk
             else:
@@ -245,6 +250,7 @@ def advance(y, istate, fstate, t_end, p, opts,
                 cs1 = 0.0
             if not (math.isfinite(ynew[X_HAMMER]) and math.isfinite(ynew[V_HAMMER])):
                 fstate[F_T] = t
+                fstate[F_DRIVE_MIN] = d_min
                 return ST_NONFINITE
             stick_rate(ynew, sn1, p, fs)  # = rhs(t1, ynew) in stick with the gap open
             istate[I_RHS] += 1
@@ -252,27 +258,37 @@ def advance(y, istate, fstate, t_end, p, opts,
             steps_here += 1
             if count_step(t1, period, istate, stepcap):
                 fstate[F_T] = t
+                fstate[F_DRIVE_MIN] = d_min
                 fstate[F_H] = h
                 return ST_STEP_STORM
             # (this loop mirrors the RK step's detection below on purpose: one loop shared
             # by both paths measured 5-7 % slower, the per-path constants no longer fold)
+            d1 = force_on_bit(ynew, p, mc)
+            r1 = drive_rate(ynew, fs, p, mc)
             for q in range(nw):
                 kd = kinds[q]
-                code = sign_change(kd, y, ynew, stages[0], fs, p, mc, w0s[q], wtols[q], h_chunk, graze_stick)
+                w1s[q] = watch_value_drive(kd, ynew, p, mc, d1)
+                code, s1s[q] = sign_change(kd, y, ynew, stages[0], fs, p, mc, (w0s[q], w1s[q], wtols[q], s1s[q], r1),
+                                           h_chunk, graze_stick)
                 if code == 0:
                     continue
-                te = locate_event(kd, code, t, t1, y, h_chunk, how_stick, (opts[O_BISECT], graze, wtols[q]),
-                                  (interp, act, n_act), tableau, (stages2, ytmp, ys, ytmp), p, ms, mc, sub)
+                te = locate_event(kd, code, t1, stp, (opts[O_BISECT], graze, wtols[q]), tableau, field,
+                                  (stages2, ytmp, ys, ytmp))
                 if te > 0.0 and (hit_kind < 0 or te < t_hit):
                     hit_kind = kd
                     t_hit = te
             if hit_kind < 0:
-                if drive_end(y, ynew, stages[0], fs, h_chunk, p, mc, fstate):
-                    drive_inside(t, t1, y, h_chunk, how_stick, interp, act, n_act, ys, ytmp,
-                                 p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, fstate)
+                if not carried:
+                    r_y = drive_rate(y, stages[0], p, mc)
+                if d1 < d_min:
+                    d_min = d1
+                if drive_dips(d_y, r_y * h_chunk, d1, r1 * h_chunk, d_min):
+                    d_min = drive_inside(t1, stp, field, ys, ytmp, d_min)
+                d_y = d1
+                r_y = r1
+                carried = True
                 if needs_record(t1, istate, opts, poin, samp_t):
-                    record_until(t1, ynew, t, y, h_chunk, how_stick, interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ys,
-                                 p, istate, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, opts, poin, samp_t, samp)
+                    record_until(t1, ynew, stp, tableau, field, (stages2, ytmp, ys, fs), istate, opts, rec)
                 for i in range(n):
                     y[i] = ynew[i]
                     stages[0, i] = fs[i]
@@ -283,12 +299,11 @@ def advance(y, istate, fstate, t_end, p, opts,
                     sc_c = cs1
                 continue
             stick_state(t_hit, y, interp, p, ys)
-            d_hit = force_on_bit(ys, p, mc)
-            if d_hit < fstate[F_DRIVE_MIN]:
-                fstate[F_DRIVE_MIN] = d_hit
+            d_y = force_on_bit(ys, p, mc)
+            if d_y < d_min:
+                d_min = d_y
             if needs_record(t_hit, istate, opts, poin, samp_t):
-                record_until(t_hit, ys, t, y, h_chunk, how_stick, interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ynew,
-                             p, istate, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, opts, poin, samp_t, samp)
+                record_until(t_hit, ys, stp, tableau, field, (stages2, ytmp, ynew, fs), istate, opts, rec)
             for i in range(n):
                 y[i] = ys[i]
             t = t_hit
@@ -296,12 +311,12 @@ def advance(y, istate, fstate, t_end, p, opts,
             # -- one accepted step -------------------------------------------
             if fixed:
                 h = min(opts[O_HFIXED], remaining)
-                rk_step(t, y, h, rk_a, rk_b, rk_c, ns, stages, ynew, ytmp, act, n_act,
-                        p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
+                rk_step(t, y, h, tableau, stages, ynew, ytmp, act, n_act, field)
                 istate[I_RHS] += ns
                 for i in range(n):
                     if not math.isfinite(ynew[i]):
                         fstate[F_T] = t
+                        fstate[F_DRIVE_MIN] = d_min
                         return ST_NONFINITE
             else:
                 hmin = TIME_RESOLUTION * max(abs(t), 1.0)
@@ -334,13 +349,12 @@ def advance(y, istate, fstate, t_end, p, opts,
                         h = remaining
                     if h < hmin:
                         fstate[F_T] = t
+                        fstate[F_DRIVE_MIN] = d_min
                         fstate[F_H] = h
                         return ST_STEP_TOO_SMALL
-                    rk_step(t, y, h, rk_a, rk_b, rk_c, ns, stages, ynew, ytmp, act, n_act,
-                            p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
+                    rk_step(t, y, h, tableau, stages, ynew, ytmp, act, n_act, field)
                     istate[I_RHS] += ns
-                    err = error_norm(y, ynew, h, stages, err_w, err_w3, err_kind, ns, act, n_act, rtol, atol,
-                                     fstate[F_V4_PEAK])
+                    err = error_norm(y, ynew, h, stages, method, act, n_act, (rtol, atol, fstate[F_V4_PEAK]))
                     finite = math.isfinite(err)
                     if finite:
                         for i in range(n):
@@ -382,8 +396,8 @@ def advance(y, istate, fstate, t_end, p, opts,
                     # ln h aimed a little below it (ln ef is convex in ln h, so they approach
                     # from above and stop as soon as the target is met)
                     for _ in range(8):
-                        ef, dlog = friction_layer_err(h_next, ynew[V_BIT], stages[ns, V_BIT], p, rk_c, err_w, err_w3, e_abs, ns,
-                                                      err_kind, n_act, sc4)
+                        ef, dlog = friction_layer_err(h_next, ynew[V_BIT], stages[ns, V_BIT], p, method, e_abs, n_act,
+                                                      sc4)
                         if ef <= LAYER_TARGET:
                             break
                         h_next *= max(MIN_FACTOR, math.exp(math.log(0.5 * LAYER_TARGET / ef) / max(dlog, 1.0)))
@@ -394,20 +408,27 @@ def advance(y, istate, fstate, t_end, p, opts,
                 t1 = t_end
             if count_step(t1, period, istate, stepcap):
                 fstate[F_T] = t
+                fstate[F_DRIVE_MIN] = d_min
                 fstate[F_H] = h
                 return ST_STEP_STORM
 
             # -- detection over [t, t1] ------------------------------------
+            stp = (t, y, h, how_rk, interp, act, n_act)
             dense_ok = no_act > 0  # False, as a plain bool (see ``plain``)
+            # the drive on the bit at the step end, for the drive indicators and the drive tracker
+            f_contact1 = contact_force_at(ynew, p, mc)  # 0 out of contact
+            d1 = spring_damper_force(ynew, p) + f_contact1  # = force_on_bit(ynew, p, mc)
+            r1 = 0.0 if fixed else drive_rate(ynew, stages[ns], p, mc)  # (no grazing search in fixed steps)
             for q in range(nw):
                 kd = kinds[q]
-                code = sign_change(kd, y, ynew, stages[0], stages[ns], p, mc, w0s[q], wtols[q], h, not fixed)
+                w1s[q] = watch_value_drive(kd, ynew, p, mc, d1)
+                code, s1s[q] = sign_change(kd, y, ynew, stages[0], stages[ns], p, mc, (w0s[q], w1s[q], wtols[q], s1s[q], r1),
+                                           h, not fixed)
                 if code == 0:
                     continue
-                dense_ok = interpolant(dense_ok, fixed, t, y, ynew, h, rk_a, rk_c, dense_w, ns, n_ext, stages, stages2, interp, ytmp, act, n_act,
-                                       istate, p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
-                te = locate_event(kd, code, t, t1, y, h, how_rk, (opts[O_BISECT], graze, wtols[q]),
-                                  (interp, act, n_act), tableau, (stages2, ytmp, ys, fs), p, ms, mc, sub)
+                dense_ok = interpolant(dense_ok, stp, ynew, tableau, dense_w, stages, stages2, ytmp, istate, field)
+                te = locate_event(kd, code, t1, stp, (opts[O_BISECT], graze, wtols[q]), tableau, field,
+                                  (stages2, ytmp, ys, fs))
                 if te > 0.0 and (hit_kind < 0 or te < t_hit):
                     hit_kind = kd
                     t_hit = te
@@ -416,24 +437,26 @@ def advance(y, istate, fstate, t_end, p, opts,
             if hit_kind < 0:
                 # -- no event: record and accept ----------------------------
                 if needs_record(t1, istate, opts, poin, samp_t):
-                    dense_ok = interpolant(dense_ok, fixed, t, y, ynew, h, rk_a, rk_c, dense_w, ns, n_ext, stages, stages2, interp, ytmp, act, n_act,
-                                       istate, p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
-                    record_until(t1, ynew, t, y, h, how_rk, interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ys,
-                                 p, istate, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, opts, poin, samp_t, samp)
+                    dense_ok = interpolant(dense_ok, stp, ynew, tableau, dense_w, stages, stages2, ytmp, istate, field)
+                    record_until(t1, ynew, stp, tableau, field, (stages2, ytmp, ys, fs), istate, opts, rec)
                 if mc == CONTACT:
                     if not fixed and y[V_HAMMER] - y[V_BIT] > 0.0 and ynew[V_HAMMER] - ynew[V_BIT] <= 0.0:
-                        dense_ok = interpolant(dense_ok, fixed, t, y, ynew, h, rk_a, rk_c, dense_w, ns, n_ext, stages, stages2, interp, ytmp, act, n_act,
-                                       istate, p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
-                        peak_in_step(t, t1, y, h, interp, act, n_act, ys, fs, p, ms, mc, nz, ne,
-                                     Ap, Ai, Ax, sub_in, sub_out, link_x, fstate)
-                    f_contact1 = contact_force_at(ynew, p, mc)
+                        dense_ok = interpolant(dense_ok, stp, ynew, tableau, dense_w, stages, stages2, ytmp, istate, field)
+                        peak_in_step(t1, stp, field, ys, fs, fstate)
                     if f_contact1 > fstate[F_PEAK]:
                         fstate[F_PEAK] = f_contact1
-                if drive_end(y, ynew, stages[0], stages[ns], h, p, mc, fstate) and not fixed:
-                    dense_ok = interpolant(dense_ok, fixed, t, y, ynew, h, rk_a, rk_c, dense_w, ns, n_ext, stages, stages2, interp, ytmp, act, n_act,
-                                           istate, p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
-                    drive_inside(t, t1, y, h, how_dense, interp, act, n_act, ys, fs,
-                                 p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, fstate)
+                if d1 < d_min:
+                    d_min = d1
+                if not fixed:
+                    # (the fixed-step method tracks the drive at the step ends only)
+                    if not carried:
+                        r_y = drive_rate(y, stages[0], p, mc)
+                    if drive_dips(d_y, r_y * h, d1, r1 * h, d_min):
+                        dense_ok = interpolant(dense_ok, stp, ynew, tableau, dense_w, stages, stages2, ytmp, istate, field)
+                        d_min = drive_inside(t1, stp, field, ys, fs, d_min)
+                    r_y = r1
+                d_y = d1
+                carried = True
                 for i in range(n):
                     y[i] = ynew[i]
                     stages[0, i] = stages[ns, i]
@@ -451,14 +474,12 @@ def advance(y, istate, fstate, t_end, p, opts,
             # yet, move there and locate again from nearer (at most twice).
             for i in range(n):
                 stages2[0, i] = stages[0, i]
-            rk_step(t, y, t_hit - t, rk_a, rk_b, rk_c, ns, stages2, ys, ytmp, act, n_act,
-                    p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
+            rk_step(t, y, t_hit - t, tableau, stages2, ys, ytmp, act, n_act, field)
             istate[I_RHS] += ns
             confirmed = fixed or watch_value(hit_kind, ys, p, mc) > wtol_hit
             if not confirmed and refine >= 2:
                 # give up refining: take the dense-output state, crossed by construction
-                state_at(t_hit, t, y, h, how_dense, interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ys,
-                         p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
+                state_at(t_hit, (t, y, h, how_dense, interp, act, n_act), tableau, field, stages2, ytmp, ys)
                 confirmed = True
             if not confirmed:
                 refine += 1
@@ -471,14 +492,13 @@ def advance(y, istate, fstate, t_end, p, opts,
                 if ynew[X_BIT] > ys[X_BIT]:
                     ys[X_BIT] = ynew[X_BIT]
             if mc == CONTACT and not fixed and y[V_HAMMER] - y[V_BIT] > 0.0 and ys[V_HAMMER] - ys[V_BIT] <= 0.0 and dense_ok:
-                peak_in_step(t, t_hit, y, h, interp, act, n_act, ynew, fs, p, ms, mc, nz, ne,
-                             Ap, Ai, Ax, sub_in, sub_out, link_x, fstate)
-            d_hit = force_on_bit(ys, p, mc)
-            if d_hit < fstate[F_DRIVE_MIN]:
-                fstate[F_DRIVE_MIN] = d_hit
+                peak_in_step(t_hit, stp, field, ynew, fs, fstate)
+            d_y = force_on_bit(ys, p, mc)
+            if d_y < d_min:
+                d_min = d_y
+            carried = False  # stages[0] changes below, or the reset map follows
             if needs_record(t_hit, istate, opts, poin, samp_t):
-                record_until(t_hit, ys, t, y, h, how_rk, interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ynew,
-                             p, istate, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, opts, poin, samp_t, samp)
+                record_until(t_hit, ys, stp, tableau, field, (stages2, ytmp, ynew, fs), istate, opts, rec)
             for i in range(n):
                 y[i] = ys[i]
             t = t_hit
@@ -503,9 +523,10 @@ def advance(y, istate, fstate, t_end, p, opts,
         fstate[F_ERRACC] = 0.0  # the new regime starts its own step-size history
         if taken == EV_STICK:
             fstate[F_T_STICK] = t
-        d_reset = force_on_bit(y, p, istate[I_CONTACT])
-        if d_reset < fstate[F_DRIVE_MIN]:
-            fstate[F_DRIVE_MIN] = d_reset
+        d_y = force_on_bit(y, p, istate[I_CONTACT])
+        if d_y < d_min:
+            d_min = d_y
+        carried = False
         if log_cap > 0:
             r = istate[I_NLOG]
             log[r, L_T] = t
@@ -524,25 +545,28 @@ def advance(y, istate, fstate, t_end, p, opts,
         istate[I_WIN_EVENTS] += 1
         if istate[I_WIN_EVENTS] > evcap:
             fstate[F_T] = t
+            fstate[F_DRIVE_MIN] = d_min
             fstate[F_H] = h
             return ST_EVENT_STORM
         ms = istate[I_STICK]
         mc = istate[I_CONTACT]
+        field = (p, ms, mc, sub)
         if not fixed and fstate[F_H_MODE + step_slot(ms, mc)] > 0.0:
             h = fstate[F_H_MODE + step_slot(ms, mc)]
         n_act = set_active(istate, n, act)
-        rhs(t, y, p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, stages[0])
+        rhs(t, y, field, stages[0])
         istate[I_RHS] += 1
 
     # final: samples that sit exactly on t_end
     t = t_end
     fstate[F_T] = t
+    fstate[F_DRIVE_MIN] = d_min
     fstate[F_H] = h
     if needs_record(t, istate, opts, poin, samp_t):
         for i in range(n):
             ynew[i] = y[i]
-        record_until(t, ynew, t, y, 1.0, how_dense, interp, act, no_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ys,
-                     p, istate, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, opts, poin, samp_t, samp)
+        record_until(t, ynew, (t, y, 1.0, how_dense, interp, act, no_act), tableau, field, (stages2, ytmp, ys, fs),
+                     istate, opts, rec)
     return ST_DONE
 
 
@@ -563,17 +587,12 @@ def advance(y, istate, fstate, t_end, p, opts,
 # the same folded code as an IR-inlined call, without numba re-typing a copy
 # of the driver's IR.
 # ---------------------------------------------------------------------------
-_NO_AP = np.zeros(1, dtype=np.int64)
-_NO_AI = np.zeros(0, dtype=np.int64)
-_NO_AX = np.zeros(0)
-_NO_H = np.zeros((0, 2))
-_NO_G = np.zeros(0)
-_NO_G2 = np.zeros(2)
+#: the empty linear subsystem and no energy block: the ``sub`` group of a hammer-only system
+NO_SUB = (0, 0, np.zeros(1, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros((0, 2)),
+          np.zeros(0), np.zeros(2))
 
 
 #: ``advance`` with DOP853, no linear subsystem and no energy block, all bound as constants
 advance_hammer = njit(cache=True, nogil=True)(bind(
-    advance, "advance_hammer",
-    **dict(zip(("rk_a", "rk_b", "rk_c", "err_w", "err_w3", "dense_w", "ns", "err_kind", "err_exp"),
-               _T.METHODS["dop853"])),
-    Ap=_NO_AP, Ai=_NO_AI, Ax=_NO_AX, sub_in=_NO_H, sub_out=_NO_G, link_x=_NO_G2, ne=0))
+    advance, "advance_hammer", method=_T.METHODS["dop853"],
+    sub=NO_SUB))

@@ -65,6 +65,19 @@ def watch_value(kind, y, p, mode_c):
 
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
+def watch_value_drive(kind, y, p, mode_c, d):
+    """``watch_value`` given the drive on the bit at ``y``, ``d = force_on_bit(y, p, mode_c)``
+    (the solver has it at every step end: the three drive indicators cost no force law)."""
+    if kind == EV_SLIP_START:
+        return d - 1.0
+    if kind == EV_BOUNCE:
+        return -(d + 1.0)
+    if kind == EV_BOUNCE_END:
+        return d + 1.0
+    return watch_value(kind, y, p, mode_c)
+
+
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
 def watch_tol(kind, y, p):
     """Round-off level of ``watch_value``: an indicator counts as crossed only above it.
 
@@ -82,28 +95,47 @@ def watch_tol(kind, y, p):
 
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
-def watch_slope(kind, y, f, p, mode_c):
-    """Time derivative of ``watch_value`` from the state ``y`` and its derivative ``f``."""
+def drive_rate(y, f, p, mode_c):
+    """Time derivative of the drive on the bit (``force_on_bit``) from ``y`` and its derivative ``f``."""
     dd = y[V_HAMMER] - y[V_BIT]
     ddd = f[V_HAMMER] - f[V_BIT]
+    s = (f[X_HAMMER] - f[X_BIT]) + 2.0 * p[P_XI] * ddd
+    if mode_c == CONTACT:
+        ad = abs(overlap(y, p))
+        if ad > 0.0:
+            n = p[P_N]
+            dn = ad ** n
+            dn1 = n * ad ** (n - 1.0)
+            s += p[P_KC] * (dn1 * dd * (1.0 + p[P_LAM] * dd) + dn * p[P_LAM] * ddd)
+    return s
+
+
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
+def watch_slope_drive(kind, y, f, p, mode_c, r):
+    """``watch_slope`` given the drive's rate at ``y``, ``r = drive_rate(y, f, p, mode_c)``."""
+    if kind == EV_SLIP_START or kind == EV_BOUNCE_END:
+        return r
+    if kind == EV_BOUNCE:
+        return -r
+    return watch_slope(kind, y, f, p, mode_c)
+
+
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
+def watch_slope(kind, y, f, p, mode_c):
+    """Time derivative of ``watch_value`` from the state ``y`` and its derivative ``f``."""
     if kind == EV_SLIP_START or kind == EV_BOUNCE or kind == EV_BOUNCE_END:
-        s = (f[X_HAMMER] - f[X_BIT]) + 2.0 * p[P_XI] * ddd
-        if mode_c == CONTACT:
-            ad = abs(overlap(y, p))
-            if ad > 0.0:
-                n = p[P_N]
-                dn = ad ** n
-                dn1 = n * ad ** (n - 1.0)
-                s += p[P_KC] * (dn1 * dd * (1.0 + p[P_LAM] * dd) + dn * p[P_LAM] * ddd)
+        s = drive_rate(y, f, p, mode_c)
         return -s if kind == EV_BOUNCE else s
+    ddd = f[V_HAMMER] - f[V_BIT]
     if kind == EV_STICK:
         return -f[V_BIT]
     if kind == EV_IMPACT:
-        return dd
+        return y[V_HAMMER] - y[V_BIT]
     if kind == EV_SEPARATION:
-        return -dd
+        return -(y[V_HAMMER] - y[V_BIT])
     if kind == EV_CLAMP:
         return -p[P_LAM] * ddd
     if kind == EV_UNCLAMP:
         return p[P_LAM] * ddd
     return 0.0
+

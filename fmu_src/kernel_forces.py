@@ -138,13 +138,13 @@ def harmonic_shifted(t, dt, s0, c0, p):
 # helper is an ordinary call, which LLVM inlines where it pays; IR-inlining them too only
 # lengthens the compile.
 @njit(cache=True, inline="always", _nrt=False, no_cpython_wrapper=True)
-def rhs(t, y, p, mode_s, mode_c, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, out):
+def rhs(t, y, field, out):
     """Vector field of one hybrid mode at time t (see ``rhs_forced``)."""
-    rhs_forced(harmonic(t, p), y, p, mode_s, mode_c, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, out)
+    rhs_forced(harmonic(t, field[0]), y, field, out)
 
 
 @njit(cache=True, inline="always", _nrt=False, no_cpython_wrapper=True)
-def rhs_forced(fh, y, p, mode_s, mode_c, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, out):
+def rhs_forced(fh, y, field, out):
     """Vector field of one hybrid mode; writes dy/dtau into ``out``.
 
     Parameters
@@ -154,22 +154,20 @@ def rhs_forced(fh, y, p, mode_s, mode_c, nz, ne, Ap, Ai, Ax, sub_in, sub_out, li
         (``harmonic``); the field depends on time only through it.
     y : ndarray, shape (Z0 + nz + ne,)
         State.
-    p : ndarray, shape (N_P,)
-        Kernel parameters (``params.P_*`` layout).
-    mode_s, mode_c : int
-        Stick/slip mode and contact mode.
-    nz, ne : int
-        Sizes of the linear subsystem and of the energy block (0 or 4).
-    Ap, Ai, Ax : ndarray
-        The subsystem matrix A in CSR form (indptr, indices, data).
-    sub_in : ndarray, shape (nz, 2)
-        Input matrix of (x1, x2) into the subsystem (H in ``LinearSubsystem``).
-    sub_out : ndarray, shape (nz,), link_x : ndarray, shape (2,)
-        The link force on the hammer, sub_out . z + link_x . (x1, x2)
-        (G and g in ``LinearSubsystem``).
+    field : tuple
+        ``(p, mode_s, mode_c, sub)``: the kernel parameters (``P_*`` layout), the
+        stick/slip and contact modes and the linear subsystem ``sub = (nz, ne, Ap,
+        Ai, Ax, sub_in, sub_out, link_x)``: its size nz and the size ne of the
+        energy block (0 or 4); the matrix A in CSR form (indptr, indices, data);
+        ``sub_in``, shape (nz, 2), the input of (x1, x2) into the subsystem (H in
+        ``LinearSubsystem``); the link force on the hammer, sub_out . z + link_x .
+        (x1, x2) (G and g in ``LinearSubsystem``).  The groups are listed in
+        :mod:`.kernel_layouts`.
     out : ndarray, shape like y
         Derivative (written).
     """
+    p, mode_s, mode_c, sub = field
+    nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x = sub
     x2 = y[V_HAMMER]
     x4 = y[V_BIT]
     d = overlap(y, p)

@@ -15,6 +15,34 @@ accumulators (external work, damper, contact and friction dissipation).
 The kernel parameter vector ``p`` is laid out by the ``P_*`` indexes.  This
 module imports nothing from numba: the parameter classes and the FMU's
 variables read it without loading the compiler.
+
+Argument groups.  The kernels pass their inputs in these named tuples (numba
+compiles a tuple of arrays and numbers like separate arguments; a global
+tuple is a compile-time constant), under the same names in every module::
+
+    method  = (rk_a, rk_b, rk_c, err_w, err_w3, dense_w, ns, err_kind, err_exp)
+        the Runge-Kutta tableau (``tableaux.METHODS``): stage coefficients
+        (n_ext, n_ext), weights (ns,), nodes (n_ext,), error weights (ns + 1,)
+        of the 5th- and 3rd-order estimates, nested dense-output weights
+        (nF, n_ext); the number of stages; the error-estimate kind (0: fixed
+        step); the controller exponent 1 / (error order + 1)
+    tableau = (rk_a, rk_b, rk_c, ns)
+        the part of ``method`` a step needs (the calls made at every step pass
+        fewer arguments); ``dense_w`` goes alongside where the dense output is built
+    sub     = (nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
+        the linear subsystem (nz = sub_in.shape[0], may be 0) and the size of
+        the energy block (ne = 4 or 0): A in CSR form, H, G and g (see above)
+    field   = (p, ms, mc, sub)
+        what the vector field reads: parameters, stick/slip and contact modes
+    step    = (t0, y0, h, how, interp, act, n_act)
+        the current step (start, start state, length) and how a state inside
+        it is evaluated (``HOW_*``: its dense coefficients ``interp``, a re-step
+        or the stick solution's constants in ``interp``); the integrated components
+    scratch = (stages2, ytmp, ys, fs)
+        work arrays: stages of a re-step, a stage state, a state and its rate
+    rec     = (poin, samp_t, samp, log)
+        the record buffers: Poincaré rows, requested sample times and their
+        rows, the event log (see ``kernel_driver.advance``)
 """
 # kernel parameter vector p
 P_RHO = 0      # mass ratio m2/m1
@@ -152,7 +180,7 @@ STOP_SHRINK_FLOOR = 1e-3
 #: polynomial (a trial stage past the stop cannot blow up), and exp(-FRICTION_TAYLOR_FROM)
 FRICTION_TAYLOR_FROM = -4.0
 EXP_FRICTION_TAYLOR = 54.598150033144236  # = math.exp(4.0), exactly (a literal: numba folds it)
-DRIVE_GATE = 1e-2    # drive_end: the exact search runs when the Hermite minimum is this close (x |rate| h)
+DRIVE_GATE = 1e-2    # drive_dips: the exact search runs when the Hermite minimum is this close (x |rate| h)
 
 
 # how a state inside the current step is evaluated

@@ -11,48 +11,50 @@ import math
 from numba import njit
 
 from . import numba_cache  # noqa: F401  (registers the content-hash cache locator first)
-from .kernel_events import watch_slope, watch_value
+from .kernel_events import watch_slope, watch_slope_drive, watch_value
 from .kernel_forces import contact_force_at, force_on_bit, rhs
-from .kernel_layouts import (DRIVE_GATE, EPS, EV_BOUNCE, EV_IMPACT, EV_SLIP_START, F_DRIVE_MIN, F_PEAK, HOW_DENSE,
+from .kernel_layouts import (DRIVE_GATE, EPS, EV_BOUNCE, EV_IMPACT, F_PEAK, HOW_DENSE,
                              HOW_RESTEP, HOW_STICK)
 from .kernel_runge_kutta import dense_eval, dense_eval_rate, rk_step
 from .kernel_stick import stick_rate, stick_state
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
-def state_at(tq, t0, y0, h, how, interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, out,
-             p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x):
-    """State at time ``tq`` inside the current step (``how``: HOW_*).
+def state_at(tq, step, tableau, field, stages2, ytmp, out):
+    """State at time ``tq`` inside the current ``step`` (its ``how``: HOW_*).
 
     Adaptive methods evaluate their dense output.  The fixed-step method (the
     paper's RK4 with bisection) re-integrates one step of length tq - t0
     (``stages2[0]`` must hold f(t0, y0)).  A stick chunk evaluates the exact solution.
     """
+    t0, y0, h, how, interp, act, n_act = step
     if how == HOW_RESTEP:
-        rk_step(t0, y0, tq - t0, rk_a, rk_b, rk_c, ns, stages2, out, ytmp, act, n_act,
-                p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
+        rk_step(t0, y0, tq - t0, tableau, stages2, out, ytmp, act, n_act, field)
     elif how == HOW_STICK:
-        stick_state(tq, y0, interp, p, out)
+        stick_state(tq, y0, interp, field[0], out)
     else:
         x = (tq - t0) / h
         dense_eval(x, y0, interp, act, n_act, out)
 
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
-def localise_bisect(kind, ta, tb, t0, y0, tol, wtol, rk_a, rk_b, rk_c, ns, stages2, ytmp, ys, act, n_act,
-                    p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x):
-    """The paper's localisation for the fixed-step method: bisection down to ``tol``.
+def localise_bisect(kind, ta, tb, tols, step, tableau, field, scratch):
+    """The paper's localisation for the fixed-step method: bisection down to ``tol``
+    (``tols = (tol, wtol)``).
 
     Each trial state is a fresh step of the method from (t0, y0) (``stages2[0]`` must
     hold f(t0, y0)).  Returns the end of the final bracket, where w > 0: after
     the reset the event cannot re-trigger.  (Adaptive methods use
     ``localise_newton``.)
     """
+    tol, wtol = tols
+    t0, y0, _, _, _, act, n_act = step
+    stages2, ytmp, ys, _ = scratch
+    p, _, mc, _ = field
     for it in range(200):
         if tb - ta <= tol:
             break
         tm = 0.5 * (ta + tb)
-        rk_step(t0, y0, tm - t0, rk_a, rk_b, rk_c, ns, stages2, ys, ytmp, act, n_act,
-                p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
+        rk_step(t0, y0, tm - t0, tableau, stages2, ys, ytmp, act, n_act, field)
         if watch_value(kind, ys, p, mc) - wtol > 0.0:
             tb = tm
         else:
@@ -61,8 +63,9 @@ def localise_bisect(kind, ta, tb, t0, y0, tol, wtol, rk_a, rk_b, rk_c, ns, stage
 
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
-def state_rate_at(tq, t0, y0, h, how, interp, act, n_act, ys, fs, p):
-    """State and its rate at ``tq``: exact stick solution or the dense output."""
+def state_rate_at(tq, step, p, ys, fs):
+    """State and its rate at ``tq`` inside ``step``: exact stick solution or the dense output."""
+    t0, y0, h, how, interp, act, n_act = step
     if how == HOW_STICK:
         sn = stick_state(tq, y0, interp, p, ys)
         stick_rate(ys, sn, p, fs)
@@ -71,7 +74,7 @@ def state_rate_at(tq, t0, y0, h, how, interp, act, n_act, ys, fs, p):
 
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
-def localise_newton(kind, ta, tb, t0, y0, h, how, wtol, interp, act, n_act, ys, fs, p, mc):
+def localise_newton(kind, ta, tb, wtol, step, p, mc, ys, fs):
     """Event time in (ta, tb] where w(ta) <= wtol < w(tb), by safeguarded Newton.
 
     Works on the exact stick solution or on the dense output; both give the
@@ -81,10 +84,10 @@ def localise_newton(kind, ta, tb, t0, y0, h, how, wtol, interp, act, n_act, ys, 
     about twenty.  Returns the end of the final bracket, where w > 0, once
     the bracket is a few ulp wide.
     """
-    state_rate_at(tb, t0, y0, h, how, interp, act, n_act, ys, fs, p)
+    state_rate_at(tb, step, p, ys, fs)
     wb = watch_value(kind, ys, p, mc) - wtol
     sb = watch_slope(kind, ys, fs, p, mc)
-    state_rate_at(ta, t0, y0, h, how, interp, act, n_act, ys, fs, p)
+    state_rate_at(ta, step, p, ys, fs)
     wa = watch_value(kind, ys, p, mc) - wtol
     # start from the end whose Newton step stays inside the bracket, else the secant
     t = ta - wa * (tb - ta) / (wb - wa) if wb > wa else 0.5 * (ta + tb)
@@ -97,7 +100,7 @@ def localise_newton(kind, ta, tb, t0, y0, h, how, wtol, interp, act, n_act, ys, 
     for it in range(100):
         if tb - ta <= 4.0 * EPS * max(abs(tb), 1.0):
             break
-        state_rate_at(t, t0, y0, h, how, interp, act, n_act, ys, fs, p)
+        state_rate_at(t, step, p, ys, fs)
         w = watch_value(kind, ys, p, mc) - wtol
         if w > 0.0:
             tb = t
@@ -119,9 +122,11 @@ def localise_newton(kind, ta, tb, t0, y0, h, how, wtol, interp, act, n_act, ys, 
 
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
-def find_extremum(kind, t0, t1, y0, h, how, interp, act, n_act, ys, fs,
-                  p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x):
-    """Time in (t0, t1) where the slope of w changes from + to - (a local max of w)."""
+def find_extremum(kind, t1, step, field, ys, fs):
+    """Time in (t0, t1) where the slope of w changes from + to - (a local max of w);
+    ``step`` starts at t0 and is evaluated by its ``how`` (stick solution or dense output)."""
+    t0, y0, h, how, interp, act, n_act = step
+    p, _, mc, _ = field
     ta = t0
     tb = t1
     for it in range(60):
@@ -130,7 +135,7 @@ def find_extremum(kind, t0, t1, y0, h, how, interp, act, n_act, ys, fs,
             stick_state(tm, y0, interp, p, ys)
         else:
             dense_eval((tm - t0) / h, y0, interp, act, n_act, ys)
-        rhs(tm, ys, p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, fs)
+        rhs(tm, ys, field, fs)
         if watch_slope(kind, ys, fs, p, mc) > 0.0:
             ta = tm
         else:
@@ -141,105 +146,103 @@ def find_extremum(kind, t0, t1, y0, h, how, interp, act, n_act, ys, fs,
 
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
-def sign_change(kind, y, ynew, f0, f1, p, mc, w0, wtol, h, graze_ok):
+def sign_change(kind, y, ynew, f0, f1, p, mc, w, h, graze_ok):
     """Sign-change detection of one indicator over a step.
 
-    Returns 1 when the indicator ends above its round-off level (a crossing
-    inside the step), 2 when its slope turns from + to - with a cheap
-    Hermite estimate of the maximum near zero (a possible grazing extremum,
-    only if ``graze_ok``), else 0.
+    ``w = (w0, w1, wtol, s0, r1)``: the indicator at the step's ends (``watch_value``),
+    its round-off level, its slope at the start (``watch_slope``, NaN if not
+    known: then computed here when needed) and the drive's rate at the end
+    (``drive_rate``; used only by the drive indicators).  The caller carries w1
+    and the returned end slope on to the next step.
+
+    Returns (code, s1): code 1 when the indicator ends above its round-off
+    level (a crossing inside the step), 2 when its slope turns from + to - with
+    a cheap Hermite estimate of the maximum near zero (a possible grazing
+    extremum, only if ``graze_ok``), else 0; s1 the slope at the end (NaN when
+    not needed).
     """
-    w1 = watch_value(kind, ynew, p, mc)
-    if w1 > wtol:
-        return 1
-    if not graze_ok:
-        return 0
-    s0 = watch_slope(kind, y, f0, p, mc)
-    s1 = watch_slope(kind, ynew, f1, p, mc)
-    if s0 > 0.0 and s1 < 0.0 and hermite_peak(w0, w1, s0 * h, s1 * h) > -0.1 * (
+    w0, w1, wtol, s0, r1 = w
+    if w1 > wtol or not graze_ok:
+        return (1 if w1 > wtol else 0), math.nan
+    s1 = watch_slope_drive(kind, ynew, f1, p, mc, r1)
+    if not s1 < 0.0:
+        return 0, s1
+    if s0 != s0:
+        s0 = watch_slope(kind, y, f0, p, mc)
+    if s0 > 0.0 and hermite_peak(w0, w1, s0 * h, s1 * h) > -0.1 * (
             abs(w0) + abs(w1) + abs(s0 * h) + abs(s1 * h)):
-        return 2
-    return 0
+        return 2, s1
+    return 0, s1
 
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
-def locate_event(kind, code, t0, t1, y0, h, how, tols, dense, tableau, scratch, p, ms, mc, sub):
+def locate_event(kind, code, t1, step, tols, tableau, field, scratch):
     """Event time of one indicator in (t0, t1] for a ``sign_change`` code, or -1.
 
-    Grouped arguments (tuples): ``tols = (bisect_tol, graze, wtol)``, ``dense =
-    (interp, act, n_act)`` (how the step is evaluated inside), ``tableau = (rk_a,
-    rk_b, rk_c, ns)``, ``scratch = (stages2, ytmp, ys, fscr)`` and the linear
-    subsystem ``sub = (nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)``.
+    ``tols = (bisect_tol, graze, wtol)``; ``step``, ``tableau``, ``field`` and
+    ``scratch = (stages2, ytmp, ys, fscr)`` are the groups of :mod:`.kernel_layouts`.
 
     A grazing candidate (code 2) counts only if the indicator's maximum inside
     the step exceeds max(graze, wtol); the event is then localised between the
     step start and that maximum.
     """
     bisect_tol, graze, wtol = tols
-    interp, act, n_act = dense
-    rk_a, rk_b, rk_c, ns = tableau
+    t0, how = step[0], step[3]
+    p, _, mc, _ = field
     stages2, ytmp, ys, fscr = scratch
-    nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x = sub
     tb = t1
     if code == 2:
-        tm = find_extremum(kind, t0, t1, y0, h, how, interp, act, n_act, ys, fscr,
-                           p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
-        state_at(tm, t0, y0, h, how, interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ys,
-                 p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
+        tm = find_extremum(kind, t1, step, field, ys, fscr)
+        state_at(tm, step, tableau, field, stages2, ytmp, ys)
         if watch_value(kind, ys, p, mc) <= max(graze, wtol):
             return -1.0
         tb = tm
     if how == HOW_STICK or how == HOW_DENSE:
-        return localise_newton(kind, t0, tb, t0, y0, h, how, wtol, interp, act, n_act, ys, fscr, p, mc)
-    return localise_bisect(kind, t0, tb, t0, y0, bisect_tol, wtol, rk_a, rk_b, rk_c, ns, stages2, ytmp, ys, act, n_act,
-                           p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
+        return localise_newton(kind, t0, tb, wtol, step, p, mc, ys, fscr)
+    return localise_bisect(kind, t0, tb, (bisect_tol, wtol), step, tableau, field, scratch)
 
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
-def peak_in_step(t0, t1, y0, h, interp, act, n_act, ys, fs, p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, fstate):
-    """Contact force at the deepest penetration inside a step (d' changes sign)."""
-    tm = find_extremum(plain(EV_IMPACT, n_act), t0, t1, y0, h, plain(HOW_DENSE, n_act), interp, act, n_act, ys, fs,
-                       p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
+def peak_in_step(t1, step, field, ys, fs, fstate):
+    """Contact force at the deepest penetration inside a step (d' changes sign), on its dense
+    output, into ``fstate[F_PEAK]``."""
+    t0, y0, h, _, interp, act, n_act = step
+    dense = (t0, y0, h, plain(HOW_DENSE, n_act), interp, act, n_act)
+    tm = find_extremum(plain(EV_IMPACT, n_act), t1, dense, field, ys, fs)
     dense_eval((tm - t0) / h, y0, interp, act, n_act, ys)
-    f_contact = contact_force_at(ys, p, mc)
+    f_contact = contact_force_at(ys, field[0], field[2])
     if f_contact > fstate[F_PEAK]:
         fstate[F_PEAK] = f_contact
 
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
-def drive_end(y0, y1, f0, f1, h, p, mc, fstate):
-    """The drive on the bit at the end of an accepted step into ``fstate[F_DRIVE_MIN]``.
+def drive_dips(d0, s0, d1, s1, d_min):
+    """True when a step holds an interior minimum of the drive on the bit worth locating.
 
-    Returns True when the step holds an interior minimum worth locating: the
-    drive's rate turns from - to + and the cubic Hermite estimate of that
-    minimum comes near the lowest drive so far (``drive_inside`` locates it).
+    ``d0``, ``d1`` are the drive at the step's ends, ``s0``, ``s1`` its rate
+    there times the step, ``d_min`` the lowest drive so far (``d1`` included).
+    The rate must turn from - to + and the cubic Hermite estimate of the minimum
+    come near ``d_min`` (``drive_inside`` then locates it).
     """
-    d0 = force_on_bit(y0, p, mc)
-    d1 = force_on_bit(y1, p, mc)
-    if d1 < fstate[F_DRIVE_MIN]:
-        fstate[F_DRIVE_MIN] = d1
-    s0 = watch_slope(EV_SLIP_START, y0, f0, p, mc) * h
-    s1 = watch_slope(EV_SLIP_START, y1, f1, p, mc) * h
     if not (s0 < 0.0 and s1 > 0.0):
         return False
     low = -hermite_peak(-d0, -d1, -s0, -s1)
-    return low <= fstate[F_DRIVE_MIN] + DRIVE_GATE * (abs(s0) + abs(s1))
+    return low <= d_min + DRIVE_GATE * (abs(s0) + abs(s1))
 
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
-def drive_inside(t0, t1, y0, h, how, interp, act, n_act, ys, fs,
-                 p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, fstate):
-    """The drive's minimum inside a step (its rate turns from - to +) into ``fstate[F_DRIVE_MIN]``,
-    on the dense output or the exact stick solution."""
-    tm = find_extremum(plain(EV_BOUNCE, n_act), t0, t1, y0, h, how, interp, act, n_act, ys, fs,
-                       p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
+def drive_inside(t1, step, field, ys, fs, d_min):
+    """The lowest drive so far, ``d_min``, lowered by the drive's minimum inside a step (its rate
+    turns from - to +), on the dense output or the exact stick solution."""
+    t0, y0, h, how, interp, act, n_act = step
+    p, _, mc, _ = field
+    tm = find_extremum(plain(EV_BOUNCE, n_act), t1, step, field, ys, fs)
     if how == HOW_STICK:
         stick_state(tm, y0, interp, p, ys)
     else:
         dense_eval((tm - t0) / h, y0, interp, act, n_act, ys)
     d = force_on_bit(ys, p, mc)
-    if d < fstate[F_DRIVE_MIN]:
-        fstate[F_DRIVE_MIN] = d
+    return d if d < d_min else d_min
 
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)

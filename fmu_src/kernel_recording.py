@@ -24,12 +24,19 @@ def write_sample(row, y, p, istate, nz, sub_out, link_x):
 
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
-def record_until(t_stop, y_stop, t0, y0, h, how, interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ys,
-                 p, istate, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, opts, poin, samp_t, samp):
-    """Record Poincaré samples and requested samples with times in (t0, t_stop]."""
+def record_until(t_stop, y_stop, step, tableau, field, scratch, istate, opts, rec):
+    """Record Poincaré samples and requested samples with times in (t0, t_stop] of ``step``.
+
+    ``field`` holds the modes of ``istate``; ``scratch = (stages2, ytmp, ys, _)``;
+    ``rec = (poin, samp_t, samp, log)`` (the log is not written here); the groups:
+    :mod:`.kernel_layouts`.
+    """
     tol = 8.0 * EPS * max(abs(t_stop), 1.0)
-    ms = istate[I_STICK]
-    mc = istate[I_CONTACT]
+    t0 = step[0]
+    p, sub = field[0], field[3]
+    nz, sub_out, link_x = sub[0], sub[6], sub[7]
+    stages2, ytmp, ys, _ = scratch
+    poin, samp_t, samp, _ = rec
     npoin = poin.shape[0]
     k = istate[I_POIN_NEXT]
     while k < npoin:
@@ -40,8 +47,7 @@ def record_until(t_stop, y_stop, t0, y0, h, how, interp, act, n_act, rk_a, rk_b,
             for i in range(ys.shape[0]):
                 ys[i] = y_stop[i]
         else:
-            state_at(tk, t0, y0, h, how, interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ys,
-                     p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
+            state_at(tk, step, tableau, field, stages2, ytmp, ys)
         poin[k, 0] = tk
         poin[k, 1] = ys[X_HAMMER]
         poin[k, 2] = ys[V_HAMMER]
@@ -61,8 +67,7 @@ def record_until(t_stop, y_stop, t0, y0, h, how, interp, act, n_act, rk_a, rk_b,
             for i in range(ys.shape[0]):
                 ys[i] = y_stop[i]
         else:
-            state_at(max(tj, t0), t0, y0, h, how, interp, act, n_act, rk_a, rk_b, rk_c, ns, stages2, ytmp, ys,
-                     p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
+            state_at(max(tj, t0), step, tableau, field, stages2, ytmp, ys)
         if j > 0 and ys[X_BIT] < samp[j - 1, 2]:
             ys[X_BIT] = samp[j - 1, 2]  # monotone drift, as for the Poincaré samples
         write_sample(samp[j], ys, p, istate, nz, sub_out, link_x)

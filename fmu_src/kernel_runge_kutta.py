@@ -6,15 +6,19 @@ from numba import njit
 
 from . import numba_cache  # noqa: F401  (registers the content-hash cache locator first)
 from .kernel_forces import harmonic_shifted, rhs_forced
-from .kernel_layouts import I_RHS, P_ETA, P_GAMMA, P_MU, P_PHI, P_RHO, X_BIT, X_HAMMER
+from .kernel_layouts import HOW_RESTEP, I_RHS, P_ETA, P_GAMMA, P_MU, P_PHI, P_RHO, X_BIT, X_HAMMER
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
-def rk_stages(t, y, h, rk_a, rk_c, s_from, s_to, stages, ytmp, act, n_act,
-              p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x):
-    """Stages ``s_from <= s < s_to`` of an explicit RK method into ``stages[s]``.
+def rk_stages(t, y, h, tableau, stage_range, stages, ytmp, act, n_act, field):
+    """Stages ``s_from <= s < s_to`` (``stage_range``) of an explicit RK method into ``stages[s]``.
 
+    ``tableau`` and ``field`` are the groups of :mod:`.kernel_layouts`.
     Returns sin and cos of the forcing phase at ``t`` (for the caller's FSAL stage).
     """
+    rk_a = tableau[0]
+    rk_c = tableau[2]
+    p = field[0]
+    s_from, s_to = stage_range
     for i in range(y.shape[0]):
         ytmp[i] = y[i]  # inactive components (a stuck bit) keep their values
     th0 = p[P_ETA] * t + p[P_PHI]
@@ -36,19 +40,19 @@ def rk_stages(t, y, h, rk_a, rk_c, s_from, s_to, stages, ytmp, act, n_act,
                 for j in range(s):
                     acc += rk_a[s, j] * stages[j, i]
                 ytmp[i] = y[i] + h * acc
-        rhs_forced(harmonic_shifted(t, rk_c[s] * h, s0, c0, p), ytmp, p, ms, mc, nz, ne,
-                   Ap, Ai, Ax, sub_in, sub_out, link_x, stages[s])
+        rhs_forced(harmonic_shifted(t, rk_c[s] * h, s0, c0, p), ytmp, field, stages[s])
     return s0, c0
 
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
-def rk_step(t, y, h, rk_a, rk_b, rk_c, ns, stages, ynew, ytmp, act, n_act,
-            p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x):
-    """One step of any explicit tableau; ``stages[0]`` must hold f(t, y).
+def rk_step(t, y, h, tableau, stages, ynew, ytmp, act, n_act, field):
+    """One step of any explicit ``tableau``; ``stages[0]`` must hold f(t, y).
 
     Writes the solution ``ynew`` and the FSAL stage ``stages[ns] = f(t + h, ynew)``.
     """
-    s0, c0 = rk_stages(t, y, h, rk_a, rk_c, 1, ns, stages, ytmp, act, n_act, p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
+    rk_b = tableau[1]
+    ns = tableau[3]
+    s0, c0 = rk_stages(t, y, h, tableau, (1, ns), stages, ytmp, act, n_act, field)
     for i in range(y.shape[0]):
         ynew[i] = y[i]
     for q in range(n_act):
@@ -57,12 +61,13 @@ def rk_step(t, y, h, rk_a, rk_b, rk_c, ns, stages, ynew, ytmp, act, n_act,
         for j in range(ns):
             acc += rk_b[j] * stages[j, i]
         ynew[i] = y[i] + h * acc
-    rhs_forced(harmonic_shifted(t, h, s0, c0, p), ynew, p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x, stages[ns])
+    rhs_forced(harmonic_shifted(t, h, s0, c0, field[0]), ynew, field, stages[ns])
 
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
-def error_norm(y, ynew, h, stages, err_w, err_w3, err_kind, ns, act, n_act, rtol, atol, v4_peak):
-    """RMS norm of the embedded error estimate, scaled by atol + rtol |y|.
+def error_norm(y, ynew, h, stages, method, act, n_act, tols):
+    """RMS norm of the embedded error estimate of ``method``, scaled by atol + rtol |y|
+    (``tols = (rtol, atol, v4_peak)``).
 
     The bit velocity x4 is scaled by its peak in the current slip instead of
     its instantaneous value: as the bit decelerates to a stop, a scale that
@@ -73,6 +78,8 @@ def error_norm(y, ynew, h, stages, err_w, err_w3, err_kind, ns, act, n_act, rtol
     2: Hairer's DOP853 combination of the 5th (err_w) and 3rd (err_w3) order estimates.
     Returns inf when the estimate is not finite (the step is then rejected).
     """
+    err_w, err_w3, ns, err_kind = method[3], method[4], method[6], method[7]
+    rtol, atol, v4_peak = tols
     e5 = 0.0
     e3 = 0.0
     for q in range(n_act):
@@ -108,7 +115,7 @@ def error_norm(y, ynew, h, stages, err_w, err_w3, err_kind, ns, act, n_act, rtol
 
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
-def friction_layer_err(h, x4, f4, p, rk_c, err_w, err_w3, e_abs, ns, err_kind, n_act, sc):
+def friction_layer_err(h, x4, f4, p, method, e_abs, n_act, sc):
     """Error norm a step of size h would get from the kinetic friction alone.
 
     As the bit decelerates to a stop, the friction term (1 - mu) exp(-gamma_hat x4)
@@ -124,8 +131,8 @@ def friction_layer_err(h, x4, f4, p, rk_c, err_w, err_w3, e_abs, ns, err_kind, n
         Candidate step.
     x4, f4 : float
         Bit velocity and acceleration at the step start (f4 < 0).
-    rk_c, err_w, err_w3 : ndarray
-        Nodes and error weights of the tableau (``advance``).
+    method : tuple
+        The tableau (:mod:`.kernel_layouts`): its nodes and error weights.
     e_abs : float
         sum(|E|), for a cheap upper bound.
     sc : float
@@ -138,6 +145,7 @@ def friction_layer_err(h, x4, f4, p, rk_c, err_w, err_w3, e_abs, ns, err_kind, n
     dlog : float
         d ln(ef) / d ln(h), for a Newton step on the step size.
     """
+    rk_c, err_w, err_w3, ns, err_kind = method[2], method[3], method[4], method[6], method[7]
     sig = -p[P_GAMMA] * f4 * h
     if sig > 600.0:
         return math.inf, 9.0
@@ -172,12 +180,14 @@ def friction_layer_err(h, x4, f4, p, rk_c, err_w, err_w3, e_abs, ns, err_kind, n
 
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
-def dense_prepare(t, y, ynew, h, rk_a, rk_c, dense_w, ns, n_ext, stages, interp, ytmp, act, n_act,
-                  p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x):
-    """Extra stages (if the method has them) and nested coefficients ``interp`` of the dense output."""
+def dense_prepare(step, ynew, tableau, dense_w, stages, ytmp, field):
+    """Extra stages (if the method has them) and nested coefficients ``interp`` of the dense output
+    of ``step`` (the groups: :mod:`.kernel_layouts`)."""
+    t, y, h, _, interp, act, n_act = step
+    rk_a, ns = tableau[0], tableau[3]
+    n_ext = rk_a.shape[0]
     if n_ext > ns + 1:
-        rk_stages(t, y, h, rk_a, rk_c, ns + 1, n_ext, stages, ytmp, act, n_act, p, ms, mc, nz, ne,
-                  Ap, Ai, Ax, sub_in, sub_out, link_x)
+        rk_stages(t, y, h, tableau, (ns + 1, n_ext), stages, ytmp, act, n_act, field)
     nF = dense_w.shape[0]
     for q in range(n_act):
         i = act[q]
@@ -192,22 +202,20 @@ def dense_prepare(t, y, ynew, h, rk_a, rk_c, dense_w, ns, n_ext, stages, interp,
 
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
-def interpolant(ready, fixed, t, y, ynew, h, rk_a, rk_c, dense_w, ns, n_ext, stages, stages2, interp, ytmp, act, n_act, istate,
-                p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x):
-    """Make the step's interpolant usable, once per step; returns True.
+def interpolant(ready, step, ynew, tableau, dense_w, stages, stages2, ytmp, istate, field):
+    """Make the interpolant of ``step`` usable, once per step; returns True.
 
     Adaptive methods: the dense-output coefficients (and their extra stages).
     The fixed-step method re-steps instead, which needs f(t0, y0) in ``stages2[0]``.
     """
     if ready:
         return True
-    if fixed:
-        for i in range(y.shape[0]):
+    if step[3] == HOW_RESTEP:  # the fixed-step method
+        for i in range(step[1].shape[0]):
             stages2[0, i] = stages[0, i]
     else:
-        dense_prepare(t, y, ynew, h, rk_a, rk_c, dense_w, ns, n_ext, stages, interp, ytmp, act, n_act,
-                      p, ms, mc, nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)
-        istate[I_RHS] += n_ext - ns - 1
+        dense_prepare(step, ynew, tableau, dense_w, stages, ytmp, field)
+        istate[I_RHS] += tableau[0].shape[0] - tableau[3] - 1
     return True
 
 

@@ -63,6 +63,8 @@ __all__ = ["HammerBitRock", "PARAMETERS", "INPUTS", "OUTPUTS", "UNITS", "STATE_F
 
 _INF = math.inf
 _ST_DONE = kernel_layouts.ST_DONE
+#: the kernel's record buffers (``rec``): an FMU step records nothing
+NO_REC = (NO_POINCARE, NO_SAMPLE_TIMES, NO_SAMPLES, NO_LOG)
 _isfinite = math.isfinite
 
 
@@ -363,8 +365,7 @@ class HammerBitRock(VariableAccess, SavedState, Fmi2Slave):
                 if old_inputs is None:
                     return False
             try:
-                status = kernel(y, ist, fst, (current_time + step_size - t_start) * omega, p, opts,
-                                NO_POINCARE, NO_SAMPLE_TIMES, NO_SAMPLES, NO_LOG)
+                status = kernel(y, ist, fst, (current_time + step_size - t_start) * omega, p, opts, NO_REC)
                 if status != _ST_DONE:
                     self._st.check_status(status)          # raises the solver's error
             except Exception as e:  # noqa: BLE001 -- restore the state, report, never raise
@@ -429,8 +430,7 @@ class HammerBitRock(VariableAccess, SavedState, Fmi2Slave):
         # clock change only when _slow is set)
         if self._kernel is kernel_driver.advance_hammer:     # compiled by now: call it without the type dispatch
             self._kernel = _entry_point(kernel_driver.advance_hammer,
-                                        (st.y, st.istate, st.fstate, 0.0, st.p, st.opts,
-                                         NO_POINCARE, NO_SAMPLE_TIMES, NO_SAMPLES, NO_LOG))
+                                        (st.y, st.istate, st.fstate, 0.0, st.p, st.opts, NO_REC))
         self._hot = (self._kernel, st.y, st.istate, st.fstate, st.p, st.opts, self._t_start, self._omega,
                      st.state_buffer)
         self._slow = False

@@ -273,7 +273,7 @@ class Stepper:
         t0 = time.perf_counter()
         if self.fast:
             status = kernel_driver.advance_hammer(self.y, self.istate, self.fstate, t_end, self.p, self.opts,
-                                      poin, st, sa, lg)
+                                                  (poin, st, sa, lg))
         else:
             status = self._advance_general(t_end, poin, st, sa, lg)
         if helper:
@@ -299,11 +299,9 @@ class Stepper:
         return True
 
     def _advance_general(self, t_end, poin, st, sa, lg):
-        A, B, C, E, E3, W, ns, ek, ee = self._tab
         Ap, Ai, Ax, Hz, Gz, g12 = self._lin
         return kernel_driver.advance(self.y, self.istate, self.fstate, t_end, self.p, self.opts,
-                         A, B, C, E, E3, W, ns, ek, ee, Ap, Ai, Ax, Hz, Gz, g12, self.ne,
-                         poin, st, sa, lg)
+                                     self._tab, (Hz.shape[0], self.ne, Ap, Ai, Ax, Hz, Gz, g12), (poin, st, sa, lg))
 
     def check_status(self, status: int) -> str:
         """``'done'`` or ``'log_full'`` for a kernel status, else the solver's error raised."""

@@ -177,3 +177,75 @@ def test_importing_the_library_creates_no_directory_and_sets_no_environment(tmp_
     assert r.returncode == 0, r.stderr[-3000:]
     assert json.loads(r.stdout.strip().splitlines()[-1]) == {}
     assert sorted(p.name for p in home.rglob("*")) == []
+
+
+#: a compiled kernel takes at most this many parameters; more are grouped into tuples
+#: (the groups are listed in ``kernel_layouts``)
+MAX_KERNEL_PARAMS = 10
+#: kernels allowed more (at most their count today), each with the reason
+MANY_PARAMS: dict = {
+    # the string FMU's exchange step and its C entry point: their grouping is the string
+    # FMU's own change (string_step.py, native_string_kernels.py); drop these when it lands
+    "hammerbit.model.string_step.exchange_step": 27,
+    "hammerbit.fmu.native_string_kernels.hs_exchange": 23,
+}
+_COMPILERS = {"njit", "jit", "cfunc"}
+
+
+def _compiler_name(node) -> str:
+    """``njit`` for ``njit``, ``numba.njit``, ``njit(...)`` and ``numba.njit(...)``; else ''."""
+    if isinstance(node, ast.Call):
+        node = node.func
+    if isinstance(node, ast.Attribute):
+        return node.attr if node.attr in _COMPILERS else ""
+    if isinstance(node, ast.Name):
+        return node.id if node.id in _COMPILERS else ""
+    return ""
+
+
+def _kernel_params(source: str) -> dict:
+    """{function name: number of parameters} of the functions compiled by numba in ``source``:
+    decorated with ``njit``/``jit``/``cfunc`` (bare or called), or passed to one as
+    ``njit(...)(f)`` or ``njit(...)(bind(f, ...))``."""
+    tree = ast.parse(source)
+    defs = {n.name: n for n in ast.walk(tree) if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef))}
+    compiled = {name for name, d in defs.items() if any(_compiler_name(dec) for dec in d.decorator_list)}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Call) and _compiler_name(node.func) \
+                and node.args:
+            target = node.args[0]
+            if isinstance(target, ast.Call) and target.args:     # njit(...)(bind(f, ...)): f's copy
+                target = target.args[0]
+            if isinstance(target, ast.Name) and target.id in defs:
+                compiled.add(target.id)
+
+    def count(d):
+        a = d.args
+        return len(a.posonlyargs) + len(a.args) + len(a.kwonlyargs) + (a.vararg is not None) + (a.kwarg is not None)
+    return {name: count(defs[name]) for name in compiled}
+
+
+def test_the_kernel_parameter_check_sees_the_kernels():
+    """The checker finds decorated and wrapped kernels and counts their parameters."""
+    src = ("from numba import njit, cfunc\nimport numba\n"
+           "@njit(cache=True)\ndef a(x, y):\n    pass\n"
+           "@numba.njit\ndef b(x):\n    pass\n"
+           "def c(p, q, r):\n    pass\n"
+           "d = njit(cache=True)(bind(c, 'd', r=1))\n"
+           "def f():\n    @cfunc('int64(int64)')\n    def e(k):\n        return k\n"
+           "def plain(a, b, c, d, e, f, g, h, i, j, k):\n    pass\n")
+    assert _kernel_params(src) == {"a": 2, "b": 1, "c": 3, "e": 1}
+    driver = _kernel_params(MODULES["hammerbit.model.kernel_driver"].read_text(encoding="utf-8"))
+    assert "advance" in driver and "set_active" in driver
+
+
+def test_no_kernel_takes_more_than_ten_parameters():
+    """Every numba kernel of the library (fmu_src/ and coupling/) takes at most
+    MAX_KERNEL_PARAMS parameters: longer argument lists are grouped into the tuples of
+    ``kernel_layouts`` (method, sub, field, step, scratch, rec)."""
+    over = {}
+    for m, path in MODULES.items():
+        for name, n in _kernel_params(path.read_text(encoding="utf-8")).items():
+            if n > MAX_KERNEL_PARAMS and MANY_PARAMS.get(f"{m}.{name}", MAX_KERNEL_PARAMS) < n:
+                over[f"{m}.{name}"] = n
+    assert not over, f"kernels with more than {MAX_KERNEL_PARAMS} parameters: {over}"

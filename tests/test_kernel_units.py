@@ -24,6 +24,16 @@ def _slope(kind, y, f, p, mc):
     return KE.watch_slope(kind, y, f, p, mc)
 
 
+@njit(cache=False)
+def _value_given_drive(kind, y, p, mc):
+    return KE.watch_value_drive(kind, y, p, mc, KF.force_on_bit(y, p, mc))
+
+
+@njit(cache=False)
+def _slope_given_rate(kind, y, f, p, mc):
+    return KE.watch_slope_drive(kind, y, f, p, mc, KE.drive_rate(y, f, p, mc))
+
+
 KINDS = [KL.EV_SLIP_START, KL.EV_BOUNCE, KL.EV_BOUNCE_END, KL.EV_STICK, KL.EV_IMPACT, KL.EV_SEPARATION,
          KL.EV_CLAMP, KL.EV_UNCLAMP]
 
@@ -33,7 +43,8 @@ KINDS = [KL.EV_SLIP_START, KL.EV_BOUNCE, KL.EV_BOUNCE_END, KL.EV_STICK, KL.EV_IM
 def test_watch_slope_is_the_time_derivative_of_watch_value(kind, mc):
     """d/dt w(y(t)) along a motion with state derivative f (positions moving with the velocities,
     any accelerations), by central differences of ``watch_value``, equals ``watch_slope(y, f)``, at
-    states with the gap closed (d > 0) and the hammer moving either way."""
+    states with the gap closed (d > 0) and the hammer moving either way; so does the slope the solver
+    forms from the drive's rate (``watch_slope_drive``), and ``watch_value_drive`` equals ``watch_value``."""
     p = preset("paper-fig12").replace(a=0.06, xi=0.07, lam_hat=0.3).to_kernel()
     rng = np.random.default_rng(kind * 7 + mc)
     for _ in range(5):
@@ -44,6 +55,9 @@ def test_watch_slope_is_the_time_derivative_of_watch_value(kind, mc):
         fd = (_value(kind, y + eps * f, p, mc) - _value(kind, y - eps * f, p, mc)) / (2 * eps)
         slope = _slope(kind, y, f, p, mc)
         assert slope == pytest.approx(fd, rel=1e-6, abs=1e-7), (y, f)
+        # the solver's forms given the drive and its rate at a step end: the same numbers
+        assert _slope_given_rate(kind, y, f, p, mc) == pytest.approx(fd, rel=1e-6, abs=1e-7), (y, f)
+        assert _value_given_drive(kind, y, p, mc) == _value(kind, y, p, mc)
 
 
 def test_kinetic_friction_beyond_the_stop_is_a_smooth_continuation():

@@ -202,8 +202,8 @@ def run(t_end, y=None, p_change=None):
         st.p[p_change[0]] = p_change[1]
     t0 = time.perf_counter()
     status = kernel_driver.advance_hammer(st.y, st.istate, st.fstate, t_end, st.p, st.opts,
-                              np.zeros((0, 5)), np.zeros(0), np.zeros((0, kernel_layouts.N_SAMPLE_COLS)),
-                              np.zeros((0, kernel_layouts.N_LOG_COLS)))
+                              (np.zeros((0, 5)), np.zeros(0), np.zeros((0, kernel_layouts.N_SAMPLE_COLS)),
+                              np.zeros((0, kernel_layouts.N_LOG_COLS))))
     return {"status": int(status), "seconds": time.perf_counter() - t0, "time": float(st.fstate[kernel_layouts.F_T]),
             "finite": bool(np.all(np.isfinite(st.y)))}
 

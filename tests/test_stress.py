@@ -516,9 +516,9 @@ def late_start(t0, t1):
     def run():
         try:
             if t1 > 1e12:     # beyond the stepper's validated range: the kernel itself must end
-                status = kernel_driver.advance_hammer(st.y, st.istate, st.fstate, t1, st.p, st.opts, np.zeros((0, 5)),
+                status = kernel_driver.advance_hammer(st.y, st.istate, st.fstate, t1, st.p, st.opts, (np.zeros((0, 5)),
                                           np.zeros(0), np.zeros((0, kernel_layouts.N_SAMPLE_COLS)),
-                                          np.zeros((0, kernel_layouts.N_LOG_COLS)))
+                                          np.zeros((0, kernel_layouts.N_LOG_COLS))))
                 box["result"] = "status %d" % status
             else:
                 box["result"] = st.advance(t1)

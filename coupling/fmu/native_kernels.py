@@ -140,15 +140,14 @@ def compile_entry_points() -> dict:
                                         KF.kinetic_friction)
     I_STICK, I_CONTACT, I_WIN, P_CONTACT = KL.I_STICK, KL.I_CONTACT, KL.I_WIN, KL.P_CONTACT
     STICK, SLIP, FREE, CONTACT, V_BIT = KL.STICK, KL.SLIP, KL.FREE, KL.CONTACT, KL.V_BIT
-    no_ap, no_ai, no_ax = np.zeros(1, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0)
-    no_h, no_g, no_g2 = np.zeros((0, 2)), np.zeros(0), np.zeros(2)
+    no_sub = KD.NO_SUB                         # the FMU has no linear subsystem
 
     @cfunc(int64(f64p, i64p, f64p, float64, f64p, f64p))
     def hb_advance(yp, ip, fp, tau_end, pp, op):
         # the record buffers the FMU does not use are empty (what Stepper passes when none is asked)
         return advance_hammer(carray(yp, (NY,)), carray(ip, (NI,)), carray(fp, (NF,)), tau_end,
-                              carray(pp, (N_P,)), carray(op, (NO,)), np.empty((0, 5)), np.empty(0),
-                              np.empty((0, NS)), np.empty((0, NL)))
+                              carray(pp, (N_P,)), carray(op, (NO,)), (np.empty((0, 5)), np.empty(0),
+                                                                      np.empty((0, NS)), np.empty((0, NL))))
 
     @cfunc(int64(f64p, i64p, f64p))
     def hb_init_modes(yp, ip, pp):
@@ -175,8 +174,7 @@ def compile_entry_points() -> dict:
 
     @cfunc(int64(float64, f64p, f64p, int64, int64, f64p))
     def hb_rhs(tau, yp, pp, ms, mc, op):
-        rhs(tau, carray(yp, (NY,)), carray(pp, (N_P,)), ms, mc, 0, 0, no_ap, no_ai, no_ax, no_h,
-            no_g, no_g2, carray(op, (NY,)))
+        rhs(tau, carray(yp, (NY,)), (carray(pp, (N_P,)), ms, mc, no_sub), carray(op, (NY,)))
         return 0
 
     @cfunc(int64(i64p, f64p, i64p))
