@@ -184,9 +184,9 @@ def test_importing_the_library_creates_no_directory_and_sets_no_environment(tmp_
 MAX_KERNEL_PARAMS = 10
 #: kernels allowed more (at most their count today), each with the reason
 MANY_PARAMS: dict = {
-    # the string FMU's exchange step and its C entry point: their grouping is the string
-    # FMU's own change (string_step.py, native_string_kernels.py); drop these when it lands
-    "hammerbit.model.string_step.exchange_step": 27,
+    # the native Drillstring FMU's C entry point: its parameters are the C ABI that
+    # native/model_string.c calls (pointers and sizes); its body groups them into the
+    # exchange's records before it calls a kernel
     "hammerbit.fmu.native_string_kernels.hs_exchange": 23,
 }
 _COMPILERS = {"njit", "jit", "cfunc"}
