@@ -14,7 +14,11 @@ first call of each probe compiles or loads its kernels outside the timing.
 The scenes: ``simulate`` of 200 periods (paper-fig9 a = 0.083 adaptive, dp54
 and rk4; paper-fig12 a = 0.06; lab), and a single-worker bifurcation sweep
 (24 values x 300 periods, rtol 1e-8).  The paper presets' calibration changed
-in between, so the old groups are set in both checkouts.
+in between, so the old groups are set in both checkouts.  Each ``simulate``
+scene runs twice: with the Poincaré rows asked for in both checkouts (the same
+work: the goal's comparison), and as a user calls it (context: since the
+scene's flags, this code records the Poincaré rows of every run, which the
+code before did only when asked).
 
 Run ``python -m benchmarks --only warm_speed`` (``--quick``: one round of 5).
 """
@@ -37,6 +41,9 @@ DEFAULT_BASELINE = "13a99bd"
 GOAL_RATIO = 1.03
 PROBE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "warm_speed.py")
 PROBE_TIMEOUT_S = 1800
+#: scenes run as a user calls ``simulate``: this code records more there (the Poincaré rows of
+#: the scene's flags, issue 23), so they are context, not the goal's comparison
+AS_CALLED = ", as called"
 
 #: run the probe against the sources of one checkout: ``coupling/`` as ``hammerbit``,
 #: ``fmu_src/`` as ``hammerbit.model`` (what the editable install maps), nothing installed
@@ -129,16 +136,22 @@ def run(quick: bool = False, *, verbose: bool = True) -> dict:
         finally:
             _git("worktree", "remove", "--force", base_root)
     scenes = compare(base, ours)
-    worst = max(s["ratio"] for s in scenes.values())
-    geo = math.exp(sum(math.log(s["ratio"]) for s in scenes.values()) / len(scenes))
+    judged = {k: v for k, v in scenes.items() if not k.endswith(AS_CALLED)}
+    worst = max(s["ratio"] for s in judged.values())
+    geo = math.exp(sum(math.log(s["ratio"]) for s in judged.values()) / len(judged))
     cmd = harness_command(NAME, quick)
-    summary = [summary_row(f"warm speed against the code before the split ({baseline}), {scene}: best of "
-                           f"{rounds} x {repeats}, alternating processes", fmt_time(s["ours_s"]),
-                           peer=fmt_time(s["before_s"]), ratio=fmt_ratio(s["ratio"]), goal=f"<= {GOAL_RATIO}x",
-                           met=s["ratio"] <= GOAL_RATIO, command=cmd) for scene, s in scenes.items()]
-    summary.append(summary_row(f"warm speed against {baseline}: geometric mean / worst ratio over the scenes",
-                               f"{geo:.3f}x / {worst:.3f}x", goal=f"<= {GOAL_RATIO}x", met=worst <= GOAL_RATIO,
-                               command=cmd))
+    summary = []
+    for scene, s in scenes.items():
+        context = scene.endswith(AS_CALLED)
+        summary.append(summary_row(
+            f"warm speed against the code before the split ({baseline}), {scene}"
+            + (" (context: this code also records the Poincaré rows of the scene's flags)" if context else "")
+            + f": best of {rounds} x {repeats}, alternating processes", fmt_time(s["ours_s"]),
+            peer=fmt_time(s["before_s"]), ratio=fmt_ratio(s["ratio"]), goal=None if context else f"<= {GOAL_RATIO}x",
+            met=None if context else s["ratio"] <= GOAL_RATIO, command=cmd))
+    summary.append(summary_row(f"warm speed against {baseline}, the same work: geometric mean / worst ratio over "
+                               "the scenes", f"{geo:.3f}x / {worst:.3f}x", goal=f"<= {GOAL_RATIO}x",
+                               met=worst <= GOAL_RATIO, command=cmd))
     for scene, s in scenes.items():
         log(f"{scene}: {s['ours_s'] * 1e3:.3f} ms vs {s['before_s'] * 1e3:.3f} ms, ratio {s['ratio']:.3f}")
     res = {"benchmark": NAME, "baseline": baseline, "head": head, "rounds": rounds, "repeats": repeats,
