@@ -237,7 +237,6 @@ def advance(y, istate, fstate, t_end, p, opts, method, sub, rec):
                 h_chunk = remaining
                 t1 = t_end
                 full = False
-            stp = (t, y, h_chunk, how_stick, interp, act, n_act)
             if t == sc_t:
                 stick_prepare_phase(t, y, p, interp, sc_s, sc_c)  # phase carried from the last chunk
             else:
@@ -272,7 +271,8 @@ def advance(y, istate, fstate, t_end, p, opts, method, sub, rec):
                                            h_chunk, graze_stick)
                 if code == 0:
                     continue
-                te = locate_event(kd, code, t1, stp, (opts[O_BISECT], graze, wtols[q]), tableau, field,
+                te = locate_event(kd, code, t1, (t, y, h_chunk, how_stick, interp, act, n_act),
+                                  (opts[O_BISECT], graze, wtols[q]), tableau, field,
                                   (stages2, ytmp, ys, ytmp))
                 if te > 0.0 and (hit_kind < 0 or te < t_hit):
                     hit_kind = kd
@@ -283,12 +283,13 @@ def advance(y, istate, fstate, t_end, p, opts, method, sub, rec):
                 if d1 < d_min:
                     d_min = d1
                 if drive_dips(d_y, r_y * h_chunk, d1, r1 * h_chunk, d_min):
-                    d_min = drive_inside(t1, stp, field, ys, ytmp, d_min)
+                    d_min = drive_inside(t1, (t, y, h_chunk, how_stick, interp, act, n_act), field, ys, ytmp, d_min)
                 d_y = d1
                 r_y = r1
                 carried = True
                 if needs_record(t1, istate, opts, poin, samp_t):
-                    record_until(t1, ynew, stp, tableau, field, (stages2, ytmp, ys, fs), istate, opts, rec)
+                    record_until(t1, ynew, (t, y, h_chunk, how_stick, interp, act, n_act),
+                                 tableau, field, (stages2, ytmp, ys, fs), istate, opts, rec)
                 for i in range(n):
                     y[i] = ynew[i]
                     stages[0, i] = fs[i]
@@ -303,7 +304,8 @@ def advance(y, istate, fstate, t_end, p, opts, method, sub, rec):
             if d_y < d_min:
                 d_min = d_y
             if needs_record(t_hit, istate, opts, poin, samp_t):
-                record_until(t_hit, ys, stp, tableau, field, (stages2, ytmp, ynew, fs), istate, opts, rec)
+                record_until(t_hit, ys, (t, y, h_chunk, how_stick, interp, act, n_act),
+                             tableau, field, (stages2, ytmp, ynew, fs), istate, opts, rec)
             for i in range(n):
                 y[i] = ys[i]
             t = t_hit
@@ -413,7 +415,8 @@ def advance(y, istate, fstate, t_end, p, opts, method, sub, rec):
                 return ST_STEP_STORM
 
             # -- detection over [t, t1] ------------------------------------
-            stp = (t, y, h, how_rk, interp, act, n_act)
+            # (the step group (t, y, h, how, interp, act, n_act) is built where it is passed, not once
+            # per step: its arrays' reference counts cost about 3 % of a step that passes it nowhere)
             dense_ok = no_act > 0  # False, as a plain bool (see ``plain``)
             # the drive on the bit at the step end, for the drive indicators and the drive tracker
             f_contact1 = contact_force_at(ynew, p, mc)  # 0 out of contact
@@ -426,8 +429,10 @@ def advance(y, istate, fstate, t_end, p, opts, method, sub, rec):
                                            h, not fixed)
                 if code == 0:
                     continue
-                dense_ok = interpolant(dense_ok, stp, ynew, tableau, dense_w, stages, stages2, ytmp, istate, field)
-                te = locate_event(kd, code, t1, stp, (opts[O_BISECT], graze, wtols[q]), tableau, field,
+                dense_ok = interpolant(dense_ok, (t, y, h, how_rk, interp, act, n_act),
+                                       ynew, tableau, dense_w, stages, stages2, ytmp, istate, field)
+                te = locate_event(kd, code, t1, (t, y, h, how_rk, interp, act, n_act),
+                                  (opts[O_BISECT], graze, wtols[q]), tableau, field,
                                   (stages2, ytmp, ys, fs))
                 if te > 0.0 and (hit_kind < 0 or te < t_hit):
                     hit_kind = kd
@@ -437,12 +442,15 @@ def advance(y, istate, fstate, t_end, p, opts, method, sub, rec):
             if hit_kind < 0:
                 # -- no event: record and accept ----------------------------
                 if needs_record(t1, istate, opts, poin, samp_t):
-                    dense_ok = interpolant(dense_ok, stp, ynew, tableau, dense_w, stages, stages2, ytmp, istate, field)
-                    record_until(t1, ynew, stp, tableau, field, (stages2, ytmp, ys, fs), istate, opts, rec)
+                    dense_ok = interpolant(dense_ok, (t, y, h, how_rk, interp, act, n_act),
+                                           ynew, tableau, dense_w, stages, stages2, ytmp, istate, field)
+                    record_until(t1, ynew, (t, y, h, how_rk, interp, act, n_act),
+                                 tableau, field, (stages2, ytmp, ys, fs), istate, opts, rec)
                 if mc == CONTACT:
                     if not fixed and y[V_HAMMER] - y[V_BIT] > 0.0 and ynew[V_HAMMER] - ynew[V_BIT] <= 0.0:
-                        dense_ok = interpolant(dense_ok, stp, ynew, tableau, dense_w, stages, stages2, ytmp, istate, field)
-                        peak_in_step(t1, stp, field, ys, fs, fstate)
+                        dense_ok = interpolant(dense_ok, (t, y, h, how_rk, interp, act, n_act),
+                                               ynew, tableau, dense_w, stages, stages2, ytmp, istate, field)
+                        peak_in_step(t1, (t, y, h, how_rk, interp, act, n_act), field, ys, fs, fstate)
                     if f_contact1 > fstate[F_PEAK]:
                         fstate[F_PEAK] = f_contact1
                 if d1 < d_min:
@@ -452,8 +460,9 @@ def advance(y, istate, fstate, t_end, p, opts, method, sub, rec):
                     if not carried:
                         r_y = drive_rate(y, stages[0], p, mc)
                     if drive_dips(d_y, r_y * h, d1, r1 * h, d_min):
-                        dense_ok = interpolant(dense_ok, stp, ynew, tableau, dense_w, stages, stages2, ytmp, istate, field)
-                        d_min = drive_inside(t1, stp, field, ys, fs, d_min)
+                        dense_ok = interpolant(dense_ok, (t, y, h, how_rk, interp, act, n_act),
+                                               ynew, tableau, dense_w, stages, stages2, ytmp, istate, field)
+                        d_min = drive_inside(t1, (t, y, h, how_rk, interp, act, n_act), field, ys, fs, d_min)
                     r_y = r1
                 d_y = d1
                 carried = True
@@ -492,13 +501,14 @@ def advance(y, istate, fstate, t_end, p, opts, method, sub, rec):
                 if ynew[X_BIT] > ys[X_BIT]:
                     ys[X_BIT] = ynew[X_BIT]
             if mc == CONTACT and not fixed and y[V_HAMMER] - y[V_BIT] > 0.0 and ys[V_HAMMER] - ys[V_BIT] <= 0.0 and dense_ok:
-                peak_in_step(t_hit, stp, field, ynew, fs, fstate)
+                peak_in_step(t_hit, (t, y, h, how_rk, interp, act, n_act), field, ynew, fs, fstate)
             d_y = force_on_bit(ys, p, mc)
             if d_y < d_min:
                 d_min = d_y
             carried = False  # stages[0] changes below, or the reset map follows
             if needs_record(t_hit, istate, opts, poin, samp_t):
-                record_until(t_hit, ys, stp, tableau, field, (stages2, ytmp, ynew, fs), istate, opts, rec)
+                record_until(t_hit, ys, (t, y, h, how_rk, interp, act, n_act),
+                             tableau, field, (stages2, ytmp, ynew, fs), istate, opts, rec)
             for i in range(n):
                 y[i] = ys[i]
             t = t_hit
@@ -570,23 +580,13 @@ def advance(y, istate, fstate, t_end, p, opts, method, sub, rec):
     return ST_DONE
 
 
-# ---------------------------------------------------------------------------
-# Entry points.  numba compiles each on its first call (or loads it from the
-# on-disk cache), so a scene compiles only the specialisation it uses:
-#
-# * ``advance_hammer``: DOP853, no linear subsystem, no energy block -- the
-#   tableau and the empty subsystem are constants, folded into the code (a
-#   plain ``simulate``, the FMU, the sweeps);
-# * ``advance``: every other combination (DP54, RK4, the energy block, the
-#   linear subsystem of the monolithic reference), compiled once for all of
-#   them, the first time one is used.
-#
-# Fewer arguments also make a call from Python cheaper (the FMU calls once
-# per communication step).  ``advance_hammer`` is ``advance`` with those
-# arguments bound as constants (``partial.bind``), compiled as one function:
-# the same folded code as an IR-inlined call, without numba re-typing a copy
-# of the driver's IR.
-# ---------------------------------------------------------------------------
+# Entry points, each compiled on its first call (or loaded from the cache):
+# ``advance_hammer`` (DOP853, no linear subsystem, no energy block: a plain
+# ``simulate``, the FMU, the sweeps) binds the tableau and the empty subsystem as
+# constants (``partial.bind``), so they fold into one function as an IR-inlined
+# call would, without numba re-typing a copy of the driver; ``advance`` serves
+# every other combination (DP54, RK4, the energy block, the monolithic reference).
+
 #: the empty linear subsystem and no energy block: the ``sub`` group of a hammer-only system
 NO_SUB = (0, 0, np.zeros(1, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros((0, 2)),
           np.zeros(0), np.zeros(2))
