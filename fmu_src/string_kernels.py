@@ -27,8 +27,9 @@ from numba import njit
 
 from . import numba_cache  # noqa: F401  (registers the content-hash cache locator)
 
-__all__ = ["N_COEFFS", "HAMMER_ARG", "EXCHANGE_HELD", "DENSE_LANES", "string_step_dense", "string_step_modal", "held_weights",
-           "held_weight_values", "held_mean", "held_force", "taylor_coefficients", "exchange_step", "exchange_kernel", "exchange_step_modal", "exchange_step_dense", "exchange_begin",
+__all__ = ["N_COEFFS", "HAMMER_ARG", "EXCHANGE_HELD", "DENSE_LANES", "string_step_dense", "string_step_modal",
+           "held_weights", "held_weight_values", "held_mean", "held_force", "taylor_coefficients",
+           "exchange_step", "exchange_kernel", "exchange_step_modal", "exchange_step_dense", "exchange_begin",
            "exchange_end", "ExchangeScheme", "Interface", "ModalForm", "DenseForm", "ExchangeHistory",
            "HammerStep"]
 
