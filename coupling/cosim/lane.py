@@ -6,6 +6,7 @@ The run and its half-step companion are two lanes on one
 from __future__ import annotations
 
 import numpy as np
+from numba import typeof
 
 from hammerbit.model.numba_dispatch import entry_point
 
@@ -63,6 +64,14 @@ class Lane:
         # arguments (exchange_args), its dispatcher]; the held force's entry point after the first step
         self._calls, self._call = {}, None
         self._held = held_force
+
+    def load_kernels(self, h: float) -> None:
+        """Load (or compile) the exchange and held-force kernels for steps of length ``h`` now,
+        in the run's set-up, rather than inside its first step (the stepping time would count it)."""
+        args = self.exchange_args(h, self.side.discretisation(h))
+        args[HAMMER_ARG] = HammerStep(0.0, 0.0, 0.0)
+        exchange_kernel(args[2]).compile(tuple(typeof(a) for a in args))
+        held_force.compile(tuple(typeof(a) for a in (self.order, self.th, self.Fh, h, self.w)))
 
     def step(self, t: float, h: float) -> None:
         """One macro step [t, t + h]: hammer first, then the string (both schemes;

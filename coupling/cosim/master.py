@@ -264,6 +264,7 @@ def _run(side: StringSide, c: CosimConfig, *, fmu, hammer, defect_tol) -> CosimR
             H = max(c.step_range[0], c.step / ADAPTIVE_START_DIVISOR)
         rec = Recorder(c, n_est // c.record_every + 2, main)
         watch = StabilityWatch(c, side, steady_start(c))
+        main.load_kernels(H)
         setup = _time.perf_counter() - ts
         t_loop = _time.perf_counter()
         bar = _progress_bar(c.stop - c.start, c.progress, n_est)
