@@ -24,7 +24,8 @@ coupled to the field hammer (:func:`hammerbit.cosim.config.field_hammer`):
    a trivial pythonfmu FMU (one input, four outputs, ``do_step`` returns at
    once), built in a temporary directory and driven with the same calls per
    step (one ``setReal``, one ``doStep``, one ``getReal`` of 5 values).
-   Both sides are the best of two runs.  Goal: at most 2x the floor.
+   Both sides are the best of three runs, ours and the floor alternating.  Goal: at most 2x
+   the floor.
 
 4. **Set-up** of the string side in a fresh process (its eigenproblem on one
    BLAS thread, against numpy's default threading) and the **sustained
@@ -67,6 +68,8 @@ def _config(quick: bool) -> dict:
 
 
 #: The two cases of the estimate check: (name, amplitude [N], frequency [Hz]).
+#: runs of each side of the 60 s comparison (ours and the FMI floor, alternating); the best counts
+LONG_REPEATS = 3
 ESTIMATE_CASES = (("stuck", 5e3, 22.5), ("drilling", 15e3, 22.5))
 
 
@@ -221,14 +224,23 @@ def measure_long_run(cfg: dict, log) -> dict:
         fmu = build_fmu(Path(tmp) / "real")
         triv = build_trivial_fmu(Path(tmp) / "trivial", n_outputs=5)
         out = {}
-        for label, f_max in (("nodal", None), ("modal_f_max_100hz", 100.0)):
-            c = CosimConfig(stop=cfg["long_stop"], step=H, record=("wob",), progress=False, f_max=f_max,
-                            rtol=1e-8, estimate=False)
-            log(f"{cfg['long_stop']:g} s at H = 1 ms through the FMU, string {label} (best of 2) ...")
-            runs = [cosimulate(string, c, fmu=fmu) for _ in range(2)]   # best of 2, as the floor
-            r = min(runs, key=lambda x: x.wall_time_s)
+        configs = {label: CosimConfig(stop=cfg["long_stop"], step=H, record=("wob",), progress=False, f_max=f_max,
+                                      rtol=1e-8, estimate=False)
+                   for label, f_max in (("nodal", None), ("modal_f_max_100hz", 100.0))}
+        runs = {label: [] for label in configs}
+        floors = []
+        # ours and the floor alternate, so that each sees the same machine (it is shared): the best
+        # of LONG_REPEATS each
+        for k in range(LONG_REPEATS):
+            for label, c in configs.items():
+                log(f"{cfg['long_stop']:g} s at H = 1 ms through the FMU, string {label} "
+                    f"({k + 1}/{LONG_REPEATS}) ...")
+                runs[label].append(cosimulate(string, c, fmu=fmu))
+            floors.append(fmi_floor(triv, runs["nodal"][-1].macro_steps, H))
+        for label, rs in runs.items():
+            r = min(rs, key=lambda x: x.wall_time_s)
             out[label] = {"wall_time_s": r.wall_time_s, "setup_time_s": r.setup_time_s,
-                          "wall_times_s": [x.wall_time_s for x in runs],
+                          "wall_times_s": [x.wall_time_s for x in rs],
                           "macro_steps": r.macro_steps, "string_states": r.stats["string_states"],
                           "wob_amplitude_n": r.wob_amplitude()}
         n = out["nodal"]["macro_steps"]
@@ -243,9 +255,9 @@ def measure_long_run(cfg: dict, log) -> dict:
             hm.read()
         out["fmu_alone_s"] = time.perf_counter() - t1
         hm.close()
-        log(f"FMI floor: trivial FMU, {n} steps ...")
-        floor = min(fmi_floor(triv, n, H) for _ in range(2))
+        floor = min(floors)
         out["floor_s"] = floor
+        out["floor_runs_s"] = floors
         out["floor_per_step_us"] = floor / n * 1e6
     return out
 
@@ -427,7 +439,7 @@ def run(quick: bool = False, *, verbose: bool = True) -> dict:
         summary.append(summary_row(
             f"{cfg['long_stop']:g} s simulated at H = 1 ms ({n} macro steps) through HammerBitRock.fmu, "
             f"string {desc} ({long[label]['string_states']} states); peer = FMI call floor (trivial "
-            f"pythonfmu FMU, same calls); both best of 2",
+            f"pythonfmu FMU, same calls); both best of {LONG_REPEATS}, alternating",
             fmt_time(w), peer=fmt_time(long["floor_s"]), ratio=f"{ratio:.2f}x floor",
             goal="<= 2x floor", met=ratio <= 2.0, command=cmd))
     summary.append(summary_row(
