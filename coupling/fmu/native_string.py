@@ -3,7 +3,7 @@
 ``hammerbit fmu build-string --runtime native`` builds the FMU whose
 ``binaries/linux64/Drillstring.so`` and ``binaries/win64/Drillstring.dll`` run
 the library's own step kernels (:mod:`hammerbit.model.string_kernels`:
-``exchange_step`` and ``held_force``, compiled through
+``exchange_step``, which also gives the held force, compiled through
 :mod:`hammerbit.fmu.native_kernels`) behind the native FMI front
 (``native/front.c``) with the string backend ``native/model_string.c``.
 

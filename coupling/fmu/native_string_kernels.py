@@ -2,7 +2,7 @@
 
 The native ``Drillstring.fmu`` steps the string with the library's own
 kernels of :mod:`hammerbit.model.string_kernels` (:func:`exchange_step`, the
-master's Jacobi exchange in its FMU form, and :func:`held_force`), compiled
+master's Jacobi exchange in its FMU form, which also gives the held force), compiled
 ahead of time by :mod:`hammerbit.fmu.native_kernels` exactly as the hammer's
 kernels are.  The entry points take flat C arrays; the complex modal arrays
 are ``double _Complex`` (interleaved real and imaginary parts).
@@ -18,7 +18,6 @@ STRING_ENTRY_POINTS = {
                    "double _Complex *G, double _Complex *irow, double *icol, double _Complex *eta, "
                    "double _Complex *frow, double *k3, double *th, double *wh, double *Fh, double *out, "
                    "double F_held, double *c, double *feed)",
-    "hs_held_force": "double hs_held_force(int64_t order, double *th, double *Fh, double h, double *w)",
 }
 
 
@@ -27,9 +26,9 @@ def compile_string_entry_points() -> dict:
     from numba import carray, cfunc
     from numba.core.types import CPointer, complex128, float64, int64
 
-    from hammerbit.model.string_kernels import (N_COEFFS, DenseForm, ExchangeHistory, ExchangeScheme, HammerStep,
-                                                Interface, ModalForm, exchange_step_dense, exchange_step_modal,
-                                                held_force)
+    from hammerbit.model.string_kernels import (EXCHANGE_HELD, N_COEFFS, DenseForm, ExchangeHistory,
+                                                ExchangeScheme, HammerStep, Interface, ModalForm,
+                                                exchange_step_dense, exchange_step_modal)
 
     f64p, c128p = CPointer(float64), CPointer(complex128)
     NC = N_COEFFS
@@ -40,7 +39,8 @@ def compile_string_entry_points() -> dict:
     def hs_exchange(order, h, modal, n, Pp, xip, bufp, tmpp, frp, dp, Gp, irp, icp, etap, fcp, k3p, thp,
                     whp, Fhp, outp, F_held, cp, feedp):
         # n: states of the dense form, or kept modes of the modal form; k3 = (ki, ci, W);
-        # th (3), wh (3 x 2), Fh (3), out (4), c (6) the ExchangeHistory; returns out[0]
+        # th (3), wh (3 x 2), Fh (3), out (4), c (6) the ExchangeHistory; returns the force the
+        # hammer holds over a next step of length h (the exchange computes it: no second call)
         out = carray(outp, (4,))
         k3 = carray(k3p, (3,))
         scheme = ExchangeScheme(False, order, True)
@@ -50,17 +50,12 @@ def compile_string_entry_points() -> dict:
         if modal:
             form = ModalForm(carray(dp, (n,)), carray(Gp, (n, NC)), carray(irp, (n,)), carray(icp, (NC,)),
                              carray(etap, (n,)), carray(fcp, (n,)))
-            exchange_step_modal(scheme, h, form, iface, hist, hammer)
+            return exchange_step_modal(scheme, h, form, iface, hist, hammer)[EXCHANGE_HELD]
         else:
             form = DenseForm(carray(Pp, (n + 1, n + NC)), carray(xip, (n,)), carray(bufp, (n + NC,)),
                              carray(tmpp, (n + 1,)), carray(frp, (n,)))
-            exchange_step_dense(scheme, h, form, iface, hist, hammer)
-        return out[0]
+        return exchange_step_dense(scheme, h, form, iface, hist, hammer)[EXCHANGE_HELD]
 
-    @cfunc(float64(int64, f64p, f64p, float64, f64p))
-    def hs_held_force(order, thp, Fhp, h, wp):
-        return held_force(order, carray(thp, (3,)), carray(Fhp, (3,)), h, carray(wp, (3,)))
-
-    funcs = {"hs_exchange": hs_exchange, "hs_held_force": hs_held_force}
+    funcs = {"hs_exchange": hs_exchange}
     assert set(funcs) == set(STRING_ENTRY_POINTS)
     return funcs

@@ -321,7 +321,7 @@ static fmi2Status s_exit_init(fmi2Component c) {
     s->order = s->extrapolation;
     s->started = 0;
     memset(s->th, 0, sizeof s->th), memset(s->wh, 0, sizeof s->wh), memset(s->out, 0, sizeof s->out);
-    memset(s->c, 0, sizeof s->c), memset(s->w, 0, sizeof s->w);
+    memset(s->c, 0, sizeof s->c);
     memset(s->v, 0, 2 * (size_t)m->tab.nmax * sizeof(double));
     /* the string moves with a feed's block from the start, the hammer rests: the interface dashpot */
     double F0 = s->W + HS_INTERFACE_DAMPING * feed;
@@ -396,10 +396,9 @@ static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
     double *xi = s->modal ? m->buf : s->v;
     double _Complex *eta = s->modal ? (double _Complex *)s->v : NULL;
     hb_kernel_raised();
-    hs_exchange(s->order, h, s->modal, s->n, b->P ? b->P : m->tmp, xi, m->buf, m->tmp,
-                b->frow_r ? b->frow_r : m->tmp, b->d, b->G, b->irow, (double *)b->icol, eta, b->frow_c,
-                s->k3, s->th, s->wh, s->Fh, s->out, s->F_held, s->c, s->feed);
-    s->F_held = hs_held_force(s->order, s->th, s->Fh, h, s->w);
+    s->F_held = hs_exchange(s->order, h, s->modal, s->n, b->P ? b->P : m->tmp, xi, m->buf, m->tmp,
+                            b->frow_r ? b->frow_r : m->tmp, b->d, b->G, b->irow, (double *)b->icol, eta,
+                            b->frow_c, s->k3, s->th, s->wh, s->Fh, s->out, s->F_held, s->c, s->feed);
     if (hb_kernel_raised()) return FAIL(m, "fmi2DoStep failed: a kernel raised an exception");
     s->t = t + h;
     set_outputs(m);

@@ -51,7 +51,7 @@ typedef struct {
     int32_t ready, terminated, started;
     int64_t form, order, n, modal;
     double W, hook_eq, t, t_start, F_held;
-    double feed[2], k3[3], th[3], wh[6], Fh[3], out[4], c[N_COEFFS], w[3];
+    double feed[2], k3[3], th[3], wh[6], Fh[3], out[4], c[N_COEFFS];
     char error[512];
     double v[];                  /* the string's state: 2 n doubles (modal eta) or n (dense xi) */
 } sstate;
