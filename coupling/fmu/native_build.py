@@ -147,7 +147,14 @@ def nm_for(platform: str) -> str:
 
 
 def link_binary(platform: str, cc: str, obj: Path, include: Path, out: Path, sources=NATIVE_SOURCES) -> None:
-    """Link ``sources`` and the kernel object ``obj`` (generated headers in ``include``) into ``out``."""
+    """Link ``sources`` and the kernel object ``obj`` (generated headers in ``include``) into ``out``.
+
+    The object may reference only what the shim provides (libm, numba's error path, NRT): checked
+    first, so a kernel that needs more fails with its symbols named rather than at link time."""
+    extra = undefined_symbols(obj, nm=nm_for(platform)) - ALLOWED_UNDEFINED
+    if extra:
+        raise NativeBuildError(f"the {platform} kernel object {obj.name} needs symbols no shim provides: "
+                               f"{sorted(extra)}")
     srcs = [str(s) for s in sources]
     common = ["-std=gnu11", "-O2", "-Wall", "-Wextra", "-Wno-unused-parameter", "-DHB_NATIVE_MODEL",
               "-I", str(include), "-I", str(SOURCE_DIR)]
@@ -207,10 +214,6 @@ def build_binaries(model_description_xml, out_dir, *, start_values=None, platfor
                                                        summary["layout"]))
         for plat in platforms:
             obj = tmp / f"kernels_{plat}.o"
-            extra = undefined_symbols(obj, nm=nm_for(plat)) - ALLOWED_UNDEFINED
-            if extra:
-                raise NativeBuildError(f"the {plat} kernel object needs symbols no shim provides: "
-                                       f"{sorted(extra)}")
             dest = out_dir / plat / f"{spec.model_identifier}{TARGETS[plat].suffix}"
             dest.parent.mkdir(parents=True, exist_ok=True)
             link_binary(plat, compilers[plat], obj, tmp, dest)

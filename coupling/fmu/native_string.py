@@ -162,10 +162,9 @@ def build_native_string_fmu(string_arg, out=None, *, steps=None, build=None, log
     ``kw`` go to :func:`~hammerbit.fmu.build_string.string_build`."""
     from hammerbit.fmu.build_string import MODEL_NAME, build_string_fmu, default_string_output, string_build
     from hammerbit.fmu.native import generate_header, read_model_description
-    from hammerbit.fmu.native_build import ALLOWED_UNDEFINED, TARGETS, NativeBuildError, link_binary, nm_for, \
-        select_platforms
+    from hammerbit.fmu.native_build import TARGETS, link_binary, select_platforms
     from hammerbit.fmu.native_build import find_compiler, MINGW_CC
-    from hammerbit.fmu.native_kernels import build_objects, undefined_symbols
+    from hammerbit.fmu.native_kernels import build_objects
     from hammerbit.model.string_model import INFO_FILE, MODEL_FILE
     steps = tuple(float(h) for h in (DEFAULT_STEPS if steps is None else steps))
     for h in steps:
@@ -193,10 +192,6 @@ def build_native_string_fmu(string_arg, out=None, *, steps=None, build=None, log
         built = {}
         for plat in platforms:
             obj = tmp / f"kernels_{plat}.o"
-            extra = undefined_symbols(obj, nm=nm_for(plat)) - ALLOWED_UNDEFINED
-            if extra:
-                raise NativeBuildError(f"the {plat} string kernel object needs symbols no shim provides: "
-                                       f"{sorted(extra)}")
             cc = find_compiler() if plat == "linux64" else shutil.which(MINGW_CC)
             dest = tmp / "bin" / plat / f"{spec.model_identifier}{TARGETS[plat].suffix}"
             dest.parent.mkdir(parents=True, exist_ok=True)
