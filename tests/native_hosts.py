@@ -1,6 +1,6 @@
-"""Native hosts the FMU tests drive: ecos from the ecospy wheel, and the C host cross-built for
-Windows and run under wine.  Each helper skips the calling test, saying why, when its host is
-not available here."""
+"""Native hosts the FMU tests drive: ecos from the ecospy wheel, and the C host built for Linux or
+cross-built for Windows and run under wine.  Each helper skips the calling test, saying why,
+when its host is not available here."""
 from __future__ import annotations
 
 import os
@@ -11,10 +11,21 @@ from pathlib import Path
 import fmpy
 import pytest
 
+from hammerbit.fmu.native import find_compiler
 from hammerbit.fmu.native_build import MINGW_CC
 
 #: the C host of the FMU tests (one source for Linux and Windows)
 HOST_SOURCE = Path(__file__).resolve().parent / "fmu_native_host.c"
+#: fmpy's copy of the FMI 2.0 headers, which the host includes
+FMI_HEADERS = Path(fmpy.__file__).parent / "c-code"
+
+
+def linux_host(tmp: Path) -> Path:
+    """The C host built for Linux into ``tmp`` with the system C compiler."""
+    exe = tmp / "fmu_native_host"
+    subprocess.run([find_compiler(), "-O1", "-I", str(FMI_HEADERS), "-o", str(exe), str(HOST_SOURCE),
+                    "-ldl", "-lpthread"], check=True)
+    return exe
 
 
 def ecos_or_skip(tmp: Path) -> tuple[Path, Path]:
@@ -48,7 +59,6 @@ def windows_host_or_skip(dll: Path, tmp: Path) -> tuple[str, Path]:
     if not wine:
         pytest.skip("no wine (Debian: wine64) to run the Windows host")
     exe = tmp / "fmu_native_host.exe"
-    include = Path(fmpy.__file__).parent / "c-code"
-    subprocess.run([MINGW_CC, "-O1", "-I", str(include), "-o", str(exe), str(HOST_SOURCE), "-static",
+    subprocess.run([MINGW_CC, "-O1", "-I", str(FMI_HEADERS), "-o", str(exe), str(HOST_SOURCE), "-static",
                     "-lpthread"], check=True)
     return wine, exe

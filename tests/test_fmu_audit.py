@@ -19,6 +19,7 @@ import zipfile
 
 import pytest
 
+from cold_env import cold_env
 from test_fmu import FMI_ERROR, FMI_OK, RIG, Instance
 
 from fmpy.fmi1 import FMICallException  # noqa: E402
@@ -430,19 +431,6 @@ def _without_file_access_override():
     return ["setpriv", "--bounding-set", "-dac_override,-dac_read_search,-fowner", "--"]
 
 
-def _cold_env(tmp_path, **extra):
-    import os
-    home = tmp_path / "home-is-a-file"             # no cache can be created below it
-    home.write_text("")
-    tmp = tmp_path / "tmp"
-    tmp.mkdir(exist_ok=True)
-    env = {k: v for k, v in os.environ.items()
-           if k not in ("HAMMERBIT_CACHE_DIR", "XDG_CACHE_HOME", "NUMBA_CPU_NAME", "NUMBA_CPU_FEATURES",
-                        "NUMBA_CACHE_DIR")}
-    env.update(HOME=str(home), TMPDIR=str(tmp), **extra)
-    return env
-
-
 def _extract(fmu, dest):
     with zipfile.ZipFile(fmu) as zf:
         zf.extractall(dest)
@@ -466,7 +454,7 @@ def test_a_read_only_extraction_directory_loads_the_shipped_kernels(built_fmu, t
     x = _extract(built_fmu, tmp_path / "x")
     subprocess.run(["chmod", "-R", "a-w", str(x)], check=True)
     try:
-        out, _ = _run(prefix + [sys.executable, "-c", _PROBE, str(built_fmu), str(x)], _cold_env(tmp_path))
+        out, _ = _run(prefix + [sys.executable, "-c", _PROBE, str(built_fmu), str(x)], cold_env(tmp_path))
     finally:
         subprocess.run(["chmod", "-R", "u+w", str(x)], check=True)
     assert "failed" not in out, out
@@ -484,7 +472,7 @@ def test_a_fallback_cache_others_could_write_is_never_used(built_fmu, tmp_path, 
     import sys
     if planted == "another-owner" and os.getuid() != 0:
         pytest.skip("only root can give a directory to another user")
-    env = _cold_env(tmp_path, NUMBA_CPU_NAME="x86-64", NUMBA_CPU_FEATURES="")
+    env = cold_env(tmp_path, NUMBA_CPU_NAME="x86-64", NUMBA_CPU_FEATURES="")
     trap = tmp_path / "tmp" / f"hammerbit-{os.getuid()}"
     (trap / "numba").mkdir(parents=True)
     for d in (trap, trap / "numba"):
@@ -506,7 +494,7 @@ def test_the_fallback_compile_reports_the_time_it_took(built_fmu, tmp_path):
     both messages (stderr and the FMI log) give the measured time, within the process's wall time."""
     import re as _re
     import sys
-    env = _cold_env(tmp_path, NUMBA_CPU_NAME="x86-64", NUMBA_CPU_FEATURES="")
+    env = cold_env(tmp_path, NUMBA_CPU_NAME="x86-64", NUMBA_CPU_FEATURES="")
     x = _extract(built_fmu, tmp_path / "x")
     out, err = _run([sys.executable, "-c", _PROBE, str(built_fmu), str(x)], env)
     assert out["misses"] > 0, out

@@ -19,6 +19,7 @@ import pytest
 pytest.importorskip("fmpy")
 
 from cli_run import run_cli  # noqa: E402
+from cold_env import cold_env  # noqa: E402
 from hammerbit.fmu.build import build_fmu, build_hash, runtime_files  # noqa: E402
 from hammerbit.fmu.host import FMUInstance  # noqa: E402
 from hammerbit.model.params import RigParameters  # noqa: E402
@@ -117,18 +118,6 @@ _COLD = textwrap.dedent("""
 """)
 
 
-def _cold_env(tmp_path, **extra):
-    home = tmp_path / "home-is-a-file"          # no cache can be created below it, even as root
-    home.write_text("")
-    tmp = tmp_path / "tmp"
-    tmp.mkdir(exist_ok=True)
-    env = {k: v for k, v in os.environ.items()
-           if k not in ("HAMMERBIT_CACHE_DIR", "XDG_CACHE_HOME", "NUMBA_CPU_NAME", "NUMBA_CPU_FEATURES",
-                        "NUMBA_CACHE_DIR")}
-    env.update(HOME=str(home), TMPDIR=str(tmp), **extra)
-    return env
-
-
 def _cold_probe(fmu, env):
     r = subprocess.run([sys.executable, "-c", _COLD, str(fmu)], capture_output=True, text=True,
                        env=env, timeout=1800)
@@ -137,7 +126,7 @@ def _cold_probe(fmu, env):
 
 
 def test_cold_start_loads_the_shipped_kernels_with_a_read_only_home(built_fmu, tmp_path):
-    env = _cold_env(tmp_path)
+    env = cold_env(tmp_path)
     out = _cold_probe(built_fmu, env)
     assert out["decision"]["shipped"], out["decision"]
     assert out["misses"] == 0 and out["hits"] >= 3, out        # advance + two force formulas
@@ -152,7 +141,7 @@ def test_cold_start_loads_the_shipped_kernels_with_a_read_only_home(built_fmu, t
 def test_cold_start_fallback_compiles_once_says_so_and_uses_a_writable_directory(built_fmu, tmp_path):
     """Shipped kernels unusable (another CPU target asked for) and HOME read-only: the first process
     compiles into <tmp>/hammerbit-<uid>/numba and says so; the next process loads from there."""
-    env = _cold_env(tmp_path, NUMBA_CPU_NAME="x86-64", NUMBA_CPU_FEATURES="")
+    env = cold_env(tmp_path, NUMBA_CPU_NAME="x86-64", NUMBA_CPU_FEATURES="")
     first = _cold_probe(built_fmu, env)
     fallback = str(tmp_path / "tmp" / f"hammerbit-{os.getuid()}" / "numba")
     assert not first["decision"]["shipped"] and first["decision"]["dir"] == fallback

@@ -24,18 +24,15 @@ import pytest
 
 fmpy = pytest.importorskip("fmpy")
 from fmpy import read_model_description  # noqa: E402
-from fmpy.fmi1 import FMICallException  # noqa: E402
-from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,  # noqa: E402
-                       fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2LastSuccessfulTime,
-                       fmi2Terminated)
+from fmpy.fmi2 import fmi2LastSuccessfulTime, fmi2Terminated  # noqa: E402
 
 from hammerbit.fmu.native import (FrontBuildError, build_front, find_compiler,  # noqa: E402
                                   generate_header, read_model_description as read_spec)
+from fmu_slave import FMI_DISCARD, FMI_ERROR, FMI_OK, Slave  # noqa: E402
 from native_hosts import ecos_or_skip  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 HOST_SOURCE = HERE / "fmu_native_host.c"
-FMI_OK, FMI_WARNING, FMI_DISCARD, FMI_ERROR = 0, 1, 2, 3
 ID = "HammerBitRock"
 
 
@@ -107,50 +104,6 @@ def run_host(host: Path, fmu_dir: Path, *, uri=None, guid=None, env=None, **opts
 def vr_of(fmu_dir: Path, name: str) -> int:
     md = read_model_description(str(fmu_dir / "modelDescription.xml"))
     return next(v.valueReference for v in md.modelVariables if v.name == name)
-
-
-class Slave:
-    """One instance through fmpy's low-level FMU2Slave, log messages captured."""
-
-    def __init__(self, fmu_dir: Path, *, logging=False, init=True, guid=None):
-        self.md = read_model_description(str(fmu_dir / "modelDescription.xml"))
-        self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
-        self.messages = []
-
-        def logger(env, instance, status, category, message):
-            self.messages.append((status, message.decode("utf-8", "replace")))
-
-        cb = fmi2CallbackFunctions()
-        cb.logger = fmi2CallbackLoggerTYPE(logger)
-        cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(fmpy.calloc)
-        cb.freeMemory = fmi2CallbackFreeMemoryTYPE(fmpy.free)
-        self.cb = cb
-        self.fmu = FMU2Slave(guid=guid or self.md.guid, unzipDirectory=str(fmu_dir),
-                             modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName="s")
-        self.t = 0.0
-        self.fmu.instantiate(callbacks=cb, loggingOn=logging)
-        if init:
-            self.fmu.setupExperiment(startTime=0.0)
-            self.fmu.enterInitializationMode()
-            self.fmu.exitInitializationMode()
-
-    def raw_instantiate(self, kind, guid, uri):
-        return self.fmu.fmi2Instantiate(b"raw", kind, guid.encode(), uri.encode(),
-                                        ctypes.byref(self.cb), 0, 0)
-
-    def step(self, h=1e-3):
-        self.fmu.doStep(self.t, h)
-        self.t += h
-
-    def errors(self):
-        return [m for s, m in self.messages if s >= FMI_ERROR]
-
-    def status_of(self, call, *args) -> int:
-        try:
-            call(*args)
-        except FMICallException as e:
-            return e.status
-        return FMI_OK
 
 
 def fmpy_positions(fmu_dir: Path, n: int, h: float) -> list[float]:
@@ -378,10 +331,10 @@ def test_python_host_without_numba_logs_the_reason(front_dir):
         sys.modules["numba"] = None
         sys.path.insert(0, {str(HERE)!r})
         from pathlib import Path
-        from test_fmu_native import Slave
+        from fmu_slave import Slave
         s = Slave.__new__(Slave)
         try:
-            Slave.__init__(s, Path({str(front_dir)!r}), init=False)
+            Slave.__init__(s, Path({str(front_dir)!r}), setup=False)
         except Exception as e:
             print("refused:", e)
         print("\\n".join(m for _, m in s.messages))
@@ -394,7 +347,7 @@ def test_python_host_without_numba_logs_the_reason(front_dir):
 
 
 def test_wrong_guid_and_model_exchange_are_refused_with_logging_off(front_dir):
-    s = Slave(front_dir, init=False)
+    s = Slave(front_dir, setup=False)
     uri = (front_dir / "resources").as_uri()
     assert s.raw_instantiate(1, "{wrong}", uri) is None
     assert any("GUID '{wrong}' does not match" in m for m in s.errors())
@@ -518,7 +471,7 @@ def test_real_fmu_bad_parameter_fails_initialisation(front_dir):
     spec = read_spec((front_dir / "modelDescription.xml").read_bytes())
     if spec.status_vr is None:
         pytest.skip("this build's slave has no last_status variable (the stub test covers the mapping)")
-    s = Slave(front_dir, init=False)
+    s = Slave(front_dir, setup=False)
     s.fmu.setupExperiment(startTime=0.0)
     s.fmu.enterInitializationMode()
     s.fmu.setReal([s.vr["hammer_mass"]], [-1.0])
@@ -588,7 +541,7 @@ def stub_dir(tmp_path_factory):
 
 
 def _stub(stub_dir, *, fail_init=0):
-    s = Slave(stub_dir, init=False)
+    s = Slave(stub_dir, setup=False)
     s.fmu.setupExperiment(startTime=0.0)
     s.fmu.enterInitializationMode()
     s.fmu.setInteger([s.vr["fail_init"]], [fail_init])

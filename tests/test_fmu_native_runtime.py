@@ -22,23 +22,20 @@ import pytest
 fmpy = pytest.importorskip("fmpy")
 from fmpy import read_model_description  # noqa: E402
 from fmpy.fmi1 import FMICallException  # noqa: E402
-from fmpy.fmi2 import (FMU2Model, FMU2Slave, fmi2CallbackAllocateMemoryTYPE,  # noqa: E402
+from fmpy.fmi2 import (FMU2Model, fmi2CallbackAllocateMemoryTYPE,  # noqa: E402
                        fmi2CallbackFreeMemoryTYPE, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE,
                        fmi2Real)
 
-from hammerbit.fmu.native import find_compiler  # noqa: E402
 from hammerbit.fmu.native_build import MINGW_CC, select_platforms  # noqa: E402
-from native_hosts import ecos_or_skip, windows_host_or_skip  # noqa: E402
+from fmu_slave import FMI_ERROR, FMI_WARNING, Slave  # noqa: E402
+from native_hosts import ecos_or_skip, linux_host as build_linux_host, windows_host_or_skip  # noqa: E402
 from hammerbit.model.kernel_layouts import P_B, P_FEXT  # noqa: E402
 from hammerbit.model.params import RigParameters  # noqa: E402
 from hammerbit.model.presets import preset  # noqa: E402
 from hammerbit.model.solver_options import SolverOptions  # noqa: E402
 from hammerbit.model.stepping import Stepper  # noqa: E402
 
-HERE = Path(__file__).resolve().parent
-HOST_SOURCE = HERE / "fmu_native_host.c"
 ID = "HammerBitRock"
-FMI_OK, FMI_WARNING, FMI_DISCARD, FMI_ERROR = 0, 1, 2, 3
 RIG = RigParameters()
 SC = RIG.scales
 H = 1e-3
@@ -76,11 +73,7 @@ def vrs(md):
 
 @pytest.fixture(scope="module")
 def linux_host(tmp_path_factory):
-    exe = tmp_path_factory.mktemp("host") / "fmu_native_host"
-    include = Path(fmpy.__file__).parent / "c-code"
-    subprocess.run([find_compiler(), "-O1", "-I", str(include), "-o", str(exe), str(HOST_SOURCE),
-                    "-ldl", "-lpthread"], check=True)
-    return exe
+    return build_linux_host(tmp_path_factory.mktemp("host"))
 
 
 def run_linux_host(host, native_dir, md, vrs, **opts):
@@ -113,58 +106,6 @@ def assert_close(got, want, *, label):
     scales = [SC.length, SC.length, SC.velocity, SC.friction_force, SC.friction_force]
     for name, a, b, s in zip(COMPARED, got, want, scales):
         assert abs(a - b) <= REL * max(abs(b), s), f"{label}: {name} {a!r} vs {b!r}"
-
-
-class Slave:
-    """One co-simulation instance through fmpy's FMU2Slave, log messages captured."""
-
-    def __init__(self, fmu_dir: Path, *, logging=False, start_time=0.0, reals=None, booleans=None,
-                 init=True):
-        self.md = read_model_description(str(fmu_dir / "modelDescription.xml"))
-        self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
-        self.messages = []
-
-        def logger(env, instance, status, category, message):
-            self.messages.append((status, message.decode("utf-8", "replace")))
-
-        cb = fmi2CallbackFunctions()
-        cb.logger = fmi2CallbackLoggerTYPE(logger)
-        cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(fmpy.calloc)
-        cb.freeMemory = fmi2CallbackFreeMemoryTYPE(fmpy.free)
-        self.cb = cb
-        self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=str(fmu_dir),
-                             modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName="s")
-        self.t = start_time
-        self.fmu.instantiate(callbacks=cb, loggingOn=logging)
-        self.fmu.setupExperiment(startTime=start_time)
-        self.fmu.enterInitializationMode()
-        for name, value in (reals or {}).items():
-            self.fmu.setReal([self.vr[name]], [value])
-        for name, value in (booleans or {}).items():
-            self.fmu.setBoolean([self.vr[name]], [value])
-        if init:
-            self.fmu.exitInitializationMode()
-
-    def step(self, h=H):
-        self.fmu.doStep(self.t, h)
-        self.t += h
-
-    def get(self, *names):
-        return self.fmu.getReal([self.vr[n] for n in names])
-
-    def errors(self):
-        return [m for s, m in self.messages if s >= FMI_ERROR]
-
-    def status_of(self, call, *args) -> int:
-        try:
-            call(*args)
-        except FMICallException as e:
-            return e.status
-        return FMI_OK
-
-    def close(self):
-        self.fmu.terminate()
-        self.fmu.freeInstance()
 
 
 # ---------------------------------------------------------------------------
@@ -501,3 +442,23 @@ def test_a_step_storm_is_an_error_at_the_librarys_time_and_changes_nothing(nativ
     assert t_fail == pytest.approx(e.value.time / rig.scales.omega, rel=1e-12)
     assert s.get("hammer_position", "hammer_velocity") == before
     s.fmu.freeInstance()
+
+
+def test_a_kernel_object_needing_more_than_the_shim_is_refused_naming_the_symbols(tmp_path):
+    """``link_binary`` checks the object's undefined symbols against what the shim provides before
+    it links (both native FMUs link through it)."""
+    from hammerbit.fmu.native import FrontBuildError, find_compiler
+    from hammerbit.fmu.native_build import NativeBuildError, link_binary
+    try:
+        cc = find_compiler()
+    except FrontBuildError as e:
+        pytest.skip(str(e))
+    src = tmp_path / "k.c"
+    src.write_text("double PyNumber_Float(double);\ndouble hb_k(double x) { return PyNumber_Float(x) + exp(x); }\n"
+                   "double exp(double);\n")
+    obj = tmp_path / "kernels_linux64.o"
+    subprocess.run([cc, "-c", "-fPIC", "-o", str(obj), str(src)], check=True, capture_output=True)
+    with pytest.raises(NativeBuildError, match=r"kernels_linux64\.o needs symbols no shim provides: "
+                                               r"\['PyNumber_Float'\]"):
+        link_binary("linux64", cc, obj, tmp_path, tmp_path / "out.so")
+    assert not (tmp_path / "out.so").exists()

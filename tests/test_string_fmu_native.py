@@ -18,11 +18,8 @@ import pytest
 
 fmpy = pytest.importorskip("fmpy")
 
-from hammerbit.fmu.native import find_compiler  # noqa: E402
-from native_hosts import windows_host_or_skip  # noqa: E402
+from native_hosts import linux_host as build_linux_host, windows_host_or_skip  # noqa: E402
 
-HERE = Path(__file__).resolve().parent
-HOST_SOURCE = HERE / "fmu_native_host.c"
 STRING = "lab"
 H = 1e-3
 STEPS = 300
@@ -255,11 +252,7 @@ def test_native_string_binaries_link_no_python(native_dir):
 
 @pytest.fixture(scope="module")
 def linux_host(tmp_path_factory):
-    exe = tmp_path_factory.mktemp("host") / "fmu_native_host"
-    include = Path(fmpy.__file__).parent / "c-code"
-    subprocess.run([find_compiler(), "-O1", "-I", str(include), "-o", str(exe), str(HOST_SOURCE),
-                    "-ldl", "-lpthread"], check=True)
-    return exe
+    return build_linux_host(tmp_path_factory.mktemp("host"))
 
 
 def _host_args(native_dir, top, binary, uri):
