@@ -30,7 +30,7 @@ import numpy as np
 from hammerbit.fmu.build import build_hash, forget_staged_modules, runtime_files
 
 __all__ = ["MODEL_NAME", "StringBuild", "build_string_fmu", "string_build",
-           "default_string_output"]
+           "default_string_output", "string_fmu_path"]
 
 MODEL_NAME = "Drillstring"
 RUNTIME_PREFIX = "hammerbit_string_runtime"   # + "_<hash>": the runtime package inside the FMU
@@ -56,6 +56,17 @@ from {pkg}.string_slave import {model}  # noqa: E402,F401
 def default_string_output() -> Path:
     """``dist/Drillstring.fmu`` in the current directory."""
     return Path("dist") / f"{MODEL_NAME}.fmu"
+
+
+def string_fmu_path(out=None) -> Path:
+    """Where a Drillstring FMU goes: ``out`` (a ``.fmu`` file, or a directory that gets
+    ``Drillstring.fmu``; default :func:`default_string_output`), absolute, its folder created."""
+    out = Path(out) if out is not None else default_string_output()
+    if out.suffix != ".fmu":
+        out = out / f"{MODEL_NAME}.fmu"
+    out = out.resolve()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    return out
 
 
 @dataclass(frozen=True)
@@ -193,11 +204,7 @@ def build_string_fmu(string_arg, out=None, *, build: Optional[StringBuild] = Non
     from pythonfmu import FmuBuilder
     from hammerbit.model.string_model import INFO_FILE, MODEL_FILE, save_model
     build = string_build(string_arg, **kw) if build is None else build
-    out = Path(out) if out is not None else default_string_output()
-    if out.suffix != ".fmu":
-        out = out / f"{MODEL_NAME}.fmu"
-    out = out.resolve()
-    out.parent.mkdir(parents=True, exist_ok=True)
+    out = string_fmu_path(out)
     files = runtime_files(needed=STRING_RUNTIME_MODULES)
     tag = build_hash(files)
     pkg_name, entry_name = f"{RUNTIME_PREFIX}_{tag}", f"{ENTRY_PREFIX}_{tag}"

@@ -160,7 +160,7 @@ def build_native_string_fmu(string_arg, out=None, *, steps=None, build=None, log
 
     ``steps``: the communication step sizes [s] it carries (default :data:`DEFAULT_STEPS`);
     ``kw`` go to :func:`~hammerbit.fmu.build_string.string_build`."""
-    from hammerbit.fmu.build_string import MODEL_NAME, build_string_fmu, default_string_output, string_build
+    from hammerbit.fmu.build_string import MODEL_NAME, build_string_fmu, string_build, string_fmu_path
     from hammerbit.fmu.native import generate_header, read_model_description
     from hammerbit.fmu.native_build import TARGETS, link_binary, select_platforms
     from hammerbit.fmu.native_build import find_compiler, MINGW_CC
@@ -171,11 +171,7 @@ def build_native_string_fmu(string_arg, out=None, *, steps=None, build=None, log
         if not (0.0 < h < float("inf")):
             raise ValueError(f"--step = {h!r} is out of range: allowed a finite step size > 0 s")
     build = string_build(string_arg, **kw) if build is None else build
-    out = Path(out) if out is not None else default_string_output()
-    if out.suffix != ".fmu":
-        out = out / f"{MODEL_NAME}.fmu"
-    out = out.resolve()
-    out.parent.mkdir(parents=True, exist_ok=True)
+    out = string_fmu_path(out)
     with tempfile.TemporaryDirectory(prefix="hammerbit_native_string_") as tmp:
         tmp = Path(tmp)
         py_fmu = build_string_fmu(string_arg, tmp / "python" / f"{MODEL_NAME}.fmu", build=build)
