@@ -365,6 +365,9 @@ class CosimResult:
     dense: Optional[np.ndarray] = None
     """``time``, ``wob`` sampled finely (the monolithic reference's dense output); the WOB
     figures are taken from it when present."""
+    steps: Optional[object] = None
+    """The run's :class:`~hammerbit.cosim.amplitude.StepLog`: the WOB amplitude is taken from
+    the WOB within each macro step when present."""
 
     @property
     def stop_s(self) -> float:
@@ -379,10 +382,14 @@ class CosimResult:
 
     def wob_amplitude(self, t_from: Optional[float] = None) -> float:
         """Dynamic WOB amplitude [N]: the fundamental harmonic at the forcing frequency over the
-        last whole forcing periods of the window (:mod:`hammerbit.cosim.amplitude`)."""
+        last whole forcing periods of the window (:mod:`hammerbit.cosim.amplitude`), from the WOB
+        within each macro step (:class:`~hammerbit.cosim.amplitude.StepLog`) for a co-simulation,
+        from the dense output for the monolithic reference."""
         from hammerbit.cosim.amplitude import fundamental
-        d = self.dense if self.dense is not None else self.data
         t0 = steady_start(self.config) if t_from is None else t_from
+        if self.steps is not None:
+            return self.steps.wob_harmonic(t0)[0]
+        d = self.dense if self.dense is not None else self.data
         return fundamental(d["time"], d["wob"], self.config.rig.frequency, t0)[0]
 
     def wob_peaks(self, t_from: Optional[float] = None) -> tuple:
