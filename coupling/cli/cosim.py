@@ -262,6 +262,8 @@ def cmd_cosim(args) -> int:
         print(json.dumps(out, indent=2, default=float))
     else:
         _print_text(out, res, cfg, string)
+    if out["top"].get("retuned"):
+        print(f"hammerbit cosim: note: {out['top']['retune_note']}", file=sys.stderr)
     bounce = out["bounce"]["violations"]
     if bounce:
         print(f"hammerbit cosim: warning: {bounce} bounce violation(s): the rock would have to pull the bit "

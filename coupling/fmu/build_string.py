@@ -126,7 +126,7 @@ def string_build(string_arg, *, wob: Optional[float] = None, rig=None, top=None,
     from hammerbit.cosim.string_side import StringSide
     from hammerbit.drillstring import DrillStringError, load_string, state_space
     from hammerbit.drillstring.boundary import Boundary
-    from hammerbit.drillstring.top import TopCondition, auto_driller_gains, top_matrices
+    from hammerbit.drillstring.top import TopCondition, top_matrices
     from hammerbit.model.string_model import TOP_CONDITIONS
     string = string_arg if not isinstance(string_arg, (str, Path)) else load_string(string_arg)
     rig = default_hammer(string) if rig is None else rig
@@ -145,7 +145,7 @@ def string_build(string_arg, *, wob: Optional[float] = None, rig=None, top=None,
 
     def matrices(s, ss, t):
         return top_matrices(s, ss, t, interface_stiffness=ki, interface_damping=ci, hammer_stiffness=K,
-                            mass=config.mass)
+                            mass=config.mass, check=False)
     forms = {"fixed": _form(side.matrices, n_string, cv_fixed)}
     forms["fixed"]["d"]["damping_ratio"] = _derivative(
         forms["fixed"], matrices(string_other, ss_other, TopCondition.fixed()), n_string, cv_fixed,
@@ -153,8 +153,9 @@ def string_build(string_arg, *, wob: Optional[float] = None, rig=None, top=None,
     gains = None
     refused = None
     try:
-        gains = auto_driller_gains(string, top if top.kind == "auto-driller" else TopCondition.auto_driller(),
-                                   interface_stiffness=ki, hammer_stiffness=K, mass=config.mass)
+        # the gains of the checked closed loop (unstable default gains retuned, given ones refused)
+        gains = StringSide(string, config.replace(
+            top=top if top.kind == "auto-driller" else TopCondition.auto_driller())).gains
         kp, kI = gains.proportional_gain, gains.integral_gain
         auto_side = StringSide(string, config.replace(top=TopCondition.auto_driller(kp, kI)))
         f = forms["auto"] = _form(auto_side.matrices, n_string, cv_fixed)
