@@ -23,7 +23,7 @@ import math
 import sys
 import time
 
-from hammerbit.cli.common import RunFailure, UsageError, add_set_argument, parse_settings
+from hammerbit.cli.common import EXIT_INFEASIBLE, RunFailure, UsageError, add_set_argument, parse_settings
 
 __all__ = ["register", "cmd_bifurcation", "cmd_sweep", "cmd_map", "cmd_optimize"]
 
@@ -280,9 +280,11 @@ def cmd_optimize(args) -> int:
                f"bounds (no bounce, a + b <= 1, no runaway in the scene's dynamics"
                + (", frequency check" if string is not None else "")
                + (", contact force" if args.max_contact_force is not None else "") + ")")
+        if res.infeasible is not None:
+            msg += f"; {res.infeasible.text()}"
         if args.json:
             print(_dump(out))
-        raise RunFailure(msg)
+        raise RunFailure(msg, code=EXIT_INFEASIBLE)
     if args.confirm:
         if string is None:
             raise UsageError("--confirm needs --string")

@@ -69,7 +69,7 @@ from .bifurcation import SECONDS_PER_PERIOD
 from .executor import Executor, ExecutorOptions
 
 __all__ = ["Axis", "CELL_DTYPE", "MapCell", "run_cell", "cell_figures", "regime_map", "map_to_json", "axis_unit",
-           "best_valid_cell", "FLAG_FIELDS", "DOMAIN_FIELDS", "STATUS_OK", "STATUS_SOLVER", "STATUS_INVALID",
+           "best_valid_cell", "eligible_cells", "FLAG_FIELDS", "DOMAIN_FIELDS", "STATUS_OK", "STATUS_SOLVER", "STATUS_INVALID",
            "map_chunk"]
 
 STATUS_OK, STATUS_SOLVER, STATUS_INVALID = 0, 1, 2
@@ -392,9 +392,21 @@ def _nested(a: np.ndarray, *, integer: bool = False):
     return [_nested(x, integer=integer) for x in a]
 
 
+def eligible_cells(ds) -> np.ndarray:
+    """Cells that may be the best one: valid (ran, a drilling point), no flag of the scene
+    (:data:`FLAG_FIELDS`: runaway, bounce, tension, a transient period, ...) and inside the paper's
+    domain (:data:`DOMAIN_FIELDS`: a < b, a + b <= 1, b <= mu) (boolean array, the map's shape)."""
+    ok = ds["valid"].values == 1
+    for name in tuple(FLAG_FIELDS) + tuple(DOMAIN_FIELDS.values()):
+        if name in ds:
+            ok &= ds[name].values == 0
+    return ok
+
+
 def best_valid_cell(ds) -> Optional[dict]:
-    """The valid cell (a drilling point) of the highest ROP: ``{"index", "values", "rop_m_per_h"}``, or None."""
-    rop = np.where(ds["valid"].values == 1, ds["rop_m_per_h"].values, np.nan)
+    """The eligible cell (:func:`eligible_cells`: a drilling point, unflagged, inside the domain) of
+    the highest ROP: ``{"index", "values", "rop_m_per_h", ...}``, or None."""
+    rop = np.where(eligible_cells(ds), ds["rop_m_per_h"].values, np.nan)
     if not np.isfinite(rop).any():
         return None
     i = np.unravel_index(int(np.nanargmax(rop)), rop.shape)
