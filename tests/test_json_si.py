@@ -71,6 +71,7 @@ def _close(a, b, rel=1e-12):
 
 
 SCALES = ["--set", f"m1={M1}", "--set", f"K={K}", "--set", f"F_N={FN}", "--set", f"mu_e={MU_E}"]
+SCENE = ["--set", "a=0.2", "--set", "b=0.25", "--set", "r=0.5"]
 
 
 def _scales_checked(d, seen):
@@ -81,9 +82,13 @@ def _scales_checked(d, seen):
 
 
 def test_simulate_json_si_fields(capsys):
-    code, out, err = run_cli(["simulate", "--preset", "paper-fig12", *SCALES, "--periods", "30", "--json"], capsys)
+    # a scene that drills, with tension and impacts: every source below is non-zero
+    code, out, err = run_cli(["simulate", "--preset", "paper-fig9", *SCALES, *SCENE, "--periods", "30", "--json"],
+                             capsys)
     assert code == 0, err
     d = json.loads(out)
+    assert d["penetration_x0"] > 0 and d["rop"]["x0_per_period"] > 0 and d["regime"]["min_drive_f0"] < 0
+    assert d["peak_contact_force_n"] > 0
     g = d["groups"]
     seen = set()
     _scales_checked(d, seen)
@@ -108,7 +113,8 @@ def test_simulate_json_si_fields(capsys):
     from hammerbit.model.presets import preset
     from hammerbit.model.settings import apply_settings
     from hammerbit.scene.simulate import simulate
-    gs = apply_settings(preset("paper-fig12"), {"m1": M1, "K": K, "F_N": FN, "mu_e": MU_E})
+    gs = apply_settings(preset("paper-fig9"), {"m1": M1, "K": K, "F_N": FN, "mu_e": MU_E, "a": 0.2, "b": 0.25,
+                                               "r": 0.5})
     _close(d["peak_contact_force_n"], simulate(gs, 30).peak_contact_force * F0, rel=1e-9)
     seen.add(("peak_contact_force_n",))
     EXEMPT = {("wall_time_s",): "measured wall time"}
@@ -117,7 +123,7 @@ def test_simulate_json_si_fields(capsys):
 
 
 def test_map_json_si_fields(capsys):
-    code, out, err = run_cli(["map", "--preset", "paper-fig12", *SCALES, "--axis", "f=1.0:2.0:3",
+    code, out, err = run_cli(["map", "--preset", "paper-fig9", *SCALES, *SCENE, "--axis", "f=1.0:2.0:3",
                               "--periods", "20", "--workers", "1", "--json"], capsys)
     assert code == 0, err
     d = json.loads(out)
@@ -127,6 +133,7 @@ def test_map_json_si_fields(capsys):
     x = d["rop_x0_per_period"]
     _close(d["rop_mm_per_period"], [v * X0 * 1e3 for v in x])
     _close(d["rop_m_per_h"], [v * X0 * 3600.0 * fi for v, fi in zip(x, f)])
+    assert max(x) > 0 and min(d["min_drive_f0"]) < 0
     _close(d["min_drive_n"], [v * F0 for v in d["min_drive_f0"]])
     seen.update({("rop_mm_per_period",), ("rop_m_per_h",), ("min_drive_n",)})
     best = d["best_valid_cell"]
@@ -143,7 +150,7 @@ def test_map_json_si_fields(capsys):
 
 
 def test_optimize_json_si_fields(capsys):
-    code, out, err = run_cli(["optimize", "--preset", "paper-fig12", *SCALES, "--bounds", "frequency=1.0:2.0",
+    code, out, err = run_cli(["optimize", "--preset", "paper-fig9", *SCALES, "--bounds", "frequency=1.0:2.0",
                               "--grid", "3", "--periods", "20", "--workers", "1", "--json"], capsys)
     assert code == 0, err
     d = json.loads(out)
