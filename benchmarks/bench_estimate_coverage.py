@@ -153,9 +153,10 @@ def run(quick: bool = False, *, verbose: bool = True) -> dict:
         summary_row(f"exit-0 runs (estimate within tol/3, tol {tol:g}) within tol of the truth",
                     f"{len(held)}/{len(exit0)}", goal="all", met=len(held) == len(exit0), command=cmd)]
     result = {"benchmark": NAME, "quick": quick, "command": cmd, "scenes": n, "tol": tol,
-              "truth_step_s": TRUTH_STEP, "true_floor": TRUE_FLOOR, "amplitude": amp, "penetration": pen, "by_mode": by_mode,
-              "exit0_runs": len(exit0), "exit0_within_tol": len(held),
-              "unclaimed_runs": sum(not r["claimed"] for r in rows), "failed_runs": failed, "wall_time_s": time.perf_counter() - t0,
+              "truth_step_s": TRUTH_STEP, "true_floor": TRUE_FLOOR, "amplitude": amp, "penetration": pen,
+              "by_mode": by_mode, "exit0_runs": len(exit0), "exit0_within_tol": len(held),
+              "unclaimed_runs": sum(not r["claimed"] for r in rows), "failed_runs": failed,
+              "wall_time_s": time.perf_counter() - t0,
               "runs": rows, "summary": summary}
     save_result(NAME, result)
     return result

@@ -69,8 +69,8 @@ from .bifurcation import SECONDS_PER_PERIOD
 from .executor import Executor, ExecutorOptions
 
 __all__ = ["Axis", "CELL_DTYPE", "MapCell", "run_cell", "cell_figures", "regime_map", "map_to_json", "axis_unit",
-           "best_valid_cell", "eligible_cells", "FLAG_FIELDS", "DOMAIN_FIELDS", "STATUS_OK", "STATUS_SOLVER", "STATUS_INVALID",
-           "map_chunk"]
+           "best_valid_cell", "eligible_cells", "FLAG_FIELDS", "DOMAIN_FIELDS", "STATUS_OK", "STATUS_SOLVER",
+           "STATUS_INVALID", "map_chunk"]
 
 STATUS_OK, STATUS_SOLVER, STATUS_INVALID = 0, 1, 2
 
