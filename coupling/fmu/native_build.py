@@ -29,7 +29,7 @@ import zipfile
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
-from hammerbit.fmu.native import SOURCE_DIR, FrontBuildError, c_string, find_compiler, generate_header, \
+from hammerbit.fmu.native import FRONT_SOURCES, SOURCE_DIR, FrontBuildError, c_string, find_compiler, generate_header, \
     read_model_description
 from hammerbit.fmu.native_kernels import TARGETS, ALLOWED_UNDEFINED, build_objects, undefined_symbols
 
@@ -42,7 +42,8 @@ NATIVE_GENERATION_TOOL = "hammerbit fmu build --runtime native"
 #: the cross-compiler of the win64 binary (Debian package gcc-mingw-w64-x86-64)
 MINGW_CC = "x86_64-w64-mingw32-gcc"
 #: C sources of the native flavour (front, resource URIs, model backend, runtime shim)
-NATIVE_SOURCES = tuple(SOURCE_DIR / f for f in ("front.c", "resource_uri.c", "model_native.c",
+NATIVE_SOURCES = tuple(SOURCE_DIR / f for f in (*FRONT_SOURCES, "model_backend.c", "model_common.c",
+                                                "model_native.c", "model_params.c", "model_checks.c",
                                                 "model_values.c", "model_me.c", "model_state.c",
                                                 "real_repr.c", "nrt_shim.c"))
 _GROUP_NAMES = ("rho", "xi", "eta", "a", "b", "r", "mu", "gamma_hat", "kc", "n", "lam_hat", "phi")
