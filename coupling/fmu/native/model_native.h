@@ -38,6 +38,7 @@ typedef struct {
     hb_range range;
 } hb_group;
 
+#include "hb_description.h"
 #include "hb_native.h"
 
 /* ------------------------------------------------------------------------------------------ */

@@ -9,8 +9,6 @@
 #include "kernel_api.h"
 #include "model_native.h"
 
-#define TWO_PI 6.283185307179586   /* 2.0 * math.pi, as Python rounds it */
-
 /* ------------------------------------------------------------------------------------------ */
 /* Parameters -> kernel arrays (RigParameters -> Groups -> Stepper, as the slave's _commit)     */
 /* ------------------------------------------------------------------------------------------ */
@@ -23,11 +21,12 @@ int hb_commit(model_state *s, const double *v, int impact, int keep, char *err, 
         if (hb_range_error(HB_STORED[other[i]].name, v[other[i]], &HB_STORED[other[i]].range, err, n))
             return 0;
     double gap = impact ? v[HBS_gap] : INFINITY;
-    for (size_t i = 0; i < HB_NRIG; i++) {
+    double si[HB_N_SI];   /* the rig parameters of the formulas (hb_description.h) */
+    for (size_t i = 0; i < HB_N_SI; i++) {
         int k = HB_RIG_ORDER[i];
-        double x = k == HBS_gap ? gap : k < 0 ? 0.0 : v[k];   /* k < 0: preload (an input) */
+        si[i] = k == HBS_gap ? gap : k < 0 ? 0.0 : v[k];   /* k < 0: preload (an input, 0 here) */
         const hb_range *r = k < 0 ? &HB_RANGE_PRELOAD : &HB_STORED[k].range;
-        if (hb_range_error(k < 0 ? "preload" : HB_STORED[k].name, x, r, err, n)) return 0;
+        if (hb_range_error(k < 0 ? "preload" : HB_STORED[k].name, si[i], r, err, n)) return 0;
     }
     if (v[HBS_mu_kinetic] > v[HBS_mu_static]) {
         char rv[40], ms[40];
@@ -37,30 +36,17 @@ int hb_commit(model_state *s, const double *v, int impact, int keep, char *err, 
                  "kinetic friction above static", rv, ms);
         return 0;
     }
-    /* Scales and RigParameters.to_groups */
-    double m1 = v[HBS_hammer_mass], K = v[HBS_stiffness];
-    double F0 = v[HBS_mu_static] * v[HBS_normal_force];
-    double Om = sqrt(K / m1), x0 = F0 / K;
-    double g[HB_NGROUPS];
-    g[0] = v[HBS_bit_mass] / m1;                                         /* rho */
-    g[1] = v[HBS_damping] / (2.0 * sqrt(K * m1));                        /* xi */
-    g[2] = TWO_PI * v[HBS_frequency] / Om;                               /* eta */
-    g[3] = v[HBS_amplitude] / F0;                                        /* a */
-    g[4] = 0.0 / F0;                                                     /* b: an input */
-    g[5] = gap / x0;                                                     /* r */
-    g[6] = v[HBS_mu_kinetic] / v[HBS_mu_static];                         /* mu */
-    g[7] = v[HBS_friction_decay] * x0 * Om;                              /* gamma_hat */
-    g[8] = v[HBS_contact_stiffness] * pow(x0, v[HBS_contact_exponent]) / F0;   /* kc */
-    g[9] = v[HBS_contact_exponent];                                      /* n */
-    g[10] = v[HBS_contact_damping] * x0 * Om;                            /* lam_hat */
-    g[11] = v[HBS_phase];                                                /* phi */
+    /* Scales and RigParameters.to_groups: the description's formulas */
+    double sc[HB_N_SCALES], g[HB_NGROUPS];
+    hb_si_to_groups(si, sc, g);
+    double F0 = sc[HB_SC_F0], Om = sc[HB_SC_Omega], x0 = sc[HB_SC_x0];
     for (int i = 0; i < HB_NGROUPS; i++)
         if (hb_range_error(HB_GROUPS[i].name, g[i], &HB_GROUPS[i].range, err, n)) return 0;
     if (s->t_start != 0.0) {
         /* absolute-time forcing on the kernel's clock tau = Omega (t - t_start) */
-        double omega_f = TWO_PI * v[HBS_frequency];
-        g[11] = fmod(v[HBS_phase] + omega_f * s->t_start, TWO_PI);
-        if (hb_range_error("phi", g[11], &HB_GROUPS[11].range, err, n)) return 0;
+        double omega_f = HB_TWO_PI * v[HBS_frequency];
+        g[HB_G_phi] = fmod(v[HBS_phase] + omega_f * s->t_start, HB_TWO_PI);
+        if (hb_range_error("phi", g[HB_G_phi], &HB_GROUPS[HB_G_phi].range, err, n)) return 0;
     }
     double y0[4] = {v[HBS_initial_hammer_position] / x0, 0.0, v[HBS_initial_bit_position] / x0, 0.0};
     if (hb_range_error("y0[0] (hammer position x1)", y0[0], &HB_RANGE_STATE_POSITION, err, n) ||
@@ -73,26 +59,15 @@ int hb_commit(model_state *s, const double *v, int impact, int keep, char *err, 
     /* Groups.to_kernel and the Stepper's arrays */
     double *p = s->p;
     if (!keep) {
-        p[HBK_P_RHO] = g[0];
-        p[HBK_P_XI] = g[1];
-        p[HBK_P_ETA] = g[2];
-        p[HBK_P_A] = g[3];
-        p[HBK_P_B] = g[4];
-        p[HBK_P_R] = g[5];
-        p[HBK_P_MU] = g[6];
-        p[HBK_P_GAMMA] = g[7];
-        p[HBK_P_KC] = g[8];
-        p[HBK_P_N] = g[9];
-        p[HBK_P_LAM] = g[10];
-        p[HBK_P_PHI] = g[11];
+        for (int i = 0; i < HB_NGROUPS; i++) p[HB_GROUP_SLOT[i]] = g[i];
         p[HBK_P_FEXT] = 0.0;
-        p[HBK_P_CONTACT] = (isfinite(g[5]) && g[8] > 0.0) ? 1.0 : 0.0;
+        p[HBK_P_CONTACT] = (isfinite(g[HB_G_r]) && g[HB_G_kc] > 0.0) ? 1.0 : 0.0;
         memset(s->y, 0, sizeof s->y);
         memset(s->ist, 0, sizeof s->ist);
         memset(s->fst, 0, sizeof s->fst);
         memcpy(s->y, y0, sizeof y0);
     }
-    double period = TWO_PI / g[2];
+    double period = HB_TWO_PI / g[HB_G_eta];
     if (!keep) s->fst[HBK_F_H] = fmin(0.01 * period, HB_SOLVER_MAX_STEP);
     double *o = s->opts;
     memset(o, 0, sizeof s->opts);

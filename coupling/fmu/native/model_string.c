@@ -71,9 +71,9 @@ static int check_parameters(const sstate *s, char *out, size_t n) {
         snprintf(out, n, "parameter 'extrapolation' = %d is out of range: allowed 0, 1, 2", s->extrapolation);
         return 0;
     }
-    if (s->top_condition < 0 || s->top_condition > 2) {
-        snprintf(out, n, "parameter 'top_condition' = %d is out of range: allowed 0 (fixed), 1 (feed), "
-                 "2 (auto-driller)", s->top_condition);
+    if (s->top_condition < 0 || s->top_condition >= HB_N_TOP_CONDITIONS) {
+        snprintf(out, n, "parameter 'top_condition' = %d is out of range: allowed " HB_TOP_CONDITIONS_TEXT,
+                 s->top_condition);
         return 0;
     }
     hb_repr(s->feed_velocity, r, sizeof r);
@@ -81,9 +81,9 @@ static int check_parameters(const sstate *s, char *out, size_t n) {
         snprintf(out, n, "parameter 'feed_velocity' = %s is out of range: allowed %s", r, HS_FEED_RANGE_TEXT);
         return 0;
     }
-    if (s->feed_velocity != 0.0 && s->top_condition != TOP_FEED) {
-        snprintf(out, n, "parameter 'feed_velocity' = %s: only top_condition = 1 (feed) takes a feed "
-                 "velocity; allowed 0 with top_condition = %d", r, s->top_condition);
+    if (s->feed_velocity != 0.0 && !HB_TOP_TAKES_FEED[s->top_condition]) {
+        snprintf(out, n, "parameter 'feed_velocity' = %s: only top_condition = " HB_TOP_FEED_TEXT " takes "
+                 "a feed velocity; allowed 0 with top_condition = %d", r, s->top_condition);
         return 0;
     }
     const char *gn[2] = {"proportional_gain", "integral_gain"};
@@ -94,9 +94,9 @@ static int check_parameters(const sstate *s, char *out, size_t n) {
             snprintf(out, n, "parameter '%s' = %s is out of range: allowed [0, %g]", gn[i], r, HS_MAX_GAIN);
             return 0;
         }
-    if (s->top_condition == TOP_AUTO && !HS_HAS_AUTO) {
+    if (HB_TOP_FORM[s->top_condition] == HB_FORM_AUTO && !HS_HAS_AUTO) {
         snprintf(out, n, "parameter 'top_condition' = %d: this string has no auto-driller (%s); allowed "
-                 "0 (fixed), 1 (feed)", s->top_condition, HS_AUTO_REFUSED);
+                 HB_TOP_NOT_AUTO_TEXT, s->top_condition, HS_AUTO_REFUSED);
         return 0;
     }
     /* the native flavour: the matrices are those of the build's values */
@@ -108,7 +108,7 @@ static int check_parameters(const sstate *s, char *out, size_t n) {
                  "in the string's file, or use the Python flavour, which recomputes them)", r, r2);
         return 0;
     }
-    for (int i = 0; s->top_condition == TOP_AUTO && i < 2; i++)
+    for (int i = 0; HB_TOP_FORM[s->top_condition] == HB_FORM_AUTO && i < 2; i++)
         if (gv[i] != gb[i]) {
             hb_repr(gv[i], r, sizeof r);
             hb_repr(gb[i], r2, sizeof r2);
@@ -221,13 +221,13 @@ static fmi2Status s_exit_init(fmi2Component c) {
         snprintf(s->error, sizeof s->error, "initialisation failed: %s", bad);
         return FAIL(m, "%s", s->error);
     }
-    s->form = s->top_condition == TOP_AUTO ? 1 : 0;
+    s->form = HB_TOP_FORM[s->top_condition];
     const block *b = hs_any_block(&m->tab, s->form);
     s->n = b->n;
     s->modal = b->modal;
     s->W = s->wob;
     s->hook_eq = HS_BUOYED_WEIGHT - s->W;
-    double feed = s->top_condition == TOP_FEED ? s->feed_velocity : 0.0;
+    double feed = HB_TOP_TAKES_FEED[s->top_condition] ? s->feed_velocity : 0.0;
     s->feed[0] = feed;
     s->feed[1] = s->t_start;
     s->k3[0] = HS_INTERFACE_STIFFNESS;

@@ -12,17 +12,17 @@
 
 #include "front.h"
 #include "model.h"
+#include "hb_description.h"
 #include "hs_string.h"
 
-#define N_COEFFS 6
-#define N_ROWS 5                 /* bottom u, v, top tension, top position, top velocity */
-#define ROW_HOOK 2
-#define ROW_TOP_U 3
-#define ROW_TOP_V 4
-#define TOP_FEED 1
-#define TOP_AUTO 2
+/* the exact step's sizes and output rows, from the Python side (hs_string.h) */
+#define N_COEFFS HS_N_COEFFS
+#define N_ROWS HS_N_ROWS
+#define ROW_HOOK HS_ROW_HOOK_TENSION
+#define ROW_TOP_U HS_ROW_TOP_POSITION
+#define ROW_TOP_V HS_ROW_TOP_VELOCITY
 #define STATE_MAGIC 0x48425331u  /* "HBS1": layout version of the string model state */
-#define DATA_MAGIC "HBSTRN01"
+#define DATA_MAGIC HS_DATA_MAGIC
 
 /* ------------------------------------------------------------------------------------------ */
 /* The exact step of one form over one step length, as read from the resources                 */
