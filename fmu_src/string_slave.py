@@ -43,7 +43,8 @@ from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Initial, Fmi2Slave, 
     Real
 from pythonfmu.enums import Fmi2Status
 
-from .string_model import TOP_CONDITIONS, form_of, load_model, string_matrices
+from .fmu_description import TOP_CONDITIONS, top_condition, top_conditions_text
+from .string_model import OUTPUT_ROWS, form_of, load_model, string_matrices
 from .numba_dispatch import entry_point
 from .string_kernels import (EXCHANGE_HELD, HAMMER_ARG, DenseForm, ExchangeHistory, ExchangeScheme, HammerStep,
                              Interface, ModalForm, exchange_kernel)
@@ -58,7 +59,7 @@ MAX_FEED = 1000.0 / 3600.0
 #: largest auto-driller gain accepted (SI: m/s per N, m/s per N s), as the library's
 MAX_GAIN = 1.0
 #: rows of the string side's outputs
-ROW_HOOK, ROW_TOP_U, ROW_TOP_V = 2, 3, 4
+ROW_HOOK, ROW_TOP_U, ROW_TOP_V = (OUTPUT_ROWS.index(r) for r in ("hook_tension", "top_position", "top_velocity"))
 #: the extrapolation orders of the hammer motion and the held force
 ORDERS = (0, 1, 2)
 #: relative tolerance on the communication point (a master computing t0 + n h is fine)
@@ -186,14 +187,15 @@ class Drillstring(Fmi2Slave):
         if int(self.extrapolation) not in ORDERS:
             return f"parameter 'extrapolation' = {self.extrapolation!r} is out of range: allowed 0, 1, 2"
         if not 0 <= int(self.top_condition) < len(TOP_CONDITIONS):
-            return (f"parameter 'top_condition' = {self.top_condition!r} is out of range: allowed 0 (fixed), "
-                    f"1 (feed), 2 (auto-driller)")
+            return (f"parameter 'top_condition' = {self.top_condition!r} is out of range: allowed "
+                    f"{top_conditions_text()}")
         v = float(self.feed_velocity)
         if not (math.isfinite(v) and abs(v) <= MAX_FEED):
             return (f"parameter 'feed_velocity' = {self.feed_velocity!r} is out of range: allowed "
                     f"[-{MAX_FEED:.4g}, {MAX_FEED:.4g}] m/s (1000 m/h)")
-        if v != 0.0 and TOP_CONDITIONS[int(self.top_condition)] != "feed":
-            return (f"parameter 'feed_velocity' = {self.feed_velocity!r}: only top_condition = 1 (feed) takes "
+        if v != 0.0 and not top_condition(int(self.top_condition)).takes_feed:
+            feeds = top_conditions_text([t for t in TOP_CONDITIONS if t.takes_feed])
+            return (f"parameter 'feed_velocity' = {self.feed_velocity!r}: only top_condition = {feeds} takes "
                     f"a feed velocity; allowed 0 with top_condition = {int(self.top_condition)}")
         for name in ("proportional_gain", "integral_gain"):
             g = float(getattr(self, name))
@@ -201,7 +203,8 @@ class Drillstring(Fmi2Slave):
                 return f"parameter {name!r} = {getattr(self, name)!r} is out of range: allowed [0, {MAX_GAIN:g}]"
         if form_of(self.top_condition) not in self._arrays["forms"]:
             return (f"parameter 'top_condition' = {self.top_condition!r}: this string has no auto-driller "
-                    f"({self._info.get('auto_driller_refused')}); allowed 0 (fixed), 1 (feed)")
+                    f"({self._info.get('auto_driller_refused')}); allowed "
+                    f"{top_conditions_text([t for t in TOP_CONDITIONS if t.form != 'auto'])}")
         return None
 
     # -- life cycle ----------------------------------------------------------------
@@ -222,7 +225,7 @@ class Drillstring(Fmi2Slave):
         sc = self._info["scalars"]
         self._W = float(self.wob)
         self._hook_eq = sc["buoyed_weight"] - self._W
-        feed = float(self.feed_velocity) if TOP_CONDITIONS[int(self.top_condition)] == "feed" else 0.0
+        feed = float(self.feed_velocity) if top_condition(int(self.top_condition)).takes_feed else 0.0
         self._side = ExactStep(A1, E, frow, sc["interface_stiffness"], sc["interface_damping"], rows,
                                self._hook_eq, feed=(feed, self._t_start))
         self._order = int(self.extrapolation)

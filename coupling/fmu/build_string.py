@@ -92,8 +92,9 @@ def _source_text(string_arg) -> str:
 
 
 def _rows(m, n_string: int, cv_fixed) -> np.ndarray:
-    """Output rows of side matrices ``m``: bottom u, v, top tension, top position, top velocity
-    (the block's state and ``v_top = g . X`` for the auto-driller; zero rows otherwise)."""
+    """Output rows of side matrices ``m``, in the order of ``string_model.OUTPUT_ROWS``: bottom u, v,
+    top tension, top position, top velocity (the block's state and ``v_top = g . X`` for the
+    auto-driller; zero rows otherwise)."""
     n = m.A1.shape[0]
     top_u, top_v = np.zeros(n), np.zeros(n)
     if n > n_string:
@@ -127,7 +128,7 @@ def string_build(string_arg, *, wob: Optional[float] = None, rig=None, top=None,
     from hammerbit.drillstring import DrillStringError, load_string, state_space
     from hammerbit.drillstring.boundary import Boundary
     from hammerbit.drillstring.top import TopCondition, top_matrices
-    from hammerbit.model.string_model import TOP_CONDITIONS
+    from hammerbit.model.fmu_description import top_condition
     string = string_arg if not isinstance(string_arg, (str, Path)) else load_string(string_arg)
     rig = default_hammer(string) if rig is None else rig
     top = TopCondition.fixed() if top is None else top
@@ -180,7 +181,7 @@ def string_build(string_arg, *, wob: Optional[float] = None, rig=None, top=None,
     sections = "; ".join(f"{s.name or 'section'} {s.length:g} m x {s.od * 1e3:g} mm" for s in string.sections)
     info = {"name": string.name, "length_m": length, "sections": sections, "scalars": scalars,
             "hammer_position_at_rest": W / rig.stiffness,
-            "top_condition": TOP_CONDITIONS.index(top.kind), "feed_velocity": float(top.feed_velocity),
+            "top_condition": top_condition(top.kind).code, "feed_velocity": float(top.feed_velocity),
             "proportional_gain": build_values["proportional_gain"],
             "integral_gain": build_values["integral_gain"],
             "auto_driller": None if gains is None else gains.to_dict(), "auto_driller_refused": refused,

@@ -43,9 +43,10 @@ DEFAULT_STEPS = (1e-3,)
 
 
 def _sources():
-    from hammerbit.fmu.native import SOURCE_DIR
-    return tuple(SOURCE_DIR / f for f in ("front.c", "resource_uri.c", "model_string.c",
-                                          "model_string_access.c", "real_repr.c", "nrt_shim.c"))
+    from hammerbit.fmu.native import FRONT_SOURCES, SOURCE_DIR
+    return tuple(SOURCE_DIR / f for f in (*FRONT_SOURCES, "model_backend.c", "model_common.c", "model_string.c",
+                                          "model_string_table.c", "model_string_access.c", "real_repr.c",
+                                          "nrt_shim.c"))
 
 
 #: C sources of the native string FMU (front, resource URIs, string backend, repr, runtime shim)
@@ -107,6 +108,8 @@ def _c_ident(name: str) -> str:
 
 def string_header(md_xml: bytes, build, steps) -> str:
     """Text of ``hs_string.h``: value references, start and build values, ranges, constants."""
+    from hammerbit.model.string_kernels import N_COEFFS
+    from hammerbit.model.string_model import OUTPUT_ROWS
     from hammerbit.model.string_slave import INPUT_LIMIT, MAX_FEED, MAX_GAIN, TIME_TOLERANCE
     root = ET.fromstring(md_xml)
     vrs = {sv.get("name"): int(sv.get("valueReference")) for sv in root.find("ModelVariables")}
@@ -137,7 +140,11 @@ def string_header(md_xml: bytes, build, steps) -> str:
               f"#define HS_POSITION_RANGE_TEXT {_c_str(f'[-{INPUT_LIMIT:g}, {INPUT_LIMIT:g}] m')}",
               f"#define HS_FEED_RANGE_TEXT {_c_str(f'[-{MAX_FEED:.4g}, {MAX_FEED:.4g}] m/s (1000 m/h)')}",
               f"#define HS_STEPS_TEXT {_c_str(', '.join(f'{h:g} s' for h in steps))}",
-              f"#define HS_DATA_FILE {_c_str(DATA_FILE)}", ""]
+              f"#define HS_DATA_FILE {_c_str(DATA_FILE)}",
+              f"#define HS_DATA_MAGIC {_c_str(_DATA_MAGIC.decode('ascii'))}",
+              f"#define HS_N_COEFFS {N_COEFFS}",
+              f"#define HS_N_ROWS {len(OUTPUT_ROWS)}"]
+    lines += [f"#define HS_ROW_{_c_ident(r).upper()} {i}" for i, r in enumerate(OUTPUT_ROWS)] + [""]
     return "\n".join(lines)
 
 
@@ -161,6 +168,7 @@ def build_native_string_fmu(string_arg, out=None, *, steps=None, build=None, log
     ``steps``: the communication step sizes [s] it carries (default :data:`DEFAULT_STEPS`);
     ``kw`` go to :func:`~hammerbit.fmu.build_string.string_build`."""
     from hammerbit.fmu.build_string import MODEL_NAME, build_string_fmu, string_build, string_fmu_path
+    from hammerbit.fmu.c_description import write_description_header
     from hammerbit.fmu.native import generate_header, read_model_description
     from hammerbit.fmu.native_build import TARGETS, link_binary, select_platforms
     from hammerbit.fmu.native_build import find_compiler, MINGW_CC
@@ -182,6 +190,7 @@ def build_native_string_fmu(string_arg, out=None, *, steps=None, build=None, log
         write_tables(tmp / DATA_FILE, string_tables(build, steps))
         spec = read_model_description(md)
         (tmp / "hb_model.h").write_text(generate_header(spec, wrapper_file="", python_modules=()))
+        write_description_header(tmp)
         (tmp / "hs_string.h").write_text(string_header(md, build, steps))
         platforms = select_platforms(log)
         build_objects(tmp, platforms, kernels="string")

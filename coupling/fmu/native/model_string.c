@@ -13,90 +13,16 @@
  * need an eigendecomposition and a matrix exponential, done at build time.  So the parameters
  * they depend on (damping_ratio, and the auto-driller's gains) keep their build values here. */
 #include <math.h>
-#include <stdarg.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "model.h"
 #include "model_string.h"
 #include "string_api.h"
 
-static int read_doubles(FILE *f, double *p, size_t k) { return fread(p, sizeof(double), k, f) == k; }
-
-/* the table from <resources>/string_native.bin; 1, or 0 with the reason in err */
-static int load_table(const char *dir, table *t, char *err, size_t en) {
-    char path[4200];
-    snprintf(path, sizeof path, "%s/%s", dir, HS_DATA_FILE);
-    FILE *f = fopen(path, "rb");
-    if (!f) {
-        snprintf(err, en, "cannot open %s", path);
-        return 0;
-    }
-    char magic[8];
-    int64_t hdr[2];
-    memset(t, 0, sizeof *t);
-    int ok = fread(magic, 1, 8, f) == 8 && memcmp(magic, DATA_MAGIC, 8) == 0 &&
-             fread(hdr, sizeof(int64_t), 2, f) == 2 && hdr[0] > 0 && hdr[0] < 1000 && hdr[1] > 0;
-    if (ok) {
-        t->nblocks = hdr[0];
-        size_t total = (size_t)hdr[1];
-        t->b = calloc((size_t)t->nblocks, sizeof *t->b);
-        t->mem = malloc(total * sizeof(double));
-        ok = t->b && t->mem && read_doubles(f, t->mem, total);
-        double *p = t->mem, *end = t->mem + total;
-        for (int64_t i = 0; ok && i < t->nblocks; i++) {
-            block *b = &t->b[i];
-            if (end - p < 4) { ok = 0; break; }
-            b->form = (int64_t)p[0];
-            b->h = p[1];
-            b->modal = (int64_t)p[2];
-            b->n = (int64_t)p[3];
-            p += 4;
-            int64_t n = b->n;
-            size_t need = b->modal ? (size_t)(2 * n + 2 * N_ROWS * n + 2 * n + 2 * n * N_COEFFS + 2 * n +
-                                              N_COEFFS)
-                                   : (size_t)(n + N_ROWS * n + (n + 1) * (n + N_COEFFS));
-            if (n <= 0 || (size_t)(end - p) < need) { ok = 0; break; }
-            if (n > t->nmax) t->nmax = n;
-            if (b->modal) {
-                b->frow_c = (double _Complex *)p; p += 2 * n;
-                b->rows_c = (double _Complex *)p; p += 2 * N_ROWS * n;
-                b->d = (double _Complex *)p; p += 2 * n;
-                b->G = (double _Complex *)p; p += 2 * n * N_COEFFS;
-                b->irow = (double _Complex *)p; p += 2 * n;
-                memcpy(b->icol, p, sizeof b->icol); p += N_COEFFS;
-            } else {
-                b->frow_r = p; p += n;
-                b->rows_r = p; p += N_ROWS * n;
-                b->P = p; p += (n + 1) * (n + N_COEFFS);
-            }
-        }
-        ok = ok && p == end;
-    }
-    fclose(f);
-    if (!ok) {
-        free(t->b);
-        free(t->mem);
-        memset(t, 0, sizeof *t);
-        snprintf(err, en, "%s is corrupt or of another build", path);
-    }
-    return ok;
-}
-
 static size_t state_size(const table *t) { return sizeof(sstate) + 2 * (size_t)t->nmax * sizeof(double); }
-
-void hs_log(model *m, fmi2Status st, const char *fmt, ...) {
-    if (!m->cb.logger) return;
-    char msg[2048];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(msg, sizeof msg, fmt, ap);
-    va_end(ap);
-    const char *cat = st == fmi2OK ? "logAll" : st == fmi2Warning ? "logStatusWarning"
-                      : st == fmi2Discard ? "logStatusDiscard" : "logStatusError";
-    m->cb.logger(m->cb.componentEnvironment, m->name, st, cat, msg);
-}
 
 static void set_start_values(model *m) {
     sstate *s = m->s;
@@ -145,9 +71,9 @@ static int check_parameters(const sstate *s, char *out, size_t n) {
         snprintf(out, n, "parameter 'extrapolation' = %d is out of range: allowed 0, 1, 2", s->extrapolation);
         return 0;
     }
-    if (s->top_condition < 0 || s->top_condition > 2) {
-        snprintf(out, n, "parameter 'top_condition' = %d is out of range: allowed 0 (fixed), 1 (feed), "
-                 "2 (auto-driller)", s->top_condition);
+    if (s->top_condition < 0 || s->top_condition >= HB_N_TOP_CONDITIONS) {
+        snprintf(out, n, "parameter 'top_condition' = %d is out of range: allowed " HB_TOP_CONDITIONS_TEXT,
+                 s->top_condition);
         return 0;
     }
     hb_repr(s->feed_velocity, r, sizeof r);
@@ -155,9 +81,9 @@ static int check_parameters(const sstate *s, char *out, size_t n) {
         snprintf(out, n, "parameter 'feed_velocity' = %s is out of range: allowed %s", r, HS_FEED_RANGE_TEXT);
         return 0;
     }
-    if (s->feed_velocity != 0.0 && s->top_condition != TOP_FEED) {
-        snprintf(out, n, "parameter 'feed_velocity' = %s: only top_condition = 1 (feed) takes a feed "
-                 "velocity; allowed 0 with top_condition = %d", r, s->top_condition);
+    if (s->feed_velocity != 0.0 && !HB_TOP_TAKES_FEED[s->top_condition]) {
+        snprintf(out, n, "parameter 'feed_velocity' = %s: only top_condition = " HB_TOP_FEED_TEXT " takes "
+                 "a feed velocity; allowed 0 with top_condition = %d", r, s->top_condition);
         return 0;
     }
     const char *gn[2] = {"proportional_gain", "integral_gain"};
@@ -168,9 +94,9 @@ static int check_parameters(const sstate *s, char *out, size_t n) {
             snprintf(out, n, "parameter '%s' = %s is out of range: allowed [0, %g]", gn[i], r, HS_MAX_GAIN);
             return 0;
         }
-    if (s->top_condition == TOP_AUTO && !HS_HAS_AUTO) {
+    if (HB_TOP_FORM[s->top_condition] == HB_FORM_AUTO && !HS_HAS_AUTO) {
         snprintf(out, n, "parameter 'top_condition' = %d: this string has no auto-driller (%s); allowed "
-                 "0 (fixed), 1 (feed)", s->top_condition, HS_AUTO_REFUSED);
+                 HB_TOP_NOT_AUTO_TEXT, s->top_condition, HS_AUTO_REFUSED);
         return 0;
     }
     /* the native flavour: the matrices are those of the build's values */
@@ -182,7 +108,7 @@ static int check_parameters(const sstate *s, char *out, size_t n) {
                  "in the string's file, or use the Python flavour, which recomputes them)", r, r2);
         return 0;
     }
-    for (int i = 0; s->top_condition == TOP_AUTO && i < 2; i++)
+    for (int i = 0; HB_TOP_FORM[s->top_condition] == HB_FORM_AUTO && i < 2; i++)
         if (gv[i] != gb[i]) {
             hb_repr(gv[i], r, sizeof r);
             hb_repr(gb[i], r2, sizeof r2);
@@ -203,12 +129,6 @@ static const block *find_block(const table *t, int64_t form, double h) {
     double k = strtod(key, NULL);
     for (int64_t i = 0; i < t->nblocks; i++)
         if (t->b[i].form == form && t->b[i].h == k) return &t->b[i];
-    return NULL;
-}
-
-const block *hs_any_block(const table *t, int64_t form) {
-    for (int64_t i = 0; i < t->nblocks; i++)
-        if (t->b[i].form == form) return &t->b[i];
     return NULL;
 }
 
@@ -249,18 +169,13 @@ static fmi2Component s_instantiate(fmi2String name, fmi2Type type, fmi2String gu
                                    const fmi2CallbackFunctions *cb, fmi2Boolean visible,
                                    fmi2Boolean logging) {
     (void)type, (void)guid, (void)visible, (void)logging;
-    model *m = calloc(1, sizeof *m);
-    if (!m || !(m->name = strdup(name))) {
-        free(m);
-        return NULL;
-    }
-    m->cb = *cb;
+    model *m = hb_model_new(sizeof *m, name, cb);
+    if (!m) return NULL;
     char err[4400];
     const char *dir = strncmp(uri, "file://", 7) == 0 ? uri + 7 : uri;   /* the front's plain path */
-    if (!load_table(dir, &m->tab, err, sizeof err)) {
+    if (!hs_load_table(dir, &m->tab, err, sizeof err)) {
         hs_log(m, fmi2Error, "fmi2Instantiate: the string's matrices: %s", err);
-        free(m->name);
-        free(m);
+        hb_model_free(m);
         return NULL;
     }
     m->size = state_size(&m->tab);
@@ -269,8 +184,8 @@ static fmi2Component s_instantiate(fmi2String name, fmi2Type type, fmi2String gu
     m->tmp = calloc((size_t)m->tab.nmax + 1, sizeof(double));
     if (!m->s || !m->buf || !m->tmp) {
         hs_log(m, fmi2Error, "fmi2Instantiate: out of memory");
-        free(m->s), free(m->buf), free(m->tmp), free(m->tab.b), free(m->tab.mem), free(m->name);
-        free(m);
+        free(m->s), free(m->buf), free(m->tmp), free(m->tab.b), free(m->tab.mem);
+        hb_model_free(m);
         return NULL;
     }
     set_start_values(m);
@@ -280,8 +195,8 @@ static fmi2Component s_instantiate(fmi2String name, fmi2Type type, fmi2String gu
 static void s_free_instance(fmi2Component c) {
     model *m = c;
     if (!m) return;
-    free(m->s), free(m->buf), free(m->tmp), free(m->tab.b), free(m->tab.mem), free(m->name);
-    free(m);
+    free(m->s), free(m->buf), free(m->tmp), free(m->tab.b), free(m->tab.mem);
+    hb_model_free(m);
 }
 
 static fmi2Status s_setup_experiment(fmi2Component c, fmi2Boolean tol_defined, fmi2Real tol,
@@ -306,13 +221,13 @@ static fmi2Status s_exit_init(fmi2Component c) {
         snprintf(s->error, sizeof s->error, "initialisation failed: %s", bad);
         return FAIL(m, "%s", s->error);
     }
-    s->form = s->top_condition == TOP_AUTO ? 1 : 0;
+    s->form = HB_TOP_FORM[s->top_condition];
     const block *b = hs_any_block(&m->tab, s->form);
     s->n = b->n;
     s->modal = b->modal;
     s->W = s->wob;
     s->hook_eq = HS_BUOYED_WEIGHT - s->W;
-    double feed = s->top_condition == TOP_FEED ? s->feed_velocity : 0.0;
+    double feed = HB_TOP_TAKES_FEED[s->top_condition] ? s->feed_velocity : 0.0;
     s->feed[0] = feed;
     s->feed[1] = s->t_start;
     s->k3[0] = HS_INTERFACE_STIFFNESS;
@@ -404,23 +319,17 @@ static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
     set_outputs(m);
     return fmi2OK;
 }
-
 /* ------------------------------------------------------------------------------------------ */
-/* The backend table for front.c                                                                */
+/* The model's functions for the backend table (model.h)                                        */
 /* ------------------------------------------------------------------------------------------ */
-hb_wrapper hb_W;
-
-int hb_backend_load(char *err, size_t n) {
-    (void)err, (void)n;
-    if (hb_W.Instantiate) return 1;
-    hb_W.FreeInstance = s_free_instance;
-    hb_W.SetupExperiment = s_setup_experiment;
-    hb_W.EnterInitializationMode = s_enter_init;
-    hb_W.ExitInitializationMode = s_exit_init;
-    hb_W.Terminate = s_terminate;
-    hb_W.Reset = s_reset;
-    hs_access_fill(&hb_W);
-    hb_W.DoStep = s_do_step;
-    hb_W.Instantiate = s_instantiate;
-    return 1;
+void hb_model_fill(hb_wrapper *w) {
+    w->FreeInstance = s_free_instance;
+    w->SetupExperiment = s_setup_experiment;
+    w->EnterInitializationMode = s_enter_init;
+    w->ExitInitializationMode = s_exit_init;
+    w->Terminate = s_terminate;
+    w->Reset = s_reset;
+    hs_access_fill(w);
+    w->DoStep = s_do_step;
+    w->Instantiate = s_instantiate;
 }

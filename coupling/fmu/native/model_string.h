@@ -1,5 +1,8 @@
-/* The native Drillstring backend (model_string.c, model_string_access.c): the exact step's
- * tables, the model state and what the two files share. */
+/* The native Drillstring model: the exact step's tables, the model state and what its files
+ * share:
+ *   model_string.c         life cycle, parameters, fmi2DoStep, hb_model_fill (model.h)
+ *   model_string_table.c   the tables read from the resources
+ *   model_string_access.c  fmi2Get*, fmi2Set*, FMU states */
 #ifndef HAMMERBIT_MODEL_STRING_H
 #define HAMMERBIT_MODEL_STRING_H
 
@@ -8,17 +11,18 @@
 #include <stdint.h>
 
 #include "front.h"
+#include "model.h"
+#include "hb_description.h"
 #include "hs_string.h"
 
-#define N_COEFFS 6
-#define N_ROWS 5                 /* bottom u, v, top tension, top position, top velocity */
-#define ROW_HOOK 2
-#define ROW_TOP_U 3
-#define ROW_TOP_V 4
-#define TOP_FEED 1
-#define TOP_AUTO 2
+/* the exact step's sizes and output rows, from the Python side (hs_string.h) */
+#define N_COEFFS HS_N_COEFFS
+#define N_ROWS HS_N_ROWS
+#define ROW_HOOK HS_ROW_HOOK_TENSION
+#define ROW_TOP_U HS_ROW_TOP_POSITION
+#define ROW_TOP_V HS_ROW_TOP_VELOCITY
 #define STATE_MAGIC 0x48425331u  /* "HBS1": layout version of the string model state */
-#define DATA_MAGIC "HBSTRN01"
+#define DATA_MAGIC HS_DATA_MAGIC
 
 /* ------------------------------------------------------------------------------------------ */
 /* The exact step of one form over one step length, as read from the resources                 */
@@ -57,17 +61,19 @@ typedef struct {
 } sstate;
 
 typedef struct {
-    char *name;
-    fmi2CallbackFunctions cb;
+    hb_model_base base;          /* name, callbacks (model.h) */
     table tab;
     double *buf, *tmp;           /* scratch of the dense step */
     size_t size;
     sstate *s;
 } model;
 
-/* log a message with a status through the front's logger */
-void hs_log(model *m, fmi2Status st, const char *fmt, ...);
+/* log a message with a status through the front's logger (model.h) */
+#define hs_log hb_model_log
 #define FAIL(m, ...) (hs_log((m), fmi2Error, __VA_ARGS__), fmi2Error)
+/* model_string_table.c: the table from <resources>/string_native.bin; 1, or 0 with the reason
+ * in err */
+int hs_load_table(const char *dir, table *t, char *err, size_t en);
 /* the first block of a form (its n and modal flag are those of every step size of the form) */
 const block *hs_any_block(const table *t, int64_t form);
 
