@@ -102,6 +102,7 @@ def _refuse_fixed_options(args) -> None:
 def cosim_ssp(args) -> int:
     """``hammerbit cosim --ssp PACKAGE``: the master on the package's system."""
     from hammerbit.cosim.error import StepResolutionError
+    from hammerbit.cli.cosim import warn_capacity, warn_regime
     from hammerbit.ssp.run import cosimulate_ssp, monolithic_ssp
     _refuse_fixed_options(args)
     if not Path(args.ssp).is_file():
@@ -130,6 +131,8 @@ def cosim_ssp(args) -> int:
     out = res.summary()
     out["total_time_s"] = time.perf_counter() - t0
     out["ssp"] = str(args.ssp)
+    warn_capacity(res.config)         # the package's set point is known once it is loaded
+    warn_regime(out)
     est = res.estimate
     out["meets_tolerance"] = None if est is None else est.meets_tolerance
     if args.out:

@@ -197,6 +197,10 @@ def cmd_map(args) -> int:
         first = json.loads(ds.attrs["errors"])[:1]
         print(f"hammerbit map: warning: {failed} cell(s) did not run (status 1/2, NaN values): "
               + (first[0] if first else ""), file=sys.stderr)
+    flagged = {f: int(ds[f].values.sum()) for f in FLAG_FIELDS if int(ds[f].values.sum())}
+    if flagged:
+        print("hammerbit map: warning: flagged cells (the regime verdict, docs/model.md): "
+              + ", ".join(f"{f} {k}" for f, k in flagged.items()), file=sys.stderr)
     if args.json:
         d = map_to_json(ds)
         d.update({"preset": args.preset, "out": args.out, "plot": args.plot})
@@ -283,6 +287,9 @@ def cmd_optimize(args) -> int:
         if args.json:
             print(_dump(out))
         raise RunFailure(msg)
+    if out["optimum"].get("regime_names"):
+        print("hammerbit optimize: warning: the optimum is flagged: " + ", ".join(out["optimum"]["regime_names"]),
+              file=sys.stderr)
     if args.confirm:
         if string is None:
             raise UsageError("--confirm needs --string")

@@ -48,7 +48,7 @@ from hammerbit.model.params import Groups
 from hammerbit.model.regime import (STALL_PERIODS, certificate_constants, friction_floor, regime,
                                     runaway_certified, slip_speed_limit)
 from hammerbit.model.regime_codes import (REGIME_BOUNCE, REGIME_RUNAWAY, REGIME_STALL, REGIME_TENSION,
-                                          REGIME_TRANSIENT, regime_names)
+                                          REGIME_TRANSIENT, regime_json, regime_names)
 
 from .analysis import PERIOD_MAX, PERIOD_TOL, period_n, relative_rows
 
@@ -70,11 +70,6 @@ N_SETTLING = 4
 
 #: The paper's static rules, by :class:`~hammerbit.model.params.Regime` field: the rule broken.
 DOMAIN_RULES = {"bounce": "a >= b", "overload": "a + b > 1", "runaway": "b > mu"}
-
-
-def regime_json(code: int) -> dict:
-    """The verdict in JSON: ``{"regime": code, "regime_names": [...]}`` (every face writes it so)."""
-    return {"regime": int(code), "regime_names": regime_names(code)}
 
 
 @njit(cache=True, nogil=True)
