@@ -102,7 +102,7 @@ def _refuse_fixed_options(args) -> None:
 def cosim_ssp(args) -> int:
     """``hammerbit cosim --ssp PACKAGE``: the master on the package's system."""
     from hammerbit.cosim.error import StepResolutionError
-    from hammerbit.cli.cosim import warn_capacity, warn_regime
+    from hammerbit.cosim.config import capacity_warning, cosim_warnings
     from hammerbit.ssp.run import cosimulate_ssp, monolithic_ssp
     _refuse_fixed_options(args)
     if not Path(args.ssp).is_file():
@@ -131,8 +131,10 @@ def cosim_ssp(args) -> int:
     out = res.summary()
     out["total_time_s"] = time.perf_counter() - t0
     out["ssp"] = str(args.ssp)
-    warn_capacity(res.config)         # the package's set point is known once it is loaded
-    warn_regime(out)
+    # the package's set point is known once it is loaded: its capacity warning comes with the verdict
+    for msg in [capacity_warning(res.config)] + cosim_warnings(out):
+        if msg:
+            print(f"hammerbit cosim: warning: {msg}", file=sys.stderr)
     est = res.estimate
     out["meets_tolerance"] = None if est is None else est.meets_tolerance
     if args.out:

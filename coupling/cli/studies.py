@@ -24,6 +24,7 @@ import sys
 import time
 
 from hammerbit.cli.common import RunFailure, UsageError, add_set_argument, parse_settings
+from hammerbit.model.regime_codes import REGIME_BITS, REGIME_TRANSIENT, regime_names
 
 __all__ = ["register", "cmd_bifurcation", "cmd_sweep", "cmd_map", "cmd_optimize"]
 
@@ -99,7 +100,9 @@ def cmd_bifurcation(args) -> int:
         res.to_csv(args.csv)
     summary = {"param": args.param, "num": args.num, "periods": args.periods,
                "wall_time_s": res.wall_time_s, "periods_per_second": res.periods_per_second,
-               "workers": res.workers, "out": args.out, "csv": args.csv, "period_n": list(res.periods)}
+               "workers": res.workers, "out": args.out, "csv": args.csv, "period_n": list(res.periods),
+               "regime": [int(c) for c in res.regime], "regime_names": [regime_names(c) for c in res.regime]}
+    _warn_flagged("bifurcation", summary["regime_names"], values)
     if args.json:
         print(_dump(summary))
     else:
@@ -107,6 +110,16 @@ def cmd_bifurcation(args) -> int:
               f"({res.periods_per_second:,.0f} periods/s, {res.workers} worker(s)); figure: {args.out}"
               + (f"; Poincaré points in SI (s, mm, m/s): {args.csv}" if args.csv else ""))
     return 0
+
+
+def _warn_flagged(command: str, names: list, values, unit: str = "") -> None:
+    """One stderr line per regime flag set somewhere in a study, with the values where it is."""
+    for flag in REGIME_BITS:
+        where = [float(v) for v, n in zip(values, names) if flag in n]
+        if where:
+            print(f"hammerbit {command}: warning: {flag} at {len(where)} value(s): "
+                  + ", ".join(f"{v:g}{unit}" for v in where[:8]) + (" ..." if len(where) > 8 else ""),
+                  file=sys.stderr)
 
 
 # ---------------------------------------------------------------------------
@@ -141,6 +154,7 @@ def cmd_sweep(args) -> int:
     in_band = [float(f) for f in modes if lo <= f <= hi]
     i_pk = int(np.argmax(res["wob_amplitude_n"]))
     unsettled = [float(r["frequency_hz"]) for r in res if not r["steady"]]
+    _warn_flagged("sweep", [regime_names(c & ~REGIME_TRANSIENT) for c in res["regime"]], freqs, unit=" Hz")
     out = {"string": string.name, "frequencies_hz": [float(f) for f in freqs],
            "duration_s": args.duration, "wall_time_s": time.perf_counter() - t0,
            "peak_frequency_hz": float(res["frequency_hz"][i_pk]),

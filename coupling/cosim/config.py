@@ -484,13 +484,13 @@ def _windows_grow(t: np.ndarray, x: np.ndarray, n: int) -> bool:
 def cosim_regime(result: "CosimResult") -> dict:
     """The regime verdict of a co-simulation from its recorded series (``docs/model.md``, "Regime verdict").
 
-    The bit is stuck at a sample where its recorded velocity is 0.  ``runaway``: no stuck sample over
+    The bit is stuck at a sample where the recorded ``stick`` is 1 (or, without it, its velocity is 0).  ``runaway``: no stuck sample over
     ``RUNAWAY_WINDOWS`` windows of at least ``MIN_WINDOW`` forcing periods at the end, the mean bit
     velocity growing over them (the fallback rule of the scenes), and the mean WOB above the friction
     floor; ``stall``: no slip for ``STALL_PERIODS`` forcing periods at the end while the mean WOB is at
     least ``STALL_WOB_FRACTION`` of its set point; ``bounce``: bounce violations counted; ``tension``:
     the WOB fell below zero; ``transient``: the last two quarters differ (:data:`COSIM_SETTLE_TOL`).
-    Needs ``bit_position``, ``bit_velocity`` and ``wob`` recorded; without them only ``bounce``.
+    Needs ``bit_position``, ``wob`` and ``stick`` or ``bit_velocity`` recorded; without them only ``bounce``.
     """
     from hammerbit.scene.flags import MIN_WINDOW, RUNAWAY_WINDOWS
     cfg = result.config
@@ -500,12 +500,14 @@ def cosim_regime(result: "CosimResult") -> dict:
            "sliding_capacity_n": sliding_capacity(cfg.rig.mu_kinetic, cfg.rig.normal_force),
            "wob_set_point_n": cfg.weight_on_bit}
     names = d.dtype.names
-    if len(d) < 8 or not all(k in names for k in ("bit_position", "bit_velocity", "wob")):
+    if len(d) < 8 or not all(k in names for k in ("bit_position", "wob")) or \
+            not ("stick" in names or "bit_velocity" in names):
         out["code"] = REGIME_BOUNCE if bounce else 0
         return out
-    t, x, v, wob = d["time"], d["bit_position"], d["bit_velocity"], d["wob"]
+    t, x, wob = d["time"], d["bit_position"], d["wob"]
+    held = d["stick"] > 0.5 if "stick" in names else d["bit_velocity"] <= 0.0
     T = 1.0 / cfg.rig.frequency
-    stuck = np.nonzero(v <= 0.0)[0]
+    stuck = np.nonzero(held)[0]
     t_stuck = float(t[stuck[-1]]) if stuck.size else float(t[0])
     out["tension"] = bool(np.min(wob) < 0.0)
     out["last_stuck_s"] = float(t[stuck[-1]]) if stuck.size else None
@@ -519,7 +521,7 @@ def cosim_regime(result: "CosimResult") -> dict:
         out["runaway"] = bool(g.b > friction_floor(g) and _windows_grow(ta, xa, RUNAWAY_WINDOWS))
     # stall: no slip over the last STALL_PERIODS periods, the WOB held
     tail = t >= t[-1] - STALL_PERIODS * T
-    if t[-1] - t[0] >= STALL_PERIODS * T and not np.any(v[tail] > 0.0):
+    if t[-1] - t[0] >= STALL_PERIODS * T and np.all(held[tail]):
         out["stall"] = bool(np.mean(wob[tail]) >= STALL_WOB_FRACTION * cfg.weight_on_bit)
     if not (out["runaway"] or out["stall"]):
         q = [(t >= t[0] + f * (t[-1] - t[0])) for f in (0.5, 0.75)]
