@@ -374,3 +374,37 @@ def test_the_cosim_above_the_sliding_capacity_is_warned_before_and_flagged_after
     assert f"sliding capacity mu_d F_N = {cap:.6g} N" in err
     assert "runaway" in d["regime_names"] and d["regime"] & REGIME_RUNAWAY
     assert "warning: runaway" in err
+
+
+@pytest.mark.parametrize("mu, db, a", [(0.7, 0.003, 0.29), (0.67, 0.003, 0.295), (0.6, 0.02, 0.35),
+                                       (0.73, 0.001, 0.3)])
+def test_no_state_of_a_bounded_stick_slip_passes_the_certificate(mu, db, a):
+    """Soundness at every phase: scenes with b just above the friction floor whose bit keeps
+    sticking (checked on the run's own events) never show a certified state at any of 100 dense
+    samples per period while the bit slides, however fast it slides."""
+    from hammerbit.model.regime import certificate_constants, runaway_certified
+    g = preset("paper-fig9").replace(mu=mu, b=mu + db, a=a)
+    periods = 60
+    t = np.linspace(0.0, periods * g.period, periods * 100 + 1)
+    r = simulate(g, periods, record=Record(times=t, events=True))
+    sticks = r.events["time"][r.events["kind"] == "stick"]
+    assert sticks.size and sticks[-1] > 0.9 * periods * g.period        # it keeps sticking to the end
+    s = r.samples
+    c = certificate_constants(g)
+    fast = 0
+    for k in np.nonzero((s["slip"] == 1) & (s["time"] < sticks[-1]))[0]:
+        row = (s["time"][k], s["hammer_position"][k], s["hammer_velocity"][k], s["bit_position"][k],
+               s["bit_velocity"][k])
+        assert not runaway_certified(c, *row), row
+        fast += s["bit_velocity"][k] > 2 * slip_speed_limit(g)
+    assert fast > 100                         # states well above v* were tried
+
+
+@pytest.mark.parametrize("gamma_hat, b, runaway", [(0.0, 0.9, False), (0.0, 1.02, True), (92.0, 0.9, True)])
+def test_the_friction_floor_without_velocity_weakening_is_the_static_threshold(gamma_hat, b, runaway):
+    """f_f = mu + (1 - mu) exp(-gamma_hat v): without weakening the friction is 1 at every speed, so
+    only b > 1 can run away (the paper's rule and the scene's flag agree); with it, b > mu can."""
+    g = preset("paper-fig9").replace(gamma_hat=gamma_hat, b=b, a=0.05)
+    r = simulate(g, 120)
+    assert r.flags.runaway is runaway
+    assert ("b > mu" in r.flags.domain["outside"]) is runaway
