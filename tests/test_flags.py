@@ -408,3 +408,17 @@ def test_the_friction_floor_without_velocity_weakening_is_the_static_threshold(g
     r = simulate(g, 120)
     assert r.flags.runaway is runaway
     assert ("b > mu" in r.flags.domain["outside"]) is runaway
+
+
+@pytest.mark.slow
+def test_a_cosim_whose_bit_stops_under_the_held_wob_is_flagged_stall(capsys):
+    """Off resonance (14 Hz for the 20 Hz field hammer) under the auto-driller the bit does not slip
+    while the WOB is held: stall, in the JSON and on stderr; the recorded stick series agrees."""
+    import json
+    from cli_run import run_cli
+    code, out, err = run_cli(["cosim", "--string", "field-2200m", "--stop", "20", "--set", "frequency=14",
+                              "--top", "auto-driller", "--json"], capsys)
+    d = json.loads(out)
+    assert d["regime_names"] == ["stall"] and d["regime"] == REGIME_STALL
+    assert "warning: stall" in err
+    assert d["counts"]["slips"] <= 4
