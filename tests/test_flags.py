@@ -284,8 +284,10 @@ def test_the_bifurcation_labels_periods_by_the_rule_of_simulate():
     """a = 0.076633 on paper-fig9: the kept tail alone looked like P6; the diagram now reads the period
     and the verdict of the whole run, as simulate does."""
     from hammerbit.studies.bifurcation import bifurcation
+    from hammerbit.studies.executor import ExecutorOptions
     values = [0.076633, 0.083, 0.2]
-    res = bifurcation(preset("paper-fig9"), "a", values, periods=300, keep=64)
+    res = bifurcation(preset("paper-fig9"), "a", values, periods=300, keep=64,
+                      options=ExecutorOptions(workers=1))
     for a, per, code in zip(values, res.periods, res.regime):
         fl = simulate(preset("paper-fig9").replace(a=a), 300).flags
         assert per == fl.period and code == fl.code
@@ -422,3 +424,21 @@ def test_a_cosim_whose_bit_stops_under_the_held_wob_is_flagged_stall(capsys):
     assert d["regime_names"] == ["stall"] and d["regime"] == REGIME_STALL
     assert "warning: stall" in err
     assert d["counts"]["slips"] <= 4
+
+
+@pytest.mark.parametrize("xi", [0.01, 0.071, 0.5, 2.0])
+def test_the_oscillator_l1_norms_bound_scipys_impulse_responses(xi):
+    """The certificate's L1 norms of the relative oscillator's impulse responses (z and z') are at
+    least those of scipy.signal's impulse response, integrated finely, and at most 1.5 % above."""
+    from scipy import signal
+    from hammerbit.model.regime import C_L1W, C_L1Z, certificate_constants
+    g = preset("paper-fig9").replace(xi=xi)
+    k = 1.0 + 1.0 / g.rho
+    c = certificate_constants(g)
+    sigma = xi * k
+    slow = sigma - np.sqrt(sigma ** 2 - k) if sigma ** 2 > k else sigma
+    t = np.linspace(0.0, 25.0 / slow, 20_001)
+    for num, slot in (([1.0], C_L1Z), ([1.0, 0.0], C_L1W)):
+        _, h = signal.impulse(signal.lti(num, [1.0, 2.0 * xi * k, k]), T=t)
+        l1 = np.trapezoid(np.abs(h), t)
+        assert l1 <= c[slot] <= 1.015 * l1
