@@ -160,7 +160,8 @@ def cmd_sweep(args) -> int:
            "peak_frequency_hz": float(res["frequency_hz"][i_pk]),
            "peak_wob_amplitude_n": float(res["wob_amplitude_n"][i_pk]),
            "coupled_modes_hz": in_band, "not_settled_hz": unsettled,
-           "rows": [{k: float(r[k]) for k in res.dtype.names} for r in res]}
+           "rows": [{**{k: float(r[k]) for k in res.dtype.names}, "regime": int(r["regime"]),
+                     "regime_names": regime_names(r["regime"])} for r in res]}
     if in_band:
         out["nearest_mode_to_peak_hz"] = min(in_band, key=lambda f: abs(f - out["peak_frequency_hz"]))
     if args.csv:
