@@ -187,6 +187,9 @@ def test_a_generated_late_runaway_is_flagged_at_any_horizon_past_its_last_stick(
             assert fl.code & REGIME_RUNAWAY and "runaway" in fl.flags
         if 0.4 <= last / 200 <= 0.95:
             assert simulate(g, 200).flags.runaway, (g.a, last)
+        # three periods after the last stick, wherever that falls between samples (the final state counts)
+        between = simulate(g, last + 3.0).flags
+        assert between.runaway and between.certified_at <= last + 3.0, (g.a, last, between.certified_at)
 
 
 @pytest.mark.slow

@@ -275,21 +275,24 @@ class SceneFlags:
                 "flags": self.flags}
 
 
-def _runaway(groups: Groups, rows: np.ndarray, t_end: float, last_stuck: float):
-    """(runaway, proof, certified_at) of the Poincaré rows after the last stuck time."""
+def _runaway(groups: Groups, rows: np.ndarray, t_end: float, last_stuck: float, final):
+    """(runaway, proof, certified_at) of the Poincaré rows after the last stuck time and the final state."""
     n = rows.shape[0]
     if groups.b <= friction_floor(groups):     # friction above the preload at every speed
         return False, None, None
-    k = int(certified_row(rows, n, last_stuck, certificate_constants(groups)))
+    consts = certificate_constants(groups)
+    k = int(certified_row(rows, n, last_stuck, consts))
     if k >= 0:
         return True, "certificate", int(round(rows[k, 0] / groups.period))
+    if final is not None and t_end > last_stuck and runaway_certified(consts, t_end, *final):
+        return True, "certificate", int(math.floor(t_end / groups.period))
     if runaway_rows(rows, n, t_end, last_stuck, slip_speed_limit(groups)):
         return True, "fallback", None
     return False, None, None
 
 
 def scene_flags(groups: Groups, poincare_rows: np.ndarray, *, t_end: float, min_drive: float,
-                bounces: int, t_stuck: float, stuck_now: bool) -> SceneFlags:
+                bounces: int, t_stuck: float, stuck_now: bool, final=None) -> SceneFlags:
     """The :class:`SceneFlags` of a run from its Poincaré rows and the solver's trackers.
 
     Parameters
@@ -307,11 +310,14 @@ def scene_flags(groups: Groups, poincare_rows: np.ndarray, *, t_end: float, min_
         Last time the bit stuck [tau] (``kernel_layouts.F_T_STICK``; -1 never).
     stuck_now : bool
         The bit is stuck at ``t_end``.
+    final : sequence of 4 floats, optional
+        ``(x1, x2, x3, x4)`` at ``t_end``: the certificate is tried there too, so a runaway is
+        proved as soon as the state allows, not only at the next Poincaré sample.
     """
     rows = np.ascontiguousarray(poincare_rows, dtype=np.float64)
     n = rows.shape[0]
     last_stuck = t_end if stuck_now else t_stuck
-    run, proof, cert_at = _runaway(groups, rows, t_end, last_stuck)
+    run, proof, cert_at = _runaway(groups, rows, t_end, last_stuck, final)
     rel = np.empty((n, 3))
     relative_rows(rows, n, rel)
     out = np.zeros(N_SETTLING)
@@ -336,4 +342,5 @@ def stepper_flags(groups: Groups, stepper, poincare_rows: np.ndarray) -> SceneFl
                        min_drive=float(stepper.fstate[KL.F_DRIVE_MIN]),
                        bounces=int(stepper.istate[KL.I_COUNT0 + KL.EV_BOUNCE]),
                        t_stuck=float(stepper.fstate[KL.F_T_STICK]),
-                       stuck_now=bool(stepper.istate[KL.I_STICK] == KL.STICK))
+                       stuck_now=bool(stepper.istate[KL.I_STICK] == KL.STICK),
+                       final=tuple(float(v) for v in stepper.y[:4]))
