@@ -3,7 +3,7 @@
 One place for each rule, for every face (``simulate``, the studies, the
 co-simulation) and, later, the FMUs: each rule reads only the state at a
 Poincaré sample and a few numbers fixed per scene (:func:`certificate_constants`),
-so it runs causally, period by period (``docs/model.md``, "Regime verdict").
+so it runs causally, period by period (``docs/model.md``, "Validity domain and the regime verdict").
 
 Also the paper's static domain of a scene (:func:`regime`): the rules
 a < b, a + b <= 1 and b <= mu it breaks.  These rules are where the paper

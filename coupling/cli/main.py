@@ -161,7 +161,7 @@ def _simulate(args, worker) -> int:
     from hammerbit.model.validation import check
 
     from hammerbit.scene.analysis import detect_period
-    from hammerbit.scene.flags import regime_json
+    from hammerbit.model.regime_codes import regime_json
     from hammerbit.scene.simulate import BounceWarning, Record, simulate, write_samples_csv
 
     g = _groups_from_args(args)

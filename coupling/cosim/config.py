@@ -1,6 +1,7 @@
 """Options and results of a co-simulation run: :class:`CosimConfig`, :class:`CosimResult`.
 
-Also the field hammer (:func:`field_hammer`), the recordable variables
+Also the regime verdict of a run (:func:`cosim_regime`, :func:`capacity_warning`), the field hammer
+(:func:`field_hammer`), the recordable variables
 (:data:`RECORDABLE`) and :class:`CouplingInstabilityError`.  All re-exported by
 :mod:`hammerbit.cosim.master`.
 """
@@ -482,11 +483,12 @@ def _windows_grow(t: np.ndarray, x: np.ndarray, n: int) -> bool:
 
 
 def cosim_regime(result: "CosimResult") -> dict:
-    """The regime verdict of a co-simulation from its recorded series (``docs/model.md``, "Regime verdict").
+    """The regime verdict of a co-simulation from its recorded series.
 
-    The bit is stuck at a sample where the recorded ``stick`` is 1 (or, without it, its velocity is 0).  ``runaway``: no stuck sample over
-    ``RUNAWAY_WINDOWS`` windows of at least ``MIN_WINDOW`` forcing periods at the end, the mean bit
-    velocity growing over them (the fallback rule of the scenes), and the mean WOB above the friction
+    The rules of ``docs/model.md`` ("Validity domain and the regime verdict").  The bit is stuck at
+    a sample where the recorded ``stick`` is 1 (or, without it, its velocity is 0).  ``runaway``: no
+    stuck sample over ``RUNAWAY_WINDOWS`` windows of at least ``MIN_WINDOW`` forcing periods at the
+    end, the mean bit velocity growing over them (the fallback rule of the scenes), and the mean WOB above the friction
     floor; ``stall``: no slip for ``STALL_PERIODS`` forcing periods at the end while the mean WOB is at
     least ``STALL_WOB_FRACTION`` of its set point; ``bounce``: bounce violations counted; ``tension``:
     the WOB fell below zero; ``transient``: the last two quarters differ (:data:`COSIM_SETTLE_TOL`).
@@ -542,8 +544,9 @@ def cosim_warnings(summary: dict) -> list:
     msgs = []
     if r["runaway"]:
         since = "the start" if r["last_stuck_s"] is None else f"t = {r['last_stuck_s']:.4g} s"
-        msgs.append(f"runaway: the bit has not stuck since {since} and its drift keeps accelerating (rock's sliding capacity {r['sliding_capacity_n']:.6g} N, WOB set "
-                    f"point {r['wob_set_point_n']:.6g} N); the penetration is not a rate of penetration")
+        msgs.append(f"runaway: the bit has not stuck since {since} and its drift keeps accelerating (rock's "
+                    f"sliding capacity {r['sliding_capacity_n']:.6g} N, WOB set point {r['wob_set_point_n']:.6g} N); "
+                    f"the penetration is not a rate of penetration")
     if r["stall"]:
         msgs.append(f"stall: the bit has not slipped for the last {STALL_PERIODS} forcing periods while the WOB "
                     f"is held: it no longer drills")

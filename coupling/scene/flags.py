@@ -3,7 +3,7 @@
 The paper's static rules (``a < b``, ``a + b <= 1``, ``b <= mu``,
 :func:`hammerbit.model.regime.regime`) say where the paper worked: they are
 reported as *the paper's domain*.  Whether a scene's answer is usable comes
-from what the scene did (``docs/model.md``, "Regime verdict"):
+from what the scene did (``docs/model.md``, "Validity domain and the regime verdict"):
 
 ``runaway``
     the bit cannot stick again: after its last stick, a Poincaré state passes
