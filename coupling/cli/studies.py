@@ -24,6 +24,7 @@ import sys
 import time
 
 from hammerbit.cli.common import EXIT_INFEASIBLE, RunFailure, UsageError, add_set_argument, parse_settings
+from hammerbit.model.regime_codes import REGIME_BITS, REGIME_TRANSIENT, regime_names
 
 __all__ = ["register", "cmd_bifurcation", "cmd_sweep", "cmd_map", "cmd_optimize"]
 
@@ -99,7 +100,9 @@ def cmd_bifurcation(args) -> int:
         res.to_csv(args.csv)
     summary = {"param": args.param, "num": args.num, "periods": args.periods,
                "wall_time_s": res.wall_time_s, "periods_per_second": res.periods_per_second,
-               "workers": res.workers, "out": args.out, "csv": args.csv, "period_n": list(res.periods)}
+               "workers": res.workers, "out": args.out, "csv": args.csv, "period_n": list(res.periods),
+               "regime": [int(c) for c in res.regime], "regime_names": [regime_names(c) for c in res.regime]}
+    _warn_flagged("bifurcation", summary["regime_names"], values)
     if args.json:
         print(_dump(summary))
     else:
@@ -107,6 +110,16 @@ def cmd_bifurcation(args) -> int:
               f"({res.periods_per_second:,.0f} periods/s, {res.workers} worker(s)); figure: {args.out}"
               + (f"; Poincaré points in SI (s, mm, m/s): {args.csv}" if args.csv else ""))
     return 0
+
+
+def _warn_flagged(command: str, names: list, values, unit: str = "") -> None:
+    """One stderr line per regime flag set somewhere in a study, with the values where it is."""
+    for flag in REGIME_BITS:
+        where = [float(v) for v, n in zip(values, names) if flag in n]
+        if where:
+            print(f"hammerbit {command}: warning: {flag} at {len(where)} value(s): "
+                  + ", ".join(f"{v:g}{unit}" for v in where[:8]) + (" ..." if len(where) > 8 else ""),
+                  file=sys.stderr)
 
 
 # ---------------------------------------------------------------------------
@@ -141,12 +154,14 @@ def cmd_sweep(args) -> int:
     in_band = [float(f) for f in modes if lo <= f <= hi]
     i_pk = int(np.argmax(res["wob_amplitude_n"]))
     unsettled = [float(r["frequency_hz"]) for r in res if not r["steady"]]
+    _warn_flagged("sweep", [regime_names(c & ~REGIME_TRANSIENT) for c in res["regime"]], freqs, unit=" Hz")
     out = {"string": string.name, "frequencies_hz": [float(f) for f in freqs],
            "duration_s": args.duration, "wall_time_s": time.perf_counter() - t0,
            "peak_frequency_hz": float(res["frequency_hz"][i_pk]),
            "peak_wob_amplitude_n": float(res["wob_amplitude_n"][i_pk]),
            "coupled_modes_hz": in_band, "not_settled_hz": unsettled,
-           "rows": [{k: float(r[k]) for k in res.dtype.names} for r in res]}
+           "rows": [{**{k: float(r[k]) for k in res.dtype.names}, "regime": int(r["regime"]),
+                     "regime_names": regime_names(r["regime"])} for r in res]}
     if in_band:
         out["nearest_mode_to_peak_hz"] = min(in_band, key=lambda f: abs(f - out["peak_frequency_hz"]))
     if args.csv:
@@ -197,6 +212,10 @@ def cmd_map(args) -> int:
         first = json.loads(ds.attrs["errors"])[:1]
         print(f"hammerbit map: warning: {failed} cell(s) did not run (status 1/2, NaN values): "
               + (first[0] if first else ""), file=sys.stderr)
+    flagged = {f: int(ds[f].values.sum()) for f in FLAG_FIELDS if int(ds[f].values.sum())}
+    if flagged:
+        print("hammerbit map: warning: flagged cells (the regime verdict, docs/model.md): "
+              + ", ".join(f"{f} {k}" for f, k in flagged.items()), file=sys.stderr)
     if args.json:
         d = map_to_json(ds)
         d.update({"preset": args.preset, "out": args.out, "plot": args.plot})
@@ -285,6 +304,9 @@ def cmd_optimize(args) -> int:
         if args.json:
             print(_dump(out))
         raise RunFailure(msg, code=EXIT_INFEASIBLE)
+    if out["optimum"].get("regime_names"):
+        print("hammerbit optimize: warning: the optimum is flagged: " + ", ".join(out["optimum"]["regime_names"]),
+              file=sys.stderr)
     if args.confirm:
         if string is None:
             raise UsageError("--confirm needs --string")

@@ -176,6 +176,8 @@ class Candidate:
                 "rop_mm_per_period": self.rop_mm_per_period,
                 "peak_contact_force_n": self.peak_contact_force_n,
                 "margins": {k: _margin_dict(k, v, self.checks.get(k)) for k, v in self.margins.items()},
+                "regime": None if self.flags is None else self.flags["regime"],
+                "regime_names": None if self.flags is None else self.flags["regime_names"],
                 "flags": self.flags, "feasible": self.feasible}
 
 
