@@ -87,7 +87,7 @@ def test_simulate_json_si_fields(capsys):
                              capsys)
     assert code == 0, err
     d = json.loads(out)
-    assert d["penetration_x0"] > 0 and d["rop"]["x0_per_period"] > 0 and d["regime"]["min_drive_f0"] < 0
+    assert d["penetration_x0"] > 0 and d["rop"]["x0_per_period"] > 0 and d["scene_flags"]["min_drive_f0"] < 0
     assert d["peak_contact_force_n"] > 0
     g = d["groups"]
     seen = set()
@@ -104,7 +104,7 @@ def test_simulate_json_si_fields(capsys):
         ("penetration_per_period_mm",): d["penetration_per_period_x0"] * X0 * 1e3,
         ("rop", "mm_per_period"): d["rop"]["x0_per_period"] * X0 * 1e3,
         ("rop", "m_per_h"): d["rop"]["x0_per_period"] * X0 * 3600.0 / Tf,
-        ("regime", "min_drive_n"): d["regime"]["min_drive_f0"] * F0,
+        ("scene_flags", "min_drive_n"): d["scene_flags"]["min_drive_f0"] * F0,
     }
     for path, v in expect.items():
         _close(_get(d, path), v)
