@@ -63,7 +63,7 @@ class ContinuationError(RuntimeError):
     """An orbit could not be computed or followed; says at which parameter value and why."""
 
 
-@njit(cache=True, _nrt=False)
+@njit(_nrt=False)
 def saltation(kind, phi):
     """Apply the saltation matrix of an event of ``kind`` to the sensitivity ``phi`` (in place).
 
@@ -74,7 +74,7 @@ def saltation(kind, phi):
             phi[N_STATE + KL.V_BIT * N_STATE + j] = 0.0
 
 
-@njit(cache=True, _nrt=False)
+@njit(_nrt=False)
 def modes_after(kind, y, p, mode_s, mode_c):
     """The (stick/slip, contact) modes after an event of ``kind`` at ``y`` (as ``kernel_reset.apply_event``)."""
     if kind == KL.EV_SLIP_START:
@@ -92,7 +92,7 @@ def modes_after(kind, y, p, mode_s, mode_c):
     return mode_s, mode_c
 
 
-@njit(cache=True, _nrt=False)
+@njit(_nrt=False)
 def sensitivity_along(log, n_events, y0, t_end, p, modes0, work, w):
     """The sensitivity of the state at ``t_end`` to ``y0`` at time 0, along the logged events.
 

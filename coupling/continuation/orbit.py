@@ -21,7 +21,7 @@ from hammerbit.scene.analysis import detect_period
 
 from .monodromy import ORBIT_SOLVER, ContinuationError, MapResult, full_state, period_map, relative_state
 
-__all__ = ["PeriodicOrbit", "orbit_from_simulation", "correct_orbit", "NEWTON_TOL", "NEWTON_MAX_ITER",
+__all__ = ["PeriodicOrbit", "orbit_from_simulation", "correct_orbit", "make_orbit", "NEWTON_TOL", "NEWTON_MAX_ITER",
            "SETTLE_PERIODS", "MAX_PERIOD"]
 
 #: Newton's residual |P^n(s) - s| (max norm) at which an orbit is accepted, relative to max(1, |s|)
@@ -142,7 +142,7 @@ def correct_orbit(groups: Groups, s, n: int, *, tol: float = NEWTON_TOL,
         r = res.s_end - s
         err = float(np.max(np.abs(r)))
         if err <= tol * max(1.0, float(np.max(np.abs(s)))):
-            return _orbit(groups, n, s, res, err)
+            return make_orbit(groups, n, s, res)
         J = res.jacobian - np.eye(s.shape[0])
         try:
             ds = np.linalg.solve(J, -r)
@@ -153,7 +153,9 @@ def correct_orbit(groups: Groups, s, n: int, *, tol: float = NEWTON_TOL,
                             f"(residual {err:.3g})")
 
 
-def _orbit(groups: Groups, n: int, s: np.ndarray, res: MapResult, err: float) -> PeriodicOrbit:
+def make_orbit(groups: Groups, n: int, s: np.ndarray, res: MapResult) -> PeriodicOrbit:
+    """The orbit at a converged fixed point ``s`` of the period-n map, from the map's result there."""
+    err = float(np.max(np.abs(res.s_end - s)))
     mu = np.linalg.eigvals(res.jacobian)
     mu = mu[np.argsort(-np.abs(mu), kind="stable")]
     return PeriodicOrbit(groups=groups, period=n, s=s, monodromy=res.jacobian, multipliers=mu,

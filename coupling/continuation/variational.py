@@ -34,6 +34,10 @@ NO_SUBSYSTEM = (0, 0, np.zeros(1, dtype=np.int64), np.zeros(0, dtype=np.int64), 
 #: the library's DOP853 tableau: A, B, C, E, E3, W, stages, error kind, controller exponent
 DOP853 = METHODS["dop853"]
 
+# The kernels here are compiled once per process, not cached: numba's cache entry of a kernel holds
+# its callees' code but is invalidated by a change of the kernel's own file only, and the callees
+# (the model's vector field, the saltation of monodromy.py) change in other files.
+
 SEG_OK = 0
 SEG_MAX_STEPS = 1
 SEG_NONFINITE = 2
@@ -43,7 +47,7 @@ SEG_STEP_TOO_SMALL = 3
 MAX_SEGMENT_STEPS = 200_000
 
 
-@njit(cache=True, _nrt=False)
+@njit(_nrt=False)
 def jacobian(y, p, mode_s, mode_c, jac):
     """Jacobian d f / d y of the vector field in one mode at ``y``, into ``jac`` (4 x 4).
 
@@ -87,7 +91,7 @@ def jacobian(y, p, mode_s, mode_c, jac):
         jac[3, 3] = (-dk_dr - dff) * inv_rho
 
 
-@njit(cache=True, _nrt=False)
+@njit(_nrt=False)
 def augmented_rhs(t, w, field, jac, out):
     """d/dt of (y, Phi): the vector field and ``J Phi``; ``field = (p, mode_s, mode_c, sub)``."""
     p, mode_s, mode_c = field[0], field[1], field[2]
@@ -101,7 +105,7 @@ def augmented_rhs(t, w, field, jac, out):
             out[N_STATE + i * N_STATE + j] = acc
 
 
-@njit(cache=True, _nrt=False)
+@njit(_nrt=False)
 def dop853_trial(t, w, h, field, work, method):
     """One DOP853 trial step of (y, Phi) from ``w``: the new value in ``work[2]``, its error norm returned."""
     stages, wtmp, wnew, jac, tols = work
@@ -138,7 +142,7 @@ def dop853_trial(t, w, h, field, work, method):
     return r if math.isfinite(r) else math.inf
 
 
-@njit(cache=True, _nrt=False)
+@njit(_nrt=False)
 def integrate_segment(t0, t1, w, field, work, method):
     """Integrate (y, Phi) in ``w`` (in place) from ``t0`` to exactly ``t1`` in one mode.
 
