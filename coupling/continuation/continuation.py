@@ -89,6 +89,8 @@ class Branch:
     stopped: str = ""
     #: where and why the branch ends inside the range by itself (joins a lower period, a non-smooth end)
     ended: str = ""
+    #: the points where it ends by itself, with the reason (one per direction followed)
+    end_points: list = field(default_factory=list)
 
     @property
     def values(self) -> np.ndarray:
@@ -243,6 +245,7 @@ def follow_branch(param: Parameter, base: Groups, orbit: PeriodicOrbit, end: flo
                     if last.max_multiplier > STEEP_MULTIPLIER:
                         branch.ended = (f"at {param.name} = {x[-1] * scale:.9g} the branch runs into a non-smooth "
                                         f"point (multiplier {last.max_multiplier:.3g} and growing)")
+                        branch.end_points.append((branch.points[-1], branch.ended))
                     else:
                         branch.stopped = (f"step-size floor at {param.name} = {x[-1] * scale:.9g}: no orbit of "
                                           f"period {orbit.period} next to it (no convergence)")
@@ -260,6 +263,7 @@ def follow_branch(param: Parameter, base: Groups, orbit: PeriodicOrbit, end: flo
         reason = _branch_end(param, orb) or _creeping(branch, param)
         if reason:
             branch.ended = reason
+            branch.end_points.append((point, reason))
             break
         if iters <= options.easy_iter:
             h = min(h * options.growth, options.max_step)

@@ -5,7 +5,9 @@
 across the whole range in both directions, locates the bifurcations of each
 branch (:mod:`.bifurcation`), switches to the period-doubled branch at each
 period-doubling, and reports where stable branches coexist and which of them
-a run from rest reaches there.
+a run from rest reaches there: inside such an interval, the value where runs
+from rest change from one branch to the other (a boundary of the basin of
+the state at rest, not a bifurcation) is bracketed by bisection of runs.
 """
 from __future__ import annotations
 
@@ -19,7 +21,7 @@ from hammerbit.model.params import Groups
 from .bifurcation import Bifurcation, detect, switch_period_doubling
 from .continuation import Branch, BranchPoint, ContinuationOptions, follow_branch
 from .monodromy import ContinuationError
-from .orbit import correct_orbit, orbit_from_simulation
+from .orbit import MAX_PERIOD, correct_orbit, orbit_from_simulation
 from .parameter import Parameter
 
 __all__ = ["Diagram", "RestRun", "continue_orbits", "SEEDS", "MAX_BRANCHES"]
@@ -28,8 +30,14 @@ __all__ = ["Diagram", "RestRun", "continue_orbits", "SEEDS", "MAX_BRANCHES"]
 SEEDS = 9
 #: branches followed at most (period-doubled ones included)
 MAX_BRANCHES = 16
+#: ... plus this (x0 per period): a branch of no progression has ROP 0
+ROP_MATCH_FLOOR = 1e-9
+#: a stable interval's end within this (parameter units) of a located bifurcation of its branch is moved onto it
+SNAP_DISTANCE = 2e-2
+#: bracket (scaled parameter) of the bisection of runs from rest inside a coexistence interval
+SWITCH_TOL = 1e-4
 #: a run from rest is on a branch of its period when its rate of penetration matches the branch's within this
-ROP_MATCH_TOL = 1e-4
+ROP_MATCH_TOL = 2e-3
 
 
 @dataclass
@@ -74,7 +82,8 @@ def _branch_of(branches: list, value: float, period: int, rop: float) -> Optiona
         if br.period != period:
             continue
         for r in _rop_at(br, value):
-            if abs(r - rop) <= ROP_MATCH_TOL * max(1.0, abs(rop)):
+            # relative: the branch's ROP is interpolated linearly between its points
+            if abs(r - rop) <= ROP_MATCH_TOL * abs(rop) + ROP_MATCH_FLOOR:
                 return i
     return None
 
@@ -87,6 +96,7 @@ def _follow_both_ways(param, base, orbit, start, end, options, on_point) -> Bran
         p.tangent = -p.tangent  # the tangents point along the merged branch
     br.stopped = "; ".join(s for s in (back.stopped, fwd.stopped) if s)
     br.ended = "; ".join(s for s in (back.ended, fwd.ended) if s)
+    br.end_points = back.end_points + fwd.end_points
     return br
 
 
@@ -109,8 +119,32 @@ def stable_intervals(branch: Branch) -> list[tuple[float, float]]:
     return out
 
 
+def _snap(diagram: Diagram, i: int, value: float) -> float:
+    """A stable interval's end moved onto the located bifurcation of its branch next to it, if any."""
+    near = [b.value for b in diagram.bifurcations if b.branch == i and abs(b.value - value) <= SNAP_DISTANCE]
+    return min(near, key=lambda v: abs(v - value)) if near else value
+
+
+def _rest_switch(param: Parameter, base: Groups, diagram: Diagram, lo: float, hi: float) -> Optional[dict]:
+    """Where, inside a coexistence interval, runs from rest change the branch they reach (bisection), or None."""
+    eps = 1e-3 * (hi - lo)
+    a, b = _rest_run(param, base, lo + eps, diagram), _rest_run(param, base, hi - eps, diagram)
+    if a.branch == b.branch:
+        return None
+    x, y = lo + eps, hi - eps
+    while abs(y - x) > SWITCH_TOL * param.scale:
+        m = 0.5 * (x + y)
+        r = _rest_run(param, base, m, diagram)
+        if r.branch == a.branch:
+            x = m
+        else:
+            y, b = m, r
+    return {"value": 0.5 * (x + y), "below": a.branch, "above": b.branch, "uncertainty": abs(y - x)}
+
+
 def _coexistence(diagram: Diagram, param, base) -> list[dict]:
-    spans = [(i, lo, hi) for i, br in enumerate(diagram.branches) for lo, hi in stable_intervals(br)]
+    spans = [(i, _snap(diagram, i, lo), _snap(diagram, i, hi)) for i, br in enumerate(diagram.branches)
+             for lo, hi in stable_intervals(br)]
     out = []
     for x in range(len(spans)):
         for y in range(x + 1, len(spans)):
@@ -119,8 +153,9 @@ def _coexistence(diagram: Diagram, param, base) -> list[dict]:
             lo, hi = max(lo1, lo2), min(hi1, hi2)
             if i != j and hi > lo:
                 mid = 0.5 * (lo + hi)
-                out.append({"from": lo, "to": hi, "branches": [i, j], "from_rest": _rest_run(param, base, mid,
-                                                                                               diagram).branch})
+                out.append({"from": lo, "to": hi, "branches": [i, j],
+                            "from_rest": _rest_run(param, base, mid, diagram).branch,
+                            "from_rest_switch": _rest_switch(param, base, diagram, lo, hi)})
     return out
 
 
@@ -157,6 +192,9 @@ def continue_orbits(base: Groups, name: str, start: float, end: float, *, seeds:
     for value in np.linspace(start, end, seeds):
         run = _rest_run(param, param_base, float(value), diagram)
         diagram.rest_runs.append(run)
+        if run.period is None:
+            diagram.stops.append(f"{name} = {value:.9g}: a run from rest settles to no period up to "
+                                 f"{MAX_PERIOD} (chaos, a long period or a long transient)")
         if run.period is None or run.branch is not None or len(diagram.branches) >= MAX_BRANCHES:
             continue
         g = param.at(param_base, float(value))
@@ -181,6 +219,9 @@ def _add_branch(diagram: Diagram, param, base, branch: Branch, options, on_point
         diagram.stops.append(branch.stopped)
     bifs = detect(param, base, branch.points, index)
     diagram.bifurcations.extend(bifs)
+    for point, reason in branch.end_points:
+        diagram.bifurcations.append(Bifurcation(kind="branch-end", value=point.value, branch=index,
+                                                orbit=point.orbit, detail=reason))
     for bif in bifs:
         if bif.kind != "period-doubling" or len(diagram.branches) >= MAX_BRANCHES:
             continue

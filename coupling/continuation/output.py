@@ -1,0 +1,146 @@
+"""The outputs of a continuation: the JSON record, CSV and netCDF tables and the bifurcation-diagram figure (like the paper's Fig. 9)."""
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+
+from hammerbit.model.fmu_variables import PARAMETERS  # the one table of SI units
+from hammerbit.model.settings import setting_target
+
+from .diagram import Diagram
+
+__all__ = ["diagram_json", "write_csv", "write_netcdf", "draw_diagram", "CSV_COLUMNS"]
+
+
+def _point_json(name: str, point) -> dict:
+    orb = point.orbit
+    ms, mc = orb.modes
+    return {name: float(point.value), "state": [float(v) for v in orb.state] + [ms, mc],
+            "multipliers": [[float(m.real), float(m.imag)] for m in orb.multipliers],
+            "stable": bool(orb.stable), "rop_x0_per_period": float(orb.rop_x0_per_period)}
+
+
+def diagram_json(d: Diagram) -> dict:
+    """The diagram as the JSON of ``hammerbit continue --json`` (nondimensional, named as such).
+
+    ``state`` is the orbit's state at phase 0 as the library's Stepper takes it:
+    (x1, x2, x3 = 0, x4) in x0 and x0 Omega, then the stick/slip mode (0 stick,
+    1 slip) and the contact mode (0 free, 1 contact, 2 clamped).
+    """
+    name = d.parameter
+    return {
+        "parameter": name, "range": [d.start, d.end],
+        "state_layout": ["x1", "x2", "x3", "x4", "stick_slip_mode", "contact_mode"],
+        "branches": [{"period": br.period, "points": [_point_json(name, p) for p in br.points],
+                      "ended": br.ended, "stopped": br.stopped} for br in d.branches],
+        "bifurcations": [{"kind": b.kind, name: float(b.value), "branch": b.branch, "detail": b.detail,
+                          "state": [float(v) for v in b.orbit.state]} for b in d.bifurcations],
+        "coexistence": [{"from": float(c["from"]), "to": float(c["to"]), "branches": c["branches"], "from_rest": c["from_rest"],
+                         "from_rest_switch": c["from_rest_switch"]} for c in d.coexistence],
+        "rest_runs": [{name: float(r.value), "period": r.period, "branch": r.branch} for r in d.rest_runs],
+        "curves": [],
+        "stops": list(d.stops),
+    }
+
+
+def _unit(name: str) -> str:
+    """The SI unit of a ``--set`` name ('1' for a group)."""
+    kind, target = setting_target(name)
+    if kind == "group":
+        return "1"
+    return next((unit for n, unit, _ in PARAMETERS if n == target), "1")
+
+
+#: the CSV's columns after the parameter's: (name, unit)
+CSV_COLUMNS = (("branch", "1"), ("period", "forcing periods"), ("stable", "1"), ("max_multiplier", "1"),
+               ("rop", "m/h"), ("penetration_per_period", "mm"))
+
+
+def write_csv(d: Diagram, path) -> int:
+    """One row per branch point, SI headers ``name [unit]``; returns the rows written."""
+    rows = 0
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow([f"{d.parameter} [{_unit(d.parameter)}]"] + [f"{n} [{u}]" for n, u in CSV_COLUMNS])
+        for i, br in enumerate(d.branches):
+            for p in br.points:
+                r = p.orbit.groups.rop(p.orbit.rop_x0_per_period)
+                w.writerow([repr(float(p.value)), i, br.period, int(p.orbit.stable),
+                            repr(float(p.orbit.max_multiplier)), repr(float(r["m_per_h"])),
+                            repr(float(r["mm_per_period"]))])
+                rows += 1
+    return rows
+
+
+def write_netcdf(d: Diagram, path) -> None:
+    """The branch points as a netCDF dataset (dimension ``point``), SI units in the attributes."""
+    import xarray as xr
+    pts = [(i, br.period, p) for i, br in enumerate(d.branches) for p in br.points]
+    kmax = max((len(p.orbit.multipliers) for _, _, p in pts), default=0)
+    mult = np.full((len(pts), kmax), np.nan + 0j)
+    for j, (_, _, p) in enumerate(pts):
+        mult[j, :len(p.orbit.multipliers)] = p.orbit.multipliers
+    rop = [p.orbit.groups.rop(p.orbit.rop_x0_per_period) for _, _, p in pts]
+    ds = xr.Dataset(
+        {d.parameter: ("point", [p.value for _, _, p in pts], {"units": _unit(d.parameter)}),
+         "branch": ("point", [i for i, _, _ in pts]),
+         "period": ("point", [n for _, n, _ in pts], {"units": "forcing periods"}),
+         "stable": ("point", [int(p.orbit.stable) for _, _, p in pts]),
+         "multiplier_re": (("point", "multiplier"), mult.real),
+         "multiplier_im": (("point", "multiplier"), mult.imag),
+         "rop": ("point", [r["m_per_h"] for r in rop], {"units": "m/h"}),
+         "state": (("point", "component"), np.array([p.orbit.state for _, _, p in pts]).reshape(-1, 4),
+                   {"units": "x0, x0 Omega (nondimensional)"})},
+        attrs={"parameter": d.parameter, "bifurcations": "; ".join(f"{b.kind} at {d.parameter} = {b.value:.9g} "
+                                                                   f"(branch {b.branch})" for b in d.bifurcations)})
+    ds.to_netcdf(path)
+
+
+#: marker of each bifurcation kind in the figure
+MARKERS = {"period-doubling": "o", "fold": "s", "neimark-sacker": "D", "grazing": "^", "sliding": "v",
+           "bounce": "x", "branch-end": "|"}
+
+
+def draw_diagram(d: Diagram, path) -> None:
+    """The bifurcation diagram: ROP [m/h] of every branch against the parameter, stable solid, unstable
+    dashed, bifurcations marked (the paper's Fig. 9 shows the Poincaré section; here each orbit is one
+    line, its rate of penetration)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for i, br in enumerate(d.branches):
+        v = np.array([p.value for p in br.points])
+        r = np.array([p.orbit.groups.rop(p.orbit.rop_x0_per_period)["m_per_h"] for p in br.points])
+        st = np.array([p.orbit.stable for p in br.points])
+        c = colours[br.period % len(colours)]
+        for mask, style in ((st, "-"), (~st, "--")):
+            y = np.where(mask, r, np.nan)
+            # segments joined at the stability change
+            edge = np.where(mask[:-1] != mask[1:])[0]
+            for e in edge:
+                y[e if not mask[e] else e + 1] = r[e if not mask[e] else e + 1]
+            ax.plot(v, y, style, color=c, lw=1.4, label=f"P{br.period}" if style == "-" and mask.any() else None)
+    for b in d.bifurcations:
+        r = b.orbit.groups.rop(b.orbit.rop_x0_per_period)["m_per_h"]
+        ax.plot([b.value], [r], MARKERS.get(b.kind, "*"), color="k", ms=6, mfc="none")
+    handles, labels = ax.get_legend_handles_labels()
+    seen = {}
+    for h, lab in zip(handles, labels):
+        seen.setdefault(lab, h)
+    kinds = sorted({b.kind for b in d.bifurcations})
+    for k in kinds:
+        seen[k] = ax.plot([], [], MARKERS.get(k, "*"), color="k", mfc="none")[0]
+    ax.legend(seen.values(), seen.keys(), fontsize=8)
+    unit = _unit(d.parameter)
+    ax.set_xlabel(d.parameter if unit == "1" else f"{d.parameter} [{unit}]")
+    ax.set_ylabel("rate of penetration [m/h]")
+    ax.set_title("periodic orbits: stable solid, unstable dashed")
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
