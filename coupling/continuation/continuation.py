@@ -91,6 +91,8 @@ class Branch:
     ended: str = ""
     #: the points where it ends by itself, with the reason (one per direction followed)
     end_points: list = field(default_factory=list)
+    #: the points where the continuation failed (the step-size floor), with the reason
+    stop_points: list = field(default_factory=list)
 
     @property
     def values(self) -> np.ndarray:
@@ -241,7 +243,8 @@ def follow_branch(param: Parameter, base: Groups, orbit: PeriodicOrbit, end: flo
             if orb is None:
                 h /= 2
                 if h < options.min_step:
-                    last = branch.points[-1].orbit
+                    last_point = branch.points[-1]
+                    last = last_point.orbit
                     if last.max_multiplier > STEEP_MULTIPLIER:
                         branch.ended = (f"at {param.name} = {x[-1] * scale:.9g} the branch runs into a non-smooth "
                                         f"point (multiplier {last.max_multiplier:.3g} and growing)")
@@ -249,6 +252,7 @@ def follow_branch(param: Parameter, base: Groups, orbit: PeriodicOrbit, end: flo
                     else:
                         branch.stopped = (f"step-size floor at {param.name} = {x[-1] * scale:.9g}: no orbit of "
                                           f"period {orbit.period} next to it (no convergence)")
+                        branch.stop_points.append((last_point, branch.stopped))
                     break
                 continue
             x_new, iters = np.concatenate([orb.s, [x_pred[-1]]]), options.newton_iter

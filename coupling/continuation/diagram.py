@@ -32,8 +32,9 @@ SEEDS = 9
 MAX_BRANCHES = 16
 #: ... plus this (x0 per period): a branch of no progression has ROP 0
 ROP_MATCH_FLOOR = 1e-9
-#: a stable interval's end within this (parameter units) of a located bifurcation of its branch is moved onto it
-SNAP_DISTANCE = 2e-2
+#: a branch stopped at the step-size floor this close (scaled parameter) to a located bifurcation of its
+#: own has turned at a non-smooth point there (a corner), not failed
+CORNER_DISTANCE = 1e-4
 #: bracket (scaled parameter) of the bisection of runs from rest inside a coexistence interval
 SWITCH_TOL = 1e-4
 #: a run from rest is on a branch of its period when its rate of penetration matches the branch's within this
@@ -97,6 +98,7 @@ def _follow_both_ways(param, base, orbit, start, end, options, on_point) -> Bran
     br.stopped = "; ".join(s for s in (back.stopped, fwd.stopped) if s)
     br.ended = "; ".join(s for s in (back.ended, fwd.ended) if s)
     br.end_points = back.end_points + fwd.end_points
+    br.stop_points = back.stop_points + fwd.stop_points
     return br
 
 
@@ -107,21 +109,35 @@ def _toward(param, base, orbit, start, end, origin, options, on_point) -> Branch
     return follow_branch(param, base, orbit, target, options=options, on_point=on_point)
 
 
-def stable_intervals(branch: Branch) -> list[tuple[float, float]]:
-    """The parameter intervals where the branch is stable (between its stable points' extreme values)."""
-    out, run = [], []
-    for p in branch.points + [None]:
-        if p is not None and p.stable:
-            run.append(p.value)
-        elif run:
-            out.append((min(run), max(run)))
-            run = []
+def stable_intervals(branch: Branch) -> list[tuple[float, float, Optional[float], Optional[float]]]:
+    """The parameter intervals where the branch is stable: (lo, hi) of its stable points, and the values of
+    the unstable neighbours just outside each end (None at the branch's end); the stability changes
+    between an end and its neighbour."""
+    out = []
+    pts = branch.points
+    i = 0
+    while i < len(pts):
+        if not pts[i].stable:
+            i += 1
+            continue
+        j = i
+        while j + 1 < len(pts) and pts[j + 1].stable:
+            j += 1
+        ends = (pts[i].value, pts[j].value)
+        outer = (pts[i - 1].value if i > 0 else None, pts[j + 1].value if j + 1 < len(pts) else None)
+        (lo, lo_out), (hi, hi_out) = sorted(zip(ends, outer), key=lambda e: e[0])
+        out.append((lo, hi, lo_out, hi_out))
+        i = j + 1
     return out
 
 
-def _snap(diagram: Diagram, i: int, value: float) -> float:
-    """A stable interval's end moved onto the located bifurcation of its branch next to it, if any."""
-    near = [b.value for b in diagram.bifurcations if b.branch == i and abs(b.value - value) <= SNAP_DISTANCE]
+def _snap(diagram: Diagram, i: int, value: float, outer: Optional[float]) -> float:
+    """A stable interval's end moved onto the bifurcation of its branch located between it and its unstable
+    neighbour, if any (the stability changes there)."""
+    if outer is None:
+        return value
+    lo, hi = sorted((value, outer))
+    near = [b.value for b in diagram.bifurcations if b.branch == i and lo <= b.value <= hi]
     return min(near, key=lambda v: abs(v - value)) if near else value
 
 
@@ -134,17 +150,16 @@ def _rest_switch(param: Parameter, base: Groups, diagram: Diagram, lo: float, hi
     x, y = lo + eps, hi - eps
     while abs(y - x) > SWITCH_TOL * param.scale:
         m = 0.5 * (x + y)
-        r = _rest_run(param, base, m, diagram)
-        if r.branch == a.branch:
+        if _rest_run(param, base, m, diagram).branch == a.branch:
             x = m
         else:
-            y, b = m, r
+            y = m
     return {"value": 0.5 * (x + y), "below": a.branch, "above": b.branch, "uncertainty": abs(y - x)}
 
 
 def _coexistence(diagram: Diagram, param, base) -> list[dict]:
-    spans = [(i, _snap(diagram, i, lo), _snap(diagram, i, hi)) for i, br in enumerate(diagram.branches)
-             for lo, hi in stable_intervals(br)]
+    spans = [(i, _snap(diagram, i, lo, lo_out), _snap(diagram, i, hi, hi_out))
+             for i, br in enumerate(diagram.branches) for lo, hi, lo_out, hi_out in stable_intervals(br)]
     out = []
     for x in range(len(spans)):
         for y in range(x + 1, len(spans)):
@@ -215,10 +230,20 @@ def _add_branch(diagram: Diagram, param, base, branch: Branch, options, on_point
     """Add a branch and its bifurcations; follow the period-doubled branch of each period-doubling."""
     index = len(diagram.branches)
     diagram.branches.append(branch)
-    if branch.stopped:
-        diagram.stops.append(branch.stopped)
     bifs = detect(param, base, branch.points, index)
     diagram.bifurcations.extend(bifs)
+    failed = []
+    for point, why in branch.stop_points:
+        near = [b for b in bifs if abs(b.value - point.value) <= CORNER_DISTANCE * param.scale]
+        if near:
+            reason = (f"at {param.name} = {point.value:.9g} the branch turns at a non-smooth point next to its "
+                      f"{near[0].kind} (a corner the continuation does not pass)")
+            branch.ended = "; ".join(x for x in (branch.ended, reason) if x)
+            branch.end_points.append((point, reason))
+        else:
+            failed.append(why)
+    branch.stopped = "; ".join(failed)
+    diagram.stops.extend(failed)
     for point, reason in branch.end_points:
         diagram.bifurcations.append(Bifurcation(kind="branch-end", value=point.value, branch=index,
                                                 orbit=point.orbit, detail=reason))

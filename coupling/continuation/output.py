@@ -104,43 +104,63 @@ MARKERS = {"period-doubling": "o", "fold": "s", "neimark-sacker": "D", "grazing"
            "bounce": "x", "branch-end": "|"}
 
 
+def section_points(orbit) -> np.ndarray:
+    """The hammer velocity [m/s] at the orbit's n Poincaré points (phase 0 of each forcing period)."""
+    from .monodromy import period_map
+    out = [orbit.s[1]]
+    s = orbit.s
+    for _ in range(orbit.period - 1):
+        s = period_map(orbit.groups, s, 1, jacobian=False).s_end
+        out.append(s[1])
+    return np.array(out) * orbit.groups.scales.velocity
+
+
+def _draw_branches(ax, d: Diagram, values_of) -> None:
+    """Each branch's curves ``values_of(point) -> (n,)`` against the parameter: stable solid, unstable dashed."""
+    import matplotlib.pyplot as plt
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for br in d.branches:
+        v = np.array([p.value for p in br.points])
+        ys = np.array([values_of(p) for p in br.points]).reshape(len(br.points), -1)
+        st = np.array([p.orbit.stable for p in br.points])
+        c = colours[br.period % len(colours)]
+        for k in range(ys.shape[1]):
+            for mask, style in ((st, "-"), (~st, "--")):
+                # each run of one stability, joined to its neighbour so the curve has no gap
+                grow = mask | np.concatenate([[False], mask[:-1]]) if style == "--" else mask
+                y = np.where(grow, ys[:, k], np.nan)
+                ax.plot(v, y, style, color=c, lw=1.3,
+                        label=f"P{br.period}" if (style == "-" and k == 0 and mask.any()) else None)
+
+
 def draw_diagram(d: Diagram, path) -> None:
-    """The bifurcation diagram: ROP [m/h] of every branch against the parameter, stable solid, unstable
-    dashed, bifurcations marked (the paper's Fig. 9 shows the Poincaré section; here each orbit is one
-    line, its rate of penetration)."""
+    """The bifurcation diagram like the paper's Fig. 9: the hammer velocity at the Poincaré section (every
+    point of a period-n orbit) and the rate of penetration against the parameter; stable branches solid,
+    unstable dashed, bifurcations marked."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    for i, br in enumerate(d.branches):
-        v = np.array([p.value for p in br.points])
-        r = np.array([p.orbit.groups.rop(p.orbit.rop_x0_per_period)["m_per_h"] for p in br.points])
-        st = np.array([p.orbit.stable for p in br.points])
-        c = colours[br.period % len(colours)]
-        for mask, style in ((st, "-"), (~st, "--")):
-            y = np.where(mask, r, np.nan)
-            # segments joined at the stability change
-            edge = np.where(mask[:-1] != mask[1:])[0]
-            for e in edge:
-                y[e if not mask[e] else e + 1] = r[e if not mask[e] else e + 1]
-            ax.plot(v, y, style, color=c, lw=1.4, label=f"P{br.period}" if style == "-" and mask.any() else None)
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(7, 7), sharex=True)
+    _draw_branches(top, d, lambda p: section_points(p.orbit))
+    _draw_branches(bottom, d, lambda p: [p.orbit.groups.rop(p.orbit.rop_x0_per_period)["m_per_h"]])
     for b in d.bifurcations:
-        r = b.orbit.groups.rop(b.orbit.rop_x0_per_period)["m_per_h"]
-        ax.plot([b.value], [r], MARKERS.get(b.kind, "*"), color="k", ms=6, mfc="none")
-    handles, labels = ax.get_legend_handles_labels()
-    seen = {}
-    for h, lab in zip(handles, labels):
-        seen.setdefault(lab, h)
-    kinds = sorted({b.kind for b in d.bifurcations})
-    for k in kinds:
-        seen[k] = ax.plot([], [], MARKERS.get(k, "*"), color="k", mfc="none")[0]
-    ax.legend(seen.values(), seen.keys(), fontsize=8)
+        m = MARKERS.get(b.kind, "*")
+        top.plot([b.value] * b.orbit.period, section_points(b.orbit), m, color="k", ms=6, mfc="none")
+        bottom.plot([b.value], [b.orbit.groups.rop(b.orbit.rop_x0_per_period)["m_per_h"]], m, color="k", ms=6,
+                    mfc="none")
+    handles = {}
+    for h, lab in zip(*top.get_legend_handles_labels()):
+        handles.setdefault(lab, h)
+    for k in sorted({b.kind for b in d.bifurcations}):
+        handles[k] = top.plot([], [], MARKERS.get(k, "*"), color="k", mfc="none")[0]
+    top.legend(handles.values(), handles.keys(), fontsize=8)
     unit = _unit(d.parameter)
-    ax.set_xlabel(d.parameter if unit == "1" else f"{d.parameter} [{unit}]")
-    ax.set_ylabel("rate of penetration [m/h]")
-    ax.set_title("periodic orbits: stable solid, unstable dashed")
-    ax.grid(alpha=0.3)
+    bottom.set_xlabel(d.parameter if unit == "1" else f"{d.parameter} [{unit}]")
+    top.set_ylabel("hammer velocity at the section [m/s]")
+    bottom.set_ylabel("rate of penetration [m/h]")
+    top.set_title("periodic orbits: stable solid, unstable dashed")
+    for ax in (top, bottom):
+        ax.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
