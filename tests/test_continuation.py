@@ -117,3 +117,11 @@ def test_continue_json_has_the_issues_shape_and_its_states_restart_a_stepper(tmp
     assert st.y[2] == pytest.approx(pt["rop_x0_per_period"], abs=1e-8)
     header = (tmp_path / "b.csv").read_text().splitlines()[0]
     assert header.startswith("a [1],") and "rop [m/h]" in header
+
+
+@pytest.mark.slow
+def test_continue_exits_5_naming_the_value_where_no_orbit_settles():
+    """The chaos preset: runs from rest settle to no period, and the command says where (exit 5)."""
+    r = _cli("--preset", "chaos", "--param", "a", "--range", "0.1967", "0.1966", "--seeds", "2")
+    assert r.returncode == 5, (r.returncode, r.stderr)
+    assert "a = 0.1967" in r.stderr and "no period" in r.stderr and "Traceback" not in r.stderr
