@@ -125,3 +125,18 @@ def test_continue_exits_5_naming_the_value_where_no_orbit_settles():
     r = _cli("--preset", "chaos", "--param", "a", "--range", "0.1967", "0.1966", "--seeds", "2")
     assert r.returncode == 5, (r.returncode, r.stderr)
     assert "a = 0.1967" in r.stderr and "no period" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_the_period_doubling_followed_in_eta_stays_on_the_multiplier_minus_one(p1_branch):
+    """Each point (a, eta) of the boundary: orbits corrected at a -+ 1e-6 there straddle the multiplier -1."""
+    from hammerbit.continuation.boundary import follow_boundary
+    base, param, branch, bifs = p1_branch
+    pd = next(b for b in bifs if b.kind == "period-doubling")
+    curve = follow_boundary(base, pd, "a", "eta", 0.98, 1.02, points=4)
+    assert not curve.stopped
+    etas = [w for _, w in curve.points]
+    assert min(etas) == pytest.approx(0.98) and max(etas) == pytest.approx(1.02)
+    for a, eta in curve.points[::2]:
+        mins = [np.min(correct_orbit(base.replace(a=a + d, eta=eta), pd.orbit.s, 1).multipliers.real)
+                for d in (1e-6, -1e-6)]
+        assert mins[0] > -1.0 > mins[1], (a, eta, mins)

@@ -12,6 +12,8 @@ __all__ = ["register", "cmd_continue", "MAX_SEEDS"]
 
 #: runs from rest that seed branches, at most
 MAX_SEEDS = 200
+#: points of a curve in two parameters, at most
+MAX_CURVE_POINTS = 2000
 
 
 def register(subparsers) -> argparse.ArgumentParser:
@@ -32,6 +34,13 @@ def register(subparsers) -> argparse.ArgumentParser:
                         "name such as A, f, B)")
     p.add_argument("--range", required=True, nargs=2, type=float, metavar=("START", "END"),
                    help="the parameter's range, in its units (SI names: SI units)")
+    p.add_argument("--param2", default=None, metavar="NAME",
+                   help="a second parameter: every period-doubling, fold and Neimark-Sacker point found "
+                        "along --param is followed over --range2 as a curve (JSON 'curves')")
+    p.add_argument("--range2", default=None, nargs=2, type=float, metavar=("START", "END"),
+                   help="the range of --param2, in its units")
+    p.add_argument("--curve-points", type=int, default=21, metavar="N",
+                   help="points of each curve over --range2")
     p.add_argument("--seeds", type=int, default=9, metavar="N",
                    help="runs from rest, evenly spread over the range, that seed branches")
     p.add_argument("--json", action="store_true", help="the diagram as JSON on stdout (nondimensional)")
@@ -62,6 +71,24 @@ def _check(args):
             param.at(base, v)
         except ParameterError as e:
             raise UsageError(f"--range {v:g}: {e}") from None
+    if (args.param2 is None) != (args.range2 is None):
+        raise UsageError("--param2 and --range2 go together: give both or neither")
+    if args.param2 is not None:
+        if args.param2 == args.param:
+            raise UsageError(f"--param2 {args.param2}: the same parameter as --param")
+        try:
+            param2 = Parameter.on(args.param2, base)
+        except ParameterError as e:
+            raise UsageError(f"--param2 {args.param2}: {e}") from None
+        if args.range2[0] == args.range2[1]:
+            raise UsageError(f"--range2 {args.range2[0]:g} {args.range2[1]:g}: the two ends must differ")
+        for v in args.range2:
+            try:
+                param2.at(base, v)
+            except ParameterError as e:
+                raise UsageError(f"--range2 {v:g}: {e}") from None
+        if not (2 <= args.curve_points <= MAX_CURVE_POINTS):
+            raise UsageError(f"--curve-points {args.curve_points}: allowed 2 to {MAX_CURVE_POINTS}")
     if not (2 <= args.seeds <= MAX_SEEDS):
         raise UsageError(f"--seeds {args.seeds}: allowed 2 to {MAX_SEEDS}")
     for opt, path, formats in (("--csv", args.csv, {"csv"}), ("--out", args.out, NETCDF_SUFFIXES),
@@ -94,6 +121,7 @@ def cmd_continue(args) -> int:
     d = continue_orbits(base, args.param, args.range[0], args.range[1], seeds=args.seeds, on_point=show)
     if show:
         sys.stderr.write("\n")
+    curves = _curves(base, d, args) if args.param2 else []
     if args.csv:
         with output_errors("--csv", args.csv):
             write_csv(d, args.csv)
@@ -104,14 +132,38 @@ def cmd_continue(args) -> int:
         with output_errors("--plot", args.plot):
             draw_diagram(d, args.plot)
     if args.json:
-        print(json.dumps(diagram_json(d)))
+        out = diagram_json(d)
+        out["curves"] = [{"kind": c.kind, "branch": i, "points": [{c.param: float(v), c.param2: float(w)}
+                                                                   for v, w in c.points], "stopped": c.stopped}
+                         for i, c in curves]
+        print(json.dumps(out))
     else:
         _print_text(d)
+        for _, c in curves:
+            print(f"{c.kind} curve: {len(c.points)} points over {c.param2} in "
+                  f"[{min(w for _, w in c.points):.6g}, {max(w for _, w in c.points):.6g}]"
+                  + (f"; {c.stopped}" if c.stopped else ""))
     if d.stops:
         raise RunFailure(f"continuation could not go on: {d.stops[0]}"
                          + (f" (and {len(d.stops) - 1} more, see --json 'stops')" if len(d.stops) > 1 else ""),
                          code=EXIT_INACCURATE)
     return 0
+
+
+def _curves(base, d, args) -> list:
+    """Each smooth bifurcation of the diagram followed over --range2: [(branch index, Curve)]."""
+    from hammerbit.continuation.bifurcation import SMOOTH_KINDS
+    from hammerbit.continuation.boundary import follow_boundary
+    out = []
+    for b in d.bifurcations:
+        if b.kind not in SMOOTH_KINDS:
+            continue
+        c = follow_boundary(base, b, args.param, args.param2, args.range2[0], args.range2[1],
+                            points=args.curve_points)
+        if c.stopped:
+            d.stops.append(f"{b.kind} curve from {args.param} = {b.value:.9g}: {c.stopped}")
+        out.append((b.branch, c))
+    return out
 
 
 def _print_text(d) -> None:
