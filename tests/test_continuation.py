@@ -140,3 +140,27 @@ def test_the_period_doubling_followed_in_eta_stays_on_the_multiplier_minus_one(p
         mins = [np.min(correct_orbit(base.replace(a=a + d, eta=eta), pd.orbit.s, 1).multipliers.real)
                 for d in (1e-6, -1e-6)]
         assert mins[0] > -1.0 > mins[1], (a, eta, mins)
+
+
+def test_map_overlay_refuses_a_file_without_curves_before_any_work(tmp_path):
+    bad = tmp_path / "c.json"
+    bad.write_text('{"branches": []}')
+    r = subprocess.run([sys.executable, "-m", "hammerbit", "map", "--axis", "a=0.1:0.2:3", "--axis", "eta=0.9:1.1:3",
+                        "--plot", str(tmp_path / "m.png"), "--overlay", str(bad)], capture_output=True, text=True,
+                       timeout=600)
+    assert r.returncode == 2 and f"--overlay {bad}" in r.stderr and "curves" in r.stderr
+    assert not (tmp_path / "m.png").exists()
+
+
+def test_the_overlay_draws_the_curves_that_name_both_map_axes():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from hammerbit.continuation.output import draw_curves
+    curves = [{"kind": "period-doubling", "points": [{"a": 0.17, "eta": 0.9}, {"a": 0.18, "eta": 1.0}]},
+              {"kind": "fold", "points": [{"a": 0.1, "b": 0.5}, {"a": 0.2, "b": 0.6}]}]
+    fig, ax = plt.subplots()
+    assert draw_curves(ax, curves, "eta", "a") == 1
+    (line,) = ax.get_lines()
+    assert list(line.get_xdata()) == [0.9, 1.0] and list(line.get_ydata()) == [0.17, 0.18]
+    plt.close(fig)

@@ -164,3 +164,39 @@ def draw_diagram(d: Diagram, path) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
+
+
+def load_curves(path) -> list:
+    """The curves of a ``hammerbit continue --json`` file (its ``curves``), checked.
+
+    Raises
+    ------
+    ValueError
+        Not JSON, or no list ``curves`` of ``{"kind", "points": [{name: value, name2: value}]}``.
+    """
+    import json
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except json.JSONDecodeError as e:
+        raise ValueError(f"not JSON ({e.msg} at line {e.lineno})") from None
+    curves = data.get("curves") if isinstance(data, dict) else None
+    if not isinstance(curves, list) or not all(
+            isinstance(c, dict) and isinstance(c.get("points"), list)
+            and all(isinstance(p, dict) and len(p) == 2 for p in c["points"]) for c in curves):
+        raise ValueError("no 'curves' of 'hammerbit continue --json' (a list of {kind, points: [{name: value, "
+                         "name2: value}]})")
+    return curves
+
+
+def draw_curves(ax, curves: list, x_name: str, y_name: str) -> int:
+    """Draw the curves whose points name both map axes onto ``ax``; returns how many were drawn."""
+    drawn = 0
+    for c in curves:
+        pts = [p for p in c["points"] if x_name in p and y_name in p]
+        if len(pts) < 2:
+            continue
+        ax.plot([p[x_name] for p in pts], [p[y_name] for p in pts], "-", color="k", lw=2.0,
+                marker=MARKERS.get(c.get("kind"), "*"), ms=4, mfc="w",
+                label=f"{c.get('kind', 'curve')} (continuation)")
+        drawn += 1
+    return drawn

@@ -59,13 +59,14 @@ def _codes(period: np.ndarray, status: np.ndarray, rop: np.ndarray):
     return code, colors, labels
 
 
-def plot_map(ds, path, *, rop_levels: int = 8):
+def plot_map(ds, path, *, rop_levels: int = 8, overlay=None):
     """Period map coloured by period-n (period-1 green) with ROP contours [m/h].
 
     One axis: period-n and ROP against it.  Two axes: the map.  Three axes:
     the map over the first two at the middle value of the third.  Cells the
     scene's dynamics make invalid (runaway, bounce) are hatched; the ROP
-    contours and the star of the best cell use valid cells only.
+    contours and the star of the best cell use valid cells only.  ``overlay``:
+    curves of ``hammerbit continue --json`` drawn over a map of their two parameters.
     """
     import matplotlib
     matplotlib.use("Agg")
@@ -129,6 +130,10 @@ def plot_map(ds, path, *, rop_levels: int = 8):
         ax.plot([x[j]], [y[i]], marker="*", ms=16, mfc="gold", mec="k", ls="none")
         handles.append(plt.Line2D([], [], marker="*", ms=12, mfc="gold", mec="k", ls="none",
                                   label=f"best valid cell, {rop[i, j]:.3g} m/h"))
+    if overlay:
+        from hammerbit.continuation.output import draw_curves
+        if draw_curves(ax, overlay, xn, yn):
+            handles.append(plt.Line2D([], [], color="k", lw=2.0, label="bifurcation curves (continuation)"))
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.12, 1.0), fontsize=8)
     ax.set_xlabel(_label(sel, xn))
     ax.set_ylabel(_label(sel, yn))
