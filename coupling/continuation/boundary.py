@@ -33,6 +33,8 @@ CURVE_POINTS = 21
 FD_STEP = 1e-6
 #: Newton iterations per curve point
 MAX_ITER = 12
+#: halvings of a step in the second parameter before the curve stops
+MAX_HALVINGS = 5
 #: the test function's residual (relative to its scale: its derivative norm times 1e-9) accepted
 TEST_TOL = 1e-9
 
@@ -76,6 +78,24 @@ def _solve(param, param2, base, n, kind, x, w):
     raise ContinuationError(f"no convergence in {MAX_ITER} iterations")
 
 
+def _reach(param, param2, base, bif, prev, w_to, depth=0):
+    """The curve's point at ``w_to`` from its last points ``prev`` [(w, x)], halving the step in the second
+    parameter where Newton's method fails from the secant guess."""
+    w_from, x_from = prev[-1]
+    guess = x_from
+    if len(prev) >= 2:
+        (w1, x1), (w2, x2) = prev[-2], prev[-1]
+        guess = x2 + (x2 - x1) * ((w_to - w2) / (w2 - w1))
+    try:
+        return _solve(param, param2, base, bif.orbit.period, bif.kind, guess, w_to)[0]
+    except (ContinuationError, np.linalg.LinAlgError, ValueError):
+        if depth >= MAX_HALVINGS:
+            raise
+    w_mid = 0.5 * (w_from + w_to)
+    x_mid = _reach(param, param2, base, bif, prev, w_mid, depth + 1)
+    return _reach(param, param2, base, bif, prev + [(w_mid, x_mid)], w_to, depth + 1)
+
+
 def follow_boundary(base: Groups, bif: Bifurcation, name: str, name2: str, start2: float, end2: float, *,
                     points: int = CURVE_POINTS,
                     on_point: Optional[Callable[[float, float], None]] = None) -> Curve:
@@ -95,15 +115,14 @@ def follow_boundary(base: Groups, bif: Bifurcation, name: str, name2: str, start
     for w_end in (start2 / param2.scale, end2 / param2.scale):
         ws = np.linspace(w0, w_end, max(2, int(round(points * abs(w_end - w0) / max(abs(end2 - start2) /
                                                                                       param2.scale, 1e-300))) + 1))
-        side, prev = [], [x0]
+        side, prev = [], [(w0, x0)]
         for w in ws[1:]:
-            guess = prev[-1] if len(prev) < 2 else 2 * prev[-1] - prev[-2]
             try:
-                x, _ = _solve(param, param2, base, bif.orbit.period, bif.kind, guess, w)
-            except (ContinuationError, np.linalg.LinAlgError) as e:
+                x = _reach(param, param2, base, bif, prev, w)
+            except (ContinuationError, np.linalg.LinAlgError, ValueError) as e:
                 curve.stopped = "; ".join(v for v in (curve.stopped, f"at {name2} = {w * param2.scale:.9g}: {e}") if v)
                 break
-            prev.append(x)
+            prev.append((w, x))
             side.append((x[-1] * param.scale, w * param2.scale))
             if on_point:
                 on_point(*side[-1])
