@@ -101,7 +101,7 @@ def test_bad_input_exits_2_naming_the_option(args, option):
 @pytest.mark.slow
 def test_continue_json_has_the_issues_shape_and_its_states_restart_a_stepper(tmp_path):
     r = _cli("--preset", "paper-fig9", "--param", "a", "--range", "0.2", "0.19", "--seeds", "2", "--json",
-             "--csv", str(tmp_path / "b.csv"))
+             "--csv", str(tmp_path / "b.csv"), "--out", str(tmp_path / "b.nc"), "--plot", str(tmp_path / "b.png"))
     assert r.returncode == 0, r.stderr
     d = json.loads(r.stdout)
     assert set(d) >= {"branches", "bifurcations", "curves"}
@@ -117,6 +117,12 @@ def test_continue_json_has_the_issues_shape_and_its_states_restart_a_stepper(tmp
     assert st.y[2] == pytest.approx(pt["rop_x0_per_period"], abs=1e-8)
     header = (tmp_path / "b.csv").read_text().splitlines()[0]
     assert header.startswith("a [1],") and "rop [m/h]" in header
+    import xarray as xr
+    with xr.open_dataset(tmp_path / "b.nc") as ds:
+        n_points = sum(len(b["points"]) for b in d["branches"])
+        assert ds.sizes["point"] == n_points and ds["rop"].attrs["units"] == "m/h"
+        assert ds["a"].values[0] == pytest.approx(d["branches"][0]["points"][0]["a"])
+    assert (tmp_path / "b.png").stat().st_size > 0
 
 
 @pytest.mark.slow
