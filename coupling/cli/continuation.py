@@ -167,13 +167,14 @@ def _curves(base, d, args) -> list:
 
 
 def _print_text(d) -> None:
+    from hammerbit.continuation.diagram import stable_intervals
     name = d.parameter
     for i, br in enumerate(d.branches):
         v = [p.value for p in br.points]
-        stable = [p.value for p in br.points if p.orbit.stable]
+        stable = stable_intervals(br)
         line = f"branch {i}: period {br.period}, {name} in [{min(v):.6g}, {max(v):.6g}], {len(v)} points"
         if stable:
-            line += f", stable in [{min(stable):.6g}, {max(stable):.6g}]"
+            line += ", stable in " + ", ".join(f"[{lo:.6g}, {hi:.6g}]" for lo, hi, _, _ in stable)
         print(line + (f"; ends {br.ended}" if br.ended else ""))
     for b in d.bifurcations:
         print(f"{b.kind} at {name} = {b.value:.9g} on branch {b.branch} ({b.detail})")

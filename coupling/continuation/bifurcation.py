@@ -8,6 +8,11 @@ multipliers ``mu``:
 - Neimark–Sacker, a complex pair crosses the unit circle: ``prod(mu_i mu_j - 1)``
   over the pairs, kept only where the critical pair is complex.
 
+Where a test function changes sign because the multipliers jump across the
+critical value at a non-smooth point (no multiplier within
+:data:`CRITICAL_TOL` of it at the located point), the point is reported as a
+``border-collision``.
+
 Non-smooth ones change what happens along the orbit, read off the events of
 one period (:data:`SIGNATURE_KINDS`): an impact appears or disappears (the
 contact overlap's maximum touches zero: *grazing*), a stick phase appears or
@@ -46,6 +51,9 @@ SMOOTH_KINDS = ("period-doubling", "fold", "neimark-sacker")
 SIGNATURE_KINDS = {KL.EV_IMPACT: "grazing", KL.EV_STICK: "sliding", KL.EV_BOUNCE: "bounce"}
 #: a multiplier pair counts as complex at a Neimark–Sacker point above this imaginary part
 COMPLEX_TOL = 1e-6
+#: a located smooth bifurcation whose multiplier is further than this from the critical value is a jump of
+#: the multipliers at a non-smooth point (a border collision), not a smooth crossing
+CRITICAL_TOL = 1e-4
 #: a multiplier below this is the structural zero of a stick phase (test_values)
 ZERO_MULTIPLIER = 1e-8
 #: distance from the period-n orbit that a period-2n orbit must keep to count as a new branch
@@ -154,9 +162,24 @@ def detect(param: Parameter, base: Groups, points: list, branch_index: int) -> l
                 orb = b.orbit
             if not _is_critical(kind, orb):
                 continue
+            detail = _detail(kind, orb)
+            if kind in SMOOTH_KINDS and _critical_distance(kind, orb) > CRITICAL_TOL:
+                # the multipliers jumped across the critical value at a non-smooth point
+                detail = f"{kind}: the multipliers jump across its critical value at a non-smooth point; {detail}"
+                kind = "border-collision"
             found.append(Bifurcation(kind=kind, value=param.value(orb.groups), branch=branch_index, orbit=orb,
-                                     detail=_detail(kind, orb)))
+                                     detail=detail))
     return found
+
+
+def _critical_distance(kind: str, orbit: PeriodicOrbit) -> float:
+    """How far the orbit's nearest multiplier is from the critical value of ``kind`` (-1, +1, the unit circle)."""
+    mu = orbit.multipliers
+    if kind == "period-doubling":
+        return float(np.min(np.abs(mu + 1.0)))
+    if kind == "fold":
+        return float(np.min(np.abs(mu - 1.0)))
+    return float(np.min(np.abs(np.abs(mu) - 1.0)))
 
 
 def _detail(kind: str, orbit: PeriodicOrbit) -> str:
@@ -182,7 +205,7 @@ def switch_period_doubling(param: Parameter, base: Groups, bif: Bifurcation, *, 
                            amplitude: float = 0.03) -> Optional[PeriodicOrbit]:
     """A period-2n orbit next to a period-doubling point, or None.
 
-    Steps ``offset`` (scaled parameter) to either side and starts Newton's method
+    Steps ``offset`` (then a tenth of it, with a tenth of the amplitude) to either side and starts Newton's method
     on the period-2n map from the orbit displaced by ``amplitude`` along the
     eigenvector of the multiplier -1 (a period-doubled orbit grows like the
     square root of the distance from the point); keeps the first that converges
@@ -194,10 +217,12 @@ def switch_period_doubling(param: Parameter, base: Groups, bif: Bifurcation, *, 
     v /= np.max(np.abs(v))
     q0 = bif.value / param.scale
     # first the side where the period-n orbit is unstable (a supercritical doubling's period-2n is there)
-    for side in (_unstable_side(param, base, bif, q0, offset), -_unstable_side(param, base, bif, q0, offset)):
-        g = param.at(base, (q0 + side * offset) * param.scale)
+    first = _unstable_side(param, base, bif, q0, offset)
+    for side, off, amp in ((first, offset, amplitude), (-first, offset, amplitude),
+                           (first, 0.1 * offset, 0.1 * amplitude), (-first, 0.1 * offset, 0.1 * amplitude)):
+        g = param.at(base, (q0 + side * off) * param.scale)
         for sign in (1.0, -1.0):
-            s0 = orb.s + sign * amplitude * v
+            s0 = orb.s + sign * amp * v
             if s0.shape[0] == 3 and s0[2] <= 0:
                 continue
             try:
