@@ -180,7 +180,11 @@ def _print_text(d) -> None:
         print(f"{b.kind} at {name} = {b.value:.9g} on branch {b.branch} ({b.detail})")
     for c in d.coexistence:
         sw = c["from_rest_switch"]
-        text = (f"; runs from rest switch from branch {sw['below']} to {sw['above']} at {name} = {sw['value']:.6g}"
-                if sw else "")
+        text = (f"; runs from rest switch from {_which(sw['below'])} to {_which(sw['above'])} at {name} = "
+                f"{sw['value']:.6g}" if sw else "")
         print(f"stable branches {c['branches']} coexist for {name} in [{c['from']:.6g}, {c['to']:.6g}]; "
-              f"a run from rest reaches branch {c['from_rest']} at the middle{text}")
+              f"a run from rest reaches {_which(c['from_rest'])} at the middle{text}")
+
+
+def _which(branch) -> str:
+    return "no followed branch" if branch is None else f"branch {branch}"
