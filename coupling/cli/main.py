@@ -31,6 +31,7 @@ COMMAND_MODULES = [
     "hammerbit.cli.studies",
     "hammerbit.cli.fmu",
     "hammerbit.cli.ssp",
+    "hammerbit.cli.continuation",
 ]
 
 #: Most samples ``simulate --csv`` writes (about 1 GB of text).

@@ -23,7 +23,8 @@ import math
 import sys
 import time
 
-from hammerbit.cli.common import EXIT_INFEASIBLE, RunFailure, UsageError, add_set_argument, parse_settings
+from hammerbit.cli.common import (EXIT_INFEASIBLE, RunFailure, UsageError, add_set_argument, check_input_file,
+                                   parse_settings)
 from hammerbit.model.regime_codes import REGIME_BITS, REGIME_TRANSIENT, regime_names
 
 __all__ = ["register", "cmd_bifurcation", "cmd_sweep", "cmd_map", "cmd_optimize"]
@@ -192,6 +193,20 @@ def cmd_sweep(args) -> int:
 # ---------------------------------------------------------------------------
 # map
 # ---------------------------------------------------------------------------
+def _overlay(args):
+    """The curves of ``--overlay FILE`` (``hammerbit continue --json``), read before the map runs."""
+    if not args.overlay:
+        return None
+    if not args.plot:
+        raise UsageError("--overlay draws curves on the --plot figure: give --plot FILE too")
+    check_input_file(args.overlay, "--overlay")
+    from hammerbit.continuation.output import load_curves
+    try:
+        return load_curves(args.overlay)
+    except ValueError as e:
+        raise UsageError(f"--overlay {args.overlay}: {e}") from None
+
+
 def cmd_map(args) -> int:
     from hammerbit.studies.map import FLAG_FIELDS, Axis, best_valid_cell, map_to_json, regime_map
     if not args.axis:
@@ -199,6 +214,7 @@ def cmd_map(args) -> int:
     if len(args.axis) > 3:
         raise UsageError(f"map takes 1 to 3 --axis options, got {len(args.axis)}")
     axes = [Axis.parse(a) for a in args.axis]
+    overlay = _overlay(args)
     g = _groups(args)
     ds = regime_map(g, axes, periods=args.periods, solver=_solver(args), options=_executor_options(args),
                     attrs={"preset": args.preset, "settings": json.dumps(parse_settings(args.set))})
@@ -206,7 +222,7 @@ def cmd_map(args) -> int:
         ds.to_netcdf(args.out, engine="scipy")
     if args.plot:
         from hammerbit.studies.plots import plot_map
-        plot_map(ds, args.plot)
+        plot_map(ds, args.plot, overlay=overlay)
     failed = int(ds.attrs["failed_cells"])
     if failed:
         first = json.loads(ds.attrs["errors"])[:1]
@@ -406,6 +422,8 @@ def register(subparsers) -> None:
     _add_executor_args(p)
     p.add_argument("--out", default=None, help="netCDF file (xarray.open_dataset reads it)")
     p.add_argument("--plot", default=None, help="figure file: period map with ROP contours")
+    p.add_argument("--overlay", default=None, metavar="CURVES.json",
+                   help="draw the curves of `hammerbit continue --json` (--param2) over the --plot map")
     p.add_argument("--json", action="store_true", help="print the map as JSON")
     p.set_defaults(func=cmd_map)
 

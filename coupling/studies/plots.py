@@ -85,7 +85,7 @@ def _flag_marks(sel, valid: np.ndarray, status: np.ndarray) -> list:
     return [(label, kinds[label], m) for label, m in masks if m.any()]
 
 
-def plot_map(ds, path, *, rop_levels: int = 8):
+def plot_map(ds, path, *, rop_levels: int = 8, overlay=None):
     """Period map coloured by period-n (period-1 green) with ROP contours [m/h].
 
     One axis: period-n and ROP against it.  Two axes: the map.  Three axes:
@@ -94,7 +94,8 @@ def plot_map(ds, path, *, rop_levels: int = 8):
     another flag, and cells outside the paper's domain are hatched, each kind
     its own way (:data:`FLAG_HATCHES`), with a legend; the ROP contours use
     valid cells, the star the best unflagged cell inside the domain
-    (:func:`~hammerbit.studies.map.eligible_cells`).
+    (:func:`~hammerbit.studies.map.eligible_cells`).  ``overlay``: curves of
+    ``hammerbit continue --json`` drawn over a map of their two parameters.
     """
     import matplotlib
     matplotlib.use("Agg")
@@ -168,6 +169,10 @@ def plot_map(ds, path, *, rop_levels: int = 8):
         ax.plot([x[j]], [y[i]], marker="*", ms=16, mfc="gold", mec="k", ls="none", gid="best-valid-cell")
         handles.append(plt.Line2D([], [], marker="*", ms=12, mfc="gold", mec="k", ls="none",
                                   label=f"best valid cell (unflagged, in the domain), {best['rop_m_per_h']:.3g} m/h"))
+    if overlay:
+        from hammerbit.continuation.output import draw_curves
+        if draw_curves(ax, overlay, xn, yn):
+            handles.append(plt.Line2D([], [], color="k", lw=2.0, label="bifurcation curves (continuation)"))
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.12, 1.0), fontsize=8)
     ax.set_xlabel(_label(sel, xn))
     ax.set_ylabel(_label(sel, yn))
