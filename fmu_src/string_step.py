@@ -12,6 +12,28 @@ state gives one autonomous linear system; its matrix exponential maps
 ``A1 = V diag(lam) V^-1`` the step is ``eta <- exp(lam h) eta + G c`` per mode
 (one of each conjugate pair kept): O(n) per step.
 
+Steps of any length.  A run carries the exponentials of its *built* steps
+(:data:`BUILT_STEPS`; scipy's ``expm``, as above).  A step within
+:data:`BUILT_STEP_MATCH` (relative) of one uses that step's exponentials; any
+other gets its own, computed by the kernels below (:func:`step_exponentials`):
+
+* the modal form in closed form per mode (:func:`modal_exponentials`): each
+  kept mode is a scalar system ``eta' = lam eta + b . w(s)``, so its step is
+  ``exp(lam h)`` and ``phi_k(lam h)`` functions of the polynomial input, with
+  no product by ``V`` or ``V^-1``.  The modal form is used at all only where it
+  is well conditioned: :meth:`ExactStep._modal` accepts it when ``V e^(lam h)
+  V^-1`` reproduces ``expm(A1 h)`` to :data:`MODAL_TOLERANCE` (relative to its
+  largest entry) at the first built step and the eigenvalues pair up as
+  conjugates.  The eigenbasis enters a step of any length only through the
+  input map ``V^-1 E`` and the output rows ``. V``, both fixed for the run and
+  checked there; the per-mode exponentials themselves are exact to rounding.
+* the dense form by scaling and squaring the [13/13] Pade approximant of
+  ``expm(Z h)`` (:func:`dense_exponential`; Higham 2005).
+
+Both are numba kernels, compiled into the native Drillstring FMU as they run
+in the Python one; :class:`StepTable` keeps a run's exponentials (built steps,
+and a bounded cache of the others).
+
 This module is the one source of that step: the co-simulation master's string
 side (``hammerbit.cosim.string_side``) and the ``Drillstring`` FMU
 (:mod:`string_slave`) both use :class:`ExactStep`, :class:`StringState` and
@@ -26,9 +48,13 @@ from typing import Optional
 import contextlib
 
 import numpy as np
+from numba import njit
+
 from .string_kernels import N_COEFFS, string_step_dense, string_step_modal
 
-__all__ = ["ExactStep", "Discretisation", "StringState", "MODAL_TOLERANCE", "step_key", "one_blas_thread"]
+__all__ = ["ExactStep", "Discretisation", "StringState", "StepTable", "MODAL_TOLERANCE", "BUILT_STEPS",
+           "BUILT_STEP_MATCH", "STEP_CACHE", "N_PHI", "PADE_WORK", "step_key", "one_blas_thread", "phi_functions",
+           "modal_exponentials", "dense_exponential", "step_exponentials"]
 
 #: the modal form is used when the eigenbasis reproduces the dense step to this (relative)
 MODAL_TOLERANCE = 1e-10
@@ -36,6 +62,12 @@ MODAL_TOLERANCE = 1e-10
 _KEY_DIGITS = 12
 #: squaring depth: a step h may be built from a cached step h / 2^k, k up to this
 _MAX_SQUARINGS = 12
+#: the step lengths a Drillstring FMU carries the exponentials of by default [s] (its default experiment's)
+BUILT_STEPS = (1e-3,)
+#: a step within this (relative) of a built step uses the built step's exponentials
+BUILT_STEP_MATCH = 1e-9
+#: step lengths other than the built ones whose exponentials a run keeps (the oldest goes first)
+STEP_CACHE = 8
 
 
 def one_blas_thread():
@@ -205,6 +237,8 @@ class ExactStep:
             self.m_rows3 = np.ascontiguousarray(np.vstack([r @ Vk_w for r in self.rows3]))
             self.m_V = Vk_w                       # xi = Re(m_V @ eta)
             self.m_Vinv = Vinv[keep]              # eta = m_Vinv @ xi
+            self.m_lam = np.ascontiguousarray(lam[keep])              # a step of any length: the modes'
+            self.m_B = np.ascontiguousarray(self.m_Vinv @ self.E)     # eigenvalues and inputs
             self.modal = True
         keep = self.modal_keep
         N = n + N_COEFFS + 1
@@ -268,3 +302,316 @@ class StringState:
             return string_step_modal(d.m_d, d.m_G, d.m_irow, d.m_icol, self.v, coeffs, self.side.m_frow)[0]
         self.buf[self.side.n:] = coeffs
         return string_step_dense(d.P, self.v, self.buf, self.tmp)
+
+
+# ---------------------------------------------------------------------------
+# the exponentials of a step of any length (numba kernels: the native FMU compiles them)
+# ---------------------------------------------------------------------------
+#: phi_0 .. phi_4 (the Taylor coefficients reach s^2 / 2, their time integral phi_4)
+N_PHI = 5
+#: below this |z| the phi functions are summed as their series (the recurrence cancels there)
+PHI_SERIES_RADIUS = 1.0
+#: terms of the series: |z|^k / (k + 1)! < 1e-20 for |z| < 1 and k = 20
+PHI_SERIES_TERMS = 20
+#: Higham (2005): the [13/13] Pade approximant of exp is exact to double precision for ||A||_1 <= this
+PADE13_THETA = 5.371920351148152
+#: the [13/13] Pade coefficients b_0 .. b_13
+PADE13 = (64764752532480000.0, 32382376266240000.0, 7771770303897600.0, 1187353796428800.0,
+          129060195264000.0, 10559470521600.0, 670442572800.0, 33522128640.0, 1323241920.0,
+          40840800.0, 960960.0, 16380.0, 182.0, 1.0)
+#: work arrays of :func:`dense_exponential`, in units of N^2 doubles (N = n + 7), plus 2 N
+PADE_WORK = 7
+
+
+@njit(cache=True)
+def phi_functions(z, phi):
+    """``phi[k] = phi_k(z)`` for k = 0 .. 4, ``phi_0 = exp``, ``phi_{k+1}(z) = (phi_k(z) - 1/k!) / z``.
+
+    Near zero the recurrence cancels: there the series ``sum_j z^j / (j + k)!``."""
+    phi[0] = np.exp(z)
+    if abs(z) < PHI_SERIES_RADIUS:
+        for k in range(1, N_PHI):
+            inv_fact = 1.0
+            for j in range(2, k + 1):
+                inv_fact /= j
+            term = complex(inv_fact, 0.0)
+            acc = term
+            for j in range(1, PHI_SERIES_TERMS):
+                term = term * z / (j + k)
+                acc += term
+            phi[k] = acc
+    else:
+        inv_fact = 1.0
+        for k in range(1, N_PHI):
+            phi[k] = (phi[k - 1] - inv_fact) / z
+            inv_fact /= k
+
+
+@njit(cache=True)
+def modal_exponentials(h, lam, B, frow, k2, d, G, irow, icol, phi):
+    """The modal form's arrays over a step ``h`` [s] into ``d, G, irow, icol`` (as
+    :class:`ModalForm` takes them), in closed form per mode: each mode is the scalar system
+    ``eta' = lam eta + B (x_h, v_h)`` driven by the polynomial hammer motion, so
+    ``d = exp(lam h)``, ``G[:, k] = B[:, k % 2] h^(j+1) phi_(j+1)(lam h)`` and its time
+    integrals ``h^(j+2) phi_(j+2)`` (``j = k // 2``, the power of the coefficient's term
+    ``s^j / j!``).  ``lam`` (m,) and ``B`` (m, 2) are the kept modes' eigenvalues and inputs
+    ``V^-1 E``, ``frow`` (m,) ``frow V`` (weight 2 on a conjugate pair's kept half), ``k2``
+    ``(k_i, c_i)``; ``phi`` (N_PHI,) complex scratch."""
+    hp = np.empty(N_PHI)               # h^k
+    hp[0] = 1.0
+    for k in range(1, N_PHI):
+        hp[k] = hp[k - 1] * h
+    fact = 1.0
+    for k in range(N_COEFFS):
+        j = k // 2
+        if k % 2 == 0:
+            fact *= j + 1                  # (j + 1)!
+        icol[k] = -(k2[0] if k % 2 == 0 else k2[1]) * hp[j + 1] / fact
+    for i in range(lam.shape[0]):
+        phi_functions(lam[i] * h, phi)
+        d[i] = phi[0]
+        irow[i] = frow[i] * (h * phi[1])
+        for k in range(N_COEFFS):
+            j = k // 2
+            b = B[i, k % 2]
+            G[i, k] = b * (hp[j + 1] * phi[j + 1])
+            icol[k] += (frow[i] * b * (hp[j + 2] * phi[j + 2])).real
+
+
+@njit(cache=True)
+def _matmul(A, B, C):
+    """C <- A @ B (square, C distinct from A and B), rows of C accumulated in a fixed order."""
+    N = A.shape[0]
+    for i in range(N):
+        for j in range(N):
+            C[i, j] = 0.0
+        for k in range(N):
+            a = A[i, k]
+            if a != 0.0:
+                for j in range(N):
+                    C[i, j] += a * B[k, j]
+
+
+@njit(cache=True)
+def _solve_in_place(Q, X, piv):
+    """X <- Q^-1 X by Gaussian elimination with partial pivoting (Q overwritten by its LU)."""
+    N = Q.shape[0]
+    for k in range(N):
+        p = k
+        best = abs(Q[k, k])
+        for i in range(k + 1, N):
+            if abs(Q[i, k]) > best:
+                best = abs(Q[i, k])
+                p = i
+        piv[k] = p
+        if p != k:
+            for j in range(N):
+                Q[k, j], Q[p, j] = Q[p, j], Q[k, j]
+                X[k, j], X[p, j] = X[p, j], X[k, j]
+        inv = 1.0 / Q[k, k]
+        for i in range(k + 1, N):
+            f = Q[i, k] * inv
+            if f != 0.0:
+                Q[i, k] = f
+                for j in range(k + 1, N):
+                    Q[i, j] -= f * Q[k, j]
+                for j in range(N):
+                    X[i, j] -= f * X[k, j]
+    for k in range(N - 1, -1, -1):
+        inv = 1.0 / Q[k, k]
+        for j in range(N):
+            X[k, j] *= inv
+        for i in range(k):
+            f = Q[i, k]
+            if f != 0.0:
+                for j in range(N):
+                    X[i, j] -= f * X[k, j]
+
+
+@njit(cache=True)
+def _balance(A, scale):
+    """A <- D^-1 A D with D = diag(scale) of powers of 2 (exact) that bring each row and column
+    to similar norms (the scaling of LAPACK's dgebal): a string side mixes displacements and
+    velocities, whose entries differ by ten orders of magnitude."""
+    N = A.shape[0]
+    for i in range(N):
+        scale[i] = 1.0
+    done = False
+    while not done:
+        done = True
+        for i in range(N):
+            c = 0.0
+            r = 0.0
+            for j in range(N):
+                if j != i:
+                    c += abs(A[j, i])
+                    r += abs(A[i, j])
+            if c == 0.0 or r == 0.0:
+                continue
+            total = c + r
+            f = 1.0
+            g = r / 2.0
+            while c < g:
+                f *= 2.0
+                c *= 4.0
+            g = r * 2.0
+            while c > g:
+                f /= 2.0
+                c /= 4.0
+            if (c + r) / f < 0.95 * total:
+                done = False
+                scale[i] *= f
+                for j in range(N):
+                    A[i, j] /= f
+                    A[j, i] *= f
+
+
+@njit(cache=True)
+def _pade_exponential(A, work):
+    """expm(A) into ``work[4 N^2: 5 N^2]`` (A destroyed) by scaling and squaring the [13/13] Pade
+    approximant (Higham 2005); ``work``: ``(PADE_WORK - 1) N^2 + N`` doubles after ``A``."""
+    N = A.shape[0]
+    NN = N * N
+    A2 = work[0:NN].reshape((N, N))
+    A4 = work[NN:2 * NN].reshape((N, N))
+    A6 = work[2 * NN:3 * NN].reshape((N, N))
+    U = work[3 * NN:4 * NN].reshape((N, N))
+    T = work[4 * NN:5 * NN].reshape((N, N))
+    V = work[5 * NN:6 * NN].reshape((N, N))
+    piv = work[6 * NN:6 * NN + N]
+    norm1 = 0.0                          # ||A||_1: the largest column sum
+    for j in range(N):
+        col = 0.0
+        for i in range(N):
+            col += abs(A[i, j])
+        norm1 = max(norm1, col)
+    s = 0
+    if norm1 > PADE13_THETA:
+        s = int(np.ceil(np.log2(norm1 / PADE13_THETA)))
+        scale = 0.5 ** s
+        for i in range(N):
+            for j in range(N):
+                A[i, j] *= scale
+    b = PADE13
+    _matmul(A, A, A2)
+    _matmul(A2, A2, A4)
+    _matmul(A4, A2, A6)
+    for i in range(N):                   # T <- A6 (b13 A6 + b11 A4 + b9 A2) + ..., U <- A T
+        for j in range(N):
+            V[i, j] = b[13] * A6[i, j] + b[11] * A4[i, j] + b[9] * A2[i, j]
+    _matmul(A6, V, T)
+    for i in range(N):
+        for j in range(N):
+            T[i, j] += b[7] * A6[i, j] + b[5] * A4[i, j] + b[3] * A2[i, j]
+        T[i, i] += b[1]
+    _matmul(A, T, U)                     # U: the odd part
+    for i in range(N):
+        for j in range(N):
+            T[i, j] = b[12] * A6[i, j] + b[10] * A4[i, j] + b[8] * A2[i, j]
+    _matmul(A6, T, V)
+    for i in range(N):                   # V: the even part
+        for j in range(N):
+            V[i, j] += b[6] * A6[i, j] + b[4] * A4[i, j] + b[2] * A2[i, j]
+        V[i, i] += b[0]
+    for i in range(N):                   # (V - U) X = V + U; X in T, V - U in A
+        for j in range(N):
+            T[i, j] = V[i, j] + U[i, j]
+            A[i, j] = V[i, j] - U[i, j]
+    _solve_in_place(A, T, piv)
+    for _ in range(s):
+        _matmul(T, T, A)
+        for i in range(N):
+            for j in range(N):
+                T[i, j] = A[i, j]
+
+
+@njit(cache=True)
+def dense_exponential(h, A1, E, frow, k2, P, work):
+    """The dense form's ``P`` over a step ``h`` [s] (as :class:`DenseForm` takes it): the rows
+    ``[xi, int (F_i - W) dt]`` and columns ``[xi, c]`` of ``expm(Z h)``, ``Z`` the string side
+    with the hammer motion's Taylor chain and the force integral appended (as
+    :class:`ExactStep` builds it): balanced (:func:`_balance`), then the [13/13] Pade
+    approximant scaled and squared (:func:`_pade_exponential`).  ``work``: ``PADE_WORK N^2 + 2 N``
+    doubles, ``N = n + 7``."""
+    n = A1.shape[0]
+    N = n + N_COEFFS + 1
+    NN = N * N
+    A = work[0:NN].reshape((N, N))
+    D = work[PADE_WORK * NN + N:PADE_WORK * NN + 2 * N]
+    for i in range(N):
+        for j in range(N):
+            A[i, j] = 0.0
+    for i in range(n):
+        for j in range(n):
+            A[i, j] = A1[i, j] * h
+        A[i, n] = E[i, 0] * h
+        A[i, n + 1] = E[i, 1] * h
+        A[N - 1, i] = frow[i] * h
+    for k in range(2):
+        A[n + k, n + 2 + k] = h
+        A[n + 2 + k, n + 4 + k] = h
+    A[N - 1, n] = -k2[0] * h
+    A[N - 1, n + 1] = -k2[1] * h
+    _balance(A, D)
+    _pade_exponential(A, work[NN:])
+    T = work[5 * NN:6 * NN].reshape((N, N))
+    for i in range(n + 1):               # expm(Z h) = D expm(D^-1 Z h D) D^-1
+        r = i if i < n else N - 1
+        for j in range(n + N_COEFFS):
+            P[i, j] = D[r] * T[r, j] / D[j]
+
+def step_exponentials(side: ExactStep, h: float) -> Discretisation:
+    """The exact step of ``side`` over ``h`` [s] computed by the kernels (:func:`modal_exponentials`
+    in the modal form, :func:`dense_exponential` in the dense one); ``side``'s form must be decided
+    (a first :meth:`ExactStep.discretisation`)."""
+    h = float(h)
+    if not (0.0 < h < np.inf):
+        raise ValueError(f"step length h = {h!r} s: allowed a finite h > 0")
+    k2 = np.array([side.ki, side.ci])
+    if side.modal:
+        m = side.m_lam.shape[0]
+        d = Discretisation(h=h, P=None, modal=True, m_d=np.empty(m, np.complex128),
+                           m_G=np.empty((m, N_COEFFS), np.complex128), m_irow=np.empty(m, np.complex128),
+                           m_icol=np.empty(N_COEFFS))
+        modal_exponentials(h, side.m_lam, side.m_B, side.m_frow, k2, d.m_d, d.m_G, d.m_irow, d.m_icol,
+                           np.empty(N_PHI, np.complex128))
+        return d
+    n = side.n
+    N = n + N_COEFFS + 1
+    P = np.empty((n + 1, n + N_COEFFS))
+    dense_exponential(h, side.A1, side.E, side.frow, k2, P, np.empty(PADE_WORK * N * N + 2 * N))
+    return Discretisation(h=h, P=P)
+
+
+class StepTable:
+    """The exponentials a run steps with: those of its built steps (:data:`BUILT_STEPS`, by
+    :meth:`ExactStep.discretisation`), and of up to :data:`STEP_CACHE` other step lengths (by
+    :func:`step_exponentials`; the oldest is dropped first).
+
+    A step within :data:`BUILT_STEP_MATCH` (relative) of a built one uses the built one's."""
+
+    def __init__(self, side: ExactStep, built=BUILT_STEPS, limit: int = STEP_CACHE):
+        self.side = side
+        self.built = tuple(float(h) for h in built)
+        self.limit = int(limit)
+        self.cache = {}
+        side.discretisation(self.built[0])           # decides the form
+
+    def built_step(self, h: float) -> Optional[float]:
+        """The built step ``h`` [s] takes the exponentials of, or None."""
+        for hb in self.built:
+            if abs(h - hb) <= BUILT_STEP_MATCH * hb:
+                return hb
+        return None
+
+    def get(self, h: float) -> Discretisation:
+        """The exponentials of a step ``h`` [s]."""
+        hb = self.built_step(h)
+        if hb is not None:
+            return self.side.discretisation(hb)
+        d = self.cache.get(h)
+        if d is None:
+            if len(self.cache) >= self.limit:
+                del self.cache[next(iter(self.cache))]
+            d = self.cache[h] = step_exponentials(self.side, h)
+        return d
