@@ -319,8 +319,8 @@ PADE13_THETA = 5.371920351148152
 PADE13 = (64764752532480000.0, 32382376266240000.0, 7771770303897600.0, 1187353796428800.0,
           129060195264000.0, 10559470521600.0, 670442572800.0, 33522128640.0, 1323241920.0,
           40840800.0, 960960.0, 16380.0, 182.0, 1.0)
-#: work arrays of :func:`dense_exponential`, in units of N^2 doubles (N = n + 7), plus 2 N
-PADE_WORK = 7
+#: planes (N x N, N = n + 7) of the work array of :func:`dense_exponential`
+PADE_WORK = 8
 
 
 @njit(cache=True)
@@ -329,7 +329,7 @@ def phi_functions(z, phi):
 
     Near zero the recurrence cancels: there the series ``sum_j z^j / (j + k)!``."""
     phi[0] = np.exp(z)
-    if abs(z) < PHI_SERIES_RADIUS:
+    if z.real * z.real + z.imag * z.imag < PHI_SERIES_RADIUS * PHI_SERIES_RADIUS:
         for k in range(1, N_PHI):
             inv_fact = 1.0
             for j in range(2, k + 1):
@@ -467,18 +467,10 @@ def _balance(A, scale):
 
 
 @njit(cache=True)
-def _pade_exponential(A, work):
-    """expm(A) into ``work[4 N^2: 5 N^2]`` (A destroyed) by scaling and squaring the [13/13] Pade
-    approximant (Higham 2005); ``work``: ``(PADE_WORK - 1) N^2 + N`` doubles after ``A``."""
+def _pade_exponential(A, A2, A4, A6, U, T, V, piv):
+    """expm(A) into ``T`` (A and the other N x N arrays destroyed) by scaling and squaring the
+    [13/13] Pade approximant (Higham 2005); ``piv`` (N,) scratch."""
     N = A.shape[0]
-    NN = N * N
-    A2 = work[0:NN].reshape((N, N))
-    A4 = work[NN:2 * NN].reshape((N, N))
-    A6 = work[2 * NN:3 * NN].reshape((N, N))
-    U = work[3 * NN:4 * NN].reshape((N, N))
-    T = work[4 * NN:5 * NN].reshape((N, N))
-    V = work[5 * NN:6 * NN].reshape((N, N))
-    piv = work[6 * NN:6 * NN + N]
     norm1 = 0.0                          # ||A||_1: the largest column sum
     for j in range(N):
         col = 0.0
@@ -486,9 +478,11 @@ def _pade_exponential(A, work):
             col += abs(A[i, j])
         norm1 = max(norm1, col)
     s = 0
-    if norm1 > PADE13_THETA:
-        s = int(np.ceil(np.log2(norm1 / PADE13_THETA)))
-        scale = 0.5 ** s
+    scale = 1.0
+    while norm1 * scale > PADE13_THETA:   # the fewest halvings that bring ||A||_1 within theta
+        s += 1
+        scale *= 0.5
+    if s:
         for i in range(N):
             for j in range(N):
                 A[i, j] *= scale
@@ -531,13 +525,12 @@ def dense_exponential(h, A1, E, frow, k2, P, work):
     ``[xi, int (F_i - W) dt]`` and columns ``[xi, c]`` of ``expm(Z h)``, ``Z`` the string side
     with the hammer motion's Taylor chain and the force integral appended (as
     :class:`ExactStep` builds it): balanced (:func:`_balance`), then the [13/13] Pade
-    approximant scaled and squared (:func:`_pade_exponential`).  ``work``: ``PADE_WORK N^2 + 2 N``
-    doubles, ``N = n + 7``."""
+    approximant scaled and squared (:func:`_pade_exponential`).  ``work``: ``(PADE_WORK, N, N)``,
+    ``N = n + 7``."""
     n = A1.shape[0]
     N = n + N_COEFFS + 1
-    NN = N * N
-    A = work[0:NN].reshape((N, N))
-    D = work[PADE_WORK * NN + N:PADE_WORK * NN + 2 * N]
+    A = work[0]
+    D = work[PADE_WORK - 1, 1]
     for i in range(N):
         for j in range(N):
             A[i, j] = 0.0
@@ -553,8 +546,8 @@ def dense_exponential(h, A1, E, frow, k2, P, work):
     A[N - 1, n] = -k2[0] * h
     A[N - 1, n + 1] = -k2[1] * h
     _balance(A, D)
-    _pade_exponential(A, work[NN:])
-    T = work[5 * NN:6 * NN].reshape((N, N))
+    T = work[5]
+    _pade_exponential(A, work[1], work[2], work[3], work[4], T, work[6], work[PADE_WORK - 1, 0])
     for i in range(n + 1):               # expm(Z h) = D expm(D^-1 Z h D) D^-1
         r = i if i < n else N - 1
         for j in range(n + N_COEFFS):
@@ -579,7 +572,7 @@ def step_exponentials(side: ExactStep, h: float) -> Discretisation:
     n = side.n
     N = n + N_COEFFS + 1
     P = np.empty((n + 1, n + N_COEFFS))
-    dense_exponential(h, side.A1, side.E, side.frow, k2, P, np.empty(PADE_WORK * N * N + 2 * N))
+    dense_exponential(h, side.A1, side.E, side.frow, k2, P, np.empty((PADE_WORK, N, N)))
     return Discretisation(h=h, P=P)
 
 
