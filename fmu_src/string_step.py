@@ -467,29 +467,47 @@ def _balance(A, scale):
 
 
 @njit(cache=True)
-def _pade_exponential(A, A2, A4, A6, U, T, V, piv):
-    """expm(A) into ``T`` (A and the other N x N arrays destroyed) by scaling and squaring the
-    [13/13] Pade approximant (Higham 2005); ``piv`` (N,) scratch."""
+def _norm1(A):
+    """||A||_1: the largest column sum of |A|."""
     N = A.shape[0]
-    norm1 = 0.0                          # ||A||_1: the largest column sum
+    norm = 0.0
     for j in range(N):
         col = 0.0
         for i in range(N):
             col += abs(A[i, j])
-        norm1 = max(norm1, col)
+        norm = max(norm, col)
+    return norm
+
+
+@njit(cache=True)
+def _pade_exponential(A, A2, A4, A6, U, T, V, piv):
+    """expm(A) into ``T`` (A and the other N x N arrays destroyed) by scaling and squaring the
+    [13/13] Pade approximant (Higham 2005, with the scaling of Al-Mohy & Higham 2009);
+    ``piv`` (N,) scratch."""
+    N = A.shape[0]
+    _matmul(A, A, A2)
+    _matmul(A2, A2, A4)
+    _matmul(A4, A2, A6)
+    # Al-Mohy & Higham (2009): the scaling from ||A^8||^(1/8) and ||A^10||^(1/10), which can be far
+    # below ||A||_1 for a non-normal A: fewer squarings, less rounding carried through them
+    _matmul(A4, A4, U)
+    _matmul(A4, A6, T)
+    eta = max(_norm1(U) ** 0.125, _norm1(T) ** 0.1)
+    if not eta < np.inf:                 # the powers overflowed: the plain norm
+        eta = _norm1(A)
     s = 0
     scale = 1.0
-    while norm1 * scale > PADE13_THETA:   # the fewest halvings that bring ||A||_1 within theta
+    while eta * scale > PADE13_THETA:    # the fewest halvings that bring eta within theta
         s += 1
         scale *= 0.5
     if s:
         for i in range(N):
             for j in range(N):
                 A[i, j] *= scale
+                A2[i, j] *= scale ** 2
+                A4[i, j] *= scale ** 4
+                A6[i, j] *= scale ** 6
     b = PADE13
-    _matmul(A, A, A2)
-    _matmul(A2, A2, A4)
-    _matmul(A4, A2, A6)
     for i in range(N):                   # T <- A6 (b13 A6 + b11 A4 + b9 A2) + ..., U <- A T
         for j in range(N):
             V[i, j] = b[13] * A6[i, j] + b[11] * A4[i, j] + b[9] * A2[i, j]

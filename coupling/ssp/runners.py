@@ -23,7 +23,8 @@ import numpy as np
 
 from hammerbit.ssp.package import HAMMER
 
-__all__ = ["RunnerResult", "RunnerStepError", "run_libcosim", "run_fmpy", "RUNNER_DTYPE"]
+__all__ = ["RunnerResult", "RunnerStepError", "run_libcosim", "run_fmpy", "run_user_loop", "WIRINGS",
+           "RUNNER_DTYPE"]
 
 #: the series a runner records, ``time`` first (SI)
 RUNNER_DTYPE = np.dtype([("time", "f8"), ("bit_position", "f8"), ("wob", "f8")])
@@ -158,3 +159,48 @@ def run_fmpy(path, stop: float, step: float) -> RunnerResult:
     out["bit_position"] = res[f"{HAMMER}.bit_position"][:n]
     out["wob"] = res[f"{HAMMER}.rock_force"][:n]
     return RunnerResult("fmpy", out, wall)
+
+
+#: how a user's loop feeds the string's force to the hammer's ``harmonic_force`` (the hammer's
+#: ``preload`` held at the WOB): ``held_force_change``, the package's wiring (the mean force over
+#: the next step, less the WOB), or ``interface_force - wob`` (the force at the communication
+#: point, less the WOB: a natural guess, and wrong by a fifth of the penetration at 1 ms)
+WIRINGS = ("held_force_change", "interface_force - wob")
+
+
+def run_user_loop(path, stop: float, step: float, wiring: str = "held_force_change") -> RunnerResult:
+    """A user's own fixed-step Jacobi loop over the package's two FMUs (fmpy ``FMU2Slave``, the
+    FMUs' own start values, which are the system's): at each communication point both FMUs take
+    the other's outputs, then both step ``step`` [s], to ``stop``; ``wiring`` (:data:`WIRINGS`)."""
+    import zipfile
+
+    from hammerbit.fmu.host import FMUInstance
+    from hammerbit.ssp.package import STRING
+    if wiring not in WIRINGS:
+        raise ValueError(f"wiring = {wiring!r}: allowed {', '.join(map(repr, WIRINGS))}")
+    t0 = _time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="hammerbit_user_loop_") as tmp:
+        with zipfile.ZipFile(path) as z:
+            for name in ("Drillstring", "HammerBitRock"):
+                with open(os.path.join(tmp, f"{name}.fmu"), "wb") as fh:
+                    fh.write(z.read(f"resources/{name}.fmu"))
+        string = FMUInstance(os.path.join(tmp, "Drillstring.fmu"), STRING)
+        hammer = FMUInstance(os.path.join(tmp, "HammerBitRock.fmu"), HAMMER)
+        try:
+            wob = string.get("wob")[0]
+            n = int(round(stop / step))
+            out = np.zeros(n + 1, dtype=RUNNER_DTYPE)
+            x, v, pos, rock = hammer.get("hammer_position", "hammer_velocity", "bit_position", "rock_force")
+            out[0] = (0.0, pos, rock)
+            for k in range(n):
+                held, force = string.get("held_force_change", "interface_force")
+                string.set(hammer_position=x, hammer_velocity=v)
+                hammer.set(harmonic_force=held if wiring == WIRINGS[0] else force - wob)
+                string.step(step)
+                hammer.step(step)
+                x, v, pos, rock = hammer.get("hammer_position", "hammer_velocity", "bit_position", "rock_force")
+                out[k + 1] = ((k + 1) * step, pos, rock)
+        finally:
+            string.close()
+            hammer.close()
+    return RunnerResult(f"user loop ({wiring})", out, _time.perf_counter() - t0)
