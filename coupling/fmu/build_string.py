@@ -195,7 +195,8 @@ def string_build(string_arg, *, wob: Optional[float] = None, rig=None, top=None,
 
 
 #: modules the Drillstring FMU's runtime cannot do without
-STRING_RUNTIME_MODULES = ("string_slave.py", "string_step.py", "string_kernels.py", "string_model.py",
+STRING_RUNTIME_MODULES = ("string_slave.py", "string_step.py", "string_kernels.py", "string_exponentials.py",
+                          "string_model.py",
                           "numba_cache.py")
 
 

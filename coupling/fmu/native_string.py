@@ -15,7 +15,7 @@ experiment's step), and writes them into ``resources/string_native.bin``,
 with each form's generator (its matrices, and the kept modes' eigenvalues and
 inputs).  The FMU takes any step ``h > 0``: one within 1e-9 (relative) of a
 built step uses that step's exponentials, any other gets its own from the
-compiled kernels of :mod:`hammerbit.model.string_step` (closed form per mode,
+compiled kernels of :mod:`hammerbit.model.string_exponentials` (closed form per mode,
 or the Pade exponential of the dense form), kept in a cache of
 ``STEP_CACHE`` step lengths.  The parameters that change the matrices
 (``damping_ratio``; the auto-driller's gains) keep their build values:
@@ -169,7 +169,8 @@ def _c_ident(name: str) -> str:
 def string_header(md_xml: bytes, build, steps) -> str:
     """Text of ``hs_string.h``: value references, start and build values, ranges, constants."""
     from hammerbit.model.string_slave import INPUT_LIMIT, MAX_FEED, MAX_GAIN, TIME_TOLERANCE
-    from hammerbit.model.string_step import BUILT_STEP_MATCH, PADE_WORK, STEP_CACHE
+    from hammerbit.model.string_exponentials import PADE_WORK
+    from hammerbit.model.string_step import BUILT_STEP_MATCH, STEP_CACHE
     root = ET.fromstring(md_xml)
     vrs = {sv.get("name"): int(sv.get("valueReference")) for sv in root.find("ModelVariables")}
     info, sc, bv = build.info, build.info["scalars"], build.arrays["build_values"]

@@ -4,7 +4,7 @@ The native ``Drillstring.fmu`` steps the string with the library's own
 kernels of :mod:`hammerbit.model.string_kernels` (:func:`exchange_step`, the
 master's Jacobi exchange in its FMU form, which also gives the held force) and
 the exponentials of a step length it was not built for
-(:mod:`hammerbit.model.string_step`: :func:`modal_exponentials`,
+(:mod:`hammerbit.model.string_exponentials`: :func:`modal_exponentials`,
 :func:`dense_exponential`), compiled
 ahead of time by :mod:`hammerbit.fmu.native_kernels` exactly as the hammer's
 kernels are.  The entry points take flat C arrays; the complex modal arrays
@@ -65,7 +65,7 @@ def compile_string_entry_points() -> dict:
                              carray(tmpp, (n + 1,)), carray(frp, (n,)))
         return exchange_step_dense(scheme, h, form, iface, hist, hammer)[EXCHANGE_HELD]
 
-    from hammerbit.model.string_step import N_PHI, PADE_WORK, dense_exponential, modal_exponentials
+    from hammerbit.model.string_exponentials import N_PHI, PADE_WORK, dense_exponential, modal_exponentials
     from numba.core.types import void
 
     # the exponentials of a step length the FMU was not built for (string_step's kernels)

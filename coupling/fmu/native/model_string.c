@@ -215,7 +215,7 @@ static int check_parameters(const sstate *s, char *out, size_t n) {
 /* Outputs                                                                                     */
 /* ------------------------------------------------------------------------------------------ */
 /* The exponentials of a step h: a built step's within HS_BUILT_STEP_MATCH (relative), else those
- * computed for h by the compiled kernels (hammerbit.model.string_step), kept in a cache of
+ * computed for h by the compiled kernels (hammerbit.model.string_exponentials), kept in a cache of
  * HS_STEP_CACHE step lengths; NULL (with the reason in err) only when memory runs out or a kernel
  * raised. */
 static const block *find_block(model *m, int64_t form, double h, char *err, size_t en) {

@@ -19,7 +19,7 @@ double hs_exchange(int64_t order, double h, int64_t modal, int64_t n, double *P,
                    double *k3, double *th, double *wh, double *Fh, double *out, double F_held, double *c,
                    double *feed);
 
-/* The exponentials of a step h the FMU was not built for (hammerbit.model.string_step): the modal
+/* The exponentials of a step h the FMU was not built for (hammerbit.model.string_exponentials): the modal
  * form's d (n), G (n x 6), irow (n), icol (6) from the n kept modes' eigenvalues lam, inputs B
  * (n x 2) and frow; or the dense form's P ((n + 1) x (n + 6)) from A1 (n x n), E (n x 2), frow,
  * with work of HS_PADE_WORK (n + 7)^2 doubles. k2 = (ki, ci). */
