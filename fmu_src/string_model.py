@@ -89,6 +89,12 @@ def string_matrices(arrays: dict, form: str, values: dict) -> tuple:
         raise ValueError(f"the string has no '{form}' form (built without it)")
     f = arrays["forms"][form]
     out = {}
+    for param in PARAMETERS:
+        value = float(values.get(param, arrays["build_values"][param]))
+        if value != arrays["build_values"][param] and param not in f["d"] and (form == "auto" or
+                                                                              param == "damping_ratio"):
+            raise ValueError(f"{param} = {value!r}: these arrays hold the string's '{form}' form at its build "
+                             f"value {arrays['build_values'][param]!r} only (a native Drillstring FMU's)")
     for key in MATRICES:
         x = f[key]
         for param, ds in f["d"].items():

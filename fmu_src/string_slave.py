@@ -2,8 +2,11 @@
 
 The string (built from a TOML description at build time, its arrays in
 ``resources/string_model.npz``) and the interface spring-dashpot to the
-hammer are stepped exactly over any communication step by
-:mod:`string_step`, the same code as the co-simulation master's string side.
+hammer are stepped exactly over any communication step ``h > 0`` by
+:mod:`string_step`, the same code as the co-simulation master's string side:
+the built steps (``steps`` of ``resources/string_info.json``) with scipy's
+exponentials, any other with those of :class:`~string_step.StepTable` (the
+kernels the native flavour runs).
 
 Causality (see ``docs/cosim.md``):
 
@@ -48,7 +51,7 @@ from .string_model import OUTPUT_ROWS, form_of, load_model, string_matrices
 from .numba_dispatch import entry_point
 from .string_kernels import (EXCHANGE_HELD, HAMMER_ARG, DenseForm, ExchangeHistory, ExchangeScheme, HammerStep,
                              Interface, ModalForm, exchange_kernel)
-from .string_step import ExactStep, StringState
+from .string_step import BUILT_STEPS, STEP_CACHE, ExactStep, StepTable, StringState
 
 __all__ = ["Drillstring", "INPUT_LIMIT"]
 
@@ -100,6 +103,8 @@ class Drillstring(Fmi2Slave):
         self.interface_damping = sc["interface_damping"]
         self.buoyed_weight = sc["buoyed_weight"]
         self.string_states = int(sc["string_states"])
+        # the steps whose exponentials are the build's (scipy); any other: the kernels', cached
+        self._built = tuple(float(h) for h in self._info.get("steps", BUILT_STEPS))
         self._t = 0.0
         self._t_start = 0.0
         self._ready = False
@@ -229,7 +234,8 @@ class Drillstring(Fmi2Slave):
         self._side = ExactStep(A1, E, frow, sc["interface_stiffness"], sc["interface_damping"], rows,
                                self._hook_eq, feed=(feed, self._t_start))
         self._order = int(self.extrapolation)
-        self._state = None                        # made at the first step (its length decides the form)
+        self._state = None                        # made at the first step
+        self._table = None
         self._hist = np.zeros(16)
         self._th, self._wh = self._hist[0:3], self._hist[3:9].reshape(3, 2)
         self._Fh, self._sc = self._hist[9:12], self._hist[12:16]
@@ -280,8 +286,9 @@ class Drillstring(Fmi2Slave):
                                       f"state unchanged")
             x = float(self.hammer_position) - self.hammer_position_at_rest
             v = float(self.hammer_velocity)
-        if first:
-            self._state = StringState(self._side, h)
+        if first:  # the first built step decides the form, as the native flavour's build does
+            self._table = StepTable(self._side, self._built)
+            self._state = StringState(self._side, self._built[0])
             self._th[:] = (self._t_start, self._t_start - h, self._t_start - 2 * h)
             self._wh[:] = (x, v)
         self._wh[0, 0], self._wh[0, 1] = x, v
@@ -296,7 +303,9 @@ class Drillstring(Fmi2Slave):
         call = self._calls.get(h)
         if call is None:  # a new step length: its records, typed by numba's dispatcher once
             side, st = self._side, self._state
-            d = side.discretisation(h)
+            d = self._table.get(h)
+            if len(self._calls) >= STEP_CACHE + len(self._built):
+                del self._calls[next(iter(self._calls))]
             if st.modal:
                 form = ModalForm(d.m_d, d.m_G, d.m_irow, d.m_icol, st.v, side.m_frow)
             else:

@@ -129,6 +129,7 @@ def string_build(string_arg, *, wob: Optional[float] = None, rig=None, top=None,
     from hammerbit.drillstring.boundary import Boundary
     from hammerbit.drillstring.top import TopCondition, top_matrices
     from hammerbit.model.fmu_description import top_condition
+    from hammerbit.model.string_step import BUILT_STEPS
     string = string_arg if not isinstance(string_arg, (str, Path)) else load_string(string_arg)
     rig = default_hammer(string) if rig is None else rig
     top = TopCondition.fixed() if top is None else top
@@ -188,13 +189,16 @@ def string_build(string_arg, *, wob: Optional[float] = None, rig=None, top=None,
             "description": (f"Drillstring '{string.name}' ({length:g} m: {sections}) with its hammer "
                             f"interface k_i = {ki:g} N/m, c_i = {ci:g} N s/m; top boundary "
                             f"{string.top.spec()}; {n_string} states; geometry fixed at build time"),
-            "toml": _source_text(string_arg)}
+            "toml": _source_text(string_arg),
+            # the step lengths whose exponentials are the build's; the FMU takes any other too
+            "steps": list(BUILT_STEPS)}
     arrays = {"forms": forms, "build_values": build_values}
     return StringBuild(string, info["toml"], config, arrays, info)
 
 
 #: modules the Drillstring FMU's runtime cannot do without
-STRING_RUNTIME_MODULES = ("string_slave.py", "string_step.py", "string_kernels.py", "string_model.py",
+STRING_RUNTIME_MODULES = ("string_slave.py", "string_step.py", "string_kernels.py", "string_exponentials.py",
+                          "string_model.py",
                           "numba_cache.py")
 
 

@@ -9,9 +9,10 @@
  *   - outputs from the state (the output rows of the string side);
  *   - FMU states: the whole model state as plain data, the string's state vector included.
  * The exact step's matrices of each form and communication step size the FMU was built for are
- * read from resources/string_native.bin (written by hammerbit.fmu.native_string): the matrices
- * need an eigendecomposition and a matrix exponential, done at build time.  So the parameters
- * they depend on (damping_ratio, and the auto-driller's gains) keep their build values here. */
+ * read from resources/string_native.bin (written by hammerbit.fmu.native_string), with each
+ * form's generator: a step of another length gets its exponentials from the compiled kernels
+ * (find_block).  The eigendecomposition is done at build time, so the parameters the matrices
+ * depend on (damping_ratio, and the auto-driller's gains) keep their build values here. */
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -123,13 +124,53 @@ static int check_parameters(const sstate *s, char *out, size_t n) {
 /* ------------------------------------------------------------------------------------------ */
 /* Outputs                                                                                     */
 /* ------------------------------------------------------------------------------------------ */
-static const block *find_block(const table *t, int64_t form, double h) {
-    char key[40];
-    snprintf(key, sizeof key, "%.12g", h);   /* step_key(h): steps equal to 12 digits share one */
-    double k = strtod(key, NULL);
+/* The exponentials of a step h: a built step's within HS_BUILT_STEP_MATCH (relative), else those
+ * computed for h by the compiled kernels (hammerbit.model.string_exponentials), kept in a cache of
+ * HS_STEP_CACHE step lengths; NULL (with the reason in err) only when memory runs out or a kernel
+ * raised. */
+static const block *find_block(model *m, int64_t form, double h, char *err, size_t en) {
+    const table *t = &m->tab;
     for (int64_t i = 0; i < t->nblocks; i++)
-        if (t->b[i].form == form && t->b[i].h == k) return &t->b[i];
-    return NULL;
+        if (t->b[i].form == form && fabs(h - t->b[i].h) <= HS_BUILT_STEP_MATCH * t->b[i].h) return &t->b[i];
+    for (int i = 0; i < HS_STEP_CACHE; i++)
+        if (m->cache[i].b.n && m->cache[i].b.form == form && m->cache[i].b.h == h) return &m->cache[i].b;
+    const block *built = hs_any_block(t, form);
+    const generator *g = &t->gen[form];
+    if (!built || g->n <= 0 || (built->modal && g->m != built->n) || (!built->modal && g->n != built->n)) {
+        snprintf(err, en, "the FMU's tables have no generator for this form");
+        return NULL;
+    }
+    cached_step *c = &m->cache[m->next_slot];
+    int64_t n = built->n, N = n + N_COEFFS + 1;
+    size_t need = built->modal ? (size_t)(2 * n + 2 * n * N_COEFFS + 2 * n) : (size_t)((n + 1) * (n + N_COEFFS));
+    if (need > c->cap) {
+        double *mem = realloc(c->mem, need * sizeof(double));
+        if (!mem) { snprintf(err, en, "out of memory"); return NULL; }
+        c->mem = mem, c->cap = need;
+    }
+    if (!built->modal && !m->work) {
+        m->work = malloc((size_t)HS_PADE_WORK * (size_t)(N * N) * sizeof(double));
+        if (!m->work) { snprintf(err, en, "out of memory"); return NULL; }
+    }
+    block *b = &c->b;
+    *b = *built;
+    b->n = 0;                            /* empty until it is filled */
+    double k2[2] = {HS_INTERFACE_STIFFNESS, HS_INTERFACE_DAMPING};
+    hb_kernel_raised();
+    if (built->modal) {
+        b->d = (double _Complex *)c->mem;
+        b->G = b->d + n;
+        b->irow = b->G + n * N_COEFFS;
+        hs_modal_exponentials(n, h, k2, g->lam, g->B, built->frow_c, b->d, b->G, b->irow, b->icol);
+    } else {
+        b->P = c->mem;
+        hs_dense_exponential(n, h, k2, g->A1, g->E, g->frow, b->P, m->work);
+    }
+    if (hb_kernel_raised()) { snprintf(err, en, "a kernel raised an exception"); return NULL; }
+    b->h = h;
+    b->n = n;
+    m->next_slot = (m->next_slot + 1) % HS_STEP_CACHE;
+    return b;
 }
 
 static void set_outputs(model *m) {
@@ -195,6 +236,8 @@ static fmi2Component s_instantiate(fmi2String name, fmi2Type type, fmi2String gu
 static void s_free_instance(fmi2Component c) {
     model *m = c;
     if (!m) return;
+    for (int i = 0; i < HS_STEP_CACHE; i++) free(m->cache[i].mem);
+    free(m->work);
     free(m->s), free(m->buf), free(m->tmp), free(m->tab.b), free(m->tab.mem);
     hb_model_free(m);
 }
@@ -283,12 +326,12 @@ static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
         return FAIL(m, "currentCommunicationPoint = %s s is not the current time of the FMU, %s s; step "
                     "refused, state unchanged", a, b2);
     }
-    const block *b = find_block(&m->tab, s->form, h);
+    char why[256];
+    const block *b = find_block(m, s->form, h, why, sizeof why);
     if (!b) {
         hb_repr(h, a, sizeof a);
-        return FAIL(m, "communication step size h = %s s is not one this native FMU was built for: "
-                    "allowed %s (build it with --step to add step sizes); step refused, state "
-                    "unchanged", a, HS_STEPS_TEXT);
+        return FAIL(m, "fmi2DoStep failed: the exponentials of the step h = %s s: %s; step refused, state "
+                    "unchanged", a, why);
     }
     double x = 0.0, v = 0.0;      /* the first step: the hammer at rest in the static equilibrium */
     if (s->started) {

@@ -23,6 +23,7 @@
 #define ROW_TOP_V HS_ROW_TOP_VELOCITY
 #define STATE_MAGIC 0x48425331u  /* "HBS1": layout version of the string model state */
 #define DATA_MAGIC HS_DATA_MAGIC
+#define GENERATOR_KIND 2         /* a block of a form's generator (step blocks: 0 dense, 1 modal) */
 
 /* ------------------------------------------------------------------------------------------ */
 /* The exact step of one form over one step length, as read from the resources                 */
@@ -36,11 +37,26 @@ typedef struct {
     double icol[N_COEFFS];
 } block;
 
+/* what the exponentials of a step length the FMU was not built for are computed from */
+typedef struct {
+    int64_t n, m;                /* states; kept modes (0: a dense form) */
+    double *A1, *E, *frow, *rows;
+    double _Complex *lam, *B;    /* modal: the kept modes' eigenvalues and inputs V^-1 E */
+} generator;
+
 typedef struct {
     int64_t nblocks, nmax;       /* nmax: the longest state vector (in doubles: 2 nmax) */
     block *b;
+    generator gen[2];            /* per form (n = 0: the form is absent) */
     double *mem;
 } table;
+
+/* the exponentials of a step length other than the built ones (a bounded cache of them) */
+typedef struct {
+    block b;                     /* b.n = 0: an empty slot */
+    double *mem;
+    size_t cap;
+} cached_step;
 
 /* ------------------------------------------------------------------------------------------ */
 /* State                                                                                       */
@@ -64,6 +80,9 @@ typedef struct {
     hb_model_base base;          /* name, callbacks (model.h) */
     table tab;
     double *buf, *tmp;           /* scratch of the dense step */
+    cached_step cache[HS_STEP_CACHE];
+    int next_slot;               /* the slot a new step length takes (the oldest) */
+    double *work;                /* scratch of the dense exponential (allocated at its first use) */
     size_t size;
     sstate *s;
 } model;

@@ -32,7 +32,23 @@ int hs_load_table(const char *dir, table *t, char *err, size_t en) {
         double *p = t->mem, *end = t->mem + total;
         for (int64_t i = 0; ok && i < t->nblocks; i++) {
             block *b = &t->b[i];
-            if (end - p < 4) { ok = 0; break; }
+            if (end - p < 5) { ok = 0; break; }
+            if (p[2] == GENERATOR_KIND) {            /* a form's generator, after its step blocks */
+                int64_t form = (int64_t)p[0], n = (int64_t)p[3], km = (int64_t)p[4];
+                p += 5;
+                if (form < 0 || form > 1 || n <= 0 || km < 0 || km > n ||
+                    (size_t)(end - p) < (size_t)(n * n + 2 * n + n + N_ROWS * n + 6 * km)) { ok = 0; break; }
+                generator *g = &t->gen[form];
+                g->n = n, g->m = km;
+                g->A1 = p; p += n * n;
+                g->E = p; p += 2 * n;
+                g->frow = p; p += n;
+                g->rows = p; p += N_ROWS * n;
+                g->lam = (double _Complex *)p; p += 2 * km;
+                g->B = (double _Complex *)p; p += 4 * km;
+                b->form = -1;                        /* not a step block */
+                continue;
+            }
             b->form = (int64_t)p[0];
             b->h = p[1];
             b->modal = (int64_t)p[2];
