@@ -27,7 +27,7 @@ import sys
 import time
 
 from hammerbit.cli.common import (EXIT_INACCURATE, EXIT_OK, UsageError, add_set_argument, interrupt_or_exit,
-                                  parse_settings)
+                                  parse_settings, staged)
 
 __all__ = ["register", "cmd_cosim", "add_hammer_options", "add_cosim_options", "config_from_args", "top_from_args",
            "load_string_arg", "fmu_arg"]
@@ -256,7 +256,7 @@ def cmd_cosim(args) -> int:
     est = res.estimate
     out["meets_tolerance"] = None if est is None else est.meets_tolerance
     if args.out:
-        res.to_csv(args.out)
+        res.to_csv(staged(args.out))
         out["csv"] = str(args.out)
     if args.json:
         print(json.dumps(out, indent=2, default=float))

@@ -12,13 +12,15 @@ import gc
 import importlib
 import json
 import math
+import signal
 import sys
 import warnings
 
 import numpy as np
 
-from hammerbit.cli.common import (EXIT_INTERRUPTED, UsageError, add_set_argument, check_output, interruptible,
+from hammerbit.cli.common import (UsageError, add_set_argument, check_output, interruptible, staged,
                                   output_errors, parse_settings, run_command)
+from hammerbit.cli.interrupt import EXIT_INTERRUPTED, end_interrupted, install_early_exit
 from hammerbit.cli.preflight import apply_user_settings, in_user_words, preflight
 
 __all__ = ["main", "console", "build_parser", "COMMAND_MODULES", "HelpFormatter", "version"]
@@ -145,6 +147,10 @@ def cmd_simulate(args) -> int:
     worker = start_figure_worker() if args.plot else None
     try:
         return _simulate(args, worker)
+    except BaseException:
+        if worker is not None:
+            worker.abort()      # interrupted or failed: the figure is not wanted, do not wait for it
+        raise
     finally:
         if worker is not None:
             worker.close()
@@ -229,7 +235,7 @@ def _simulate(args, worker) -> int:
         print(f"hammerbit: warning: {msg}", file=sys.stderr)
     if args.csv:
         with output_errors("--csv", args.csv):
-            write_samples_csv(res, args.csv)
+            write_samples_csv(res, staged(args.csv))
     if args.json:
         print(json.dumps(out))
     else:
@@ -259,8 +265,9 @@ def _simulate(args, worker) -> int:
         from hammerbit.scene.plots import scene_figure
         from hammerbit.scene.figure import draw_scene
         data = scene_figure(g, args.periods, solver=solver, preset=args.preset, period=period)
-        if worker is None or not worker.draw(draw_scene, data, args.plot) or worker.result() is None:
-            draw_scene(data, args.plot)
+        plot = staged(args.plot)
+        if worker is None or not worker.draw(draw_scene, data, plot) or worker.result() is None:
+            draw_scene(data, plot)
         if not args.json:
             print(f"figure: {args.plot}")
     return 0
@@ -315,13 +322,18 @@ def console(argv=None) -> None:
     collector's reach (:func:`gc.freeze`): the interpreter's shutdown then
     does not walk numba's and matplotlib's object graphs, a large share of a
     short command's exit.  Everything else of the shutdown runs as usual
-    (exit handlers, files flushed and closed).
+    (exit handlers, files flushed and closed).  A Ctrl-C before the command
+    starts ends the process with one line and exit code 130
+    (:func:`hammerbit.cli.interrupt.install_early_exit`); while it runs,
+    :func:`hammerbit.cli.common.run_command` handles it.
     """
-    try:
-        code = main(argv)
-    except KeyboardInterrupt:       # before or after the command ran (imports, argument parsing)
-        print("hammerbit: interrupted", file=sys.stderr)
-        code = EXIT_INTERRUPTED
+    install_early_exit()            # imports and argument parsing: nothing to undo
+    code = main(argv)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)   # the command is complete: only the exit is left
+    if code == EXIT_INTERRUPTED:
+        # everything is closed and removed; the interpreter's finalisation could meet a half-imported
+        # extension module or a kernel still running in its thread, so it is skipped
+        end_interrupted()
     gc.freeze()
     sys.exit(code)
 

@@ -16,7 +16,7 @@ import time
 import warnings
 from pathlib import Path
 
-from hammerbit.cli.common import EXIT_INACCURATE, EXIT_OK, UsageError, add_set_argument, parse_settings
+from hammerbit.cli.common import EXIT_INACCURATE, EXIT_OK, UsageError, add_set_argument, parse_settings, staged
 
 __all__ = ["register", "cmd_ssp_build", "cosim_ssp", "check_positive", "SSP_EXCLUSIVE"]
 
@@ -73,14 +73,14 @@ def cmd_ssp_build(args) -> int:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
-            path = build_ssp(args.string, out, SSPOptions(hammer=args.hammer, stop=args.stop, step=args.step,
+            build_ssp(args.string, staged(out), SSPOptions(hammer=args.hammer, stop=args.stop, step=args.step,
                                                           wob=args.wob, rig=rig, top=top,
                                                           runtime=args.runtime))
         except ValueError as e:          # the string cannot carry the hammer's WOB, ...
             raise UsageError(f"--string {args.string}: {e}") from None
     for w in caught:
         print(f"hammerbit ssp build: warning: {w.message}", file=sys.stderr)
-    print(path)
+    print(out.resolve())
     return EXIT_OK
 
 
@@ -133,7 +133,7 @@ def cosim_ssp(args) -> int:
     est = res.estimate
     out["meets_tolerance"] = None if est is None else est.meets_tolerance
     if args.out:
-        res.to_csv(args.out)
+        res.to_csv(staged(args.out))
         out["csv"] = str(args.out)
     if args.json:
         print(json.dumps(out, indent=2, default=float))

@@ -23,7 +23,7 @@ import math
 import sys
 import time
 
-from hammerbit.cli.common import RunFailure, UsageError, add_set_argument, parse_settings
+from hammerbit.cli.common import RunFailure, UsageError, add_set_argument, parse_settings, staged
 
 __all__ = ["register", "cmd_bifurcation", "cmd_sweep", "cmd_map", "cmd_optimize"]
 
@@ -94,9 +94,9 @@ def cmd_bifurcation(args) -> int:
     values = np.linspace(lo, hi, args.num)
     res = bifurcation(g, args.param, values, periods=args.periods, keep=args.keep, solver=_solver(args),
                       options=_executor_options(args))
-    plot_bifurcation(res, args.out, preset=args.preset)
+    plot_bifurcation(res, staged(args.out), preset=args.preset)
     if args.csv:
-        res.to_csv(args.csv)
+        res.to_csv(staged(args.csv))
     summary = {"param": args.param, "num": args.num, "periods": args.periods,
                "wall_time_s": res.wall_time_s, "periods_per_second": res.periods_per_second,
                "workers": res.workers, "out": args.out, "csv": args.csv, "period_n": list(res.periods)}
@@ -150,10 +150,10 @@ def cmd_sweep(args) -> int:
     if in_band:
         out["nearest_mode_to_peak_hz"] = min(in_band, key=lambda f: abs(f - out["peak_frequency_hz"]))
     if args.csv:
-        write_sweep_csv(res, args.csv)
+        write_sweep_csv(res, staged(args.csv))
         out["csv"] = str(args.csv)
     if args.plot:
-        plot_sweep(res, args.plot, modes=np.array(in_band),
+        plot_sweep(res, staged(args.plot), modes=np.array(in_band),
                    title=f"{string.name}: hammer frequency sweep (A = {cfg.rig.amplitude:g} N)")
         out["plot"] = str(args.plot)
     if unsettled:
@@ -188,10 +188,10 @@ def cmd_map(args) -> int:
     ds = regime_map(g, axes, periods=args.periods, solver=_solver(args), options=_executor_options(args),
                     attrs={"preset": args.preset, "settings": json.dumps(parse_settings(args.set))})
     if args.out:
-        ds.to_netcdf(args.out, engine="scipy")
+        ds.to_netcdf(staged(args.out), engine="scipy")
     if args.plot:
         from hammerbit.studies.plots import plot_map
-        plot_map(ds, args.plot)
+        plot_map(ds, staged(args.plot))
     failed = int(ds.attrs["failed_cells"])
     if failed:
         first = json.loads(ds.attrs["errors"])[:1]
