@@ -25,7 +25,6 @@ Three pieces, used by :func:`hammerbit.cli.common.run_command` around every comm
 """
 from __future__ import annotations
 
-import _thread
 import contextlib
 import os
 import signal
@@ -121,7 +120,8 @@ class _Guard:
                 threading.Event().wait(RETRY_S)
                 if self.raised or self.closed:
                     return
-                _thread.interrupt_main(signal.SIGINT)
+                # a real signal to the main thread: it also wakes a blocking wait there
+                signal.pthread_kill(threading.main_thread().ident, signal.SIGINT)
         if not getattr(self, "_loop", None):
             self._loop = threading.Thread(target=loop, name="hammerbit-interrupt", daemon=True)
             self._loop.start()
