@@ -28,9 +28,37 @@ import time
 
 from hammerbit.cli.common import (EXIT_INACCURATE, EXIT_OK, UsageError, add_set_argument, interrupt_or_exit,
                                   parse_settings, staged)
+from hammerbit.cli.options import refuse_unless
 
 __all__ = ["register", "cmd_cosim", "add_hammer_options", "add_cosim_options", "config_from_args", "top_from_args",
-           "load_string_arg", "fmu_arg"]
+           "load_string_arg", "fmu_arg", "recorded", "write_and_report"]
+
+#: What ``cosim --out`` writes besides the time (``stick`` and ``contact`` only where the hammer runs in
+#: process or as this project's FMU, not through an SSP package).
+RECORD = ("wob", "interface_force", "hammer_position", "hammer_velocity", "bit_position", "bit_velocity",
+          "stick", "contact", "hook_load")
+#: Not computed by the monolithic reference (``--monolithic``): left out of its CSV instead of a NaN column.
+NOT_IN_MONOLITHIC = ("hook_load",)
+
+
+def recorded(*, monolithic: bool, ssp: bool = False) -> tuple:
+    """The recorded variables of a ``cosim`` run (:data:`RECORD`, less what the run cannot give)."""
+    drop = (NOT_IN_MONOLITHIC if monolithic else ()) + (("stick", "contact") if ssp else ())
+    return tuple(r for r in RECORD if r not in drop)
+
+
+def write_and_report(res, out: dict, args, print_text) -> None:
+    """The end of ``cosim`` and ``cosim --ssp``: ``meets_tolerance``, the CSV of ``--out``, then the
+    summary as JSON (``--json``) or ``print_text(out)``."""
+    est = res.estimate
+    out["meets_tolerance"] = None if est is None else est.meets_tolerance
+    if args.out:
+        res.to_csv(staged(args.out))
+        out["csv"] = str(args.out)
+    if args.json:
+        print(json.dumps(out, indent=2, default=float))
+    else:
+        print_text(out)
 
 
 def add_hammer_options(p) -> None:
@@ -209,7 +237,24 @@ def _print_text(out: dict, res, cfg, string) -> None:
         print(f"  wrote {out['csv']}")
 
 
+#: ``cosim`` options the monolithic reference has no use for (it couples nothing and estimates nothing).
+NOT_FOR_MONOLITHIC = ("scheme", "extrapolation", "harmonic_source", "tol", "adaptive", "fmu")
+
+
+def refuse_idle_options(args) -> None:
+    """``cosim`` options given where they change nothing (exit 2, before any work)."""
+    for dest in NOT_FOR_MONOLITHIC:
+        refuse_unless(args, dest, not args.monolithic,
+                      "--monolithic runs the reference (string, interface and hammer as one system, in "
+                      "process): it has no coupling scheme, extrapolation, harmonic source, macro-step "
+                      "control or FMU, and no coupling-error estimate to hold against --tol")
+    refuse_unless(args, "adaptive", args.step is not None,
+                  "without --step the macro step is adaptive already; --adaptive makes --step the first "
+                  "step of an adaptive run")
+
+
 def cmd_cosim(args) -> int:
+    refuse_idle_options(args)
     if args.ssp is not None:
         from hammerbit.cli.ssp import cosim_ssp
         return cosim_ssp(args)
@@ -222,8 +267,7 @@ def cmd_cosim(args) -> int:
     from hammerbit.cosim.error import SAFETY_FACTOR, StepResolutionError
     adaptive = args.step is None or args.adaptive
     extra = {"stop": args.stop,
-             "record": ("wob", "interface_force", "hammer_position", "hammer_velocity", "bit_position",
-                        "bit_velocity", "stick", "contact", "hook_load"),
+             "record": recorded(monolithic=args.monolithic),
              "progress": None if not args.json else False, "adaptive": adaptive and not args.monolithic,
              "tol": args.tol}
     if args.monolithic and args.step is None:
@@ -253,15 +297,8 @@ def cmd_cosim(args) -> int:
     out["string"] = string.name
     out["wob_static_n"] = cfg.weight_on_bit
     out["tol"] = cfg.tol
+    write_and_report(res, out, args, lambda o: _print_text(o, res, cfg, string))
     est = res.estimate
-    out["meets_tolerance"] = None if est is None else est.meets_tolerance
-    if args.out:
-        res.to_csv(staged(args.out))
-        out["csv"] = str(args.out)
-    if args.json:
-        print(json.dumps(out, indent=2, default=float))
-    else:
-        _print_text(out, res, cfg, string)
     bounce = out["bounce"]["violations"]
     if bounce:
         print(f"hammerbit cosim: warning: {bounce} bounce violation(s): the rock would have to pull the bit "

@@ -9,7 +9,6 @@ fixed-step Jacobi run that libcosim and FMPy's SSP runner make.
 """
 from __future__ import annotations
 
-import json
 import math
 import sys
 import time
@@ -109,8 +108,8 @@ def cosim_ssp(args) -> int:
     check_positive("--stop", args.stop)
     check_positive("--tol", args.tol, upper=1.0, unit="(relative)")
     check_positive("--step", args.step, upper=args.stop if args.stop is not None else math.inf)
-    overrides = {"record": ("wob", "interface_force", "hammer_position", "hammer_velocity", "bit_position",
-                            "bit_velocity", "hook_load"),
+    from hammerbit.cli.cosim import recorded, write_and_report
+    overrides = {"record": recorded(monolithic=args.monolithic, ssp=True),
                  "progress": None if not args.json else False, "tol": args.tol, "scheme": args.scheme}
     if args.stop is not None:
         overrides["stop"] = args.stop
@@ -131,13 +130,8 @@ def cosim_ssp(args) -> int:
     out["total_time_s"] = time.perf_counter() - t0
     out["ssp"] = str(args.ssp)
     est = res.estimate
-    out["meets_tolerance"] = None if est is None else est.meets_tolerance
-    if args.out:
-        res.to_csv(staged(args.out))
-        out["csv"] = str(args.out)
-    if args.json:
-        print(json.dumps(out, indent=2, default=float))
-    else:
+
+    def print_text(out):
         c = out["counts"]
         print(f"{args.ssp}: {res.method}, {res.macro_steps} macro steps to t = {out['stop_s']:g} s")
         print(f"  penetration {out['penetration_m'] * 1e3:.6g} mm; WOB mean {out['wob_mean_n'] / 1e3:.5g} kN, "
@@ -145,6 +139,8 @@ def cosim_ssp(args) -> int:
         if est is not None:
             print(f"  {est.text()}")
         print(f"  wall time {out['wall_time_s']:.3f} s (+ set-up {out['setup_time_s']:.3f} s)")
+
+    write_and_report(res, out, args, print_text)
     if est is not None and not est.meets_tolerance:
         print(f"hammerbit cosim: warning: the answer is not within the tolerance: {est.text()}",
               file=sys.stderr)
