@@ -87,6 +87,8 @@ def parse_settings(pairs) -> dict:
         k = k.strip()
         if not k:
             raise UsageError(f"--set expects NAME=VALUE, got {item!r}")
+        if k in out:
+            raise UsageError(f"--set {item}: {k} is already set (--set {k}={out[k]:g}); give each name once")
         try:
             out[k] = float(v)
         except ValueError:

@@ -11,6 +11,10 @@ __all__ = ["register", "cmd_fmu_build", "cmd_fmu_build_string"]
 
 
 def cmd_fmu_build(args) -> int:
+    from hammerbit.cli.options import refuse_unless
+    for dest in ("no_portable_cache", "no_native_front"):
+        refuse_unless(args, dest, args.runtime == "pythonfmu", "an option of --runtime pythonfmu: the native "
+                                                               "runtime ships compiled binaries and no Python front")
     from hammerbit.fmu.build import MODEL_NAME, BuildOptions, UnknownVariableError, build_fmu, default_output
     try:
         start = parse_settings(args.set)

@@ -20,6 +20,7 @@ import numpy as np
 
 from hammerbit.cli.common import (UsageError, add_set_argument, check_output, interruptible, staged,
                                   output_errors, parse_settings, run_command)
+from hammerbit.cli.options import ONCE, refuse_unless
 from hammerbit.cli.interrupt import EXIT_INTERRUPTED, end_interrupted, install_early_exit
 from hammerbit.cli.preflight import apply_user_settings, in_user_words, preflight
 
@@ -65,11 +66,14 @@ class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
 
 
 class _Parser(argparse.ArgumentParser):
-    """ArgumentParser whose sub-commands show defaults in their help."""
+    """ArgumentParser whose sub-commands show defaults in their help, and whose single-valued options
+    refuse a second occurrence (:mod:`hammerbit.cli.options`)."""
 
     def __init__(self, *args, **kwargs):
         kwargs.setdefault("formatter_class", HelpFormatter)
         super().__init__(*args, **kwargs)
+        for name, action in ONCE.items():      # argument groups share this registry
+            self.register("action", name, action)
 
 
 def _parse_settings(pairs):
@@ -140,8 +144,19 @@ def _finite_or_none(v):
     return None if isinstance(v, float) and not math.isfinite(v) else v
 
 
+def refuse_idle_solver_options(args) -> None:
+    """``--rtol`` and ``--steps-per-period`` only where the method uses them (exit 2 otherwise)."""
+    refuse_unless(args, "rtol", args.method != "rk4",
+                  "rk4 takes a fixed step and no tolerance: give --steps-per-period, or --method adaptive or dp54")
+    refuse_unless(args, "steps_per_period", args.method == "rk4",
+                  f"only --method rk4 takes a fixed number of steps; {args.method} chooses its steps from --rtol")
+
+
 def cmd_simulate(args) -> int:
     from hammerbit.scene.figure_worker import start as start_figure_worker
+    refuse_idle_solver_options(args)
+    refuse_unless(args, "sample_dt", args.csv is not None, "it sets the spacing of the --csv samples: give "
+                                                             "--csv FILE too")
 
     # the figure's process imports matplotlib while this one loads the solver
     worker = start_figure_worker() if args.plot else None
@@ -177,8 +192,6 @@ def _simulate(args, worker) -> int:
             formats = figure_formats()
         check_output(args.plot, "--plot", formats=formats)
     times = None
-    if args.sample_dt is not None and not args.csv:
-        raise UsageError("--sample-dt sets the spacing of the --csv samples: give --csv FILE too")
     if args.csv:
         dt = g.period_s / 100.0 if args.sample_dt is None else \
             check("simulate.sample_dt", args.sample_dt, label="--sample-dt")

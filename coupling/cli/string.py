@@ -145,6 +145,13 @@ def cmd_modes(args: argparse.Namespace) -> int:
 
     if getattr(args, "hammer_on_bottom", False):
         return _cmd_hammer_modes(args)
+    from hammerbit.cli.options import refuse_unless
+    for dest in ("wob", "interface_stiffness", "interface_damping"):
+        refuse_unless(args, dest, False, "an option of --hammer-on-bottom (the hammer as the bottom "
+                                         "boundary): give --hammer-on-bottom too")
+    if args.set:
+        raise UsageError(f"--set {args.set[0]}: changes the hammer of --hammer-on-bottom (the hammer as the "
+                         f"bottom boundary): give --hammer-on-bottom too")
     _positive(args.fmax, "--fmax")
     if args.count is not None and args.count < 1:
         raise UsageError(f"--count {args.count}: must be >= 1")

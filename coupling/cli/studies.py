@@ -24,6 +24,7 @@ import sys
 import time
 
 from hammerbit.cli.common import RunFailure, UsageError, add_set_argument, parse_settings, staged
+from hammerbit.cli.options import refuse_repeated_names, refuse_unless
 
 __all__ = ["register", "cmd_bifurcation", "cmd_sweep", "cmd_map", "cmd_optimize"]
 
@@ -87,6 +88,8 @@ def cmd_bifurcation(args) -> int:
     import numpy as np
     from hammerbit.scene.plots import plot_bifurcation
     from hammerbit.studies.bifurcation import bifurcation
+    refuse_unless(args, "keep", args.keep <= args.periods,
+                  f"at most --periods ({args.periods}) Poincaré points exist per value")
     g = _groups(args)
     lo, hi = args.range
     if args.num < 1:
@@ -260,11 +263,32 @@ def _confirm(groups, string, args) -> dict:
                    interface_damping=args.interface_damping, fmu=fmu_arg(args))
 
 
+#: ``optimize`` options of its ``--confirm`` co-simulation only.
+CONFIRM_OPTIONS = ("confirm_periods", "fmu", "interface_stiffness", "interface_damping")
+
+
+def refuse_idle_optimize_options(args) -> None:
+    """``optimize`` options given where they change nothing (exit 2, before the optimization)."""
+    for dest in CONFIRM_OPTIONS:
+        refuse_unless(args, dest, args.confirm, "an option of the co-simulation of the optimum: give --confirm "
+                                                "(and --string) too")
+    refuse_unless(args, "confirm", args.string is not None,
+                  "it co-simulates the optimum on a drillstring: give --string too")
+    refuse_unless(args, "margin", args.string is not None,
+                  "the half-width of the bands of the string's frequency check: give --string too")
+
+
 def cmd_optimize(args) -> int:
     from hammerbit.drillstring import load_string
     from hammerbit.studies.optimize import Bound, OptimizeConfig, optimize
+    refuse_idle_optimize_options(args)
+    if args.confirm and args.fmu is not None:
+        from hammerbit.cli.cosim import fmu_arg
+        fmu_arg(args)                   # a file that is no FMU is refused before the optimization
     g = _groups(args)
     bounds = tuple(Bound.parse(b) for b in args.bounds) if args.bounds else _default_bounds(g)
+    if args.bounds:
+        refuse_repeated_names("--bounds", args.bounds, lambda b: Bound.parse(b).name)
     string = load_string(args.string) if args.string else None
     cfg = OptimizeConfig(bounds=bounds, margin=args.margin,
                          max_contact_force=math.inf if args.max_contact_force is None
