@@ -337,7 +337,8 @@ def register(subparsers) -> None:
                         "without --step")
     p.add_argument("--monolithic", action="store_true",
                    help="run the monolithic reference (string, interface and hammer as one hybrid "
-                        "system) instead; samples every --step (default 1 ms)")
+                        "system) instead; samples every --step (default 1 ms); its --out has no hook_load "
+                        "column (the reference does not compute the hook load)")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     p.add_argument("--out", default=None, help="CSV of the recorded variables")
     p.set_defaults(func=cmd_cosim)

@@ -20,7 +20,7 @@ import argparse
 
 from hammerbit.cli.common import UsageError
 
-__all__ = ["StoreOnce", "StoreTrueOnce", "ONCE", "given", "refuse_unless", "refuse_repeated_names", "GIVEN_ATTR"]
+__all__ = ["StoreOnce", "StoreTrueOnce", "ONCE", "command_options", "given", "refuse_unless", "refuse_repeated_names", "GIVEN_ATTR"]
 
 #: The namespace attribute that holds ``{dest: (option as typed, value)}`` of the options given.
 #: It lives in the namespace because argparse copies a sub-command's namespace into the caller's.
@@ -98,3 +98,25 @@ def refuse_repeated_names(option: str, items, name_of) -> None:
             raise UsageError(f"{option} {item}: {name} is already given ({option} {seen[name]}); give each "
                              f"name once")
         seen[name] = item
+
+
+def command_options(parser) -> dict:
+    """``{"fmu build": [action, ...], ...}``: every command (nested ones by their full name) and its
+    options, from argparse's own tables (``--help`` left out).
+
+    argparse has no public API for walking a parser; this function is the one
+    place that reads its tables (``tests/test_cli_options.py`` fails if they change).
+    """
+    out = {}
+
+    def walk(p, prefix):
+        subs = [a for a in p._actions if isinstance(a, argparse._SubParsersAction)]
+        if prefix:
+            out[" ".join(prefix)] = [a for a in p._actions if a.option_strings
+                                     and not isinstance(a, argparse._HelpAction)]
+        for s in subs:
+            for name, child in s.choices.items():
+                walk(child, prefix + [name])
+
+    walk(parser, [])
+    return out
