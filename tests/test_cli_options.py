@@ -5,11 +5,13 @@ every option has an entry in :data:`DRIVE` (a new option without one fails
 :func:`test_every_option_is_driven`), and each entry is run against a small
 base invocation of its command:
 
-* ``V(*value)`` -- the option with this value changes the output (stdout
+* ``v(*value)`` -- the option with this value changes the output (stdout
   with the wall-clock figures left out, and the files written), or is refused
   with exit 2;
-* ``N(partner, *value)`` -- an option that only matters with ``partner``:
+* ``n(partner, *value)`` -- an option that only matters with ``partner``:
   alone it exits 2 naming itself; with ``partner`` it changes the output;
+* ``w(context, *value)`` / ``r(context, *value)`` -- it changes the output
+  where it matters (``context``), against the same context / the plain base;
 * ``F(name)`` -- an output file: written where it was not.
 
 Besides: every single-valued option given twice exits 2, and the do-nothing
@@ -28,17 +30,40 @@ from cli_run import run_cli
 from hammerbit.cli.main import build_parser
 from hammerbit.cli.options import command_options
 
-V = namedtuple("V", "value", defaults=((),))
-N = namedtuple("N", "partner value")
+#: how one option is driven: its value; ``context`` (``~--opt`` removes ``--opt`` and its value from the
+#: base, other words are added) applied to both runs, or (``plain_reference``) to the option's run only;
+#: ``alone_refused``: the option without its context exits 2 naming itself
+Spec = namedtuple("Spec", "value context alone_refused plain_reference", defaults=((), False, False))
 F = namedtuple("F", "name")
 
 
 def v(*value):
-    return V(tuple(value))
+    """The option with ``value`` changes the output (or is refused)."""
+    return Spec(tuple(value))
 
 
 def n(partner, *value):
-    return N(tuple(partner), tuple(value))
+    """Only with ``partner``: alone it exits 2; with it, it changes the output."""
+    return Spec(tuple(value), tuple(partner), True)
+
+
+def w(context, *value):
+    """Changes the output in ``context`` (where it matters), against the same context without it."""
+    return Spec(tuple(value), tuple(context))
+
+
+def r(context, *value):
+    """Given in ``context`` (replacing another option) instead of the plain base: the output changes."""
+    return Spec(tuple(value), tuple(context), False, True)
+
+
+def in_context(base, context):
+    out = list(base)
+    for word in context:
+        if word.startswith("~"):
+            i = out.index(word[1:])
+            del out[i:i + 2]
+    return out + [word for word in context if not word.startswith("~")]
 
 
 LAB = ["--string", "lab"]
@@ -68,17 +93,18 @@ DRIVE = {
     "simulate": {**SCENE, "--method": v("rk4"), "--rtol": v("1e-5"), "--steps-per-period": n(["--method", "rk4"], "50"),
                  "--periods": v("9"), "--json": v(), "--plot": F("s.png"), "--csv": F("s.csv"),
                  "--sample-dt": n(["--csv", "s.csv"], "0.05")},
-    "modes": {"--string": v("field-2200m"), "--top": v("free"), "--bottom": v("free"), "--count": v("4"),
+    "modes": {"--string": v("field-2200m"), "--top": v("free"), "--bottom": v("fixed"), "--count": v("4"),
               "--fmax": v("50"), "--mass": v("lumped"), "--rtol": v("1e-3"), "--exact": v(),
               "--hammer-on-bottom": v(), "--csv": F("m.csv"), "--json": v(),
-              **{k: n(["--hammer-on-bottom"], *val.value) for k, val in HAMMER.items()}},
-    "check": {"--string": v("field-2200m"), "--frequency": v("2.5"), "--rpm": v("60"),
-              "--factor": n(["--rpm", "60"], "3"), "--margin": v("0.5"), "--top": v("free"),
+              **{k: n(["--hammer-on-bottom"], *val.value) for k, val in HAMMER.items()},
+              "--set": n(["--hammer-on-bottom"], "m1=30")},
+    "check": {"--string": v("field-2200m"), "--frequency": v("2.5"), "--rpm": r(["~--frequency"], "60"),
+              "--factor": n(["~--frequency", "--rpm", "60"], "3"), "--margin": v("0.5"), "--top": v("free"),
               "--on-bottom": v("free"), "--off-bottom": v("fixed"), "--range": v("0", "50"),
-              "--rpm-range": n(["--rpm", "60"], "10", "100"), "--resonance-limit": v("3"),
+              "--rpm-range": n(["~--frequency", "--rpm", "60"], "10", "100"), "--resonance-limit": v("3"),
               "--damping-range": v("0.9", "1.1"), "--rtol": v("1e-3"), "--mass": v("lumped"), "--json": v(),
-              "--plot": F("c.png"), "--strict": v()},
-    "bifurcation": {**SCENE, "--param": v("b"), "--range": v("0.1", "0.13"), "--num": v("3"), "--periods": v("24"),
+              "--plot": F("c.png"), "--strict": w(["~--frequency", "--frequency", "4.55"])},
+    "bifurcation": {**SCENE, "--rtol": w(["--csv", "b.csv"], "1e-5"), "--param": v("b"), "--range": v("0.1", "0.13"), "--num": v("3"), "--periods": v("24"),
                     "--keep": v("5"), **EXECUTOR, "--out": F("b2.png"), "--csv": F("b.csv"), "--json": v()},
     "map": {**SCENE, "--axis": v("eta=0.9:1.1:2"), "--periods": v("24"), **EXECUTOR, "--out": F("m.nc"),
             "--plot": F("m.png"), "--json": v()},
@@ -156,17 +182,19 @@ def test_every_option_is_driven():
 def _drive(command, option, tmp_path, capsys, monkeypatch):
     spec = DRIVE[command][option]
     base = BASE[command]
-    if isinstance(spec, N):
-        code, _, _, err = outcome(base + [option, *spec.value], tmp_path / "alone", capsys, monkeypatch)
-        assert code == 2 and option in err, (command, option, code, err)
-        base = base + list(spec.partner)
-    ref = outcome(base, tmp_path / "base", capsys, monkeypatch)
-    assert ref[0] in (0, 4, 5), (command, "base run", ref)
     if isinstance(spec, F):
-        got = outcome(base + [option, spec.name], tmp_path / "opt", capsys, monkeypatch)
+        ref = outcome(base, tmp_path / "base", capsys, monkeypatch)
+        plain = in_context(base, [f"~{option}"]) if option in base else base
+        got = outcome(plain + [option, spec.name], tmp_path / "opt", capsys, monkeypatch)
         assert got[0] == ref[0] and spec.name in got[2] and spec.name not in ref[2], (command, option, got)
         return
-    got = outcome(base + [option, *spec.value], tmp_path / "opt", capsys, monkeypatch)
+    if spec.alone_refused:
+        code, _, _, err = outcome(base + [option, *spec.value], tmp_path / "alone", capsys, monkeypatch)
+        assert code == 2 and option in err, (command, option, code, err)
+    context = in_context(base, spec.context)
+    ref = outcome(base if spec.plain_reference else context, tmp_path / "base", capsys, monkeypatch)
+    assert ref[0] in (0, 4, 5), (command, "base run", ref)
+    got = outcome(context + [option, *spec.value], tmp_path / "opt", capsys, monkeypatch)
     if got[0] == 2:
         assert got[3].strip() and "Traceback" not in got[3], (command, option, got)
         return

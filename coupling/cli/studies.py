@@ -62,6 +62,38 @@ def _groups(args):
     return apply_user_settings(preset(args.preset), parse_settings(args.set))
 
 
+#: Two scenes whose groups agree to this relative difference are the same (an SI setting's round trip).
+SAME_SCENE_RTOL = 1e-12
+
+
+def refuse_overridden_settings(args, swept: dict, what: str) -> None:
+    """Refuse a ``--set`` that the study's own values override (exit 2, before any work).
+
+    ``swept`` maps each parameter the study sets itself (the bifurcation's
+    ``--param``, the map's axes, the optimizer's bounds) to one of its values;
+    a setting whose removal leaves the scene the same once those are applied
+    does nothing.
+    """
+    from hammerbit.model.presets import preset
+    from hammerbit.model.settings import apply_settings
+    from hammerbit.model.validation import ParameterError
+    settings = parse_settings(args.set)
+    base = preset(args.preset)
+    for name, value in settings.items():
+        others = {k: x for k, x in settings.items() if k != name}
+        try:
+            kept = apply_settings(apply_settings(base, settings), swept).values()
+            dropped = apply_settings(apply_settings(base, others), swept).values()
+        except ParameterError:          # out of range somewhere: the study's own checks say so
+            continue
+        # SI names round-trip through the scales: equal to rounding is the same scene
+        if kept.keys() == dropped.keys() and all(
+                kept[k] == dropped[k] or math.isclose(kept[k], dropped[k], rel_tol=SAME_SCENE_RTOL, abs_tol=0.0)
+                for k in kept):
+            raise UsageError(f"--set {name}={value:g}: {what} sets it over the run (give the value there, or "
+                             f"drop --set {name})")
+
+
 def _solver(args):
     from hammerbit.model.solver_options import SolverOptions
     if args.rtol is None:
@@ -90,6 +122,7 @@ def cmd_bifurcation(args) -> int:
     from hammerbit.studies.bifurcation import bifurcation
     refuse_unless(args, "keep", args.keep <= args.periods,
                   f"at most --periods ({args.periods}) Poincaré points exist per value")
+    refuse_overridden_settings(args, {args.param: args.range[0]}, f"--param {args.param}")
     g = _groups(args)
     lo, hi = args.range
     if args.num < 1:
@@ -187,6 +220,7 @@ def cmd_map(args) -> int:
     if len(args.axis) > 3:
         raise UsageError(f"map takes 1 to 3 --axis options, got {len(args.axis)}")
     axes = [Axis.parse(a) for a in args.axis]
+    refuse_overridden_settings(args, {a.name: a.values[0] for a in axes}, "--axis")
     g = _groups(args)
     ds = regime_map(g, axes, periods=args.periods, solver=_solver(args), options=_executor_options(args),
                     attrs={"preset": args.preset, "settings": json.dumps(parse_settings(args.set))})
@@ -289,6 +323,8 @@ def cmd_optimize(args) -> int:
     bounds = tuple(Bound.parse(b) for b in args.bounds) if args.bounds else _default_bounds(g)
     if args.bounds:
         refuse_repeated_names("--bounds", args.bounds, lambda b: Bound.parse(b).name)
+    refuse_overridden_settings(args, {b.name: b.lo for b in bounds},
+                               "--bounds" if args.bounds else "the default --bounds (frequency, amplitude)")
     string = load_string(args.string) if args.string else None
     cfg = OptimizeConfig(bounds=bounds, margin=args.margin,
                          max_contact_force=math.inf if args.max_contact_force is None
