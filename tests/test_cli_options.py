@@ -272,7 +272,7 @@ def test_monolithic_csv_has_no_nan_column(tmp_path, capsys):
     """``cosim --monolithic --out``: every column is computed (hook_load, which the reference does not
     compute, is left out), and the columns are the co-simulation's but that one."""
     import numpy as np
-    from hammerbit.cli.cosim import RECORD
+    from hammerbit.cli.cosim_report import RECORD
     path = tmp_path / "m.csv"
     code, _, err = run_cli(["cosim", *LAB, "--stop", "0.05", "--monolithic", "--out", str(path)], capsys)
     assert code == 0, err

@@ -20,7 +20,8 @@ import argparse
 
 from hammerbit.cli.common import UsageError
 
-__all__ = ["StoreOnce", "StoreTrueOnce", "ONCE", "command_options", "given", "refuse_unless", "refuse_repeated_names", "GIVEN_ATTR"]
+__all__ = ["StoreOnce", "StoreTrueOnce", "ONCE", "command_options", "given", "refuse_unless", "refuse_repeated_names",
+           "GIVEN_ATTR"]
 
 #: The namespace attribute that holds ``{dest: (option as typed, value)}`` of the options given.
 #: It lives in the namespace because argparse copies a sub-command's namespace into the caller's.

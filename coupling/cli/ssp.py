@@ -108,7 +108,7 @@ def cosim_ssp(args) -> int:
     check_positive("--stop", args.stop)
     check_positive("--tol", args.tol, upper=1.0, unit="(relative)")
     check_positive("--step", args.step, upper=args.stop if args.stop is not None else math.inf)
-    from hammerbit.cli.cosim import recorded, write_and_report
+    from hammerbit.cli.cosim_report import recorded, write_and_report
     overrides = {"record": recorded(monolithic=args.monolithic, ssp=True),
                  "progress": None if not args.json else False, "tol": args.tol, "scheme": args.scheme}
     if args.stop is not None:
