@@ -1,5 +1,5 @@
 """``python -m hammerbit``: the ``hammerbit`` command line."""
-from hammerbit.cli.main import console
+from hammerbit.cli import console
 
 if __name__ == "__main__":
     console()

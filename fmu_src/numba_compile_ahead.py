@@ -24,6 +24,7 @@ Only a plain Python process starts a helper: the FMU turns this off
 """
 from __future__ import annotations
 
+import atexit
 import importlib
 import os
 import pickle
@@ -94,6 +95,7 @@ def start(entry: str) -> bool:
     except OSError:
         _helper = None
         return False
+    atexit.register(finish)     # an interrupted caller does not leave the helper compiling
     return True
 
 

@@ -14,7 +14,6 @@ import os
 import pathlib
 import re
 import shlex
-import shutil
 import subprocess
 import sys
 
@@ -327,26 +326,6 @@ def test_documented_command_parses(doc, argv):
     except SystemExit as e:
         pytest.fail(f"{doc}: hammerbit {' '.join(argv)} does not parse (exit {e.code})")
     assert callable(ns.func)
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("doc, argv, code", documented_commands(),
-                         ids=[f"{d}: {' '.join(a)}" for d, a, _ in documented_commands()])
-def test_documented_command_runs(doc, argv, code, tmp_path, built_fmu, request):
-    """Every command shown in the docs runs in a fresh directory (with dist/HammerBitRock.fmu): exit 0,
-    or the exit code its comment documents (``# exit 5: ...``)."""
-    (tmp_path / "dist").mkdir()
-    shutil.copy(built_fmu, tmp_path / "dist" / "HammerBitRock.fmu")
-    if "--ssp" in argv:         # the package the command before it in the docs builds
-        shutil.copy(request.getfixturevalue("built_ssp"), tmp_path / argv[argv.index("--ssp") + 1])
-    r = console(*argv, cwd=tmp_path, timeout=1200)
-    assert "Traceback" not in r.stderr
-    if code is not None:
-        assert r.returncode == code, (r.returncode, r.stderr)
-    elif "--strict" in argv:
-        assert r.returncode in (0, 4), r.stderr
-    else:
-        assert r.returncode == 0, r.stderr
 
 
 # --------------------------------------------------------------------------- nothing writes tracked files

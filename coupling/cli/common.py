@@ -31,13 +31,16 @@ import sys
 import threading
 import traceback
 
+from hammerbit.cli.interrupt import (EXIT_INTERRUPTED, INTERRUPT_GRACE_S, Staging, interrupt_or_exit,
+                                     say_interrupted, staged)
+
 __all__ = ["EXIT_OK", "EXIT_FAILURE", "EXIT_BAD_INPUT", "EXIT_UNSTABLE", "EXIT_CHECK_FAILED",
            "EXIT_INACCURATE", "EXIT_INFEASIBLE", "EXIT_INTERRUPTED", "UsageError", "RunFailure", "parse_settings",
            "add_set_argument", "SET_HELP", "run_command", "error", "NETCDF_SUFFIXES",
            "MAX_WORKERS_PER_CORE", "MEMORY_FRACTION", "MAX_CPU_SECONDS", "max_workers", "check_workers",
            "check_output", "check_input_file", "output_errors", "available_memory", "check_fits",
            "interruptible", "human_bytes", "human_seconds", "one_blas_thread", "interrupt_or_exit",
-           "INTERRUPT_GRACE_S"]
+           "INTERRUPT_GRACE_S", "staged"]
 
 EXIT_OK = 0
 EXIT_FAILURE = 1
@@ -46,7 +49,6 @@ EXIT_UNSTABLE = 3
 EXIT_CHECK_FAILED = 4
 EXIT_INACCURATE = 5
 EXIT_INFEASIBLE = 6
-EXIT_INTERRUPTED = 130
 
 
 class UsageError(ValueError):
@@ -86,6 +88,8 @@ def parse_settings(pairs) -> dict:
         k = k.strip()
         if not k:
             raise UsageError(f"--set expects NAME=VALUE, got {item!r}")
+        if k in out:
+            raise UsageError(f"--set {item}: {k} is already set (--set {k}={out[k]:g}); give each name once")
         try:
             out[k] = float(v)
         except ValueError:
@@ -128,18 +132,32 @@ def _classify(exc: BaseException) -> int:
 
 def run_command(func, args, *, prog: str = "hammerbit", before=None, rephrase=None) -> int:
     """Run ``before(args)`` (the checks before any work), then ``func(args)``; map every exception,
-    after ``rephrase(exc, args)`` (the user's words), to a one-line message and an exit code."""
+    after ``rephrase(exc, args)`` (the user's words), to a one-line message and an exit code.
+
+    Every output file the command writes through :func:`staged` is renamed onto
+    its name only when ``func`` returns; a Ctrl-C before then (exit 130) or an
+    error leaves no file and changes none (:mod:`hammerbit.cli.interrupt`).
+    """
+    guard = None
     try:
-        if before is not None:
-            before(args)
-        with interrupt_or_exit(prog=prog, always=False):
-            return int(func(args) or 0)
+        with Staging() as outputs, interrupt_or_exit(prog=prog, always=False) as guard:
+            if before is not None:
+                before(args)
+            code = int(func(args) or 0)
+            if guard is not None:
+                guard.finish()          # complete: a Ctrl-C from now on is ignored
+            outputs.commit()
+            return code
     except KeyboardInterrupt:
-        print(f"{prog}: interrupted", file=sys.stderr)
+        say_interrupted(prog)
         return EXIT_INTERRUPTED
     except SystemExit:
         raise
     except BaseException as exc:  # noqa: BLE001 -- the CLI never shows a traceback
+        if guard is not None and guard.pending:
+            # the Ctrl-C surfaced as another error (an extension module's import it cut short)
+            say_interrupted(prog)
+            return EXIT_INTERRUPTED
         if rephrase is not None:
             exc = rephrase(exc, args)
         code = _classify(exc)
@@ -350,68 +368,3 @@ def one_blas_thread(func):
         with threadpool_limits(limits=1, user_api="blas"):
             return func(*args, **kwargs)
     return wrapper
-
-
-#: Seconds a Ctrl-C may take to end a command before :func:`interrupt_or_exit` ends the process.
-INTERRUPT_GRACE_S = 2.0
-
-
-@contextlib.contextmanager
-def interrupt_or_exit(grace_s: float = INTERRUPT_GRACE_S, prog: str = "hammerbit", *, always: bool = True):
-    """Ctrl-C raises ``KeyboardInterrupt`` as usual; where it cannot, the process ends ``grace_s``
-    later with the same one line and exit code 130.
-
-    Two places lose or garble a ``KeyboardInterrupt``: a foreign host running
-    Python code (an FMU's doStep called through C) can turn it into a failed
-    step, which the caller retries; and numba's compiler calls back into Python
-    through ctypes, where Python prints "Exception ignored" with a traceback.
-    Inside numba or llvmlite the handler does not raise; with ``always`` (an
-    FMU host) it raises and arms the timer too.  The timer is cancelled when
-    the exception leaves this block.
-    """
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    import signal
-    timers = []
-
-    def arm():
-        if not timers:
-            t = threading.Timer(grace_s, _exit_interrupted, args=(prog,))
-            t.daemon = True
-            t.start()
-            timers.append(t)
-
-    def handler(signum, frame):
-        if _in_compiler(frame):
-            arm()
-            return
-        if always:
-            arm()
-        raise KeyboardInterrupt
-
-    old = signal.signal(signal.SIGINT, handler)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, old)
-        for t in timers:
-            t.cancel()
-
-
-_COMPILER_DIRS = (os.sep + "numba" + os.sep, os.sep + "llvmlite" + os.sep)
-
-
-def _in_compiler(frame) -> bool:
-    """True if ``frame`` or a caller runs numba's or llvmlite's code."""
-    while frame is not None:
-        name = frame.f_code.co_filename
-        if any(d in name for d in _COMPILER_DIRS):
-            return True
-        frame = frame.f_back
-    return False
-
-
-def _exit_interrupted(prog: str) -> None:
-    print(f"{prog}: interrupted", file=sys.stderr, flush=True)
-    os._exit(EXIT_INTERRUPTED)

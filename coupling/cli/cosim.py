@@ -22,16 +22,16 @@ string (``cosim``, ``sweep``, ``modes --hammer-on-bottom``).
 """
 from __future__ import annotations
 
-import json
 import sys
 import time
 
 from hammerbit.cli.common import (EXIT_INACCURATE, EXIT_OK, UsageError, add_set_argument, interrupt_or_exit,
                                   parse_settings)
+from hammerbit.cli.cosim_report import recorded, write_and_report
+from hammerbit.cli.options import refuse_unless
 
 __all__ = ["register", "cmd_cosim", "add_hammer_options", "add_cosim_options", "config_from_args", "top_from_args",
            "load_string_arg", "fmu_arg"]
-
 
 def add_hammer_options(p) -> None:
     """The hammer, interface and ``--set`` options (``cosim``, ``sweep``, ``modes --hammer-on-bottom``)."""
@@ -224,7 +224,24 @@ def warn_regime(out: dict) -> None:
         print(f"hammerbit cosim: warning: {msg}", file=sys.stderr)
 
 
+#: ``cosim`` options the monolithic reference has no use for (it couples nothing and estimates nothing).
+NOT_FOR_MONOLITHIC = ("scheme", "extrapolation", "harmonic_source", "tol", "adaptive", "fmu")
+
+
+def refuse_idle_options(args) -> None:
+    """``cosim`` options given where they change nothing (exit 2, before any work)."""
+    for dest in NOT_FOR_MONOLITHIC:
+        refuse_unless(args, dest, not args.monolithic,
+                      "--monolithic runs the reference (string, interface and hammer as one system, in "
+                      "process): it has no coupling scheme, extrapolation, harmonic source, macro-step "
+                      "control or FMU, and no coupling-error estimate to hold against --tol")
+    refuse_unless(args, "adaptive", args.step is not None,
+                  "without --step the macro step is adaptive already; --adaptive makes --step the first "
+                  "step of an adaptive run")
+
+
 def cmd_cosim(args) -> int:
+    refuse_idle_options(args)
     if args.ssp is not None:
         from hammerbit.cli.ssp import cosim_ssp
         return cosim_ssp(args)
@@ -237,8 +254,7 @@ def cmd_cosim(args) -> int:
     from hammerbit.cosim.error import SAFETY_FACTOR, StepResolutionError
     adaptive = args.step is None or args.adaptive
     extra = {"stop": args.stop,
-             "record": ("wob", "interface_force", "hammer_position", "hammer_velocity", "bit_position",
-                        "bit_velocity", "stick", "contact", "hook_load"),
+             "record": recorded(monolithic=args.monolithic),
              "progress": None if not args.json else False, "adaptive": adaptive and not args.monolithic,
              "tol": args.tol}
     if args.monolithic and args.step is None:
@@ -269,15 +285,8 @@ def cmd_cosim(args) -> int:
     out["string"] = string.name
     out["wob_static_n"] = cfg.weight_on_bit
     out["tol"] = cfg.tol
+    write_and_report(res, out, args, lambda o: _print_text(o, res, cfg, string))
     est = res.estimate
-    out["meets_tolerance"] = None if est is None else est.meets_tolerance
-    if args.out:
-        res.to_csv(args.out)
-        out["csv"] = str(args.out)
-    if args.json:
-        print(json.dumps(out, indent=2, default=float))
-    else:
-        _print_text(out, res, cfg, string)
     if out["top"].get("retuned"):
         print(f"hammerbit cosim: note: {out['top']['retune_note']}", file=sys.stderr)
     warn_regime(out)
@@ -319,7 +328,8 @@ def register(subparsers) -> None:
                         "without --step")
     p.add_argument("--monolithic", action="store_true",
                    help="run the monolithic reference (string, interface and hammer as one hybrid "
-                        "system) instead; samples every --step (default 1 ms)")
+                        "system) instead; samples every --step (default 1 ms); its --out has no hook_load "
+                        "column (the reference does not compute the hook load)")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     p.add_argument("--out", default=None, help="CSV of the recorded variables")
     p.set_defaults(func=cmd_cosim)

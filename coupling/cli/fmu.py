@@ -5,13 +5,17 @@ import math
 import sys
 import time
 
-from hammerbit.cli.common import UsageError, add_set_argument, parse_settings
+from hammerbit.cli.common import UsageError, add_set_argument, parse_settings, staged
 
 __all__ = ["register", "cmd_fmu_build", "cmd_fmu_build_string"]
 
 
 def cmd_fmu_build(args) -> int:
-    from hammerbit.fmu.build import BuildOptions, UnknownVariableError, build_fmu
+    from hammerbit.cli.options import refuse_unless
+    for dest in ("no_portable_cache", "no_native_front"):
+        refuse_unless(args, dest, args.runtime == "pythonfmu", "an option of --runtime pythonfmu: the native "
+                                                               "runtime ships compiled binaries and no Python front")
+    from hammerbit.fmu.build import MODEL_NAME, BuildOptions, UnknownVariableError, build_fmu, default_output
     try:
         start = parse_settings(args.set)
         opts = BuildOptions(start_values=start, portable_cache=not args.no_portable_cache,
@@ -23,7 +27,8 @@ def cmd_fmu_build(args) -> int:
               + (f" ({', '.join(work)}; about a minute)" if work else "") + " ...",
               file=sys.stderr, flush=True)
         t0 = time.perf_counter()
-        path = build_fmu(args.out, options=opts)
+        path = _fmu_file(args.out, default_output(), MODEL_NAME)
+        build_fmu(staged(path), options=opts)
     except UnknownVariableError as e:
         raise UsageError(f"--set {e}") from None
     print(f"hammerbit fmu build: done in {time.perf_counter() - t0:.0f} s", file=sys.stderr)
@@ -31,10 +36,21 @@ def cmd_fmu_build(args) -> int:
     return 0
 
 
+def _fmu_file(out, default, model_name: str):
+    """The absolute ``.fmu`` file of ``--out``: the file itself, or ``model_name.fmu`` in a directory."""
+    from pathlib import Path
+    out = Path(out) if out is not None else Path(default)
+    if out.suffix != ".fmu":
+        out = out / f"{model_name}.fmu"
+    out = out.resolve()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    return out
+
+
 def cmd_fmu_build_string(args) -> int:
     from hammerbit.drillstring import DrillStringError
     from hammerbit.drillstring.top import TopCondition
-    from hammerbit.fmu.build_string import build_string_fmu
+    from hammerbit.fmu.build_string import build_string_fmu, string_fmu_path
     try:
         top = TopCondition.parse(args.top, where="--top")
     except ValueError as e:
@@ -46,14 +62,15 @@ def cmd_fmu_build_string(args) -> int:
     if steps and args.runtime != "native":
         raise UsageError("--step is an option of --runtime native (the pythonfmu flavour takes any step)")
     try:
+        path = string_fmu_path(args.out)
         if args.runtime == "native":
             from hammerbit.fmu.native_string import build_native_string_fmu
             print("hammerbit fmu build-string: building Drillstring.fmu (native runtime; compiling the "
                   "string's kernels) ...", file=sys.stderr, flush=True)
-            path = build_native_string_fmu(args.string, args.out, top=top, steps=steps,
+            build_native_string_fmu(args.string, staged(path), top=top, steps=steps,
                                            log=lambda m: print(m, file=sys.stderr))
         else:
-            path = build_string_fmu(args.string, args.out, top=top)
+            build_string_fmu(args.string, staged(path), top=top)
     except DrillStringError:
         raise
     except (OSError, ValueError) as e:

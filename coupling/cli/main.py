@@ -12,13 +12,16 @@ import gc
 import importlib
 import json
 import math
+import signal
 import sys
 import warnings
 
 import numpy as np
 
-from hammerbit.cli.common import (EXIT_INTERRUPTED, UsageError, add_set_argument, check_output, interruptible,
+from hammerbit.cli.common import (UsageError, add_set_argument, check_output, interruptible, staged,
                                   output_errors, parse_settings, run_command)
+from hammerbit.cli.options import ONCE, refuse_unless
+from hammerbit.cli.interrupt import EXIT_INTERRUPTED, end_interrupted, install_early_exit
 from hammerbit.cli.preflight import apply_user_settings, in_user_words, preflight
 
 __all__ = ["main", "console", "build_parser", "COMMAND_MODULES", "HelpFormatter", "version"]
@@ -64,11 +67,14 @@ class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
 
 
 class _Parser(argparse.ArgumentParser):
-    """ArgumentParser whose sub-commands show defaults in their help."""
+    """ArgumentParser whose sub-commands show defaults in their help, and whose single-valued options
+    refuse a second occurrence (:mod:`hammerbit.cli.options`)."""
 
     def __init__(self, *args, **kwargs):
         kwargs.setdefault("formatter_class", HelpFormatter)
         super().__init__(*args, **kwargs)
+        for name, action in ONCE.items():      # argument groups share this registry
+            self.register("action", name, action)
 
 
 def _parse_settings(pairs):
@@ -145,13 +151,28 @@ def _finite_or_none(v):
     return None if isinstance(v, float) and not math.isfinite(v) else v
 
 
+def refuse_idle_solver_options(args) -> None:
+    """``--rtol`` and ``--steps-per-period`` only where the method uses them (exit 2 otherwise)."""
+    refuse_unless(args, "rtol", args.method != "rk4",
+                  "rk4 takes a fixed step and no tolerance: give --steps-per-period, or --method adaptive or dp54")
+    refuse_unless(args, "steps_per_period", args.method == "rk4",
+                  f"only --method rk4 takes a fixed number of steps; {args.method} chooses its steps from --rtol")
+
+
 def cmd_simulate(args) -> int:
     from hammerbit.scene.figure_worker import start as start_figure_worker
+    refuse_idle_solver_options(args)
+    refuse_unless(args, "sample_dt", args.csv is not None, "it sets the spacing of the --csv samples: give "
+                                                             "--csv FILE too")
 
     # the figure's process imports matplotlib while this one loads the solver
     worker = start_figure_worker() if args.plot else None
     try:
         return _simulate(args, worker)
+    except BaseException:
+        if worker is not None:
+            worker.abort()      # interrupted or failed: the figure is not wanted, do not wait for it
+        raise
     finally:
         if worker is not None:
             worker.close()
@@ -179,8 +200,6 @@ def _simulate(args, worker) -> int:
             formats = figure_formats()
         check_output(args.plot, "--plot", formats=formats)
     times = None
-    if args.sample_dt is not None and not args.csv:
-        raise UsageError("--sample-dt sets the spacing of the --csv samples: give --csv FILE too")
     if args.csv:
         dt = g.period_s / 100.0 if args.sample_dt is None else \
             check("simulate.sample_dt", args.sample_dt, label="--sample-dt")
@@ -238,7 +257,7 @@ def _simulate(args, worker) -> int:
         print(f"hammerbit: warning: {msg}", file=sys.stderr)
     if args.csv:
         with output_errors("--csv", args.csv):
-            write_samples_csv(res, args.csv)
+            write_samples_csv(res, staged(args.csv))
     if args.json:
         print(json.dumps(out))
     else:
@@ -270,8 +289,9 @@ def _simulate(args, worker) -> int:
         from hammerbit.scene.plots import scene_figure
         from hammerbit.scene.figure import draw_scene
         data = scene_figure(g, args.periods, solver=solver, preset=args.preset, period=period)
-        if worker is None or not worker.draw(draw_scene, data, args.plot) or worker.result() is None:
-            draw_scene(data, args.plot)
+        plot = staged(args.plot)
+        if worker is None or not worker.draw(draw_scene, data, plot) or worker.result() is None:
+            draw_scene(data, plot)
         if not args.json:
             print(f"figure: {args.plot}")
     return 0
@@ -326,13 +346,18 @@ def console(argv=None) -> None:
     collector's reach (:func:`gc.freeze`): the interpreter's shutdown then
     does not walk numba's and matplotlib's object graphs, a large share of a
     short command's exit.  Everything else of the shutdown runs as usual
-    (exit handlers, files flushed and closed).
+    (exit handlers, files flushed and closed).  A Ctrl-C before the command
+    starts ends the process with one line and exit code 130
+    (:func:`hammerbit.cli.interrupt.install_early_exit`); while it runs,
+    :func:`hammerbit.cli.common.run_command` handles it.
     """
-    try:
-        code = main(argv)
-    except KeyboardInterrupt:       # before or after the command ran (imports, argument parsing)
-        print("hammerbit: interrupted", file=sys.stderr)
-        code = EXIT_INTERRUPTED
+    install_early_exit()            # imports and argument parsing: nothing to undo
+    code = main(argv)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)   # the command is complete: only the exit is left
+    if code == EXIT_INTERRUPTED:
+        # everything is closed and removed; the interpreter's finalisation could meet a half-imported
+        # extension module or a kernel still running in its thread, so it is skipped
+        end_interrupted()
     gc.freeze()
     sys.exit(code)
 

@@ -9,14 +9,13 @@ fixed-step Jacobi run that libcosim and FMPy's SSP runner make.
 """
 from __future__ import annotations
 
-import json
 import math
 import sys
 import time
 import warnings
 from pathlib import Path
 
-from hammerbit.cli.common import EXIT_INACCURATE, EXIT_OK, UsageError, add_set_argument, parse_settings
+from hammerbit.cli.common import EXIT_INACCURATE, EXIT_OK, UsageError, add_set_argument, parse_settings, staged
 
 __all__ = ["register", "cmd_ssp_build", "cosim_ssp", "check_positive", "SSP_EXCLUSIVE"]
 
@@ -73,14 +72,14 @@ def cmd_ssp_build(args) -> int:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
-            path = build_ssp(args.string, out, SSPOptions(hammer=args.hammer, stop=args.stop, step=args.step,
+            build_ssp(args.string, staged(out), SSPOptions(hammer=args.hammer, stop=args.stop, step=args.step,
                                                           wob=args.wob, rig=rig, top=top,
                                                           runtime=args.runtime))
         except ValueError as e:          # the string cannot carry the hammer's WOB, ...
             raise UsageError(f"--string {args.string}: {e}") from None
     for w in caught:
         print(f"hammerbit ssp build: warning: {w.message}", file=sys.stderr)
-    print(path)
+    print(out.resolve())
     return EXIT_OK
 
 
@@ -123,8 +122,8 @@ def cosim_ssp(args) -> int:
     check_positive("--stop", args.stop)
     check_positive("--tol", args.tol, upper=1.0, unit="(relative)")
     check_positive("--step", args.step, upper=args.stop if args.stop is not None else math.inf)
-    overrides = {"record": ("wob", "interface_force", "hammer_position", "hammer_velocity", "bit_position",
-                            "bit_velocity", "hook_load"),
+    from hammerbit.cli.cosim_report import recorded, write_and_report
+    overrides = {"record": recorded(monolithic=args.monolithic, ssp=True),
                  "progress": None if not args.json else False, "tol": args.tol, "scheme": args.scheme}
     if args.stop is not None:
         overrides["stop"] = args.stop
@@ -148,13 +147,8 @@ def cosim_ssp(args) -> int:
     for msg in cosim_warnings(out):
         print(f"hammerbit cosim: warning: {msg}", file=sys.stderr)
     est = res.estimate
-    out["meets_tolerance"] = None if est is None else est.meets_tolerance
-    if args.out:
-        res.to_csv(args.out)
-        out["csv"] = str(args.out)
-    if args.json:
-        print(json.dumps(out, indent=2, default=float))
-    else:
+
+    def print_text(out):
         c = out["counts"]
         print(f"{args.ssp}: {res.method}, {res.macro_steps} macro steps to t = {out['stop_s']:g} s")
         print(f"  penetration {out['penetration_m'] * 1e3:.6g} mm; WOB mean {out['wob_mean_n'] / 1e3:.5g} kN, "
@@ -162,6 +156,8 @@ def cosim_ssp(args) -> int:
         if est is not None:
             print(f"  {est.text()}")
         print(f"  wall time {out['wall_time_s']:.3f} s (+ set-up {out['setup_time_s']:.3f} s)")
+
+    write_and_report(res, out, args, print_text)
     if est is not None and not est.meets_tolerance:
         print(f"hammerbit cosim: warning: the answer is not within the tolerance: {est.text()}",
               file=sys.stderr)

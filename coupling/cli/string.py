@@ -17,7 +17,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from hammerbit.cli.common import EXIT_CHECK_FAILED, EXIT_OK, UsageError, one_blas_thread
+from hammerbit.cli.common import EXIT_CHECK_FAILED, EXIT_OK, UsageError, one_blas_thread, staged
 from hammerbit.drillstring import (
     DEFAULT_MASS,
     DEFAULT_RTOL,
@@ -145,6 +145,13 @@ def cmd_modes(args: argparse.Namespace) -> int:
 
     if getattr(args, "hammer_on_bottom", False):
         return _cmd_hammer_modes(args)
+    from hammerbit.cli.options import refuse_unless
+    for dest in ("wob", "interface_stiffness", "interface_damping"):
+        refuse_unless(args, dest, False, "an option of --hammer-on-bottom (the hammer as the bottom "
+                                         "boundary): give --hammer-on-bottom too")
+    if args.set:
+        raise UsageError(f"--set {args.set[0]}: changes the hammer of --hammer-on-bottom (the hammer as the "
+                         f"bottom boundary): give --hammer-on-bottom too")
     _positive(args.fmax, "--fmax")
     if args.count is not None and args.count < 1:
         raise UsageError(f"--count {args.count}: must be >= 1")
@@ -168,7 +175,7 @@ def cmd_modes(args: argparse.Namespace) -> int:
             row["relative_error"] = (float(f) / e - 1.0) if e > 0 else 0.0
         rows.append(row)
     if args.csv:
-        with open(args.csv, "w", newline="", encoding="utf-8") as fh:
+        with open(staged(args.csv), "w", newline="", encoding="utf-8") as fh:
             w = csv.DictWriter(fh, fieldnames=list(rows[0]) if rows else ["mode", "frequency_hz"])
             w.writeheader()
             for r in rows:
@@ -234,7 +241,7 @@ def cmd_check(args: argparse.Namespace) -> int:
     string = load_string(args.string)
     res = check(string, cfg)
     if args.plot:
-        plot_check(res, args.plot)
+        plot_check(res, staged(args.plot))
     code = EXIT_CHECK_FAILED if (args.strict and res.verdict == "fail") else EXIT_OK
     if args.json:
         d = res.to_dict()
@@ -342,7 +349,7 @@ def _write_rows(path, rows) -> None:
     """The rows (dicts) as CSV; a failed write names ``--csv``."""
     from hammerbit.cli.common import output_errors
     names = list(rows[0]) if rows else ["mode", "frequency_hz"]
-    with output_errors("--csv", path), open(path, "w", newline="", encoding="utf-8") as fh:
+    with output_errors("--csv", path), open(staged(path), "w", newline="", encoding="utf-8") as fh:
         w = csv.DictWriter(fh, fieldnames=names)
         w.writeheader()
         for r in rows:

@@ -24,7 +24,8 @@ import sys
 import time
 
 from hammerbit.cli.common import (EXIT_INFEASIBLE, RunFailure, UsageError, add_set_argument, check_input_file,
-                                   parse_settings)
+                                   parse_settings, staged)
+from hammerbit.cli.options import refuse_repeated_names, refuse_unless
 from hammerbit.model.regime_codes import REGIME_BITS, REGIME_TRANSIENT, regime_names
 
 __all__ = ["register", "cmd_bifurcation", "cmd_sweep", "cmd_map", "cmd_optimize"]
@@ -63,6 +64,38 @@ def _groups(args):
     return apply_user_settings(preset(args.preset), parse_settings(args.set))
 
 
+#: Two scenes whose groups agree to this relative difference are the same (an SI setting's round trip).
+SAME_SCENE_RTOL = 1e-12
+
+
+def refuse_overridden_settings(args, swept: dict, what: str) -> None:
+    """Refuse a ``--set`` that the study's own values override (exit 2, before any work).
+
+    ``swept`` maps each parameter the study sets itself (the bifurcation's
+    ``--param``, the map's axes, the optimizer's bounds) to one of its values;
+    a setting whose removal leaves the scene the same once those are applied
+    does nothing.
+    """
+    from hammerbit.model.presets import preset
+    from hammerbit.model.settings import apply_settings
+    from hammerbit.model.validation import ParameterError
+    settings = parse_settings(args.set)
+    base = preset(args.preset)
+    for name, value in settings.items():
+        others = {k: x for k, x in settings.items() if k != name}
+        try:
+            kept = apply_settings(apply_settings(base, settings), swept).values()
+            dropped = apply_settings(apply_settings(base, others), swept).values()
+        except ParameterError:          # out of range somewhere: the study's own checks say so
+            continue
+        # SI names round-trip through the scales: equal to rounding is the same scene
+        if kept.keys() == dropped.keys() and all(
+                kept[k] == dropped[k] or math.isclose(kept[k], dropped[k], rel_tol=SAME_SCENE_RTOL, abs_tol=0.0)
+                for k in kept):
+            raise UsageError(f"--set {name}={value:g}: {what} sets it over the run (give the value there, or "
+                             f"drop --set {name})")
+
+
 def _solver(args):
     from hammerbit.model.solver_options import SolverOptions
     if args.rtol is None:
@@ -89,6 +122,9 @@ def cmd_bifurcation(args) -> int:
     import numpy as np
     from hammerbit.scene.plots import plot_bifurcation
     from hammerbit.studies.bifurcation import bifurcation
+    refuse_unless(args, "keep", args.keep <= args.periods,
+                  f"at most --periods ({args.periods}) Poincaré points exist per value")
+    refuse_overridden_settings(args, {args.param: args.range[0]}, f"--param {args.param}")
     g = _groups(args)
     lo, hi = args.range
     if args.num < 1:
@@ -96,9 +132,9 @@ def cmd_bifurcation(args) -> int:
     values = np.linspace(lo, hi, args.num)
     res = bifurcation(g, args.param, values, periods=args.periods, keep=args.keep, solver=_solver(args),
                       options=_executor_options(args))
-    plot_bifurcation(res, args.out, preset=args.preset)
+    plot_bifurcation(res, staged(args.out), preset=args.preset)
     if args.csv:
-        res.to_csv(args.csv)
+        res.to_csv(staged(args.csv))
     summary = {"param": args.param, "num": args.num, "periods": args.periods,
                "wall_time_s": res.wall_time_s, "periods_per_second": res.periods_per_second,
                "workers": res.workers, "out": args.out, "csv": args.csv, "period_n": list(res.periods),
@@ -166,10 +202,10 @@ def cmd_sweep(args) -> int:
     if in_band:
         out["nearest_mode_to_peak_hz"] = min(in_band, key=lambda f: abs(f - out["peak_frequency_hz"]))
     if args.csv:
-        write_sweep_csv(res, args.csv)
+        write_sweep_csv(res, staged(args.csv))
         out["csv"] = str(args.csv)
     if args.plot:
-        plot_sweep(res, args.plot, modes=np.array(in_band),
+        plot_sweep(res, staged(args.plot), modes=np.array(in_band),
                    title=f"{string.name}: hammer frequency sweep (A = {cfg.rig.amplitude:g} N)")
         out["plot"] = str(args.plot)
     if unsettled:
@@ -215,14 +251,15 @@ def cmd_map(args) -> int:
         raise UsageError(f"map takes 1 to 3 --axis options, got {len(args.axis)}")
     axes = [Axis.parse(a) for a in args.axis]
     overlay = _overlay(args)
+    refuse_overridden_settings(args, {a.name: a.values[0] for a in axes}, "--axis")
     g = _groups(args)
     ds = regime_map(g, axes, periods=args.periods, solver=_solver(args), options=_executor_options(args),
                     attrs={"preset": args.preset, "settings": json.dumps(parse_settings(args.set))})
     if args.out:
-        ds.to_netcdf(args.out, engine="scipy")
+        ds.to_netcdf(staged(args.out), engine="scipy")
     if args.plot:
         from hammerbit.studies.plots import plot_map
-        plot_map(ds, args.plot, overlay=overlay)
+        plot_map(ds, staged(args.plot), overlay=overlay)
     failed = int(ds.attrs["failed_cells"])
     if failed:
         first = json.loads(ds.attrs["errors"])[:1]
@@ -295,11 +332,34 @@ def _confirm(groups, string, args) -> dict:
                    interface_damping=args.interface_damping, fmu=fmu_arg(args))
 
 
+#: ``optimize`` options of its ``--confirm`` co-simulation only.
+CONFIRM_OPTIONS = ("confirm_periods", "fmu", "interface_stiffness", "interface_damping")
+
+
+def refuse_idle_optimize_options(args) -> None:
+    """``optimize`` options given where they change nothing (exit 2, before the optimization)."""
+    for dest in CONFIRM_OPTIONS:
+        refuse_unless(args, dest, args.confirm, "an option of the co-simulation of the optimum: give --confirm "
+                                                "(and --string) too")
+    refuse_unless(args, "confirm", args.string is not None,
+                  "it co-simulates the optimum on a drillstring: give --string too")
+    refuse_unless(args, "margin", args.string is not None,
+                  "the half-width of the bands of the string's frequency check: give --string too")
+
+
 def cmd_optimize(args) -> int:
     from hammerbit.drillstring import load_string
     from hammerbit.studies.optimize import Bound, OptimizeConfig, optimize
+    refuse_idle_optimize_options(args)
+    if args.confirm and args.fmu is not None:
+        from hammerbit.cli.cosim import fmu_arg
+        fmu_arg(args)                   # a file that is no FMU is refused before the optimization
     g = _groups(args)
     bounds = tuple(Bound.parse(b) for b in args.bounds) if args.bounds else _default_bounds(g)
+    if args.bounds:
+        refuse_repeated_names("--bounds", args.bounds, lambda b: Bound.parse(b).name)
+    refuse_overridden_settings(args, {b.name: b.lo for b in bounds},
+                               "--bounds" if args.bounds else "the default --bounds (frequency, amplitude)")
     string = load_string(args.string) if args.string else None
     cfg = OptimizeConfig(bounds=bounds, margin=args.margin,
                          max_contact_force=math.inf if args.max_contact_force is None

@@ -117,6 +117,13 @@ class FigureWorker:
             raise msg[1]
         return msg[1]
 
+    def abort(self) -> None:
+        """Stop the worker now, drawing or not (the caller was interrupted or failed)."""
+        if self._proc.poll() is None:
+            self._proc.terminate()
+        self._sent = False
+        self.close()
+
     def close(self) -> None:
         """End the worker: it exits at end of input once it has answered, else it is stopped; idempotent."""
         p = self._proc
@@ -145,9 +152,11 @@ def start():
     if not enabled():
         return None
     try:
-        # same process group: a Ctrl-C in the terminal ends the worker too
+        # its own process group: a Ctrl-C in the terminal goes to the caller alone, which stops the
+        # worker (FigureWorker.abort) and reports it once; the worker also ends at the end of its input
+        group = {"process_group": 0} if os.name == "posix" else {}
         proc = subprocess.Popen([sys.executable, "-m", __name__], stdin=subprocess.PIPE,
-                                stdout=subprocess.PIPE, stderr=None)
+                                stdout=subprocess.PIPE, stderr=None, **group)
     except OSError:
         return None
     return FigureWorker(proc)

@@ -170,40 +170,43 @@ def warm_worker() -> str:
 
 
 @contextlib.contextmanager
-def _sigint_ignored():
-    """SIGINT ignored while the block runs (in the main thread; elsewhere a no-op).
-
-    Processes started meanwhile inherit the ignored signal (``SIG_IGN``
-    survives ``exec``, and Python then leaves it alone): the fork server of
-    :func:`_start_forkserver`.  Also around the cluster's shutdown, so that a
-    second Ctrl-C cannot cut it short and leave workers behind.
-    """
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, old)
-
-
-@contextlib.contextmanager
-def _sigint_deferred():
-    """A Ctrl-C while the block runs is raised when it ends.
+def _sigint_deferred(*, inherit_ignored: bool = False):
+    """A Ctrl-C while the block runs is raised when it ends (in the main thread; elsewhere a no-op).
 
     Interrupted half-way, ``LocalCluster()`` leaves a cluster that nobody can
     close but distributed's exit handler, which then fails with a traceback;
     deferred, the cluster is assigned first and closed by :meth:`Executor.close`.
+    Around the cluster's shutdown, a Ctrl-C cannot cut it short and leave
+    workers behind.
+
+    With ``inherit_ignored``, processes started in the block inherit SIGINT
+    ignored (``SIG_IGN`` survives ``exec``, and Python then leaves it alone):
+    the fork server of :func:`_start_forkserver`.  The signal is blocked in this
+    thread meanwhile, and Linux keeps a blocked signal pending even while it is
+    ignored, so a Ctrl-C then is raised after the block; only one that the
+    kernel hands to another thread of this process (a BLAS thread) during the
+    server's fork and exec, a few milliseconds, is dropped.
     """
     if threading.current_thread() is not threading.main_thread():
         yield
         return
     hits = []
-    old = signal.signal(signal.SIGINT, lambda signum, frame: hits.append(signum))
+
+    def record(signum, frame):
+        hits.append(signum)
+
+    old = signal.signal(signal.SIGINT, record)
+    masked = inherit_ignored and hasattr(signal, "pthread_sigmask")
     try:
+        if masked:
+            signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+        if inherit_ignored:
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
         yield
     finally:
+        signal.signal(signal.SIGINT, record)
+        if masked:
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})   # a pending one is recorded
         signal.signal(signal.SIGINT, old)
     if hits:
         raise KeyboardInterrupt
@@ -216,9 +219,10 @@ def _start_forkserver() -> bool:
     signal handlers, so a Ctrl-C in the terminal, sent to the whole process
     group, interrupts only this process (which cancels the tasks and closes
     the cluster) instead of every worker printing its own
-    ``KeyboardInterrupt`` traceback.  Only the server's own start (a fraction
-    of a second) runs with SIGINT ignored here.  False where the platform has
-    no fork server (Windows): the workers are then spawned as usual.
+    ``KeyboardInterrupt`` traceback.  Only the server's own start (its fork
+    and exec) runs with SIGINT ignored here, and a Ctrl-C meanwhile is raised
+    after it (:func:`_sigint_deferred`).  False where the platform has no fork
+    server (Windows): the workers are then spawned as usual.
     """
     import multiprocessing
     if "forkserver" not in multiprocessing.get_all_start_methods():
@@ -226,7 +230,7 @@ def _start_forkserver() -> bool:
     from multiprocessing import forkserver
     # nothing preloaded: the server would import the caller's __main__, which the workers never need
     forkserver.set_forkserver_preload([])
-    with _sigint_ignored():
+    with _sigint_deferred(inherit_ignored=True):
         forkserver.ensure_running()
     return True
 
@@ -298,7 +302,7 @@ class Executor:
         """Close the client and the local cluster (its worker processes end)."""
         client, cluster = self.client, self.cluster
         self.client = self.cluster = None
-        with _sigint_ignored() if cluster is not None else contextlib.nullcontext():
+        with _sigint_deferred() if cluster is not None else contextlib.nullcontext():
             try:
                 if client is not None:
                     client.close(timeout=10)
