@@ -15,7 +15,33 @@ The pieces are compiled with ``inline='always'``: numba copies their code into
 ``advance`` before typing it, so the constants that :func:`.numba_partial.bind`
 gives ``advance_hammer`` (the method, the empty subsystem) reach into every
 piece, and the per-step state (time, step size, drive tracker) stays in
-registers, as in one function.
+registers, as in one function.  The kernels the pieces call (``rk_step``,
+``locate_event``, ...) are ordinary compiled functions.
+
+Besides the groups of :mod:`.kernel_layouts` (``method``, ``tableau``,
+``sub``, ``field``, ``step``, ``rec``), the pieces share these, built once per
+call (nothing is allocated inside the loop)::
+
+    rk    = (tableau, method)
+    sol   = (y, istate, fstate, opts)          the solver state and options
+    work  = (stages, stages2, interp, ynew, ytmp, ys, fs, act)
+        the stages of a step and of a re-step, the dense or stick-solution
+        coefficients, four state-sized work vectors, the integrated indices
+    watch = (kinds, w0s, w1s, s1s, wtols)
+        the watched indicators: kinds, values at the step start and end, slopes
+        at the end (NaN: not computed) and tolerances
+    kit   = (fixed, how_rk, how_stick, how_dense, no_act, graze_stick, bisect,
+             graze, period, stepcap)
+        the method's kind (fixed step or not), the step kinds (``HOW_*``) and
+        flags as plain integers (see ``plain``), the localisation options, the
+        forcing period and the step cap per period
+    ctl   = (rtol, atol, hmax, e_abs, err_exp)    the step-size control
+    cf    = (chunk, chunk constants)              the closed-form stick chunk
+    ctx   = (rk, sol, work, watch, kit, ctl, cf, rec)
+    drive = (d_min, d_y, r_y, carried)
+        the lowest drive on the bit so far, the drive at ``y`` and its rate along
+        ``stages[0]``, and whether these and the indicators' values carry from
+        the end of the last accepted step (an event starts afresh)
 """
 
 import math
@@ -155,9 +181,7 @@ def advance(y, istate, fstate, t_end, p, opts, method, sub, rec):
     and energy block ``(nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)`` (nz may be
     0; ne is 4 to accumulate energies, else 0), ``rec``: the record buffers
     ``(poin, samp_t, samp, log)`` (:mod:`.kernel_recording`; a log of 0 rows
-    disables it).  The groups the pieces share, built once per call:
-    ``rk = (tableau, method)``, ``sol = (y, istate, fstate, opts)``, ``work`` and
-    ``watch`` (:func:`scratch`), ``kit``, ``ctl`` and ``cf`` (:func:`constants`).
+    disables it).  The groups the pieces share: the module's docstring.
     """
     t, h = fstate[F_T], fstate[F_H]
     if not (math.isfinite(t_end) and math.isfinite(t) and t <= t_end):
@@ -173,8 +197,7 @@ def advance(y, istate, fstate, t_end, p, opts, method, sub, rec):
     n_act = set_active(istate, n, work[7])
     ms, mc = istate[I_STICK], istate[I_CONTACT]
     field = (p, ms, mc, sub)
-    # drive = (the lowest drive on the bit, the drive at y in mode mc, its rate along stages[0],
-    # carried): these and the watched indicators carry from the end of an accepted step to the
+    # the drive tracker and the watched indicators carry from the end of an accepted step to the
     # start of the next (recomputing them cost a tenth of the solver's time); an event starts afresh
     d_y = force_on_bit(y, p, mc)
     drive = (d_y if d_y < fstate[F_DRIVE_MIN] else fstate[F_DRIVE_MIN], d_y, 0.0, False)
