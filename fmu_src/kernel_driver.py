@@ -11,12 +11,16 @@ step or move to its event and record (:mod:`.kernel_step_accept`,
 state lives in plain arrays (layouts: :mod:`.kernel_layouts`), so a call that
 returns early resumes where it stopped.
 
-The pieces are compiled with ``inline='always'``: numba copies their code into
-``advance`` before typing it, so the constants that :func:`.numba_partial.bind`
-gives ``advance_hammer`` (the method, the empty subsystem) reach into every
-piece, and the per-step state (time, step size, drive tracker) stays in
-registers, as in one function.  The kernels the pieces call (``rk_step``,
-``locate_event``, ...) are ordinary compiled functions.
+The entry points ``advance`` and ``advance_hammer`` allocate the work arrays
+and run the loop, :func:`march`.  The pieces are compiled with
+``inline='always'``: numba copies their code into ``march`` before typing it,
+so the constants that :func:`.numba_partial.bind` gives ``march_hammer`` (the
+method, the empty subsystem) reach into every piece, and the per-step state
+(time, step size, drive tracker) stays in registers, as in one function.
+``march`` runs without numba's reference counting (``_nrt=False``: it
+allocates nothing), so the groups of arrays the pieces unpack cost nothing.
+The kernels the pieces call (``rk_step``, ``locate_event``, ...) are ordinary
+compiled functions.
 
 Besides the groups of :mod:`.kernel_layouts` (``method``, ``tableau``,
 ``sub``, ``field``, ``step``, ``rec``), the pieces share these, built once per
@@ -69,7 +73,7 @@ from .kernel_transition import set_active, transition
 
 
 @njit(inline="always")
-def constants(p, opts, method, sub, n):
+def constants(p, opts, method, sub, n, chunk_c):
     """The constants of one call: ``kit`` (the method's kind, the step kinds and the
     localisation options), ``ctl`` (the step-size control) and ``cf`` (the stick chunk)."""
     _, _, _, err_w, _, dense_w, ns, err_kind, err_exp = method
@@ -86,7 +90,6 @@ def constants(p, opts, method, sub, n):
     cf_chunk = min(2.0 * math.pi / p[P_ETA],
                    2.0 * math.pi / math.sqrt(max(1.0 - p[P_XI] * p[P_XI], TINY))) / STICK_CHUNKS_PER_PERIOD
     cf_chunk = min(cf_chunk, opts[O_HMAX])
-    chunk_c = np.empty(6)
     if cf_ok:
         stick_chunk_consts(cf_chunk, p, chunk_c)
     return kit, ctl, cf_ok, (cf_chunk, chunk_c)
@@ -94,13 +97,14 @@ def constants(p, opts, method, sub, n):
 
 @njit(inline="always")
 def scratch(method, n):
-    """The work arrays of one call (``work``) and the watched indicators' (``watch``)."""
+    """The arrays of one call (allocated by the entry point, before the loop):
+    ``(work, watch, the stick chunk's constants)``."""
     n_ext = method[0].shape[0]
     work = (np.empty((n_ext, n)), np.empty((n_ext, n)), np.empty((method[5].shape[0], n)), np.empty(n),
             np.empty(n), np.empty(n), np.empty(n), np.empty(n, dtype=np.int64))
     # indicator kinds, values at the step start and end, slopes at the end (NaN: not computed), tolerances
     watch = (np.empty(4, dtype=np.int64), np.empty(4), np.empty(4), np.empty(4), np.empty(4))
-    return work, watch
+    return work, watch, np.empty(6)
 
 
 @njit(inline="always")
@@ -166,22 +170,13 @@ def rk_advance(t, h, t_end, refine, drive, nw, n_act, field, ctx):
                                              field, ctx)
     return ST_DONE, hit_kind if confirmed else -1, t_hit, h, drive, refine
 
-@njit(cache=True, nogil=True)
-def advance(y, istate, fstate, t_end, p, opts, method, sub, rec):
-    """Advance the hybrid system from ``fstate[F_T]`` to ``t_end``; returns an ``ST_*`` code.
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
+def march(y, istate, fstate, t_end, p, opts, method, sub, rec, buffers):
+    """The loop of :func:`advance` over its pieces (``buffers``: :func:`scratch`).
 
-    Resumable: all solver state lives in ``y`` (shape (Z0 + nz + ne,), advanced
-    in place), ``istate`` (int64, modes, counters and record cursors ``I_*``) and
-    ``fstate`` (time, proposed step, contact bookkeeping ``F_*``), so a call that
-    returns early (event log full, step cap) continues where it stopped, and an
-    FMU saves and restores it as plain numbers.  ``p``: the kernel parameters
-    (``P_*``), ``opts``: the solver options (``O_*``), ``method``: the
-    Runge–Kutta method ``(rk_a, rk_b, rk_c, err_w, err_w3, dense_w, ns,
-    err_kind, err_exp)`` (``tableaux.METHODS``), ``sub``: the linear subsystem
-    and energy block ``(nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)`` (nz may be
-    0; ne is 4 to accumulate energies, else 0), ``rec``: the record buffers
-    ``(poin, samp_t, samp, log)`` (:mod:`.kernel_recording`; a log of 0 rows
-    disables it).  The groups the pieces share: the module's docstring.
+    Compiled without numba's reference counting (``_nrt=False``): the groups of
+    arrays the inlined pieces unpack at every step would otherwise cost a count
+    per array and piece, several times a step's own work.
     """
     t, h = fstate[F_T], fstate[F_H]
     if not (math.isfinite(t_end) and math.isfinite(t) and t <= t_end):
@@ -190,8 +185,8 @@ def advance(y, istate, fstate, t_end, p, opts, method, sub, rec):
     for i in range(n):
         if not math.isfinite(y[i]):
             return ST_NONFINITE
-    kit, ctl, cf_ok, cf = constants(p, opts, method, sub, n)
-    work, watch = scratch(method, n)
+    work, watch, chunk_c = buffers
+    kit, ctl, cf_ok, cf = constants(p, opts, method, sub, n, chunk_c)
     ctx = ((method[0], method[1], method[2], method[6]), method), (y, istate, fstate, opts), work, watch, kit, \
         ctl, cf, rec
     n_act = set_active(istate, n, work[7])
@@ -238,19 +233,47 @@ def advance(y, istate, fstate, t_end, p, opts, method, sub, rec):
     return ST_DONE
 
 
-# Entry points, each compiled on its first call (or loaded from the cache):
-# ``advance_hammer`` (DOP853, no linear subsystem, no energy block: a plain
-# ``simulate``, the FMU, the sweeps) binds the tableau and the empty subsystem as
-# constants (``partial.bind``), so they fold into one function as an IR-inlined
-# call would, without numba re-typing a copy of the driver; ``advance`` serves
-# every other combination (DP54, RK4, the energy block, the monolithic reference).
+# Entry points, each compiled on its first call (or loaded from the cache): they
+# allocate the work arrays and run the loop ``march``.  ``advance_hammer`` (DOP853,
+# no linear subsystem, no energy block: a plain ``simulate``, the FMU, the sweeps)
+# runs ``march_hammer``, the loop with the tableau and the empty subsystem bound
+# as constants (``numba_partial.bind``), so they fold into the loop and into every
+# piece inlined there, without numba re-typing a copy of the driver; ``advance``
+# serves every other combination (DP54, RK4, the energy block, the monolithic
+# reference).
 
 #: the empty linear subsystem and no energy block: the ``sub`` group of a hammer-only system
 NO_SUB = (0, 0, np.zeros(1, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros((0, 2)),
           np.zeros(0), np.zeros(2))
+#: the method of ``advance_hammer``
+DOP853 = _T.METHODS["dop853"]
+
+#: ``march`` with DOP853, no linear subsystem and no energy block, all bound as constants
+march_hammer = njit(cache=True, _nrt=False, no_cpython_wrapper=True)(bind(
+    march, "march_hammer", method=DOP853, sub=NO_SUB))
 
 
-#: ``advance`` with DOP853, no linear subsystem and no energy block, all bound as constants
-advance_hammer = njit(cache=True, nogil=True)(bind(
-    advance, "advance_hammer", method=_T.METHODS["dop853"],
-    sub=NO_SUB))
+@njit(cache=True, nogil=True)
+def advance(y, istate, fstate, t_end, p, opts, method, sub, rec):
+    """Advance the hybrid system from ``fstate[F_T]`` to ``t_end``; returns an ``ST_*`` code.
+
+    Resumable: all solver state lives in ``y`` (shape (Z0 + nz + ne,), advanced
+    in place), ``istate`` (int64, modes, counters and record cursors ``I_*``) and
+    ``fstate`` (time, proposed step, contact bookkeeping ``F_*``), so a call that
+    returns early (event log full, step cap) continues where it stopped, and an
+    FMU saves and restores it as plain numbers.  ``p``: the kernel parameters
+    (``P_*``), ``opts``: the solver options (``O_*``), ``method``: the
+    Runge–Kutta method ``(rk_a, rk_b, rk_c, err_w, err_w3, dense_w, ns,
+    err_kind, err_exp)`` (``tableaux.METHODS``), ``sub``: the linear subsystem
+    and energy block ``(nz, ne, Ap, Ai, Ax, sub_in, sub_out, link_x)`` (nz may be
+    0; ne is 4 to accumulate energies, else 0), ``rec``: the record buffers
+    ``(poin, samp_t, samp, log)`` (:mod:`.kernel_recording`; a log of 0 rows
+    disables it).  The groups the pieces share: the module's docstring.
+    """
+    return march(y, istate, fstate, t_end, p, opts, method, sub, rec, scratch(method, y.shape[0]))
+
+
+@njit(cache=True, nogil=True)
+def advance_hammer(y, istate, fstate, t_end, p, opts, rec):
+    """:func:`advance` with DOP853, no linear subsystem and no energy block (``march_hammer``)."""
+    return march_hammer(y, istate, fstate, t_end, p, opts, rec, scratch(DOP853, y.shape[0]))
