@@ -110,6 +110,158 @@ def _unpack(g):
             float(g.phi))
 
 
+class _Scene:
+    """The hybrid model of one scene: its force laws, vector fields and event indicators."""
+
+    def __init__(self, groups):
+        (self.rho, self.xi, self.eta, self.a, self.b, self.r, self.mu, self.gh, self.kc, self.n, self.lam,
+         self.phi) = _unpack(groups)
+        self.has_gap = math.isfinite(self.r) and self.kc > 0.0
+        self.two_xi = 2.0 * self.xi
+        # event margin (see the module docstring), set per segment
+        self.margin = [0.0]
+
+    def fc_of(self, d, dd, mc):
+        """The contact force at overlap ``d`` and its rate ``dd`` in contact mode ``mc``."""
+        if mc != CONTACT:
+            return 0.0
+        ad = abs(d)
+        p = ad ** self.n if ad > 0.0 else 0.0
+        return self.kc * (p if d >= 0.0 else -p) * (1.0 + self.lam * dd)
+
+    def drive(self, y, mc):
+        """The drive on the bit: spring, damper and contact force."""
+        x1, x2, x3, x4 = y[0], y[1], y[2], y[3]
+        dd = x2 - x4
+        return (x1 - x3) + self.two_xi * dd + self.fc_of(x1 - x3 - self.r, dd, mc)
+
+    def make_rhs(self, ms, mc):
+        """The vector field of mode ``(ms, mc)``."""
+        rho, eta, a, b, r, mu, gh, phi, two_xi = (self.rho, self.eta, self.a, self.b, self.r, self.mu, self.gh,
+                                                  self.phi, self.two_xi)
+        fc_of = self.fc_of
+        sin = math.sin
+        exp = math.exp
+        if ms == SLIP:
+            def f(t, y):
+                x1, x2, x3, x4 = y
+                dd = x2 - x4
+                fk = (x1 - x3) + two_xi * dd
+                fc = fc_of(x1 - x3 - r, dd, mc)
+                arg = -gh * x4
+                # a trial stage may overshoot to x4 < 0; inf makes solve_ivp reject the step
+                ff = mu + (1.0 - mu) * exp(arg) if arg < 700.0 else math.inf
+                return np.array((x2, b + a * sin(eta * t + phi) - fk - fc, x4, (fk + fc - ff) / rho))
+        else:
+            def f(t, y):
+                x1, x2, x3, x4 = y
+                dd = x2 - x4
+                fk = (x1 - x3) + two_xi * dd
+                fc = fc_of(x1 - x3 - r, dd, mc)
+                return np.array((x2, b + a * sin(eta * t + phi) - fk - fc, 0.0, 0.0))
+        return f
+
+    def indicators(self, ms, mc, bounce):
+        """(w, kind) of the events watched in a mode."""
+        drive, r, lam = self.drive, self.r, self.lam
+        out = []
+        if ms == STICK:
+            if not bounce:
+                out.append((lambda t, y: drive(y, mc) - 1.0, "slip_start"))
+                out.append((lambda t, y: -(drive(y, mc) + 1.0), "bounce"))
+            else:
+                out.append((lambda t, y: drive(y, mc) + 1.0, "bounce_end"))
+        else:
+            out.append((lambda t, y: -y[3], "stick"))
+        if self.has_gap:
+            if mc == FREE:
+                out.append((lambda t, y: y[0] - y[2] - r, "impact"))
+            else:
+                out.append((lambda t, y: -(y[0] - y[2] - r), "separation"))
+                if lam > 0.0:
+                    if mc == CONTACT:
+                        out.append((lambda t, y: -(1.0 + lam * (y[1] - y[3])), "clamp"))
+                    else:
+                        out.append((lambda t, y: 1.0 + lam * (y[1] - y[3]), "unclamp"))
+        return out
+
+    def make_events(self, ms, mc, bounce):
+        """Terminal event functions of a mode, each tagged with its kind and indicator."""
+        margin = self.margin
+        evs = []
+        for w, kind in self.indicators(ms, mc, bounce):
+            def fun(t, y, w=w):
+                return w(t, y) - margin[0]
+            fun.terminal = True
+            fun.direction = 1.0
+            fun.kind = kind
+            fun.w = w
+            evs.append(fun)
+        return evs
+
+    def initial_modes(self, y):
+        """The modes ``(ms, mc)`` of a state at rest."""
+        ms = SLIP if y[3] > 0.0 else STICK
+        mc = FREE
+        if self.has_gap and y[0] - y[2] - self.r > 0.0:
+            mc = CONTACT if 1.0 + self.lam * (y[1] - y[3]) > 0.0 else CLAMPED
+        return ms, mc
+
+    def reset(self, kind, y, modes, counts):
+        """The reset map at the event ``kind`` (``y`` changed in place): ``(kind taken, (ms, mc,
+        bounce))``; a stick whose drive is above the threshold is ``slip_on``."""
+        ms, mc, bounce = modes
+        if kind == "slip_start":
+            ms = SLIP
+            y[3] = 0.0
+        elif kind == "stick":
+            y[3] = 0.0
+            if self.drive(y, mc) <= 1.0:
+                ms = STICK
+                if self.drive(y, mc) < -1.0:
+                    bounce = True
+                    counts["bounce"] += 1
+            else:
+                kind = "slip_on"
+        elif kind == "impact":
+            mc = CONTACT if 1.0 + self.lam * (y[1] - y[3]) > 0.0 else CLAMPED
+        elif kind == "separation":
+            mc = FREE
+        elif kind == "clamp":
+            mc = CLAMPED
+        elif kind == "unclamp":
+            mc = CONTACT
+        elif kind == "bounce":
+            bounce = True
+        elif kind == "bounce_end":
+            bounce = False
+        return kind, (ms, mc, bounce)
+
+
+def _segment(f, evs, span, y, solver: dict, poin_rows):
+    """One ``solve_ivp`` call over ``span`` from ``y`` until its first terminal event; the
+    Poincaré rows it passes are written into ``poin_rows = (poin, k_poin, T)`` (or None).
+    Returns ``(sol, k_poin)``."""
+    t = span[0]
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        # rejected trial steps may overflow (inf friction past the stick event): harmless
+        warnings.simplefilter("ignore", RuntimeWarning)
+        sol = solve_ivp(f, span, y, events=evs, dense_output=poin_rows is not None, **solver)
+    if sol.status < 0:
+        raise ReferenceError(f"solve_ivp failed at tau = {t:.9g}: {sol.message}")
+    if poin_rows is None:
+        return sol, 0
+    poin, k_poin, T = poin_rows
+    t_new = float(sol.t[-1])
+    y_new = np.array(sol.y[:, -1], dtype=float)
+    while k_poin < poin.shape[0] and k_poin * T <= t_new + 1e-12 * max(1.0, t_new):
+        tk = k_poin * T
+        yk = y_new if tk >= t_new else sol.sol(tk)
+        poin[k_poin] = (tk, *yk)
+        k_poin += 1
+    return sol, k_poin
+
+
 def simulate_reference(groups, periods: float, *, method: str = "DOP853", rtol: float = 1e-12,
                        atol: float = 1e-14, events: bool = False, poincare: bool = False,
                        max_events_per_period: int = 2000, y0=None) -> RefResult:
@@ -140,90 +292,11 @@ def simulate_reference(groups, periods: float, *, method: str = "DOP853", rtol: 
     -------
     RefResult
     """
-    rho, xi, eta, a, b, r, mu, gh, kc, n, lam, phi = _unpack(groups)
-    has_gap = math.isfinite(r) and kc > 0.0
-    T = 2.0 * math.pi / eta
+    m = _Scene(groups)
+    T = 2.0 * math.pi / m.eta
     t_end = periods * T
-    sin = math.sin
-    exp = math.exp
-    two_xi = 2.0 * xi
-
-    def fc_of(d, dd, mc):
-        if mc != CONTACT:
-            return 0.0
-        ad = abs(d)
-        p = ad ** n if ad > 0.0 else 0.0
-        return kc * (p if d >= 0.0 else -p) * (1.0 + lam * dd)
-
-    def drive(y, mc):
-        x1, x2, x3, x4 = y[0], y[1], y[2], y[3]
-        dd = x2 - x4
-        return (x1 - x3) + two_xi * dd + fc_of(x1 - x3 - r, dd, mc)
-
-    def make_rhs(ms, mc):
-        if ms == SLIP:
-            def f(t, y):
-                x1, x2, x3, x4 = y
-                dd = x2 - x4
-                fk = (x1 - x3) + two_xi * dd
-                fc = fc_of(x1 - x3 - r, dd, mc)
-                arg = -gh * x4
-                # a trial stage may overshoot to x4 < 0; inf makes solve_ivp reject the step
-                ff = mu + (1.0 - mu) * exp(arg) if arg < 700.0 else math.inf
-                return np.array((x2, b + a * sin(eta * t + phi) - fk - fc, x4, (fk + fc - ff) / rho))
-        else:
-            def f(t, y):
-                x1, x2, x3, x4 = y
-                dd = x2 - x4
-                fk = (x1 - x3) + two_xi * dd
-                fc = fc_of(x1 - x3 - r, dd, mc)
-                return np.array((x2, b + a * sin(eta * t + phi) - fk - fc, 0.0, 0.0))
-        return f
-
-    # event margin (see the module docstring), set per segment
-    margin = [0.0]
-
-    def indicators(ms, mc, bounce):
-        """(w, kind) of the events watched in a mode."""
-        out = []
-        if ms == STICK:
-            if not bounce:
-                out.append((lambda t, y: drive(y, mc) - 1.0, "slip_start"))
-                out.append((lambda t, y: -(drive(y, mc) + 1.0), "bounce"))
-            else:
-                out.append((lambda t, y: drive(y, mc) + 1.0, "bounce_end"))
-        else:
-            out.append((lambda t, y: -y[3], "stick"))
-        if has_gap:
-            if mc == FREE:
-                out.append((lambda t, y: y[0] - y[2] - r, "impact"))
-            else:
-                out.append((lambda t, y: -(y[0] - y[2] - r), "separation"))
-                if lam > 0.0:
-                    if mc == CONTACT:
-                        out.append((lambda t, y: -(1.0 + lam * (y[1] - y[3])), "clamp"))
-                    else:
-                        out.append((lambda t, y: 1.0 + lam * (y[1] - y[3]), "unclamp"))
-        return out
-
-    def make_events(ms, mc, bounce):
-        """Terminal event functions of a mode, each tagged with its kind and indicator."""
-        evs = []
-        for w, kind in indicators(ms, mc, bounce):
-            def fun(t, y, w=w):
-                return w(t, y) - margin[0]
-            fun.terminal = True
-            fun.direction = 1.0
-            fun.kind = kind
-            fun.w = w
-            evs.append(fun)
-        return evs
-
     y = np.zeros(4) if y0 is None else np.array(y0, dtype=float)
-    ms = SLIP if y[3] > 0.0 else STICK
-    mc = FREE
-    if has_gap and y[0] - y[2] - r > 0.0:
-        mc = CONTACT if 1.0 + lam * (y[1] - y[3]) > 0.0 else CLAMPED
+    ms, mc = m.initial_modes(y)
     bounce = False
     counts = {k: 0 for k in EVENT_KINDS}
     log = []
@@ -239,75 +312,38 @@ def simulate_reference(groups, periods: float, *, method: str = "DOP853", rtol: 
     win, win_events = -1, 0
     rhs_cache = {}
     ev_cache = {}
+    r = m.r
 
     t0 = _time.perf_counter()
     while t_end - t > 4.0 * np.finfo(float).eps * max(abs(t_end), 1.0):
         key = (ms, mc)
         if key not in rhs_cache:
-            rhs_cache[key] = make_rhs(ms, mc)
+            rhs_cache[key] = m.make_rhs(ms, mc)
         ekey = (ms, mc, bounce)
         if ekey not in ev_cache:
-            ev_cache[ekey] = make_events(ms, mc, bounce)
-        f = rhs_cache[key]
+            ev_cache[ekey] = m.make_events(ms, mc, bounce)
         evs = ev_cache[ekey]
-        margin[0] = 16.0 * np.finfo(float).eps * max(1.0, abs(y[0]), abs(y[2]),
-                                                     abs(r) if math.isfinite(r) else 0.0)
+        m.margin[0] = 16.0 * np.finfo(float).eps * max(1.0, abs(y[0]), abs(y[2]),
+                                                       abs(r) if math.isfinite(r) else 0.0)
         # an indicator already past its margin: the event happens now (no integration)
         hit = None
         for e in evs:
-            if e.w(t, y) > margin[0]:
+            if e.w(t, y) > m.margin[0]:
                 hit = e.kind
                 break
         if hit is None:
-            with np.errstate(all="ignore"), warnings.catch_warnings():
-                # rejected trial steps may overflow (inf friction past the stick event): harmless
-                warnings.simplefilter("ignore", RuntimeWarning)
-                sol = solve_ivp(f, (t, t_end), y, method=method, rtol=rtol, atol=atol, events=evs,
-                                dense_output=poincare)
+            sol, k_poin = _segment(rhs_cache[key], evs, (t, t_end), y, {"method": method, "rtol": rtol, "atol": atol},
+                                   (poin, k_poin, T) if poincare else None)
             nseg += 1
             nfev += sol.nfev
-            if sol.status < 0:
-                raise ReferenceError(f"solve_ivp failed at tau = {t:.9g}: {sol.message}")
-            t_new = float(sol.t[-1])
-            y_new = np.array(sol.y[:, -1], dtype=float)
-            if poincare:
-                while k_poin < n_poin and k_poin * T <= t_new + 1e-12 * max(1.0, t_new):
-                    tk = k_poin * T
-                    yk = y_new if tk >= t_new else sol.sol(tk)
-                    poin[k_poin] = (tk, *yk)
-                    k_poin += 1
-            t, y = t_new, y_new
+            t, y = float(sol.t[-1]), np.array(sol.y[:, -1], dtype=float)
             if sol.status != 1:
                 break
             for i, te in enumerate(sol.t_events):
                 if len(te):
                     hit = evs[i].kind
                     break
-        kind = hit
-        if kind == "slip_start":
-            ms = SLIP
-            y[3] = 0.0
-        elif kind == "stick":
-            y[3] = 0.0
-            if drive(y, mc) <= 1.0:
-                ms = STICK
-                if drive(y, mc) < -1.0:
-                    bounce = True
-                    counts["bounce"] += 1
-            else:
-                kind = "slip_on"
-        elif kind == "impact":
-            mc = CONTACT if 1.0 + lam * (y[1] - y[3]) > 0.0 else CLAMPED
-        elif kind == "separation":
-            mc = FREE
-        elif kind == "clamp":
-            mc = CLAMPED
-        elif kind == "unclamp":
-            mc = CONTACT
-        elif kind == "bounce":
-            bounce = True
-        elif kind == "bounce_end":
-            bounce = False
+        kind, (ms, mc, bounce) = m.reset(hit, y, (ms, mc, bounce), counts)
         counts[kind] += 1
         if events:
             log.append((t, kind))

@@ -24,6 +24,9 @@ __all__ = ["record", "record_all"]
 
 #: a scene that compiles each entry point (``Stepper`` picks the entry from the method)
 RECORD_METHOD = {"advance_hammer": "adaptive", "advance": "rk4"}
+#: the loop each entry point runs (``kernel_driver.march``): left to the compiling process, as the
+#: entry point is (a helper starting with it would type the same callees in the same order)
+ENTRY_LOOP = {"advance_hammer": "march_hammer", "advance": "march"}
 
 
 def record(entry: str) -> list:
@@ -43,7 +46,8 @@ def record(entry: str) -> list:
             disp = ev.data["dispatcher"]
             name = disp.py_func.__name__
             module = disp.py_func.__module__ or ""
-            if module.startswith(prefix) and getattr(sys.modules[module], name, None) is disp and name != entry:
+            if module.startswith(prefix) and getattr(sys.modules[module], name, None) is disp \
+                    and name not in (entry, ENTRY_LOOP[entry]):
                 done.append((module[len(__package__) + 1:], name, tuple(ev.data["args"])))
 
     with event.install_listener("numba:compile", _Listener()):

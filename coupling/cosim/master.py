@@ -81,6 +81,7 @@ from __future__ import annotations
 import math
 import sys
 import time as _time
+from dataclasses import dataclass, field
 from typing import Optional
 
 import numpy as np
@@ -216,46 +217,74 @@ def cosimulate_adaptive(string, config: CosimConfig = CosimConfig(), *, fmu=None
     return cosimulate(string, config.replace(**ch), fmu=fmu)
 
 
+@dataclass
+class _Marched:
+    """What the macro-step loop of :func:`_run` counted, and the histories the estimate reads."""
+
+    accepted: int = 0
+    rejected: int = 0                 # rollbacks
+    at_min: int = 0                   # steps accepted at the smallest step above the defect tolerance
+    steps: int = 0                    # doSteps of the run, rolled back included
+    csteps: int = 0                   # the companion's doSteps
+    saves: int = 0                    # state saves
+    h_used: tuple = (math.inf, 0.0)   # smallest and largest adaptive step taken
+    d_main: list = field(default_factory=list)
+    d_fine: list = field(default_factory=list)
+
+
+def _checked_steps(side: StringSide, c: CosimConfig) -> CosimConfig:
+    """``c`` with an adaptive run's step range cut to what resolves the system, after the check
+    that the step resolves it (``check_step``; raises otherwise)."""
+    if not c.check_step:
+        return c
+    H_chk = c.step_range[1] if c.adaptive else min(c.step, c.stop - c.start)
+    if not c.adaptive:
+        check_step(side, c, H_chk)
+        return c
+    # the adaptive step never grows past what resolves the system
+    H_chk = min(H_chk, min(lim.max_step_s for lim in step_limits(side, c)))
+    lo = c.step_range[0]
+    if H_chk < c.step:
+        # a first step the system cannot take: start at the largest one it can
+        lo = min(lo, H_chk / 64.0)
+        c = c.replace(step=H_chk)
+    c = c.replace(h_min=lo, h_max=max(min(c.step_range[1], H_chk), lo))
+    check_step(side, c, c.step)
+    return c
+
+
+def _discretise(side: StringSide, c: CosimConfig, companion: bool) -> None:
+    """Compute the exact string steps the run may take before its loop (set-up time)."""
+    H = c.step
+    if companion:
+        side.discretisation(0.5 * H)        # first: the run's step is then its square
+    if c.adaptive:
+        # every power of two the run and its half-step companion may take, before the loop,
+        # smallest first: one expm, the rest squares (set-up time)
+        h_lo, h_hi = c.step_range
+        h = 0.5 * h_lo
+        while h <= h_hi * (1 + 1e-12):
+            side.discretisation(h)
+            h *= 2.0
+    side.discretisation(H)
+
+
 def _run(side: StringSide, c: CosimConfig, *, fmu, hammer, defect_tol) -> CosimResult:
     ts = _time.perf_counter()
-    if c.check_step:
-        H_chk = c.step_range[1] if c.adaptive else min(c.step, c.stop - c.start)
-        if c.adaptive:
-            # the adaptive step never grows past what resolves the system
-            H_chk = min(H_chk, min(lim.max_step_s for lim in step_limits(side, c)))
-            lo = c.step_range[0]
-            if H_chk < c.step:
-                # a first step the system cannot take: start at the largest one it can
-                lo = min(lo, H_chk / 64.0)
-                c = c.replace(step=H_chk)
-            c = c.replace(h_min=lo, h_max=max(min(c.step_range[1], H_chk), lo))
-            check_step(side, c, c.step)
-        else:
-            check_step(side, c, H_chk)
-    W = side.wob
+    c = _checked_steps(side, c)
     own = hammer is None
     if hammer is None:
-        hammer = hammer_side(fmu, c.rig, W, c, instance="hammer")
+        hammer = hammer_side(fmu, c.rig, side.wob, c, instance="hammer")
     lanes = [hammer]
     try:
-        comp = hammer_side(fmu, c.rig, W, c, instance="companion") if c.estimate else None
+        comp = hammer_side(fmu, c.rig, side.wob, c, instance="companion") if c.estimate else None
         if comp is not None:
             lanes.append(comp)
+        _discretise(side, c, comp is not None)
         H = c.step
-        if comp is not None:
-            side.discretisation(0.5 * H)        # first: the run's step is then its square
-        if c.adaptive:
-            # every power of two the run and its half-step companion may take, before the loop,
-            # smallest first: one expm, the rest squares (set-up time)
-            h_lo, h_hi = c.step_range
-            h = 0.5 * h_lo
-            while h <= h_hi * (1 + 1e-12):
-                side.discretisation(h)
-                h *= 2.0
-        side.discretisation(H)
         main = Lane(side, hammer, c, H)
         fine = Lane(side, comp, c, 0.5 * H) if comp is not None else None
-        n_full, rem = c.whole_steps
+        n_full, _ = c.whole_steps
         n_est = n_full + 1 if not c.adaptive else int((c.stop - c.start) / H) + 1
         if c.adaptive:
             # the start-up (the force switched on, histories without a past) in short steps; the
@@ -267,89 +296,8 @@ def _run(side: StringSide, c: CosimConfig, *, fmu, hammer, defect_tol) -> CosimR
         setup = _time.perf_counter() - ts
         t_loop = _time.perf_counter()
         bar = _progress_bar(c.stop - c.start, c.progress, n_est)
-        wob_m, wob_f, t_all = [main.out[OUT_WOB]], [fine.out[OUT_WOB] if fine is not None else 0.0], [c.start]
-        rec.add(c.start, 0.0, 0.0, 0.0, 0.0)
-        d_main, d_fine = [], []
-        accepted = rejected = at_min = 0
-        steps = csteps = saves = 0               # doSteps of the run (rolled back included), companion's
-        h_used = (math.inf, 0.0)
-        h_lo, h_hi = c.step_range
-        t = c.start
-        n = 0
-        unit = h_lo / 2.0                   # adaptive times: t0 + k * unit (exact)
-        k_t = 0
-        # loop invariants, read once
-        adaptive, start, stop, record_every = c.adaptive, c.start, c.stop, c.record_every
-        at_stop = stop - 1e-12 * max(1.0, abs(stop))
-        n_steps = n_full + (1 if rem > 0.0 else 0)
-        update = watch.update
         try:
-            while True:
-                if adaptive:
-                    if t >= at_stop:
-                        break
-                    h, last = _adaptive_step(H, stop - t, unit)
-                else:
-                    if n >= n_steps:
-                        break
-                    h = H if n < n_full else rem
-                    t = start + n * H
-                    last = True
-                snap = main.snapshot() if defect_tol is not None else None
-                saves += snap is not None
-                steps += 1
-                try:
-                    main.step(t, h)
-                except CouplingInstabilityError:
-                    raise
-                except Exception as err:
-                    watch.hammer_failed(err, t, n, h, main.F_held)
-                    raise
-                defect = main.defect
-                if defect_tol is not None:
-                    rel = abs(defect) / max(W, 1.0)
-                    if not math.isfinite(rel):
-                        main.free(snap)
-                        raise CouplingInstabilityError(
-                            f"coupling unstable: non-finite interface values at t = {t + h:.6g} s "
-                            f"(H = {h:g} s)", time=t + h, step=n + 1, residual=math.inf, reference=W)
-                    if rel > defect_tol and h > h_lo * (1 + 1e-12) and not last:
-                        main.restore(snap)
-                        main.free(snap)
-                        rejected += 1
-                        H = max(H / 2, h_lo)
-                        continue
-                    main.free(snap)
-                    if rel > defect_tol:
-                        at_min += 1
-                t_end = stop if (adaptive and last) else (
-                    start + (k_t + int(round(h / unit))) * unit if adaptive else
-                    (start + (n + 1) * H if n < n_full else stop))
-                if adaptive:
-                    k_t += int(round(h / unit))
-                if fine is not None:
-                    fine.step(t, 0.5 * h)
-                    d_fine.append(fine.defect)
-                    fine.step(t + 0.5 * h, t_end - (t + 0.5 * h))
-                    d_fine.append(fine.defect)
-                    csteps += 2
-                    wob_f.append(fine.out[OUT_WOB])
-                    d_main.append(defect)           # the histories the estimate reads
-                    wob_m.append(main.out[OUT_WOB])
-                    t_all.append(t_end)
-                update(t_end, n, h, main.F, main.out, main.residual)
-                n += 1
-                accepted += 1
-                if (n % record_every == 0) or t_end >= at_stop:
-                    rec.add(t_end, h, main.residual, defect,
-                            main.out[OUT_WOB] - fine.out[OUT_WOB] if fine is not None else math.nan)
-                if bar is not None:
-                    bar.update(t_end - t)
-                t = t_end
-                if adaptive:
-                    h_used = (min(h_used[0], h), max(h_used[1], h)) if not last or h == H else h_used
-                    if abs(defect) / max(W, 1.0) < 0.1 * defect_tol:
-                        H = min(2 * H, h_hi)
+            m = _march(c, (main, fine), (rec, watch, bar), H, side.wob, defect_tol)
         finally:
             if bar is not None:
                 bar.close()
@@ -357,31 +305,8 @@ def _run(side: StringSide, c: CosimConfig, *, fmu, hammer, defect_tol) -> CosimR
         counts = counts_of(hammer)
         pen = float(main.out[OUT_BIT_POSITION])
         data = rec.result()
-        est = None
-        if fine is not None:
-            # each lane's amplitude from the WOB within its own steps
-            amp, amp_f = main.wob_amplitude(steady_start(c)), fine.wob_amplitude(steady_start(c))
-            p = measured_order(np.asarray(d_main), np.asarray(d_fine))
-            est = richardson(amplitude=amp, amplitude_fine=amp_f, penetration=pen,
-                             penetration_fine=float(fine.out[OUT_BIT_POSITION]), order=p, tol=c.tol,
-                             length_scale=c.rig.scales.length)
-            if counts.get("impacts", 0) > 0:
-                est = unclaimed(est, f"{counts['impacts']} impacts: step doubling does not resolve the "
-                                     f"contact spikes, so no tolerance is claimed for this run")
-            if "wob_error_estimate" in data.dtype.names:
-                data["wob_error_estimate"] *= est.factor
-        stats = watch.stats()
-        stats["string_states"] = side.n
-        stats["modal"] = bool(side.modal)
-        if side.gains is not None:
-            stats["auto_driller"] = side.gains.to_dict()
-        stats.update({"hammer_steps": steps, "companion_steps": csteps, "rollbacks": rejected,
-                      "state_saves": saves})
-        if c.adaptive:
-            stats.update({"accepted": accepted, "rejected": rejected, "at_min_step": at_min,
-                          "defect_tol": defect_tol, "passes": 1, "tol": c.tol,
-                          "h_min_used": h_used[0], "h_max_used": h_used[1]})
-        return CosimResult(data, c, accepted, wall, setup, pen, stats,
+        est = _estimate(c, (main, fine), m, pen, counts, data) if fine is not None else None
+        return CosimResult(data, c, m.accepted, wall, setup, pen, _stats(side, c, watch, m, defect_tol),
                            "cosim-adaptive" if c.adaptive else "cosim", counts=counts, estimate=est,
                            steps=main.steps)
     finally:
@@ -389,6 +314,132 @@ def _run(side: StringSide, c: CosimConfig, *, fmu, hammer, defect_tol) -> CosimR
             hammer.close()
         if len(lanes) > 1:
             lanes[1].close()
+
+
+def _march(c: CosimConfig, lanes: tuple, watchers: tuple, H: float, W: float, defect_tol) -> _Marched:
+    """The macro steps of a run from ``c.start`` to ``c.stop``: the lanes ``(main, fine or
+    None)`` stepped, recorded and watched (``watchers = (recorder, stability watch, progress bar
+    or None)``), from the first step ``H``; an adaptive run (``defect_tol``) rolls back a step whose
+    interface force defect exceeds ``defect_tol`` times the WOB ``W``."""
+    main, fine = lanes
+    rec, watch, bar = watchers
+    m = _Marched()
+    d_main, d_fine = m.d_main, m.d_fine
+    rec.add(c.start, 0.0, 0.0, 0.0, 0.0)
+    accepted = rejected = at_min = 0
+    steps = csteps = saves = 0               # doSteps of the run (rolled back included), companion's
+    h_used = (math.inf, 0.0)
+    h_lo, h_hi = c.step_range
+    t = c.start
+    n = 0
+    unit = h_lo / 2.0                   # adaptive times: t0 + k * unit (exact)
+    k_t = 0
+    # loop invariants, read once
+    n_full, rem = c.whole_steps
+    adaptive, start, stop, record_every = c.adaptive, c.start, c.stop, c.record_every
+    at_stop = stop - 1e-12 * max(1.0, abs(stop))
+    n_steps = n_full + (1 if rem > 0.0 else 0)
+    update = watch.update
+    while True:
+        if adaptive:
+            if t >= at_stop:
+                break
+            h, last = _adaptive_step(H, stop - t, unit)
+        else:
+            if n >= n_steps:
+                break
+            h = H if n < n_full else rem
+            t = start + n * H
+            last = True
+        snap = main.snapshot() if defect_tol is not None else None
+        saves += snap is not None
+        steps += 1
+        try:
+            main.step(t, h)
+        except CouplingInstabilityError:
+            raise
+        except Exception as err:
+            watch.hammer_failed(err, t, n, h, main.F_held)
+            raise
+        defect = main.defect
+        if defect_tol is not None:
+            rel = abs(defect) / max(W, 1.0)
+            if not math.isfinite(rel):
+                main.free(snap)
+                raise CouplingInstabilityError(
+                    f"coupling unstable: non-finite interface values at t = {t + h:.6g} s "
+                    f"(H = {h:g} s)", time=t + h, step=n + 1, residual=math.inf, reference=W)
+            if rel > defect_tol and h > h_lo * (1 + 1e-12) and not last:
+                main.restore(snap)
+                main.free(snap)
+                rejected += 1
+                H = max(H / 2, h_lo)
+                continue
+            main.free(snap)
+            if rel > defect_tol:
+                at_min += 1
+        t_end = stop if (adaptive and last) else (
+            start + (k_t + int(round(h / unit))) * unit if adaptive else
+            (start + (n + 1) * H if n < n_full else stop))
+        if adaptive:
+            k_t += int(round(h / unit))
+        if fine is not None:
+            fine.step(t, 0.5 * h)
+            d_fine.append(fine.defect)
+            fine.step(t + 0.5 * h, t_end - (t + 0.5 * h))
+            d_fine.append(fine.defect)
+            csteps += 2
+            d_main.append(defect)           # the history the estimate reads
+        update(t_end, n, h, main.F, main.out, main.residual)
+        n += 1
+        accepted += 1
+        if (n % record_every == 0) or t_end >= at_stop:
+            rec.add(t_end, h, main.residual, defect,
+                    main.out[OUT_WOB] - fine.out[OUT_WOB] if fine is not None else math.nan)
+        if bar is not None:
+            bar.update(t_end - t)
+        t = t_end
+        if adaptive:
+            h_used = (min(h_used[0], h), max(h_used[1], h)) if not last or h == H else h_used
+            if abs(defect) / max(W, 1.0) < 0.1 * defect_tol:
+                H = min(2 * H, h_hi)
+    m.accepted, m.rejected, m.at_min, m.steps, m.csteps, m.saves, m.h_used = (accepted, rejected, at_min, steps,
+                                                                               csteps, saves, h_used)
+    return m
+
+
+def _estimate(c: CosimConfig, lanes, m: _Marched, pen: float, counts: dict, data):
+    """The run's error estimate from the lanes ``(main, fine)``, ``fine`` the half-step companion
+    (scales the recorded ``wob_error_estimate`` in ``data`` by the estimate's factor)."""
+    main, fine = lanes
+    # each lane's amplitude from the WOB within its own steps
+    amp, amp_f = main.wob_amplitude(steady_start(c)), fine.wob_amplitude(steady_start(c))
+    p = measured_order(np.asarray(m.d_main), np.asarray(m.d_fine))
+    est = richardson(amplitude=amp, amplitude_fine=amp_f, penetration=pen,
+                     penetration_fine=float(fine.out[OUT_BIT_POSITION]), order=p, tol=c.tol,
+                     length_scale=c.rig.scales.length)
+    if counts.get("impacts", 0) > 0:
+        est = unclaimed(est, f"{counts['impacts']} impacts: step doubling does not resolve the "
+                             f"contact spikes, so no tolerance is claimed for this run")
+    if "wob_error_estimate" in data.dtype.names:
+        data["wob_error_estimate"] *= est.factor
+    return est
+
+
+def _stats(side: StringSide, c: CosimConfig, watch: StabilityWatch, m: _Marched, defect_tol) -> dict:
+    """The run's ``stats``: the stability watch's, the string's and the step counts."""
+    stats = watch.stats()
+    stats["string_states"] = side.n
+    stats["modal"] = bool(side.modal)
+    if side.gains is not None:
+        stats["auto_driller"] = side.gains.to_dict()
+    stats.update({"hammer_steps": m.steps, "companion_steps": m.csteps, "rollbacks": m.rejected,
+                  "state_saves": m.saves})
+    if c.adaptive:
+        stats.update({"accepted": m.accepted, "rejected": m.rejected, "at_min_step": m.at_min,
+                      "defect_tol": defect_tol, "passes": 1, "tol": c.tol,
+                      "h_min_used": m.h_used[0], "h_max_used": m.h_used[1]})
+    return stats
 
 
 def _adaptive_step(H: float, remaining: float, unit: float) -> tuple:
