@@ -33,7 +33,7 @@ from hammerbit.fmu.native import SOURCE_DIR, FrontBuildError, c_string, find_com
     read_model_description
 from hammerbit.fmu.native_kernels import TARGETS, ALLOWED_UNDEFINED, build_objects, undefined_symbols
 
-__all__ = ["NATIVE_GENERATION_TOOL", "MINGW_CC", "NATIVE_SOURCES", "STATES", "NativeBuildError", "native_header",
+__all__ = ["NATIVE_GENERATION_TOOL", "MINGW_CC", "NATIVE_SOURCES", "GLIBC_COMPAT_SOURCE", "GLIBC_WRAPPED", "STATES", "NativeBuildError", "native_header",
            "select_platforms", "build_binaries", "link_binary", "nm_for",
            "native_model_description", "assemble_native_fmu"]
 
@@ -45,6 +45,10 @@ MINGW_CC = "x86_64-w64-mingw32-gcc"
 NATIVE_SOURCES = tuple(SOURCE_DIR / f for f in ("front.c", "resource_uri.c", "model_native.c",
                                                 "model_values.c", "model_me.c", "model_state.c",
                                                 "real_repr.c", "nrt_shim.c"))
+#: the linux64 binaries' shim to glibc 2.17 (manylinux2014): the math functions glibc 2.27/2.29
+#: re-versioned, bound to their oldest version (the link wraps every reference to them)
+GLIBC_COMPAT_SOURCE = SOURCE_DIR / "glibc_compat.c"
+GLIBC_WRAPPED = ("exp", "log", "pow", "exp2", "log2", "expf", "logf", "powf", "exp2f", "log2f")
 _GROUP_NAMES = ("rho", "xi", "eta", "a", "b", "r", "mu", "gamma_hat", "kc", "n", "lam_hat", "phi")
 #: the nondimensional group whose range bounds each input, in units of the static friction
 #: threshold F0 (preload b = B/F0, forcing amplitude a = A/F0): |input| <= hi * F0
@@ -159,8 +163,11 @@ def link_binary(platform: str, cc: str, obj: Path, include: Path, out: Path, sou
     common = ["-std=gnu11", "-O2", "-Wall", "-Wextra", "-Wno-unused-parameter", "-DHB_NATIVE_MODEL",
               "-I", str(include), "-I", str(SOURCE_DIR)]
     if platform == "linux64":
-        cmd = [cc, *common, "-fPIC", "-shared", "-fvisibility=hidden", "-o", str(out), *srcs, str(obj),
-               "-Wl,-Bsymbolic", "-Wl,--no-undefined", "-lm", "-lpthread"]
+        # glibc_compat.c and --wrap: no symbol version above glibc 2.17 (see that file)
+        wrap = "-Wl," + ",".join(f"--wrap={name}" for name in GLIBC_WRAPPED)
+        cmd = [cc, *common, "-fPIC", "-shared", "-fvisibility=hidden", "-o", str(out), *srcs,
+               str(GLIBC_COMPAT_SOURCE), str(obj), "-Wl,-Bsymbolic", "-Wl,--no-undefined", wrap, "-lm",
+               "-lpthread"]
     else:
         # static libgcc/winpthread: the DLL needs only the system's KERNEL32 and msvcrt
         cmd = [cc, *common, "-D__USE_MINGW_ANSI_STDIO=1", "-shared", "-static", "-o", str(out), *srcs,
