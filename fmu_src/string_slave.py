@@ -204,6 +204,25 @@ class Drillstring(Fmi2Slave):
                     f"({self._info.get('auto_driller_refused')}); allowed 0 (fixed), 1 (feed)")
         return None
 
+    # -- FMU states: not supported (canGetAndSetFMUstate is false) ------------------------
+    # pythonfmu's default saves the variables only, not the string's state: a state restored from
+    # it would go on from a wrong string state.  The native front refuses every state call of an
+    # FMU that declares no states (fmi2Error); without the front (pythonfmu's binary alone, which
+    # returns OK whatever the slave says) these log an error and change nothing.
+    _NO_STATES = ("FMU states are not supported by the pythonfmu Drillstring.fmu "
+                  "(canGetAndSetFMUstate is false; the native flavour supports them)")
+
+    def _get_fmu_state(self):
+        self._fail(f"fmi2GetFMUstate: {self._NO_STATES}")
+        return {"format": "unsupported"}
+
+    def _set_fmu_state(self, state):
+        self._fail(f"fmi2SetFMUstate: {self._NO_STATES}; state unchanged")
+
+    @classmethod
+    def _fmu_state_from_bytes(cls, data: bytes):
+        return {"format": "unsupported"}
+
     # -- life cycle ----------------------------------------------------------------
     def setup_experiment(self, start_time, stop_time=None, tolerance=None):
         if math.isfinite(start_time):

@@ -126,6 +126,9 @@ def native_header(model_description_xml, start_values: dict, layout: dict) -> st
         if f.name in ("max_events_per_period", "max_step", "graze_tol", "max_steps",
                       "max_steps_per_period", "bisection_tol"):
             lines.append(f"#define HB_SOLVER_{f.name.upper()} {_c_double(float(getattr(solver, f.name)))}")
+    from hammerbit.model.fmu_variables import MAX_PERIODS_PER_STEP
+    lines.append(f"#define HB_MAX_PERIODS_PER_STEP {_c_double(float(MAX_PERIODS_PER_STEP))}")
+    lines.append(f"#define HB_STATE_TIME_LIMIT {_c_double(RANGES['fmu.time'].hi)}")
     if set(slots) != {n for n, _ in stored}:
         raise NativeBuildError("duplicate stored variable")
     return "\n".join(lines) + "\n"

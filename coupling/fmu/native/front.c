@@ -455,14 +455,18 @@ EXPORT fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefi
                                       fmi2Real tolerance, fmi2Real startTime,
                                       fmi2Boolean stopTimeDefined, fmi2Real stopTime) {
     BEGIN("fmi2SetupExperiment", ST_INSTANTIATED);
-    if (!isfinite(startTime)) {
-        LOG(I, fmi2Error, "fmi2SetupExperiment: startTime = %g is not finite", startTime);
+    char a[32], b[32];
+    /* the FMU's clock is declared within +-HB_TIME_LIMIT: far outside it a double's resolution
+     * (1e-7 s at 1e9 s, 1e129 s at -6e144 s) is no clock the model's steps can run on */
+    if (!(fabs(startTime) <= HB_TIME_LIMIT)) {   /* also NaN */
+        LOG(I, fmi2Error, "fmi2SetupExperiment: startTime = %s s is out of range: allowed [-%g, %g] s; "
+                          "refused", fmt_real(a, startTime), HB_TIME_LIMIT, HB_TIME_LIMIT);
         return settle(I, fmi2Error);
     }
-    if (stopTimeDefined && !(isfinite(stopTime) && stopTime >= startTime)) {
-        char a[32], b[32];
-        LOG(I, fmi2Error, "fmi2SetupExperiment: stopTime = %s s must be finite and >= startTime = "
-                          "%s s", fmt_real(a, stopTime), fmt_real(b, startTime));
+    if (stopTimeDefined && !(stopTime >= startTime && stopTime <= HB_TIME_LIMIT)) {
+        LOG(I, fmi2Error, "fmi2SetupExperiment: stopTime = %s s is out of range: allowed [startTime = "
+                          "%s, %g] s; refused", fmt_real(a, stopTime), fmt_real(b, startTime),
+            HB_TIME_LIMIT);
         return settle(I, fmi2Error);
     }
     fmi2Status st = hb_W.SetupExperiment(I->w, toleranceDefined, tolerance, startTime, stopTimeDefined,
@@ -565,6 +569,13 @@ EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint
             fmt_real(a, currentCommunicationPoint), fmt_real(b, I->time), tol);
         return settle(I, fmi2Error);
     }
+    if (communicationStepSize > 0 && isfinite(communicationStepSize) &&
+        !(currentCommunicationPoint + communicationStepSize <= HB_TIME_LIMIT)) {
+        LOG(I, fmi2Error, "fmi2DoStep: at communication point %s s a step of %s s would end after %g s, "
+                          "the end of the FMU's time range; step refused, state unchanged",
+            fmt_real(a, currentCommunicationPoint), fmt_real(b, communicationStepSize), HB_TIME_LIMIT);
+        return settle(I, fmi2Error);
+    }
     if (I->stop_defined && communicationStepSize > 0 &&
         currentCommunicationPoint + communicationStepSize > I->stop_time + time_tol(I->stop_time)) {
         LOG(I, fmi2Error, "fmi2DoStep: at communication point %s s a step of %s s was requested, but "
@@ -590,8 +601,19 @@ EXPORT fmi2Status fmi2CancelStep(fmi2Component c) {
 }
 
 /* -- FMU state -------------------------------------------------------------------------------- */
+/* an FMU whose model description declares no states (canGetAndSetFMUstate, canSerializeFMUstate
+ * false) has a slave that cannot save its whole state: every such call is refused */
+static int states_supported(hb_inst *I, const char *fn, int supported) {
+    if (!supported)
+        LOG(I, fmi2Error, "%s: this FMU does not support FMU states (%s is false in its model "
+                          "description)", fn, HB_CAN_GET_SET_STATE ? "canSerializeFMUstate"
+                                                                   : "canGetAndSetFMUstate");
+    return supported;
+}
+
 EXPORT fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
     BEGIN("fmi2GetFMUstate", M_ANY_LIVE);
+    if (!states_supported(I, "fmi2GetFMUstate", HB_CAN_GET_SET_STATE)) return settle(I, fmi2Error);
     if (!FMUstate) {
         LOG(I, fmi2Error, "fmi2GetFMUstate: FMUstate is NULL");
         return settle(I, fmi2Error);
@@ -631,6 +653,7 @@ static int check_state(hb_inst *I, const char *fn, fmi2FMUstate FMUstate) {
 
 EXPORT fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) {
     BEGIN("fmi2SetFMUstate", M_ANY_LIVE);
+    if (!states_supported(I, "fmi2SetFMUstate", HB_CAN_GET_SET_STATE)) return settle(I, fmi2Error);
     if (!check_state(I, "fmi2SetFMUstate", FMUstate)) return settle(I, fmi2Error);
     hb_fmustate *s = (hb_fmustate *)FMUstate;
     fmi2Status st = slave_status(I, hb_W.SetFMUstate(I->w, s->inner));
@@ -661,6 +684,7 @@ EXPORT fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
 
 EXPORT fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size) {
     BEGIN("fmi2SerializedFMUstateSize", M_ANY_LIVE);
+    if (!states_supported(I, "fmi2SerializedFMUstateSize", HB_CAN_SERIALIZE_STATE)) return settle(I, fmi2Error);
     if (!size || !check_state(I, "fmi2SerializedFMUstateSize", FMUstate)) {
         if (!size) LOG(I, fmi2Error, "fmi2SerializedFMUstateSize: size is NULL");
         return settle(I, fmi2Error);
@@ -675,6 +699,7 @@ EXPORT fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUst
 EXPORT fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate,
                                         fmi2Byte serializedState[], size_t size) {
     BEGIN("fmi2SerializeFMUstate", M_ANY_LIVE);
+    if (!states_supported(I, "fmi2SerializeFMUstate", HB_CAN_SERIALIZE_STATE)) return settle(I, fmi2Error);
     if (!check_state(I, "fmi2SerializeFMUstate", FMUstate)) return settle(I, fmi2Error);
     hb_fmustate *s = (hb_fmustate *)FMUstate;
     size_t inner = 0;
@@ -699,6 +724,7 @@ EXPORT fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate,
 EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[],
                                           size_t size, fmi2FMUstate *FMUstate) {
     BEGIN("fmi2DeSerializeFMUstate", M_ANY_LIVE);
+    if (!states_supported(I, "fmi2DeSerializeFMUstate", HB_CAN_SERIALIZE_STATE)) return settle(I, fmi2Error);
     hb_serial_header h;
     if (!FMUstate || !serializedState || size < sizeof h) {
         LOG(I, fmi2Error, "fmi2DeSerializeFMUstate: %s", !FMUstate ? "FMUstate is NULL"
@@ -716,11 +742,12 @@ EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serial
                           "FMU (GUID %s)", HB_GUID);
         return settle(I, fmi2Error);
     }
-    if (!isfinite(h.time) || !isfinite(h.last_successful) || h.last_successful > h.time) {
+    if (!(fabs(h.time) <= HB_TIME_LIMIT) || !(fabs(h.last_successful) <= HB_TIME_LIMIT) ||
+        h.last_successful > h.time) {
         char a[32], b[32];
         LOG(I, fmi2Error, "fmi2DeSerializeFMUstate: the state's header holds the time %s s and the "
-                          "last successful time %s s: both must be finite, the second <= the "
-                          "first; refused", fmt_real(a, h.time), fmt_real(b, h.last_successful));
+                          "last successful time %s s: both must be within the FMU's time range, "
+                          "the second <= the first; refused", fmt_real(a, h.time), fmt_real(b, h.last_successful));
         return settle(I, fmi2Error);
     }
     hb_fmustate *s = (hb_fmustate *)*FMUstate;
