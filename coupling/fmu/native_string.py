@@ -108,6 +108,7 @@ def _c_ident(name: str) -> str:
 def string_header(md_xml: bytes, build, steps) -> str:
     """Text of ``hs_string.h``: value references, start and build values, ranges, constants."""
     from hammerbit.model.string_slave import INPUT_LIMIT, MAX_FEED, MAX_GAIN, TIME_TOLERANCE
+    from hammerbit.model.validation import RANGES
     root = ET.fromstring(md_xml)
     vrs = {sv.get("name"): int(sv.get("valueReference")) for sv in root.find("ModelVariables")}
     info, sc, bv = build.info, build.info["scalars"], build.arrays["build_values"]
@@ -133,6 +134,7 @@ def string_header(md_xml: bytes, build, steps) -> str:
               f"#define HS_MAX_FEED {float(MAX_FEED)!r}",
               f"#define HS_MAX_GAIN {float(MAX_GAIN)!r}",
               f"#define HS_TIME_TOLERANCE {float(TIME_TOLERANCE)!r}",
+              f"#define HS_STATE_TIME_LIMIT {float(RANGES['fmu.time'].hi)!r}",
               f"#define HS_WOB_RANGE_TEXT {_c_str(f'[0, {buoyed:.6g}] N (the buoyed weight)')}",
               f"#define HS_POSITION_RANGE_TEXT {_c_str(f'[-{INPUT_LIMIT:g}, {INPUT_LIMIT:g}] m')}",
               f"#define HS_FEED_RANGE_TEXT {_c_str(f'[-{MAX_FEED:.4g}, {MAX_FEED:.4g}] m/s (1000 m/h)')}",
