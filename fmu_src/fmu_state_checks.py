@@ -28,6 +28,9 @@ STATE_KEYS = ("stepper", "committed", "params", "inputs", "t", "t_start", "ready
 
 #: the largest counter a state may hold: every integer below it is exact in a float64
 _MAX_COUNT = 2.0 ** 53
+#: the event counters are the FMU's Integer outputs (fmi2Integer: 32 bits)
+_EVENT_COUNTS = range(K.I_COUNT0, K.I_COUNT0 + K.N_EVENT_KINDS)
+_MAX_EVENT_COUNT = 2.0 ** 31 - 1
 #: allowed values of the mode entries of the kernel's integer state
 _MODES = {K.I_STICK: (K.STICK, K.SLIP), K.I_CONTACT: (K.FREE, K.CONTACT, K.CLAMPED),
           K.I_BOUNCE: (0, 1)}
@@ -73,8 +76,10 @@ def _stepper_problem(arr, size: int):
         return f"the stepper state's step proposal {arr[f0 + K.F_H]!r} is not positive"
     for i, v in enumerate(arr[n_y:f0]):
         lowest = _WINDOW_START if i in _WINDOWS else 0
-        if v != int(v) or not lowest <= v < _MAX_COUNT:
+        if not math.isfinite(v) or v != int(v) or not lowest <= v < _MAX_COUNT:
             return f"integer state entry {i} = {v!r} is not a count in [{lowest}, 2**53)"
+        if i in _EVENT_COUNTS and v > _MAX_EVENT_COUNT:
+            return f"event counter entry {i} = {v!r} is above 2**31 - 1 (its output is a 32-bit Integer)"
         allowed = _MODES.get(i)
         if allowed is not None and int(v) not in allowed:
             return f"mode entry {i} = {v!r} is not one of {allowed}"

@@ -39,6 +39,8 @@ static const char *ist_invalid(const int64_t *ist) {
         int64_t lowest = (i == HBK_I_WIN || i == HBK_I_SWIN) ? -1 : 0;
         if (ist[i] < lowest || (double)ist[i] >= MAX_COUNT) return "a counter is out of range";
     }
+    for (int i = HBK_I_COUNT0; i < HBK_I_COUNT0 + HBK_N_EVENT_KINDS; i++)   /* 32-bit Integer outputs */
+        if (ist[i] > INT32_MAX) return "an event counter is above 2**31 - 1";
     return NULL;
 }
 

@@ -118,9 +118,13 @@ static fmi2Status s_no_set_string(fmi2Component c, const fmi2ValueReference vr[]
 /* ------------------------------------------------------------------------------------------ */
 /* FMU states: the whole state as plain data                                                   */
 /* ------------------------------------------------------------------------------------------ */
+/* the largest magnitude of a state's number (forces [N], positions [m], velocities, the
+ * string's coordinates): the library's state range; beyond it a step's products overflow */
+#define STATE_MAGNITUDE 1e12
+
 static int all_finite(const double *v, size_t n) {
     for (size_t i = 0; i < n; i++)
-        if (!isfinite(v[i])) return 0;
+        if (!(fabs(v[i]) <= STATE_MAGNITUDE)) return 0;   /* also NaN */
     return 1;
 }
 
@@ -156,14 +160,17 @@ static const char *state_invalid(const model *m, const sstate *s) {
     const double reals[] = {s->damping_ratio, s->wob, s->at_rest, s->feed_velocity, s->kp, s->kig,
                             s->interface_force, s->held, s->hook_load, s->top_position,
                             s->top_velocity, s->W, s->hook_eq, s->F_held};
+    /* k3 (the interface's constants) is compared with the build's below */
     if (!all_finite(reals, sizeof reals / sizeof *reals) || !all_finite(s->feed, 2) ||
-        !all_finite(s->k3, 3) || !all_finite(s->wh, 6) || !all_finite(s->Fh, 3) ||
-        !all_finite(s->out, 4) || !all_finite(s->c, N_COEFFS))
-        return "it holds a non-finite number";
+        !all_finite(s->wh, 6) || !all_finite(s->Fh, 3) || !all_finite(s->out, 4))
+        return "it holds a number that is not finite or above 1e12 in magnitude";
     for (int i = 0; i < 3; i++)
         if (!(fabs(s->th[i]) <= HS_STATE_TIME_LIMIT + 1.0)) return "its communication times are out of range";
     if (isnan(s->x_in) || isnan(s->v_in)) return "an input is NaN";
-    if (!all_finite(s->v, 2 * (size_t)m->tab.nmax)) return "its string state holds a non-finite number";
+    for (int i = 0; i < N_COEFFS; i++)   /* the last exchange's coefficients: any finite scale */
+        if (!isfinite(s->c[i])) return "it holds a non-finite number";
+    if (!all_finite(s->v, 2 * (size_t)m->tab.nmax))
+        return "its string state holds a number that is not finite or above 1e12 in magnitude";
     return s->ready ? derived_invalid(m, s) : NULL;
 }
 
