@@ -43,6 +43,7 @@ from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Initial, Fmi2Slave, 
     Real
 from pythonfmu.enums import Fmi2Status
 
+from .pythonfmu_exit import guard_pythonfmu_exit
 from .string_model import TOP_CONDITIONS, form_of, load_model, string_matrices
 from .numba_dispatch import entry_point
 from .string_kernels import (EXCHANGE_HELD, HAMMER_ARG, DenseForm, ExchangeHistory, ExchangeScheme, HammerStep,
@@ -75,6 +76,7 @@ class Drillstring(Fmi2Slave):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
+        guard_pythonfmu_exit(self.resources)     # pythonfmu 0.7.0's double free at exit
         self._arrays, self._info = load_model(str(self.resources))
         sc = self._info["scalars"]
         self.description = self._info.get("description", "")
