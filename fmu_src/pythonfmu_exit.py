@@ -2,8 +2,9 @@
 
 Any host that loads a pythonfmu FMU into a Python process can call
 :func:`guard_pythonfmu_exit` with the FMU's resources directory (both slaves,
-HammerBitRock and Drillstring, call it for their own binary).  The double
-free corrupts the heap at every exit; whether the process then aborts
+HammerBitRock and Drillstring, call it for their own binary).  At every exit
+an unguarded wrapper releases a freed control block once more; whether the
+process then aborts
 (``corrupted double-linked list``, exit 134) depends on what else the exit
 frees: FMPy's SSP runner with the two pythonfmu FMUs of ``drilling.ssp`` in
 one process aborted in most runs while only HammerBitRock's binary was
