@@ -22,8 +22,8 @@ from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
-from .kernel_layouts import (N_P, P_A, P_B, P_CONTACT, P_ETA, P_FEXT, P_GAMMA, P_KC, P_LAM, P_MU, P_N, P_PHI,
-                             P_R, P_RHO, P_XI)
+from .fmu_description import GROUP_FORMULAS, KERNEL_SLOTS, SI_NAMES, si_to_groups
+from .kernel_layouts import N_P, P_CONTACT, P_FEXT
 from .scales import DEFAULT_SCALES, Scales
 from .validation import ParameterError, check
 
@@ -135,18 +135,8 @@ class Groups:
     def to_kernel(self, *, extra_force: float = 0.0) -> np.ndarray:
         """Float array of length ``N_P`` in the kernel layout (``P_*`` indices)."""
         p = np.empty(N_P)
-        p[P_RHO] = self.rho
-        p[P_XI] = self.xi
-        p[P_ETA] = self.eta
-        p[P_A] = self.a
-        p[P_B] = self.b
-        p[P_R] = self.r
-        p[P_MU] = self.mu
-        p[P_GAMMA] = self.gamma_hat
-        p[P_KC] = self.kc
-        p[P_N] = self.n
-        p[P_LAM] = self.lam_hat
-        p[P_PHI] = self.phi
+        for name, slot in KERNEL_SLOTS:
+            p[slot] = getattr(self, name)
         p[P_FEXT] = extra_force
         p[P_CONTACT] = 1.0 if self.has_gap else 0.0
         return p
@@ -177,7 +167,7 @@ class Groups:
         )
 
 
-GROUP_NAMES = ("rho", "xi", "eta", "a", "b", "r", "mu", "gamma_hat", "kc", "n", "lam_hat", "phi")
+GROUP_NAMES = tuple(name for name, _ in GROUP_FORMULAS)
 
 
 @dataclass(frozen=True)
@@ -254,25 +244,10 @@ class RigParameters:
         return Scales(self.hammer_mass, self.stiffness, self.mu_static * self.normal_force)
 
     def to_groups(self) -> Groups:
-        """The paper's nondimensional groups of these parameters."""
-        s = self.scales
-        F0, x0, Om = s.friction_force, s.length, s.omega
-        return Groups(
-            rho=self.bit_mass / self.hammer_mass,
-            xi=self.damping / (2.0 * math.sqrt(self.stiffness * self.hammer_mass)),
-            eta=2.0 * math.pi * self.frequency / Om,
-            a=self.amplitude / F0,
-            b=self.preload / F0,
-            r=self.gap / x0,
-            mu=self.mu_kinetic / self.mu_static,
-            gamma_hat=self.friction_decay * x0 * Om,
-            kc=self.contact_stiffness * x0 ** self.contact_exponent / F0,
-            n=self.contact_exponent,
-            lam_hat=self.contact_damping * x0 * Om,
-            phi=self.phase,
-            scales=s,
-            mu_static=self.mu_static,
-        )
+        """The paper's nondimensional groups of these parameters (the formulas of
+        :mod:`.fmu_description`, which the native FMU evaluates in C to the same bits)."""
+        _, groups = si_to_groups({name: getattr(self, name) for name in SI_NAMES})
+        return Groups(**groups, scales=self.scales, mu_static=self.mu_static)
 
     def replace(self, **changes) -> "RigParameters":
         """Copy with some fields changed (validated)."""

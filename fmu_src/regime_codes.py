@@ -7,7 +7,7 @@ kernels and the generated C read the same numbers; :data:`REGIME_BITS` names the
 from __future__ import annotations
 
 __all__ = ["REGIME_RUNAWAY", "REGIME_BOUNCE", "REGIME_TENSION", "REGIME_STALL", "REGIME_TRANSIENT",
-           "REGIME_BITS", "regime_names"]
+           "REGIME_BITS", "regime_names", "regime_json"]
 
 #: the bit cannot stick again: the drive beats the friction at every phase, the drift accelerates
 REGIME_RUNAWAY = 1
@@ -28,3 +28,8 @@ REGIME_BITS = {"runaway": REGIME_RUNAWAY, "bounce": REGIME_BOUNCE, "tension": RE
 def regime_names(code: int) -> list:
     """The names of the bits set in ``code``, in bit order."""
     return [name for name, bit in REGIME_BITS.items() if int(code) & bit]
+
+
+def regime_json(code: int) -> dict:
+    """The verdict in JSON: ``{"regime": code, "regime_names": [...]}`` (every face writes it so)."""
+    return {"regime": int(code), "regime_names": regime_names(code)}

@@ -31,7 +31,7 @@ __all__ = ["N_COEFFS", "HAMMER_ARG", "EXCHANGE_HELD", "DENSE_LANES", "string_ste
            "held_weights", "held_weight_values", "held_mean", "held_force", "taylor_coefficients",
            "exchange_step", "exchange_kernel", "exchange_step_modal", "exchange_step_dense", "exchange_begin",
            "exchange_end", "ExchangeScheme", "Interface", "ModalForm", "DenseForm", "ExchangeHistory",
-           "HammerStep"]
+           "HammerStep", "HISTORY_SPACING", "continue_polynomial"]
 
 
 #: Taylor coefficients of the hammer motion over a step: (x, v, x', v', x'', v'')
@@ -40,6 +40,10 @@ N_COEFFS = 6
 HAMMER_ARG = 5
 #: the held force of a next step of the same length in the exchange's returned tuple
 EXCHANGE_HELD = 3
+#: a step shorter than this fraction of the history's newest spacing (a master's leftover step to
+#: land on an output point) replaces the newest point instead of shifting the history: divided
+#: differences over a tiny spacing would amplify the rounding of the hammer's motion
+HISTORY_SPACING = 1e-2
 
 
 # ---------------------------------------------------------------------------
@@ -180,7 +184,8 @@ class ExchangeHistory(NamedTuple):
     #: (4,): ``[F(t_{n+1}), energy residual of the step, frow.xi at t_{n+1}, force defect
     #: F_held - mean F_i]``; ``out[2]`` on entry is ``frow.xi`` at ``t_n``
     out: np.ndarray
-    #: (6,): scratch for the Taylor coefficients
+    #: (6,): the Taylor coefficients of the hammer motion over a step; after it, its polynomial
+    #: re-expanded at t_{n+1} (a leftover step takes it on)
     coeffs: np.ndarray
 
 
@@ -273,19 +278,32 @@ def taylor_coefficients(gs, order, a, a2, h, wh, x_new, v_new, c):
 # the exchange
 # ---------------------------------------------------------------------------
 @njit(cache=True)
+def continue_polynomial(c, s):
+    """Taylor coefficients ``c`` of a polynomial motion re-expanded ``s`` later (in place)."""
+    for k in range(2):
+        c[k] = c[k] + c[2 + k] * s + 0.5 * c[4 + k] * s * s
+        c[2 + k] = c[2 + k] + c[4 + k] * s
+
+
+@njit(cache=True)
 def exchange_begin(scheme, h, iface, hist, hammer):
     """The first half of :func:`exchange_step`: the Taylor coefficients of the hammer motion
     relative to a feed's block into ``hist.coeffs``; returns ``(u_top, F_start)``, the block's
-    position at t_n and the interface force at t_n."""
+    position at t_n and the interface force at t_n.  A leftover step (shorter than
+    :data:`HISTORY_SPACING` of the newest spacing) takes the last step's polynomial on (the
+    coefficients :func:`exchange_end` left at t_n): its new input is no point to extrapolate
+    through."""
     th, c = hist.th, hist.coeffs
     a = th[0] - th[1]
     a2 = th[1] - th[2]
-    taylor_coefficients(scheme.gauss_seidel, scheme.order, a, a2, h, hist.wh, hammer.x_new, hammer.v_new, c)
     V = iface.feed[0]
     u_top = V * (th[0] - iface.feed[1])
-    c[0] -= u_top
-    c[1] -= V
-    c[2] -= V
+    if not h < HISTORY_SPACING * a:
+        taylor_coefficients(scheme.gauss_seidel, scheme.order, a, a2, h, hist.wh, hammer.x_new, hammer.v_new,
+                            c)
+        c[0] -= u_top
+        c[1] -= V
+        c[2] -= V
     F_start = iface.wob + hist.out[2] - iface.ki * c[0] - iface.ci * c[1]
     return u_top, F_start
 
@@ -305,11 +323,15 @@ def exchange_end(scheme, h, iface, hist, hammer, u_top, F_start, imp, f_xi):
     e_string = 0.5 * h * (F_start * (c[1] + V) + F_end * (ve + V))
     e_hammer = F_held * (x_new - wh[0, 0])
     F = F_end if scheme.fmi else W + f_xi - ki * (x_new - (u_top + V * h)) - ci * (v_new - V)
-    for j in (2, 1):
-        th[j] = th[j - 1]
-        wh[j, 0] = wh[j - 1, 0]
-        wh[j, 1] = wh[j - 1, 1]
-        Fh[j] = Fh[j - 1]
+    # a leftover step (shorter than HISTORY_SPACING of the newest spacing) moves the newest point
+    # instead of adding one: the history keeps spacings that divided differences can take
+    shift = not h < HISTORY_SPACING * (th[0] - th[1])
+    if shift:
+        for j in (2, 1):
+            th[j] = th[j - 1]
+            wh[j, 0] = wh[j - 1, 0]
+            wh[j, 1] = wh[j - 1, 1]
+            Fh[j] = Fh[j - 1]
     th[0] = th[0] + h
     wh[0, 0] = x_new
     wh[0, 1] = v_new
@@ -318,7 +340,10 @@ def exchange_end(scheme, h, iface, hist, hammer, u_top, F_start, imp, f_xi):
     out[1] = e_string - e_hammer
     out[2] = f_xi
     out[3] = F_held - (W + imp / h)
-    return F, out[1], out[3], held_mean(scheme.order, th, Fh, h)
+    # after a leftover step the next step is one of the run's own length: the newest spacing
+    h_next = h if shift else th[0] - th[1]
+    continue_polynomial(c, h)              # the step's polynomial at t_{n+1}: a leftover takes it on
+    return F, out[1], out[3], held_mean(scheme.order, th, Fh, h_next)
 
 
 @njit(cache=True)
@@ -366,8 +391,16 @@ def exchange_step(scheme: ExchangeScheme, h: float, form, iface: Interface, hist
     next step.  A stepping loop calls :func:`exchange_kernel` once instead (this dispatch
     per call costs a lookup).
 
+    A step shorter than :data:`HISTORY_SPACING` times the newest spacing of the history (a
+    master's leftover step to land on an output point) takes the last step's polynomial on
+    instead of one through its new input, and moves the newest point of the history to
+    ``t_{n+1}`` instead of shifting it: the next step's divided differences then span the run's
+    own spacing, not the leftover, and the run is the run without the leftover.
+
     Returns ``(F, residual, defect, held)``: ``hist.out``'s interface force, energy residual and
     force defect, and :func:`held_mean` over a next step of the same length ``h`` (a loop with a
-    fixed step needs no other call for the force the hammer holds).
+    fixed step needs no other call for the force the hammer holds; after a leftover step, of
+    the length of the newest spacing).
     """
     return exchange_kernel(form)(scheme, h, form, iface, hist, hammer)
+

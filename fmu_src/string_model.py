@@ -23,7 +23,9 @@ import os
 
 import numpy as np
 
-__all__ = ["MODEL_FILE", "INFO_FILE", "FORMS", "PARAMETERS", "MATRICES", "TOP_CONDITIONS", "form_of",
+from .fmu_description import TOP_CONDITIONS as _TOPS
+
+__all__ = ["MODEL_FILE", "INFO_FILE", "FORMS", "OUTPUT_ROWS", "PARAMETERS", "MATRICES", "TOP_CONDITIONS", "form_of",
            "load_model", "save_model", "string_matrices"]
 
 #: the arrays file in the FMU's resources directory
@@ -32,17 +34,19 @@ MODEL_FILE = "string_model.npz"
 INFO_FILE = "string_info.json"
 #: the forms of the string side
 FORMS = ("fixed", "auto")
+#: the output rows of a form's ``rows`` matrix, in order (the FMUs read them by these names)
+OUTPUT_ROWS = ("bottom_position", "bottom_velocity", "hook_tension", "top_position", "top_velocity")
 #: the parameters the matrices depend on (affinely)
 PARAMETERS = ("damping_ratio", "proportional_gain", "integral_gain")
 #: the matrices of a form that depend on the parameters (``E`` does not)
 MATRICES = ("A1", "frow", "rows")
-#: the top conditions in the order of the FMU's ``top_condition`` parameter (0, 1, 2)
-TOP_CONDITIONS = ("fixed", "feed", "auto-driller")
+#: the top conditions' names in the order of the FMU's ``top_condition`` parameter (0, 1, 2, ...)
+TOP_CONDITIONS = tuple(t.name for t in _TOPS)
 
 
 def form_of(top_condition: int) -> str:
-    """The form a top condition steps with: ``auto`` for the auto-driller, else ``fixed``."""
-    return "auto" if TOP_CONDITIONS[int(top_condition)] == "auto-driller" else "fixed"
+    """The form a top condition (by its code) steps with (:data:`fmu_description.TOP_CONDITIONS`)."""
+    return _TOPS[int(top_condition)].form
 
 
 def save_model(path, forms: dict, build_values: dict) -> None:
@@ -85,6 +89,12 @@ def string_matrices(arrays: dict, form: str, values: dict) -> tuple:
         raise ValueError(f"the string has no '{form}' form (built without it)")
     f = arrays["forms"][form]
     out = {}
+    for param in PARAMETERS:
+        value = float(values.get(param, arrays["build_values"][param]))
+        if value != arrays["build_values"][param] and param not in f["d"] and (form == "auto" or
+                                                                              param == "damping_ratio"):
+            raise ValueError(f"{param} = {value!r}: these arrays hold the string's '{form}' form at its build "
+                             f"value {arrays['build_values'][param]!r} only (a native Drillstring FMU's)")
     for key in MATRICES:
         x = f[key]
         for param, ds in f["d"].items():

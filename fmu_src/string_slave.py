@@ -2,8 +2,11 @@
 
 The string (built from a TOML description at build time, its arrays in
 ``resources/string_model.npz``) and the interface spring-dashpot to the
-hammer are stepped exactly over any communication step by
-:mod:`string_step`, the same code as the co-simulation master's string side.
+hammer are stepped exactly over any communication step ``h > 0`` by
+:mod:`string_step`, the same code as the co-simulation master's string side:
+the built steps (``steps`` of ``resources/string_info.json``) with scipy's
+exponentials, any other with those of :class:`~string_step.StepTable` (the
+kernels the native flavour runs).
 
 Causality (see ``docs/cosim.md``):
 
@@ -44,11 +47,12 @@ from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Initial, Fmi2Slave, 
 from pythonfmu.enums import Fmi2Status
 
 from .pythonfmu_exit import guard_pythonfmu_exit
-from .string_model import TOP_CONDITIONS, form_of, load_model, string_matrices
+from .fmu_description import TOP_CONDITIONS, top_condition, top_conditions_text
+from .string_model import OUTPUT_ROWS, form_of, load_model, string_matrices
 from .numba_dispatch import entry_point
 from .string_kernels import (EXCHANGE_HELD, HAMMER_ARG, DenseForm, ExchangeHistory, ExchangeScheme, HammerStep,
                              Interface, ModalForm, exchange_kernel)
-from .string_step import ExactStep, StringState
+from .string_step import BUILT_STEPS, STEP_CACHE, ExactStep, StepTable, StringState
 
 __all__ = ["Drillstring", "INPUT_LIMIT"]
 
@@ -59,7 +63,7 @@ MAX_FEED = 1000.0 / 3600.0
 #: largest auto-driller gain accepted (SI: m/s per N, m/s per N s), as the library's
 MAX_GAIN = 1.0
 #: rows of the string side's outputs
-ROW_HOOK, ROW_TOP_U, ROW_TOP_V = 2, 3, 4
+ROW_HOOK, ROW_TOP_U, ROW_TOP_V = (OUTPUT_ROWS.index(r) for r in ("hook_tension", "top_position", "top_velocity"))
 #: the extrapolation orders of the hammer motion and the held force
 ORDERS = (0, 1, 2)
 #: relative tolerance on the communication point (a master computing t0 + n h is fine)
@@ -101,6 +105,8 @@ class Drillstring(Fmi2Slave):
         self.interface_damping = sc["interface_damping"]
         self.buoyed_weight = sc["buoyed_weight"]
         self.string_states = int(sc["string_states"])
+        # the steps whose exponentials are the build's (scipy); any other: the kernels', cached
+        self._built = tuple(float(h) for h in self._info.get("steps", BUILT_STEPS))
         self._t = 0.0
         self._t_start = 0.0
         self._ready = False
@@ -188,14 +194,15 @@ class Drillstring(Fmi2Slave):
         if int(self.extrapolation) not in ORDERS:
             return f"parameter 'extrapolation' = {self.extrapolation!r} is out of range: allowed 0, 1, 2"
         if not 0 <= int(self.top_condition) < len(TOP_CONDITIONS):
-            return (f"parameter 'top_condition' = {self.top_condition!r} is out of range: allowed 0 (fixed), "
-                    f"1 (feed), 2 (auto-driller)")
+            return (f"parameter 'top_condition' = {self.top_condition!r} is out of range: allowed "
+                    f"{top_conditions_text()}")
         v = float(self.feed_velocity)
         if not (math.isfinite(v) and abs(v) <= MAX_FEED):
             return (f"parameter 'feed_velocity' = {self.feed_velocity!r} is out of range: allowed "
                     f"[-{MAX_FEED:.4g}, {MAX_FEED:.4g}] m/s (1000 m/h)")
-        if v != 0.0 and TOP_CONDITIONS[int(self.top_condition)] != "feed":
-            return (f"parameter 'feed_velocity' = {self.feed_velocity!r}: only top_condition = 1 (feed) takes "
+        if v != 0.0 and not top_condition(int(self.top_condition)).takes_feed:
+            feeds = top_conditions_text([t for t in TOP_CONDITIONS if t.takes_feed])
+            return (f"parameter 'feed_velocity' = {self.feed_velocity!r}: only top_condition = {feeds} takes "
                     f"a feed velocity; allowed 0 with top_condition = {int(self.top_condition)}")
         for name in ("proportional_gain", "integral_gain"):
             g = float(getattr(self, name))
@@ -203,7 +210,8 @@ class Drillstring(Fmi2Slave):
                 return f"parameter {name!r} = {getattr(self, name)!r} is out of range: allowed [0, {MAX_GAIN:g}]"
         if form_of(self.top_condition) not in self._arrays["forms"]:
             return (f"parameter 'top_condition' = {self.top_condition!r}: this string has no auto-driller "
-                    f"({self._info.get('auto_driller_refused')}); allowed 0 (fixed), 1 (feed)")
+                    f"({self._info.get('auto_driller_refused')}); allowed "
+                    f"{top_conditions_text([t for t in TOP_CONDITIONS if t.form != 'auto'])}")
         return None
 
     # -- FMU states: not supported (canGetAndSetFMUstate is false) ------------------------
@@ -243,11 +251,12 @@ class Drillstring(Fmi2Slave):
         sc = self._info["scalars"]
         self._W = float(self.wob)
         self._hook_eq = sc["buoyed_weight"] - self._W
-        feed = float(self.feed_velocity) if TOP_CONDITIONS[int(self.top_condition)] == "feed" else 0.0
+        feed = float(self.feed_velocity) if top_condition(int(self.top_condition)).takes_feed else 0.0
         self._side = ExactStep(A1, E, frow, sc["interface_stiffness"], sc["interface_damping"], rows,
                                self._hook_eq, feed=(feed, self._t_start))
         self._order = int(self.extrapolation)
-        self._state = None                        # made at the first step (its length decides the form)
+        self._state = None                        # made at the first step
+        self._table = None
         self._hist = np.zeros(16)
         self._th, self._wh = self._hist[0:3], self._hist[3:9].reshape(3, 2)
         self._Fh, self._sc = self._hist[9:12], self._hist[12:16]
@@ -298,8 +307,9 @@ class Drillstring(Fmi2Slave):
                                       f"state unchanged")
             x = float(self.hammer_position) - self.hammer_position_at_rest
             v = float(self.hammer_velocity)
-        if first:
-            self._state = StringState(self._side, h)
+        if first:  # the first built step decides the form, as the native flavour's build does
+            self._table = StepTable(self._side, self._built)
+            self._state = StringState(self._side, self._built[0])
             self._th[:] = (self._t_start, self._t_start - h, self._t_start - 2 * h)
             self._wh[:] = (x, v)
         self._wh[0, 0], self._wh[0, 1] = x, v
@@ -314,7 +324,9 @@ class Drillstring(Fmi2Slave):
         call = self._calls.get(h)
         if call is None:  # a new step length: its records, typed by numba's dispatcher once
             side, st = self._side, self._state
-            d = side.discretisation(h)
+            d = self._table.get(h)
+            if len(self._calls) >= STEP_CACHE + len(self._built):
+                del self._calls[next(iter(self._calls))]
             if st.modal:
                 form = ModalForm(d.m_d, d.m_G, d.m_irow, d.m_icol, st.v, side.m_frow)
             else:

@@ -12,6 +12,29 @@ state gives one autonomous linear system; its matrix exponential maps
 ``A1 = V diag(lam) V^-1`` the step is ``eta <- exp(lam h) eta + G c`` per mode
 (one of each conjugate pair kept): O(n) per step.
 
+Steps of any length.  A run carries the exponentials of its *built* steps
+(:data:`BUILT_STEPS`; scipy's ``expm``, as above).  A step within
+:data:`BUILT_STEP_MATCH` (relative) of one uses that step's exponentials; any
+other gets its own, computed by the kernels of :mod:`string_exponentials`
+(:func:`step_exponentials`):
+
+* the modal form in closed form per mode (:func:`modal_exponentials`): each
+  kept mode is a scalar system ``eta' = lam eta + b . w(s)``, so its step is
+  ``exp(lam h)`` and ``phi_k(lam h)`` functions of the polynomial input, with
+  no product by ``V`` or ``V^-1``.  The modal form is used at all only where it
+  is well conditioned: :meth:`ExactStep._modal` accepts it when ``V e^(lam h)
+  V^-1`` reproduces ``expm(A1 h)`` to :data:`MODAL_TOLERANCE` (relative to its
+  largest entry) at the first built step and the eigenvalues pair up as
+  conjugates.  The eigenbasis enters a step of any length only through the
+  input map ``V^-1 E`` and the output rows ``. V``, both fixed for the run and
+  checked there; the per-mode exponentials themselves are exact to rounding.
+* the dense form by scaling and squaring the [13/13] Pade approximant of
+  ``expm(Z h)`` (:func:`dense_exponential`; Higham 2005).
+
+Both are numba kernels, compiled into the native Drillstring FMU as they run
+in the Python one; :class:`StepTable` keeps a run's exponentials (built steps,
+and a bounded cache of the others).
+
 This module is the one source of that step: the co-simulation master's string
 side (``hammerbit.cosim.string_side``) and the ``Drillstring`` FMU
 (:mod:`string_slave`) both use :class:`ExactStep`, :class:`StringState` and
@@ -26,9 +49,11 @@ from typing import Optional
 import contextlib
 
 import numpy as np
+from .string_exponentials import N_PHI, PADE_WORK, dense_exponential, modal_exponentials
 from .string_kernels import N_COEFFS, string_step_dense, string_step_modal
 
-__all__ = ["ExactStep", "Discretisation", "StringState", "MODAL_TOLERANCE", "step_key", "one_blas_thread"]
+__all__ = ["ExactStep", "Discretisation", "StringState", "StepTable", "MODAL_TOLERANCE", "BUILT_STEPS",
+           "BUILT_STEP_MATCH", "STEP_CACHE", "step_key", "one_blas_thread", "step_exponentials"]
 
 #: the modal form is used when the eigenbasis reproduces the dense step to this (relative)
 MODAL_TOLERANCE = 1e-10
@@ -36,6 +61,12 @@ MODAL_TOLERANCE = 1e-10
 _KEY_DIGITS = 12
 #: squaring depth: a step h may be built from a cached step h / 2^k, k up to this
 _MAX_SQUARINGS = 12
+#: the step lengths a Drillstring FMU carries the exponentials of by default [s] (its default experiment's)
+BUILT_STEPS = (1e-3,)
+#: a step within this (relative) of a built step uses the built step's exponentials
+BUILT_STEP_MATCH = 1e-9
+#: step lengths other than the built ones whose exponentials a run keeps (the oldest goes first)
+STEP_CACHE = 8
 
 
 def one_blas_thread():
@@ -205,6 +236,8 @@ class ExactStep:
             self.m_rows3 = np.ascontiguousarray(np.vstack([r @ Vk_w for r in self.rows3]))
             self.m_V = Vk_w                       # xi = Re(m_V @ eta)
             self.m_Vinv = Vinv[keep]              # eta = m_Vinv @ xi
+            self.m_lam = np.ascontiguousarray(lam[keep])              # a step of any length: the modes'
+            self.m_B = np.ascontiguousarray(self.m_Vinv @ self.E)     # eigenvalues and inputs
             self.modal = True
         keep = self.modal_keep
         N = n + N_COEFFS + 1
@@ -268,3 +301,60 @@ class StringState:
             return string_step_modal(d.m_d, d.m_G, d.m_irow, d.m_icol, self.v, coeffs, self.side.m_frow)[0]
         self.buf[self.side.n:] = coeffs
         return string_step_dense(d.P, self.v, self.buf, self.tmp)
+
+
+def step_exponentials(side: ExactStep, h: float) -> Discretisation:
+    """The exact step of ``side`` over ``h`` [s] computed by the kernels (:func:`modal_exponentials`
+    in the modal form, :func:`dense_exponential` in the dense one); ``side``'s form must be decided
+    (a first :meth:`ExactStep.discretisation`)."""
+    h = float(h)
+    if not (0.0 < h < np.inf):
+        raise ValueError(f"step length h = {h!r} s: allowed a finite h > 0")
+    k2 = np.array([side.ki, side.ci])
+    if side.modal:
+        m = side.m_lam.shape[0]
+        d = Discretisation(h=h, P=None, modal=True, m_d=np.empty(m, np.complex128),
+                           m_G=np.empty((m, N_COEFFS), np.complex128), m_irow=np.empty(m, np.complex128),
+                           m_icol=np.empty(N_COEFFS))
+        modal_exponentials(h, side.m_lam, side.m_B, side.m_frow, k2, d.m_d, d.m_G, d.m_irow, d.m_icol,
+                           np.empty(N_PHI, np.complex128))
+        return d
+    n = side.n
+    N = n + N_COEFFS + 1
+    P = np.empty((n + 1, n + N_COEFFS))
+    dense_exponential(h, side.A1, side.E, side.frow, k2, P, np.empty((PADE_WORK, N, N)))
+    return Discretisation(h=h, P=P)
+
+
+class StepTable:
+    """The exponentials a run steps with: those of its built steps (:data:`BUILT_STEPS`, by
+    :meth:`ExactStep.discretisation`), and of up to :data:`STEP_CACHE` other step lengths (by
+    :func:`step_exponentials`; the oldest is dropped first).
+
+    A step within :data:`BUILT_STEP_MATCH` (relative) of a built one uses the built one's."""
+
+    def __init__(self, side: ExactStep, built=BUILT_STEPS, limit: int = STEP_CACHE):
+        self.side = side
+        self.built = tuple(float(h) for h in built)
+        self.limit = int(limit)
+        self.cache = {}
+        side.discretisation(self.built[0])           # decides the form
+
+    def built_step(self, h: float) -> Optional[float]:
+        """The built step ``h`` [s] takes the exponentials of, or None."""
+        for hb in self.built:
+            if abs(h - hb) <= BUILT_STEP_MATCH * hb:
+                return hb
+        return None
+
+    def get(self, h: float) -> Discretisation:
+        """The exponentials of a step ``h`` [s]."""
+        hb = self.built_step(h)
+        if hb is not None:
+            return self.side.discretisation(hb)
+        d = self.cache.get(h)
+        if d is None:
+            if len(self.cache) >= self.limit:
+                del self.cache[next(iter(self.cache))]
+            d = self.cache[h] = step_exponentials(self.side, h)
+        return d

@@ -218,6 +218,7 @@ LONG = {
     "optimize": ["optimize", "--grid", "200", "--workers", "1"],
     "cosim": ["cosim", *FIELD, "--stop", "200", "--json"],
     "sweep": ["sweep", *FIELD, "--frequencies", "15", "30", "50", "--workers", "1"],
+    "continue": ["continue", "--param", "a", "--range", "0.22", "0.05", "--seeds", "40"],
 }
 
 

@@ -23,6 +23,7 @@ import pytest
 
 from cli_run import run_cli
 from hammerbit.cli.main import build_parser
+from hammerbit.model.regime_codes import REGIME_BITS
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 DOCS = [ROOT / "README.md"] + sorted((ROOT / "docs").glob("*.md"))
@@ -96,7 +97,7 @@ def test_simulate_json_si_against_hand_scales(capsys):
     assert rop["x0_per_period"] == pytest.approx((p300 - p150) / 150, rel=1e-7)
     assert d["period"] == 3
     assert d["flags"] == [] and d["paper_domain"] == {"inside": True, "outside": []}
-    assert not d["regime"]["runaway"] and not d["regime"]["bounce"]
+    assert not d["scene_flags"]["runaway"] and not d["scene_flags"]["bounce"]
     assert d["scales"]["length_m"] == pytest.approx(X0_M, rel=1e-14)
 
 
@@ -134,8 +135,10 @@ def test_paper_domain_and_scene_flags_reach_the_json_and_warn(settings, outside,
     assert code == 0
     d = json.loads(out)
     assert d["paper_domain"] == {"inside": not outside, "outside": outside}
-    assert d["flags"] == [f for f in ("runaway", "bounce", "tension", "transient") if d["regime"][f]]
-    for f in ("runaway", "bounce", "tension", "transient"):
+    names = [f for f in ("runaway", "bounce", "tension", "stall", "transient") if d["scene_flags"][f]]
+    assert d["flags"] == d["regime_names"] == names
+    assert d["regime"] == sum(REGIME_BITS[f] for f in names)
+    for f in ("runaway", "bounce", "tension", "stall", "transient"):
         assert (f"warning: {f}" in err) == (f in d["flags"]), err
     assert ("outside the paper's domain" in err) == bool(outside)
     assert "Traceback" not in err
@@ -148,7 +151,7 @@ def test_runaway_flag_marks_a_drift_without_bound(capsys):
         code, out, _ = run_cli(["simulate", "--preset", "chaos", "--set", f"b={b}", "--set", "eta=0.3",
                                 "--set", "a=0", "--periods", "100", "--json"], capsys)
         d = json.loads(out)
-        pens[b] = (d["penetration_x0"], d["regime"]["runaway"])
+        pens[b] = (d["penetration_x0"], d["scene_flags"]["runaway"])
     assert pens[0.62][1] and not pens[0.58][1]
     assert pens[0.62][0] > 100.0 * max(pens[0.58][0], 1.0)
 

@@ -126,11 +126,12 @@ def test_exit_code_table_matches_the_code():
     text = (ROOT / "docs" / "cli.md").read_text(encoding="utf-8")
     rows = dict(re.findall(r"^\| (\d+) \| (.+?) \|$", text, flags=re.M))
     codes = {c.EXIT_OK, c.EXIT_FAILURE, c.EXIT_BAD_INPUT, c.EXIT_UNSTABLE, c.EXIT_CHECK_FAILED,
-             c.EXIT_INACCURATE, c.EXIT_INTERRUPTED}
+             c.EXIT_INACCURATE, c.EXIT_INFEASIBLE, c.EXIT_INTERRUPTED}
     assert {int(k) for k in rows} == codes
     assert "bad input" in rows[str(c.EXIT_BAD_INPUT)]
     assert "unstable" in rows[str(c.EXIT_UNSTABLE)]
     assert "check --strict" in rows[str(c.EXIT_CHECK_FAILED)]
+    assert "no feasible" in rows[str(c.EXIT_INFEASIBLE)]
 
 
 LINK = re.compile(r"\]\(([^)\s]+)\)")

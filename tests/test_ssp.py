@@ -120,3 +120,15 @@ def test_libcosim_runs_the_auto_driller_as_hammerbit_does(drilling_ssp, tmp_path
     assert _same(lib.penetration_m, ours.penetration_m, ours.penetration_m)
     # the top acted: the hook load moved off the fixed hook's (0.25 N in 0.2 s; rounding is below 1e-4 N)
     assert abs(ours.data["hook_load"][-1] - fixed.data["hook_load"][-1]) > 0.05
+
+
+def test_a_users_own_jacobi_loop_is_fmpys_runner_and_the_wrong_wiring_is_not(drilling_ssp):
+    """``run_user_loop`` (the loop docs/cosim.md's step table is measured with) gives FMPy's
+    penetration; ``interface_force - wob`` into ``harmonic_force`` does not."""
+    from hammerbit.ssp.runners import run_fmpy, run_user_loop
+    fm = run_fmpy(drilling_ssp, FAST_STOP, H)
+    ours = run_user_loop(drilling_ssp, FAST_STOP, H)
+    wrong = run_user_loop(drilling_ssp, FAST_STOP, H, wiring="interface_force - wob")
+    assert fm.penetration_m > 1e-4
+    assert _same(ours.penetration_m, fm.penetration_m, fm.penetration_m), (ours.penetration_m, fm.penetration_m)
+    assert abs(wrong.penetration_m - fm.penetration_m) > 1e-3 * fm.penetration_m

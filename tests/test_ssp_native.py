@@ -2,6 +2,7 @@
 the pythonfmu package's run."""
 import zipfile
 
+import numpy as np
 import pytest
 
 from cli_run import run_cli
@@ -62,3 +63,40 @@ def test_cli_ssp_build_bad_runtime_exits_2(capsys, tmp_path):
     code, _out, err = run_cli(["ssp", "build", "--string", "lab", "--runtime", "cython", "--out",
                                str(tmp_path / "x.ssp")], capsys)
     assert code == 2 and "--runtime" in err and "Traceback" not in err
+
+
+def _with_step(src, dst, step: float):
+    """``src`` with libcosim's step annotation at ``step`` [s] (the FMUs take any step)."""
+    import re
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(dst, "w", zipfile.ZIP_DEFLATED) as zout:
+        for item in zin.namelist():
+            data = zin.read(item)
+            if item == "SystemStructure.ssd":
+                text = data.decode()
+                new = re.sub(r'baseStepSize="[^"]*"', f'baseStepSize="{step!r}"', text)
+                assert new != text
+                data = new.encode()
+            zout.writestr(item, data)
+    return dst
+
+
+def _past(native_ssp, stop):
+    """libcosim to ``stop``: its clock sends h = 0.0009999999999994458 s after 4 s, which the native
+    Drillstring takes (it refused it before, at t = 4.001 s)."""
+    from hammerbit.ssp.runners import run_libcosim
+    r = run_libcosim(native_ssp, stop)
+    assert abs(r.data["time"][-1] - stop) < 1e-9, r.data["time"][-1]
+    assert np.all(np.isfinite(r.data["bit_position"])) and r.penetration_m > 1e-4
+    return r
+
+
+def test_libcosim_runs_the_native_package_past_4_s(native_ssp):
+    _past(native_ssp, 4.5)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("step", [1e-3, 5e-4])
+def test_libcosim_runs_the_native_package_60_s(native_ssp, tmp_path, step):
+    path = native_ssp if step == H else _with_step(native_ssp, tmp_path / "drilling.ssp", step)
+    r = _past(path, 60.0)
+    assert np.allclose(np.diff(r.data["time"]), step, rtol=1e-6)

@@ -197,8 +197,12 @@ def test_map_json_nested_lists():
     assert "rop" not in d and "rop_x0_per_period" in d and "min_drive_f0" in d
     for i in range(2):
         for j in range(2):
-            assert d["flags"][i][j] == [f for f in ("runaway", "bounce", "tension", "transient")
+            assert d["flags"][i][j] == [f for f in ("runaway", "bounce", "tension", "stall", "transient")
                                         if int(ds[f].values[i, j])]
+            # the verdict's integer is the sum of its bits (the codes of regime_codes, spelled out)
+            bits = {"runaway": 1, "bounce": 2, "tension": 4, "stall": 8, "transient": 16}
+            assert d["regime"][i][j] == sum(bits[f] for f in d["flags"][i][j])
+            assert d["regime_bits"] == bits
 
 
 #: The kinetic friction ratio the runaway tests are written for (the floor b crosses).

@@ -32,7 +32,7 @@ import threading
 import traceback
 
 __all__ = ["EXIT_OK", "EXIT_FAILURE", "EXIT_BAD_INPUT", "EXIT_UNSTABLE", "EXIT_CHECK_FAILED",
-           "EXIT_INACCURATE", "EXIT_INTERRUPTED", "UsageError", "RunFailure", "parse_settings",
+           "EXIT_INACCURATE", "EXIT_INFEASIBLE", "EXIT_INTERRUPTED", "UsageError", "RunFailure", "parse_settings",
            "add_set_argument", "SET_HELP", "run_command", "error", "NETCDF_SUFFIXES",
            "MAX_WORKERS_PER_CORE", "MEMORY_FRACTION", "MAX_CPU_SECONDS", "max_workers", "check_workers",
            "check_output", "check_input_file", "output_errors", "available_memory", "check_fits",
@@ -45,6 +45,7 @@ EXIT_BAD_INPUT = 2
 EXIT_UNSTABLE = 3
 EXIT_CHECK_FAILED = 4
 EXIT_INACCURATE = 5
+EXIT_INFEASIBLE = 6
 EXIT_INTERRUPTED = 130
 
 

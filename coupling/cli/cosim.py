@@ -209,6 +209,21 @@ def _print_text(out: dict, res, cfg, string) -> None:
         print(f"  wrote {out['csv']}")
 
 
+def warn_capacity(cfg) -> None:
+    """Before the run: a held WOB the rock cannot carry, on stderr (:func:`hammerbit.cosim.config.capacity_warning`)."""
+    from hammerbit.cosim.config import capacity_warning
+    msg = capacity_warning(cfg)
+    if msg:
+        print(f"hammerbit cosim: warning: {msg}", file=sys.stderr)
+
+
+def warn_regime(out: dict) -> None:
+    """After the run: the flags of the regime verdict on stderr (they are in the JSON too)."""
+    from hammerbit.cosim.config import cosim_warnings
+    for msg in cosim_warnings(out):
+        print(f"hammerbit cosim: warning: {msg}", file=sys.stderr)
+
+
 def cmd_cosim(args) -> int:
     if args.ssp is not None:
         from hammerbit.cli.ssp import cosim_ssp
@@ -231,6 +246,7 @@ def cmd_cosim(args) -> int:
     cfg = config_from_args(args, **extra)
     string = load_string_arg(args)
     fmu = fmu_arg(args)
+    warn_capacity(cfg)
     t0 = time.perf_counter()
     try:
         if args.monolithic:
@@ -262,6 +278,9 @@ def cmd_cosim(args) -> int:
         print(json.dumps(out, indent=2, default=float))
     else:
         _print_text(out, res, cfg, string)
+    if out["top"].get("retuned"):
+        print(f"hammerbit cosim: note: {out['top']['retune_note']}", file=sys.stderr)
+    warn_regime(out)
     bounce = out["bounce"]["violations"]
     if bounce:
         print(f"hammerbit cosim: warning: {bounce} bounce violation(s): the rock would have to pull the bit "

@@ -78,11 +78,13 @@ def add_build_string(fsub) -> None:
     b.add_argument("--runtime", choices=("pythonfmu", "native"), default="pythonfmu",
                    help="pythonfmu (default): the string runs in Python in the host, any step size, all "
                         "parameters tunable; native: the binaries (linux64, and win64 with "
-                        "x86_64-w64-mingw32-gcc) hold the compiled step and need no Python; they carry "
-                        "the step sizes of --step and the build's damping ratio and auto-driller gains")
+                        "x86_64-w64-mingw32-gcc) hold the compiled step and need no Python; they take any "
+                        "step size (those of --step with the build's exponentials) and carry the build's "
+                        "damping ratio and auto-driller gains")
     b.add_argument("--step", type=float, action="append", default=None, metavar="SECONDS",
-                   help="--runtime native: a communication step size [s] the FMU carries (repeatable; "
-                        "default 0.001, the default experiment's)")
+                   help="--runtime native: a communication step size [s] whose exponentials the FMU carries "
+                        "(repeatable; default 0.001, the default experiment's; any other step gets "
+                        "its own at its first use)")
     b.set_defaults(func=cmd_fmu_build_string)
 
 

@@ -31,6 +31,7 @@ COMMAND_MODULES = [
     "hammerbit.cli.studies",
     "hammerbit.cli.fmu",
     "hammerbit.cli.ssp",
+    "hammerbit.cli.continuation",
 ]
 
 #: Most samples ``simulate --csv`` writes (about 1 GB of text).
@@ -114,19 +115,25 @@ def regime_warnings(g, flags) -> list:
 
     ``flags`` is the run's :class:`hammerbit.scene.flags.SceneFlags`.
     """
+    from hammerbit.model.regime import STALL_PERIODS
+
     F0 = g.scales.friction_force
     out = []
     if flags.runaway:
-        out.append(f"runaway: the bit never stuck over the last half and its drift keeps accelerating "
-                   f"(preload {g.b * F0:.4g} N above the kinetic friction at high speed "
+        how = (f"from period {flags.certified_at} on it provably cannot stick again" if flags.certified_at is not None
+               else "it has not stuck since and its drift keeps accelerating")
+        out.append(f"runaway: {how} (preload {g.b * F0:.4g} N above the kinetic friction at high speed "
                    f"{g.mu * F0:.4g} N); the penetration is not a rate of penetration")
     if flags.bounce:
         out.append(f"bounce: the drive on the bit fell below -F_s = {-F0:.4g} N while the bit was stuck, "
                    f"{flags.bounces} time(s): the rock would have to pull the bit back; the model held it")
     if flags.tension:
         out.append(f"tension: the drive on the bit fell below zero (lowest {flags.min_drive * F0:.4g} N)")
+    if flags.stall:
+        out.append(f"stall: the bit has not slipped for the last {STALL_PERIODS} forcing periods or more, "
+                   f"with the preload {g.b * F0:.4g} N held: it no longer drills")
     if flags.transient:
-        more = (f"; it settles into period-{flags.settling_period} after about {flags.settled_after} periods"
+        more = (f"; the last quarter repeats period-{flags.settling_period} from period {flags.settled_after}"
                 if flags.settling_period and flags.settled_after is not None else "")
         out.append(f"transient: the period-n has not settled within the horizon{more}")
     if not flags.domain["inside"]:
@@ -155,6 +162,7 @@ def _simulate(args, worker) -> int:
     from hammerbit.model.validation import check
 
     from hammerbit.scene.analysis import detect_period
+    from hammerbit.model.regime_codes import regime_json
     from hammerbit.scene.simulate import BounceWarning, Record, simulate, write_samples_csv
 
     g = _groups_from_args(args)
@@ -215,7 +223,8 @@ def _simulate(args, worker) -> int:
         "penetration_per_period_mm": g.length_m(per_period) * 1e3,
         "rop": rop,
         "period": period,
-        "regime": reg.to_dict(g.scales.friction_force) if reg else None,
+        **(regime_json(reg.code) if reg else {"regime": None, "regime_names": None}),
+        "scene_flags": reg.to_dict(g.scales.friction_force) if reg else None,
         "flags": reg.flags if reg else None,
         "paper_domain": reg.domain if reg else None,
         "events": res.counts,
@@ -248,6 +257,8 @@ def _simulate(args, worker) -> int:
         if peak is not None:
             print(f"peak contact force: {peak:.4g} N")
         print(f"solver: {solver.method}, {res.stats['steps']} steps, {res.wall_time_s * 1e3:.3g} ms")
+        if reg:
+            print(f"regime: {reg.code}" + (" (" + ", ".join(reg.flags) + ")" if reg.flags else " (drilling)"))
         if reg and reg.flags:
             print("flags: " + ", ".join(reg.flags) + (" (not a drilling point; see stderr)" if reg.unusable
                                                        else " (see stderr)"))

@@ -99,9 +99,23 @@ def _refuse_fixed_options(args) -> None:
                              f"package sets it: rebuild it with `hammerbit ssp build`)")
 
 
+def _warn_capacity_before(ssp, overrides: dict) -> None:
+    """The package's WOB set point against the rock's sliding capacity, before the run (unpacks it once more)."""
+    from hammerbit.cosim.config import capacity_warning
+    from hammerbit.ssp.run import load_ssp
+    system = load_ssp(ssp, **overrides)
+    try:
+        msg = capacity_warning(system.config)
+    finally:
+        system.close()
+    if msg:
+        print(f"hammerbit cosim: warning: {msg}", file=sys.stderr)
+
+
 def cosim_ssp(args) -> int:
     """``hammerbit cosim --ssp PACKAGE``: the master on the package's system."""
     from hammerbit.cosim.error import StepResolutionError
+    from hammerbit.cosim.config import cosim_warnings
     from hammerbit.ssp.run import cosimulate_ssp, monolithic_ssp
     _refuse_fixed_options(args)
     if not Path(args.ssp).is_file():
@@ -119,6 +133,7 @@ def cosim_ssp(args) -> int:
     overrides["adaptive"] = (args.step is None or args.adaptive) and not args.monolithic
     t0 = time.perf_counter()
     try:
+        _warn_capacity_before(args.ssp, overrides)
         if args.monolithic:
             res = monolithic_ssp(args.ssp, **overrides)
         else:
@@ -130,6 +145,8 @@ def cosim_ssp(args) -> int:
     out = res.summary()
     out["total_time_s"] = time.perf_counter() - t0
     out["ssp"] = str(args.ssp)
+    for msg in cosim_warnings(out):
+        print(f"hammerbit cosim: warning: {msg}", file=sys.stderr)
     est = res.estimate
     out["meets_tolerance"] = None if est is None else est.meets_tolerance
     if args.out:

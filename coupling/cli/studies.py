@@ -23,7 +23,9 @@ import math
 import sys
 import time
 
-from hammerbit.cli.common import RunFailure, UsageError, add_set_argument, parse_settings
+from hammerbit.cli.common import (EXIT_INFEASIBLE, RunFailure, UsageError, add_set_argument, check_input_file,
+                                   parse_settings)
+from hammerbit.model.regime_codes import REGIME_BITS, REGIME_TRANSIENT, regime_names
 
 __all__ = ["register", "cmd_bifurcation", "cmd_sweep", "cmd_map", "cmd_optimize"]
 
@@ -99,7 +101,9 @@ def cmd_bifurcation(args) -> int:
         res.to_csv(args.csv)
     summary = {"param": args.param, "num": args.num, "periods": args.periods,
                "wall_time_s": res.wall_time_s, "periods_per_second": res.periods_per_second,
-               "workers": res.workers, "out": args.out, "csv": args.csv, "period_n": list(res.periods)}
+               "workers": res.workers, "out": args.out, "csv": args.csv, "period_n": list(res.periods),
+               "regime": [int(c) for c in res.regime], "regime_names": [regime_names(c) for c in res.regime]}
+    _warn_flagged("bifurcation", summary["regime_names"], values)
     if args.json:
         print(_dump(summary))
     else:
@@ -107,6 +111,16 @@ def cmd_bifurcation(args) -> int:
               f"({res.periods_per_second:,.0f} periods/s, {res.workers} worker(s)); figure: {args.out}"
               + (f"; Poincaré points in SI (s, mm, m/s): {args.csv}" if args.csv else ""))
     return 0
+
+
+def _warn_flagged(command: str, names: list, values, unit: str = "") -> None:
+    """One stderr line per regime flag set somewhere in a study, with the values where it is."""
+    for flag in REGIME_BITS:
+        where = [float(v) for v, n in zip(values, names) if flag in n]
+        if where:
+            print(f"hammerbit {command}: warning: {flag} at {len(where)} value(s): "
+                  + ", ".join(f"{v:g}{unit}" for v in where[:8]) + (" ..." if len(where) > 8 else ""),
+                  file=sys.stderr)
 
 
 # ---------------------------------------------------------------------------
@@ -141,12 +155,14 @@ def cmd_sweep(args) -> int:
     in_band = [float(f) for f in modes if lo <= f <= hi]
     i_pk = int(np.argmax(res["wob_amplitude_n"]))
     unsettled = [float(r["frequency_hz"]) for r in res if not r["steady"]]
+    _warn_flagged("sweep", [regime_names(c & ~REGIME_TRANSIENT) for c in res["regime"]], freqs, unit=" Hz")
     out = {"string": string.name, "frequencies_hz": [float(f) for f in freqs],
            "duration_s": args.duration, "wall_time_s": time.perf_counter() - t0,
            "peak_frequency_hz": float(res["frequency_hz"][i_pk]),
            "peak_wob_amplitude_n": float(res["wob_amplitude_n"][i_pk]),
            "coupled_modes_hz": in_band, "not_settled_hz": unsettled,
-           "rows": [{k: float(r[k]) for k in res.dtype.names} for r in res]}
+           "rows": [{**{k: float(r[k]) for k in res.dtype.names}, "regime": int(r["regime"]),
+                     "regime_names": regime_names(r["regime"])} for r in res]}
     if in_band:
         out["nearest_mode_to_peak_hz"] = min(in_band, key=lambda f: abs(f - out["peak_frequency_hz"]))
     if args.csv:
@@ -177,6 +193,20 @@ def cmd_sweep(args) -> int:
 # ---------------------------------------------------------------------------
 # map
 # ---------------------------------------------------------------------------
+def _overlay(args):
+    """The curves of ``--overlay FILE`` (``hammerbit continue --json``), read before the map runs."""
+    if not args.overlay:
+        return None
+    if not args.plot:
+        raise UsageError("--overlay draws curves on the --plot figure: give --plot FILE too")
+    check_input_file(args.overlay, "--overlay")
+    from hammerbit.continuation.output import load_curves
+    try:
+        return load_curves(args.overlay)
+    except ValueError as e:
+        raise UsageError(f"--overlay {args.overlay}: {e}") from None
+
+
 def cmd_map(args) -> int:
     from hammerbit.studies.map import FLAG_FIELDS, Axis, best_valid_cell, map_to_json, regime_map
     if not args.axis:
@@ -184,6 +214,7 @@ def cmd_map(args) -> int:
     if len(args.axis) > 3:
         raise UsageError(f"map takes 1 to 3 --axis options, got {len(args.axis)}")
     axes = [Axis.parse(a) for a in args.axis]
+    overlay = _overlay(args)
     g = _groups(args)
     ds = regime_map(g, axes, periods=args.periods, solver=_solver(args), options=_executor_options(args),
                     attrs={"preset": args.preset, "settings": json.dumps(parse_settings(args.set))})
@@ -191,12 +222,16 @@ def cmd_map(args) -> int:
         ds.to_netcdf(args.out, engine="scipy")
     if args.plot:
         from hammerbit.studies.plots import plot_map
-        plot_map(ds, args.plot)
+        plot_map(ds, args.plot, overlay=overlay)
     failed = int(ds.attrs["failed_cells"])
     if failed:
         first = json.loads(ds.attrs["errors"])[:1]
         print(f"hammerbit map: warning: {failed} cell(s) did not run (status 1/2, NaN values): "
               + (first[0] if first else ""), file=sys.stderr)
+    flagged = {f: int(ds[f].values.sum()) for f in FLAG_FIELDS if int(ds[f].values.sum())}
+    if flagged:
+        print("hammerbit map: warning: flagged cells (the regime verdict, docs/model.md): "
+              + ", ".join(f"{f} {k}" for f, k in flagged.items()), file=sys.stderr)
     if args.json:
         d = map_to_json(ds)
         d.update({"preset": args.preset, "out": args.out, "plot": args.plot})
@@ -280,9 +315,14 @@ def cmd_optimize(args) -> int:
                f"bounds (no bounce, a + b <= 1, no runaway in the scene's dynamics"
                + (", frequency check" if string is not None else "")
                + (", contact force" if args.max_contact_force is not None else "") + ")")
+        if res.infeasible is not None:
+            msg += f"; {res.infeasible.text()}"
         if args.json:
             print(_dump(out))
-        raise RunFailure(msg)
+        raise RunFailure(msg, code=EXIT_INFEASIBLE)
+    if out["optimum"].get("regime_names"):
+        print("hammerbit optimize: warning: the optimum is flagged: " + ", ".join(out["optimum"]["regime_names"]),
+              file=sys.stderr)
     if args.confirm:
         if string is None:
             raise UsageError("--confirm needs --string")
@@ -382,6 +422,8 @@ def register(subparsers) -> None:
     _add_executor_args(p)
     p.add_argument("--out", default=None, help="netCDF file (xarray.open_dataset reads it)")
     p.add_argument("--plot", default=None, help="figure file: period map with ROP contours")
+    p.add_argument("--overlay", default=None, metavar="CURVES.json",
+                   help="draw the curves of `hammerbit continue --json` (--param2) over the --plot map")
     p.add_argument("--json", action="store_true", help="print the map as JSON")
     p.set_defaults(func=cmd_map)
 

@@ -1,6 +1,7 @@
 """Options and results of a co-simulation run: :class:`CosimConfig`, :class:`CosimResult`.
 
-Also the field hammer (:func:`field_hammer`), the recordable variables
+Also the regime verdict of a run (:func:`cosim_regime`, :func:`capacity_warning`), the field hammer
+(:func:`field_hammer`), the recordable variables
 (:data:`RECORDABLE`) and :class:`CouplingInstabilityError`.  All re-exported by
 :mod:`hammerbit.cosim.master`.
 """
@@ -14,6 +15,8 @@ from typing import Optional, Sequence
 import numpy as np
 
 from hammerbit.model.params import RigParameters
+from hammerbit.model.regime import STALL_PERIODS, STALL_WOB_FRACTION, friction_floor, sliding_capacity
+from hammerbit.model.regime_codes import REGIME_BITS, REGIME_BOUNCE, regime_json
 from hammerbit.model.presets import RIG
 from hammerbit.model.scales import Scales
 from hammerbit.model.validation import check as _check
@@ -22,7 +25,8 @@ from hammerbit.cosim.error import CouplingErrorEstimate
 from hammerbit.drillstring.top import TopCondition
 
 __all__ = ["SCHEMES", "EXCHANGES", "HAMMER_INPUTS", "RECORDABLE", "CouplingInstabilityError", "field_hammer",
-           "default_hammer", "CosimConfig", "CosimResult", "steady_start", "event_counts", "record_dtype"]
+           "default_hammer", "CosimConfig", "CosimResult", "steady_start", "event_counts", "record_dtype",
+           "capacity_warning", "cosim_regime", "cosim_warnings", "COSIM_SETTLE_TOL"]
 
 SCHEMES = ("jacobi", "gauss-seidel")
 #: How the string side computes the interface force at a communication point (``CosimConfig.exchange``).
@@ -365,6 +369,9 @@ class CosimResult:
     dense: Optional[np.ndarray] = None
     """``time``, ``wob`` sampled finely (the monolithic reference's dense output); the WOB
     figures are taken from it when present."""
+    steps: Optional[object] = None
+    """The run's :class:`~hammerbit.cosim.amplitude.StepLog`: the WOB amplitude is taken from
+    the WOB within each macro step when present."""
 
     @property
     def stop_s(self) -> float:
@@ -379,10 +386,14 @@ class CosimResult:
 
     def wob_amplitude(self, t_from: Optional[float] = None) -> float:
         """Dynamic WOB amplitude [N]: the fundamental harmonic at the forcing frequency over the
-        last whole forcing periods of the window (:mod:`hammerbit.cosim.amplitude`)."""
+        last whole forcing periods of the window (:mod:`hammerbit.cosim.amplitude`), from the WOB
+        within each macro step (:class:`~hammerbit.cosim.amplitude.StepLog`) for a co-simulation,
+        from the dense output for the monolithic reference."""
         from hammerbit.cosim.amplitude import fundamental
-        d = self.dense if self.dense is not None else self.data
         t0 = steady_start(self.config) if t_from is None else t_from
+        if self.steps is not None:
+            return self.steps.wob_harmonic(t0)[0]
+        d = self.dense if self.dense is not None else self.data
         return fundamental(d["time"], d["wob"], self.config.rig.frequency, t0)[0]
 
     def wob_peaks(self, t_from: Optional[float] = None) -> tuple:
@@ -418,6 +429,9 @@ class CosimResult:
         if self.estimate is not None:
             out["error_estimate"] = self.estimate.to_dict()
         out.update({k: v for k, v in self.stats.items() if isinstance(v, (int, float, str))})
+        verdict = cosim_regime(self)
+        out.update(regime_json(verdict["code"]))
+        out["regime_detail"] = verdict
         return out
 
     def to_csv(self, path) -> Path:
@@ -442,6 +456,112 @@ def record_unit(name: str) -> str:
 def steady_start(config: CosimConfig) -> float:
     """Start of the steady window [s]: the later of the run's midpoint and the end of the ramp."""
     return max(0.5 * (config.start + config.stop), min(config.start + config.ramp, config.stop))
+
+
+#: The co-simulation's ``transient``: the mean WOB of the last two quarters differs by more than this
+#: fraction of the set point, or their rates of penetration by more than this fraction of the larger.
+COSIM_SETTLE_TOL = 0.05
+
+
+def capacity_warning(config: CosimConfig) -> Optional[str]:
+    """A warning before the run when the held WOB (auto-driller set point or feed) exceeds what the rock carries.
+
+    The rock holds at most ``mu_d F_N`` (:func:`hammerbit.model.regime.sliding_capacity`) against a
+    sliding bit: a top condition that keeps more weight on the bit drives it faster and faster.
+    """
+    if config.top.kind not in ("auto-driller", "feed"):
+        return None
+    cap = sliding_capacity(config.rig.mu_kinetic, config.rig.normal_force)
+    wob = config.weight_on_bit
+    if not wob > cap:
+        return None
+    what = "set point" if config.top.kind == "auto-driller" else "(held by the feed)"
+    return (f"the WOB {what} {wob:.6g} N is above the rock's sliding capacity mu_d F_N = {cap:.6g} N: "
+            f"once the bit slides it cannot stick again (runaway)")
+
+
+def _windows_grow(t: np.ndarray, x: np.ndarray, n: int) -> bool:
+    """The mean velocity dx/dt over ``n`` equal windows of (t, x) grows strictly, the last growth >= half the first."""
+    edges = np.linspace(t[0], t[-1], n + 1)
+    xs = np.interp(edges, t, x)
+    v = np.diff(xs) / np.diff(edges)
+    growth = np.diff(v)
+    return bool(np.all(growth > 0.0) and growth[-1] >= 0.5 * growth[0])
+
+
+def cosim_regime(result: "CosimResult") -> dict:
+    """The regime verdict of a co-simulation from its recorded series.
+
+    The rules of ``docs/model.md`` ("Validity domain and the regime verdict").  The bit is stuck at
+    a sample where the recorded ``stick`` is 1 (or, without it, its velocity is 0).  ``runaway``: no
+    stuck sample over ``RUNAWAY_WINDOWS`` windows of at least ``MIN_WINDOW`` forcing periods at the
+    end, the mean bit velocity growing over them (the fallback rule of the scenes), and the mean WOB above the friction
+    floor; ``stall``: no slip for ``STALL_PERIODS`` forcing periods at the end while the mean WOB is at
+    least ``STALL_WOB_FRACTION`` of its set point; ``bounce``: bounce violations counted; ``tension``:
+    the WOB fell below zero; ``transient``: the last two quarters differ (:data:`COSIM_SETTLE_TOL`).
+    Needs ``bit_position``, ``wob`` and ``stick`` or ``bit_velocity`` recorded; without them only ``bounce``.
+    """
+    from hammerbit.scene.flags import MIN_WINDOW, RUNAWAY_WINDOWS
+    cfg = result.config
+    d = result.data
+    bounce = int(result.counts.get("bounce_violations", 0)) > 0
+    out = {"runaway": False, "bounce": bounce, "tension": False, "stall": False, "transient": False,
+           "sliding_capacity_n": sliding_capacity(cfg.rig.mu_kinetic, cfg.rig.normal_force),
+           "wob_set_point_n": cfg.weight_on_bit}
+    names = d.dtype.names
+    if len(d) < 8 or not all(k in names for k in ("bit_position", "wob")) or \
+            not ("stick" in names or "bit_velocity" in names):
+        out["code"] = REGIME_BOUNCE if bounce else 0
+        return out
+    t, x, wob = d["time"], d["bit_position"], d["wob"]
+    held = d["stick"] > 0.5 if "stick" in names else d["bit_velocity"] <= 0.0
+    T = 1.0 / cfg.rig.frequency
+    stuck = np.nonzero(held)[0]
+    t_stuck = float(t[stuck[-1]]) if stuck.size else float(t[0])
+    out["tension"] = bool(np.min(wob) < 0.0)
+    out["last_stuck_s"] = float(t[stuck[-1]]) if stuck.size else None
+    # runaway: the samples after the last stuck one
+    after = t > t_stuck
+    if np.count_nonzero(after) >= 2 and t[-1] - t_stuck >= RUNAWAY_WINDOWS * MIN_WINDOW * T:
+        ta, xa = t[after], x[after]
+        last = ta >= ta[-1] - (ta[-1] - ta[0]) / RUNAWAY_WINDOWS
+        F0 = cfg.rig.mu_static * cfg.rig.normal_force
+        g = cfg.rig.to_groups().replace(b=float(np.mean(wob[after][last])) / F0)
+        out["runaway"] = bool(g.b > friction_floor(g) and _windows_grow(ta, xa, RUNAWAY_WINDOWS))
+    # stall: no slip over the last STALL_PERIODS periods, the WOB held
+    tail = t >= t[-1] - STALL_PERIODS * T
+    if t[-1] - t[0] >= STALL_PERIODS * T and np.all(held[tail]):
+        out["stall"] = bool(np.mean(wob[tail]) >= STALL_WOB_FRACTION * cfg.weight_on_bit)
+    if not (out["runaway"] or out["stall"]):
+        q = [(t >= t[0] + f * (t[-1] - t[0])) for f in (0.5, 0.75)]
+        third, fourth = q[0] & ~q[1], q[1]
+        if np.count_nonzero(third) >= 2 and np.count_nonzero(fourth) >= 2:
+            dw = abs(np.mean(wob[fourth]) - np.mean(wob[third]))
+            r3 = (x[third][-1] - x[third][0]) / (t[third][-1] - t[third][0])
+            r4 = (x[fourth][-1] - x[fourth][0]) / (t[fourth][-1] - t[fourth][0])
+            out["transient"] = bool(dw > COSIM_SETTLE_TOL * cfg.weight_on_bit
+                                    or abs(r4 - r3) > COSIM_SETTLE_TOL * max(abs(r3), abs(r4)))
+    out["code"] = sum(bit for name, bit in REGIME_BITS.items() if out[name])
+    return out
+
+
+def cosim_warnings(summary: dict) -> list:
+    """Plain-language warnings of a co-simulation's regime verdict (its :meth:`CosimResult.summary`)."""
+    r = summary["regime_detail"]
+    msgs = []
+    if r["runaway"]:
+        since = "the start" if r["last_stuck_s"] is None else f"t = {r['last_stuck_s']:.4g} s"
+        msgs.append(f"runaway: the bit has not stuck since {since} and its drift keeps accelerating (rock's "
+                    f"sliding capacity {r['sliding_capacity_n']:.6g} N, WOB set point {r['wob_set_point_n']:.6g} N); "
+                    f"the penetration is not a rate of penetration")
+    if r["stall"]:
+        msgs.append(f"stall: the bit has not slipped for the last {STALL_PERIODS} forcing periods while the WOB "
+                    f"is held: it no longer drills")
+    if r["tension"]:
+        msgs.append(f"tension: the WOB fell below zero (lowest {summary.get('wob_min_n', float('nan')):.4g} N)")
+    if r["transient"]:
+        msgs.append("transient: the mean WOB or the rate of penetration has not settled within the run")
+    return msgs
 
 
 def event_counts(raw: dict) -> dict:

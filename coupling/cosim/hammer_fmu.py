@@ -11,7 +11,11 @@ from hammerbit.model.params import RigParameters
 from hammerbit.cosim.hammer_interface import (OUT_BIT_POSITION, OUT_BIT_VELOCITY, OUT_HAMMER_POSITION,
                                               OUT_HAMMER_VELOCITY, OUT_WOB)
 
-__all__ = ["FMUHammer", "FMU_NAMES", "check_fmu_file", "fmu_start_values"]
+__all__ = ["FMUHammer", "FMUStepError", "FMU_NAMES", "check_fmu_file", "fmu_start_values"]
+
+
+class FMUStepError(RuntimeError):
+    """The hammer FMU's ``fmi2DoStep`` failed: the run stops there, with the FMU's message."""
 
 
 def check_fmu_file(path) -> None:
@@ -83,7 +87,10 @@ class FMUHammer:
 
     def __init__(self, path, rig: RigParameters, wob: float, *, t0: float = 0.0, rtol: float = 1e-8,
                  instance: str = "hammer", force_input: str = "preload"):
+        from fmpy.fmi1 import FMICallException
+
         from hammerbit.fmu.host import FMUInstance
+        self._call_error = FMICallException
         self.path = str(path)
         self._host = FMUInstance(self.path, instance, start_time=t0, init=False)
         md, self.fmu = self._host.md, self._host.fmu
@@ -131,7 +138,12 @@ class FMUHammer:
             self.fmu.setReal(self._vr_preload, [force])
         else:
             self.fmu.setReal([self.vr_force], [force - self.wob])
-        self.fmu.doStep(t, H)
+        try:
+            self.fmu.doStep(t, H)
+        except self._call_error as e:        # the run stops here: say what the FMU said
+            said = self._host.errors()
+            raise FMUStepError(f"FMU {self.path}: the step from t = {t:.9g} s (h = {H:.6g} s) failed: "
+                               f"{said[-1] if said else e}") from None
 
     def get_state(self):
         """fmi2GetFMUstate (the FMU saves its whole hidden state)."""

@@ -10,6 +10,7 @@ from numba import typeof
 
 from hammerbit.model.numba_dispatch import entry_point
 
+from hammerbit.cosim.amplitude import StepLog
 from hammerbit.cosim.config import CosimConfig
 from hammerbit.cosim.exchange import (EXCHANGE_OUT_DEFECT, EXCHANGE_OUT_ENERGY_RESIDUAL, EXCHANGE_OUT_FORCE,
                                       EXCHANGE_OUT_STRING_FORCE, HAMMER_ARG, DenseForm, ExchangeHistory,
@@ -64,6 +65,12 @@ class Lane:
         # arguments (exchange_args), its dispatcher]; the held force's entry point after the first step
         self._calls, self._call = {}, None
         self._held = held_force
+        rig = c.rig
+        self.steps = StepLog(self.out, hammer_mass=rig.hammer_mass, amplitude=rig.amplitude,
+                             frequency=rig.frequency, phase=rig.phase,
+                             master_harmonic=getattr(hammer, "master_harmonic", None),
+                             ramp=c if c.ramp > 0.0 else None)
+        """Every step of the lane, for the WOB within the steps (:meth:`wob_amplitude`)."""
 
     def load_kernels(self, h: float) -> None:
         """Load (or compile) the exchange and held-force kernels for steps of length ``h`` now,
@@ -80,6 +87,7 @@ class Lane:
         self.F_held = F_held
         self.hammer.step(t, h, F_held)
         out = self.out = self.hammer.read()
+        self.steps.add(t, h, F_held, out)
         if h != self._h:
             self._h = h
             call = self._calls.get(h)
@@ -108,11 +116,18 @@ class Lane:
             form = DenseForm(d.P, s.v, s.buf, s.tmp, self.frow)
         return [self.scheme, h, form, self.iface, self.exchange_hist, None]
 
+    def wob_amplitude(self, t_from: float) -> float:
+        """The WOB amplitude of the lane [N]: the fundamental harmonic at the forcing frequency over
+        the last whole forcing periods after ``t_from`` [s], from the WOB within each step."""
+        return self.steps.wob_harmonic(t_from)[0]
+
     def snapshot(self):
-        return self.hammer.get_state(), self.string.copy_state(), self.hist.copy(), self.out.copy()
+        return (self.hammer.get_state(), self.string.copy_state(), self.hist.copy(), self.out.copy(),
+                len(self.steps))
 
     def restore(self, snap) -> None:
-        hs, v, hist, out = snap
+        hs, v, hist, out, n_steps = snap
+        self.steps.truncate(n_steps)
         self.hammer.set_state(hs)
         self.string.restore(v)
         self.hist[:] = hist

@@ -86,7 +86,6 @@ from typing import Optional
 import numpy as np
 
 from hammerbit.cosim.config import CosimConfig, CosimResult, CouplingInstabilityError, steady_start
-from hammerbit.cosim.amplitude import fundamental
 from hammerbit.cosim.error import check_step, measured_order, richardson, step_limits, unclaimed, SAFETY_FACTOR
 from hammerbit.cosim.hammer_interface import OUT_BIT_POSITION, OUT_WOB, counts_of
 from hammerbit.cosim.hammers import hammer_side
@@ -360,10 +359,8 @@ def _run(side: StringSide, c: CosimConfig, *, fmu, hammer, defect_tol) -> CosimR
         data = rec.result()
         est = None
         if fine is not None:
-            # both amplitudes on the run's communication points in the steady window
-            t_arr, t_from, f_rig = np.asarray(t_all), steady_start(c), c.rig.frequency
-            amp = fundamental(t_arr, np.asarray(wob_m), f_rig, t_from)[0]
-            amp_f = fundamental(t_arr, np.asarray(wob_f), f_rig, t_from)[0]
+            # each lane's amplitude from the WOB within its own steps
+            amp, amp_f = main.wob_amplitude(steady_start(c)), fine.wob_amplitude(steady_start(c))
             p = measured_order(np.asarray(d_main), np.asarray(d_fine))
             est = richardson(amplitude=amp, amplitude_fine=amp_f, penetration=pen,
                              penetration_fine=float(fine.out[OUT_BIT_POSITION]), order=p, tol=c.tol,
@@ -385,7 +382,8 @@ def _run(side: StringSide, c: CosimConfig, *, fmu, hammer, defect_tol) -> CosimR
                           "defect_tol": defect_tol, "passes": 1, "tol": c.tol,
                           "h_min_used": h_used[0], "h_max_used": h_used[1]})
         return CosimResult(data, c, accepted, wall, setup, pen, stats,
-                           "cosim-adaptive" if c.adaptive else "cosim", counts=counts, estimate=est)
+                           "cosim-adaptive" if c.adaptive else "cosim", counts=counts, estimate=est,
+                           steps=main.steps)
     finally:
         if own:
             hammer.close()

@@ -206,6 +206,22 @@ class AutoDrillerGains:
     first_mode_hz: float
     natural_frequency_hz: float
     damping_ratio: float
+    loop_eigenvalue: complex = complex(math.nan, math.nan)
+    """The closed loop's eigenvalue with the largest real part (string and controller, hammer
+    held) [1/s] (:mod:`.top_stability`)."""
+    retuned_from: Optional[tuple] = None
+    """The default gains ``(k_p, k_i)`` when they were unstable and these replace them."""
+
+    @property
+    def retune_note(self) -> str:
+        """For people: why the gains are not the default tuning (empty when they are)."""
+        if self.retuned_from is None:
+            return ""
+        kp, ki = self.retuned_from
+        return (f"the default auto-driller gains (kp = {kp:.4g} m/s/N, ki = {ki:.4g} m/s/(N s)) make the closed "
+                f"loop unstable; retuned to kp = {self.proportional_gain:.4g}, ki = {self.integral_gain:.4g} "
+                f"(the loop's natural frequency scaled down, damping ratio kept, until its largest real part "
+                f"is {self.loop_eigenvalue.real:.4g} 1/s)")
 
     @property
     def settling_time_s(self) -> float:
@@ -215,8 +231,15 @@ class AutoDrillerGains:
         return SETTLE_TIME_CONSTANTS / (2.0 * math.pi * self.natural_frequency_hz)
 
     def to_dict(self) -> dict:
-        out = {k: float(getattr(self, k)) for k in self.__dataclass_fields__}
+        out = {k: float(getattr(self, k)) for k in self.__dataclass_fields__
+               if k not in ("loop_eigenvalue", "retuned_from")}
         out["settling_time_s"] = self.settling_time_s
+        out["loop_max_real_part_per_s"] = float(self.loop_eigenvalue.real)
+        out["loop_frequency_hz"] = abs(float(self.loop_eigenvalue.imag)) / (2.0 * math.pi)
+        out["retuned"] = self.retuned_from is not None
+        if self.retuned_from is not None:
+            out["default_proportional_gain"], out["default_integral_gain"] = map(float, self.retuned_from)
+            out["retune_note"] = self.retune_note
         return out
 
 
@@ -304,11 +327,16 @@ def rigid_inertia(string: DrillString, ss, mass: str) -> np.ndarray:
 
 
 def top_matrices(string: DrillString, ss, top: TopCondition, *, interface_stiffness: float,
-                 interface_damping: float, hammer_stiffness: float, mass: str = "mixed") -> SideMatrices:
+                 interface_damping: float, hammer_stiffness: float, mass: str = "mixed",
+                 check: bool = True) -> SideMatrices:
     """The string side's linear system with its top condition (see :class:`SideMatrices`).
 
     ``ss`` is the string's :class:`~hammerbit.drillstring.state_space.StateSpace` with the
-    hammer interface at the bottom.
+    hammer interface at the bottom.  With the auto-driller and ``check``, the closed loop's
+    eigenvalues are checked (:mod:`.top_stability`): unstable default gains are retuned
+    (``gains.retuned_from``), unstable gains the user gave raise
+    :class:`~.top_stability.ControllerUnstableError`.  ``check=False``: the gains as they are
+    (a finite difference in the gains).
     """
     ki, ci = float(interface_stiffness), float(interface_damping)
     n = ss.A.shape[0]
@@ -327,10 +355,40 @@ def top_matrices(string: DrillString, ss, top: TopCondition, *, interface_stiffn
     if top.kind != "auto-driller":
         return SideMatrices(A1, E, frow, Cu, Cv, Ct, n, kinds, top)
     gains = auto_driller_gains(string, top, interface_stiffness=ki, hammer_stiffness=hammer_stiffness, mass=mass)
-    kp, kI = gains.proportional_gain, gains.integral_gain
     dCt = Ct @ A1                          # d/dt (Ct xi): Ct reads displacements, E and the inertia act on velocities
     g_acc = np.zeros(n)
     g_acc[nq:] = -np.linalg.solve(ss.mass_matrix, rigid_inertia(string, ss, mass))
+    parts = (A1, E, frow, Cu, Cv, Ct, dCt, g_acc, ki, ci)
+    if check:
+        gains = _checked_gains(gains, top, lambda kp, kI: _closed_loop(parts, kp, kI)[0])
+    A, Ea, fr, cu, cv, ct = _closed_loop(parts, gains.proportional_gain, gains.integral_gain)
+    return SideMatrices(A, Ea, fr, cu, cv, ct, n, kinds + ("x", "z"), top, gains)
+
+
+def _checked_gains(gains: AutoDrillerGains, top: TopCondition, build) -> AutoDrillerGains:
+    """``gains`` with their loop eigenvalue when the loop is stable; default gains that are not
+    are retuned (:func:`~.top_stability.stable_gains`); gains the user gave are refused."""
+    from dataclasses import replace
+    from .top_stability import ControllerUnstableError, stable_gains
+    kp, kI, k_s = gains.proportional_gain, gains.integral_gain, gains.series_stiffness
+    first, ok = stable_gains(build, k_s, kp, kI)
+    if first.stable or (kp == 0.0 and kI == 0.0):
+        return replace(gains, loop_eigenvalue=first.eigenvalue)
+    given = top.proportional_gain is not None or top.integral_gain is not None
+    if given or ok is None:
+        raise ControllerUnstableError(kp, kI, first.eigenvalue,
+                                      None if ok is None else (ok.proportional_gain, ok.integral_gain))
+    wn = math.sqrt(k_s * ok.integral_gain)
+    return replace(gains, proportional_gain=ok.proportional_gain, integral_gain=ok.integral_gain,
+                   natural_frequency_hz=wn / (2 * math.pi), damping_ratio=k_s * ok.proportional_gain / (2 * wn),
+                   loop_eigenvalue=ok.eigenvalue, retuned_from=(kp, kI))
+
+
+def _closed_loop(parts: tuple, kp: float, kI: float) -> tuple:
+    """``(A, E, frow, Cu, Cv, Ct)`` of the string side closed by the auto-driller with gains
+    ``(kp, kI)``; ``parts`` the open string side's (see :func:`top_matrices`)."""
+    A1, E, frow, Cu, Cv, Ct, dCt, g_acc, ki, ci = parts
+    n = A1.shape[0]
     N = n + 2
     iu, iz = n, n + 1
     g = np.zeros(N)                        # v_top = g . X
@@ -359,4 +417,4 @@ def top_matrices(string: DrillString, ss, top: TopCondition, *, interface_stiffn
     cv += g
     ct = np.zeros(N)
     ct[:n] = Ct
-    return SideMatrices(A, Ea, fr, cu, cv, ct, n, kinds + ("x", "z"), top, gains)
+    return A, Ea, fr, cu, cv, ct

@@ -96,8 +96,9 @@ def _source_text(string_arg) -> str:
 
 
 def _rows(m, n_string: int, cv_fixed) -> np.ndarray:
-    """Output rows of side matrices ``m``: bottom u, v, top tension, top position, top velocity
-    (the block's state and ``v_top = g . X`` for the auto-driller; zero rows otherwise)."""
+    """Output rows of side matrices ``m``, in the order of ``string_model.OUTPUT_ROWS``: bottom u, v,
+    top tension, top position, top velocity (the block's state and ``v_top = g . X`` for the
+    auto-driller; zero rows otherwise)."""
     n = m.A1.shape[0]
     top_u, top_v = np.zeros(n), np.zeros(n)
     if n > n_string:
@@ -130,8 +131,9 @@ def string_build(string_arg, *, wob: Optional[float] = None, rig=None, top=None,
     from hammerbit.cosim.string_side import StringSide
     from hammerbit.drillstring import DrillStringError, load_string, state_space
     from hammerbit.drillstring.boundary import Boundary
-    from hammerbit.drillstring.top import TopCondition, auto_driller_gains, top_matrices
-    from hammerbit.model.string_model import TOP_CONDITIONS
+    from hammerbit.drillstring.top import TopCondition, top_matrices
+    from hammerbit.model.fmu_description import top_condition
+    from hammerbit.model.string_step import BUILT_STEPS
     string = string_arg if not isinstance(string_arg, (str, Path)) else load_string(string_arg)
     rig = default_hammer(string) if rig is None else rig
     top = TopCondition.fixed() if top is None else top
@@ -149,7 +151,7 @@ def string_build(string_arg, *, wob: Optional[float] = None, rig=None, top=None,
 
     def matrices(s, ss, t):
         return top_matrices(s, ss, t, interface_stiffness=ki, interface_damping=ci, hammer_stiffness=K,
-                            mass=config.mass)
+                            mass=config.mass, check=False)
     forms = {"fixed": _form(side.matrices, n_string, cv_fixed)}
     forms["fixed"]["d"]["damping_ratio"] = _derivative(
         forms["fixed"], matrices(string_other, ss_other, TopCondition.fixed()), n_string, cv_fixed,
@@ -157,8 +159,9 @@ def string_build(string_arg, *, wob: Optional[float] = None, rig=None, top=None,
     gains = None
     refused = None
     try:
-        gains = auto_driller_gains(string, top if top.kind == "auto-driller" else TopCondition.auto_driller(),
-                                   interface_stiffness=ki, hammer_stiffness=K, mass=config.mass)
+        # the gains of the checked closed loop (unstable default gains retuned, given ones refused)
+        gains = StringSide(string, config.replace(
+            top=top if top.kind == "auto-driller" else TopCondition.auto_driller())).gains
         kp, kI = gains.proportional_gain, gains.integral_gain
         auto_side = StringSide(string, config.replace(top=TopCondition.auto_driller(kp, kI)))
         f = forms["auto"] = _form(auto_side.matrices, n_string, cv_fixed)
@@ -183,20 +186,23 @@ def string_build(string_arg, *, wob: Optional[float] = None, rig=None, top=None,
     sections = "; ".join(f"{s.name or 'section'} {s.length:g} m x {s.od * 1e3:g} mm" for s in string.sections)
     info = {"name": string.name, "length_m": length, "sections": sections, "scalars": scalars,
             "hammer_position_at_rest": W / rig.stiffness,
-            "top_condition": TOP_CONDITIONS.index(top.kind), "feed_velocity": float(top.feed_velocity),
+            "top_condition": top_condition(top.kind).code, "feed_velocity": float(top.feed_velocity),
             "proportional_gain": build_values["proportional_gain"],
             "integral_gain": build_values["integral_gain"],
             "auto_driller": None if gains is None else gains.to_dict(), "auto_driller_refused": refused,
             "description": (f"Drillstring '{string.name}' ({length:g} m: {sections}) with its hammer "
                             f"interface k_i = {ki:g} N/m, c_i = {ci:g} N s/m; top boundary "
                             f"{string.top.spec()}; {n_string} states; geometry fixed at build time"),
-            "toml": _source_text(string_arg)}
+            "toml": _source_text(string_arg),
+            # the step lengths whose exponentials are the build's; the FMU takes any other too
+            "steps": list(BUILT_STEPS)}
     arrays = {"forms": forms, "build_values": build_values}
     return StringBuild(string, info["toml"], config, arrays, info)
 
 
 #: modules the Drillstring FMU's runtime cannot do without
-STRING_RUNTIME_MODULES = ("string_slave.py", "string_step.py", "string_kernels.py", "string_model.py",
+STRING_RUNTIME_MODULES = ("string_slave.py", "string_step.py", "string_kernels.py", "string_exponentials.py",
+                          "string_model.py",
                           "numba_cache.py")
 
 

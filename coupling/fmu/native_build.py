@@ -29,11 +29,12 @@ import zipfile
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
-from hammerbit.fmu.native import SOURCE_DIR, FrontBuildError, c_string, find_compiler, generate_header, \
+from hammerbit.fmu.native import FRONT_SOURCES, SOURCE_DIR, FrontBuildError, c_string, find_compiler, generate_header, \
     read_model_description
+from hammerbit.fmu.c_description import write_description_header
 from hammerbit.fmu.native_kernels import TARGETS, ALLOWED_UNDEFINED, build_objects, undefined_symbols
 
-__all__ = ["NATIVE_GENERATION_TOOL", "MINGW_CC", "NATIVE_SOURCES", "GLIBC_COMPAT_SOURCE", "GLIBC_WRAPPED", "STATES", "NativeBuildError", "native_header",
+__all__ = ["NATIVE_GENERATION_TOOL", "MINGW_CC", "C_FLAGS", "NATIVE_SOURCES", "GLIBC_COMPAT_SOURCE", "GLIBC_WRAPPED", "STATES", "NativeBuildError", "native_header",
            "select_platforms", "build_binaries", "link_binary", "nm_for",
            "native_model_description", "assemble_native_fmu"]
 
@@ -42,20 +43,20 @@ NATIVE_GENERATION_TOOL = "hammerbit fmu build --runtime native"
 #: the cross-compiler of the win64 binary (Debian package gcc-mingw-w64-x86-64)
 MINGW_CC = "x86_64-w64-mingw32-gcc"
 #: C sources of the native flavour (front, resource URIs, model backend, runtime shim)
-NATIVE_SOURCES = tuple(SOURCE_DIR / f for f in ("front.c", "resource_uri.c", "model_native.c",
+NATIVE_SOURCES = tuple(SOURCE_DIR / f for f in (*FRONT_SOURCES, "model_backend.c", "model_common.c",
+                                                "model_native.c", "model_params.c", "model_checks.c",
                                                 "model_values.c", "model_me.c", "model_state.c",
                                                 "real_repr.c", "nrt_shim.c"))
 #: the linux64 binaries' shim to glibc 2.17 (manylinux2014): the math functions glibc 2.27/2.29
 #: re-versioned, bound to their oldest version (the link wraps every reference to them)
 GLIBC_COMPAT_SOURCE = SOURCE_DIR / "glibc_compat.c"
 GLIBC_WRAPPED = ("exp", "log", "pow", "exp2", "log2", "expf", "logf", "powf", "exp2f", "log2f")
-_GROUP_NAMES = ("rho", "xi", "eta", "a", "b", "r", "mu", "gamma_hat", "kc", "n", "lam_hat", "phi")
 #: the nondimensional group whose range bounds each input, in units of the static friction
 #: threshold F0 (preload b = B/F0, forcing amplitude a = A/F0): |input| <= hi * F0
 INPUT_GROUPS = {"preload": "group.b", "harmonic_force": "group.a"}
-_RIG_ORDER = ("hammer_mass", "bit_mass", "stiffness", "damping", "mu_static", "mu_kinetic",
-              "friction_decay", "normal_force", "contact_stiffness", "contact_exponent",
-              "contact_damping", "gap", "preload", "amplitude", "frequency", "phase")
+#: compiler flags of every native binary: C11 with GNU extensions, optimised, and no fused
+#: multiply-add, so that the generated formulas round as Python does (aarch64 has FMA)
+C_FLAGS = ("-std=gnu11", "-O2", "-ffp-contract=off")
 
 
 class NativeBuildError(RuntimeError):
@@ -80,6 +81,7 @@ def native_header(model_description_xml, start_values: dict, layout: dict) -> st
     """Text of ``hb_native.h``: kernel layout, value references, ranges and start values."""
     from dataclasses import fields
 
+    from hammerbit.model.fmu_description import GROUP_FORMULAS, SI_NAMES
     from hammerbit.model.fmu_variables import INPUTS, PARAMETERS, variable_range
     from hammerbit.model.fmu_variables import start_values as all_start_values
     from hammerbit.model.solver_options import SolverOptions
@@ -108,13 +110,12 @@ def native_header(model_description_xml, start_values: dict, layout: dict) -> st
               f"#define HB_START_IMPACT_ENABLED {int(bool(starts['impact_enabled']))}"]
     lines += [f"#define HB_INPUT_LIMIT_F0_{n} {_c_double(RANGES[g].hi)}" for n, g in INPUT_GROUPS.items()]
     slots = {n: i for i, (n, _) in enumerate(stored)}
-    order = ", ".join("-1" if f == "preload" else f"HBS_{f}" for f in _RIG_ORDER)
-    lines += [f"#define HB_NRIG {len(_RIG_ORDER)}u",
-              f"static const int HB_RIG_ORDER[HB_NRIG] = {{{order}}};",
+    # the rig parameters of the formulas (hb_description.h, HB_SI_* order) as stored slots
+    order = ", ".join("-1" if f == "preload" else f"HBS_{f}" for f in SI_NAMES)
+    lines += [f"static const int HB_RIG_ORDER[HB_N_SI] = {{{order}}};",
               f"static const hb_range HB_RANGE_PRELOAD = {_c_range(RANGES['preload'])};",
-              f"#define HB_NGROUPS {len(_GROUP_NAMES)}",
               "static const hb_group HB_GROUPS[HB_NGROUPS] = {"]
-    lines += [f"    {{{c_string(g)}, {_c_range(RANGES['group.' + g])}}}," for g in _GROUP_NAMES]
+    lines += [f"    {{{c_string(g)}, {_c_range(RANGES['group.' + g])}}}," for g, _ in GROUP_FORMULAS]
     lines += ["};",
               f"static const hb_range HB_RANGE_STATE_POSITION = {_c_range(RANGES['state.hammer_position'])};",
               f"static const hb_range HB_RANGE_RTOL = {_c_range(RANGES['solver.rtol'])};",
@@ -163,7 +164,7 @@ def link_binary(platform: str, cc: str, obj: Path, include: Path, out: Path, sou
         raise NativeBuildError(f"the {platform} kernel object {obj.name} needs symbols no shim provides: "
                                f"{sorted(extra)}")
     srcs = [str(s) for s in sources]
-    common = ["-std=gnu11", "-O2", "-Wall", "-Wextra", "-Wno-unused-parameter", "-DHB_NATIVE_MODEL",
+    common = [*C_FLAGS, "-Wall", "-Wextra", "-Wno-unused-parameter", "-DHB_NATIVE_MODEL",
               "-I", str(include), "-I", str(SOURCE_DIR)]
     if platform == "linux64":
         # glibc_compat.c and --wrap: no symbol version above glibc 2.17 (see that file)
@@ -220,6 +221,7 @@ def build_binaries(model_description_xml, out_dir, *, start_values=None, platfor
         tmp = Path(tmp)
         summary = build_objects(tmp, platforms)
         (tmp / "hb_model.h").write_text(generate_header(spec, wrapper_file="", python_modules=()))
+        write_description_header(tmp)
         (tmp / "hb_native.h").write_text(native_header(model_description_xml, start_values or {},
                                                        summary["layout"]))
         for plat in platforms:

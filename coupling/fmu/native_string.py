@@ -11,16 +11,23 @@ The exact step over a communication step ``h`` needs the matrix exponential
 of the string side (and its eigendecomposition for the modal form): the build
 computes them with the library, for each form (fixed hook and feed; the
 auto-driller) and each step size it is given (default: the default
-experiment's step), and writes them into ``resources/string_native.bin``.
-So the native FMU takes the step sizes it was built for, and the parameters
-that change the matrices (``damping_ratio``; the auto-driller's gains) keep
-their build values: another value gives ``fmi2Error`` at
-``fmi2ExitInitializationMode`` naming the parameter (the Python flavour
-recomputes them).  Everything else is the Python flavour's: the model
+experiment's step), and writes them into ``resources/string_native.bin``,
+with each form's generator (its matrices, and the kept modes' eigenvalues and
+inputs).  The FMU takes any step ``h > 0``: one within 1e-9 (relative) of a
+built step uses that step's exponentials, any other gets its own from the
+compiled kernels of :mod:`hammerbit.model.string_exponentials` (closed form per mode,
+or the Pade exponential of the dense form), kept in a cache of
+``STEP_CACHE`` step lengths.  The parameters that change the matrices
+(``damping_ratio``; the auto-driller's gains) keep their build values:
+another value gives ``fmi2Error`` at ``fmi2ExitInitializationMode`` naming
+the parameter (the Python flavour recomputes them).  The FMU ships
+``string_native.bin`` and ``string_info.json`` (the description, which
+``hammerbit cosim --ssp`` reads).  Everything else is the Python flavour's: the model
 description's variables, causality, start values and messages.
 """
 from __future__ import annotations
 
+import json
 import shutil
 import struct
 import tempfile
@@ -30,22 +37,27 @@ from xml.etree import ElementTree as ET
 
 import numpy as np
 
+from hammerbit.model.string_step import BUILT_STEPS
+
 __all__ = ["NATIVE_STRING_TOOL", "DATA_FILE", "STRING_SOURCES", "DEFAULT_STEPS", "string_tables",
-           "write_tables", "string_header", "build_native_string_fmu"]
+           "write_tables", "read_string_arrays", "string_header", "build_native_string_fmu"]
 
 #: ``generationTool`` of the native string FMU's model description
 NATIVE_STRING_TOOL = "hammerbit fmu build-string --runtime native"
 #: the exact step's matrices in the FMU's resources directory
 DATA_FILE = "string_native.bin"
-_DATA_MAGIC = b"HBSTRN01"
-#: the communication step sizes the FMU carries by default [s] (the default experiment's)
-DEFAULT_STEPS = (1e-3,)
+_DATA_MAGIC = b"HBSTRN02"
+#: the kind of a form's generator block (step blocks: 0 dense, 1 modal)
+GENERATOR = 2
+#: the communication step sizes the FMU carries the exponentials of by default [s]
+DEFAULT_STEPS = BUILT_STEPS
 
 
 def _sources():
-    from hammerbit.fmu.native import SOURCE_DIR
-    return tuple(SOURCE_DIR / f for f in ("front.c", "resource_uri.c", "model_string.c",
-                                          "model_string_access.c", "real_repr.c", "nrt_shim.c"))
+    from hammerbit.fmu.native import FRONT_SOURCES, SOURCE_DIR
+    return tuple(SOURCE_DIR / f for f in (*FRONT_SOURCES, "model_backend.c", "model_common.c", "model_string.c",
+                                          "model_string_table.c", "model_string_access.c", "real_repr.c",
+                                          "nrt_shim.c"))
 
 
 #: C sources of the native string FMU (front, resource URIs, string backend, repr, runtime shim)
@@ -57,7 +69,7 @@ def string_tables(build, steps) -> list:
     over every step size of ``steps``: ``[(form index, step key, Discretisation, ExactStep)]``.
 
     The form (modal or dense) is decided at the first step size, as the Python flavour decides
-    it at the first step."""
+    it at the first built step."""
     from hammerbit.model.string_model import FORMS, string_matrices
     from hammerbit.model.string_step import ExactStep, step_key
     arrays = build.arrays
@@ -73,12 +85,16 @@ def string_tables(build, steps) -> list:
     return out
 
 
+def _complex_doubles(x) -> np.ndarray:
+    return np.ascontiguousarray(x, dtype=np.complex128).view(np.float64).ravel()
+
+
 def _block(form: int, key: float, d, side) -> np.ndarray:
-    """One block of :data:`DATA_FILE` (as ``model_string.c`` reads it), as doubles."""
+    """One step block of :data:`DATA_FILE` (as ``model_string.c`` reads it), as doubles."""
     if d.modal:
         parts = [side.m_frow, side.m_rows3, d.m_d, d.m_G, d.m_irow]
         n = side.m_frow.shape[0]
-        body = [np.ascontiguousarray(p, dtype=np.complex128).view(np.float64).ravel() for p in parts]
+        body = [_complex_doubles(p) for p in parts]
         body.append(np.asarray(d.m_icol, dtype=float))
     else:
         n = side.n
@@ -87,13 +103,59 @@ def _block(form: int, key: float, d, side) -> np.ndarray:
     return np.concatenate([np.array([form, key, 1.0 if d.modal else 0.0, n], dtype=float), *body])
 
 
+def _generator(form: int, side) -> np.ndarray:
+    """The generator block of a form: what the exponentials of any other step length are computed
+    from (``A1, E, frow, rows`` of the string side, and the kept modes' eigenvalues and inputs
+    ``V^-1 E`` in the modal form); ``hammerbit cosim --ssp`` reads the side from it too."""
+    m = side.m_lam.shape[0] if side.modal else 0
+    head = np.array([form, 0.0, float(GENERATOR), side.n, m], dtype=float)
+    body = [np.ascontiguousarray(p, dtype=float).ravel() for p in (side.A1, side.E, side.frow, side.rows3)]
+    if m:
+        body += [_complex_doubles(side.m_lam), _complex_doubles(side.m_B)]
+    return np.concatenate([head, *body])
+
+
 def write_tables(path: Path, tables) -> None:
-    """Write :func:`string_tables` into ``path`` (little-endian doubles behind a header)."""
+    """Write :func:`string_tables` and each form's generator into ``path`` (little-endian doubles
+    behind a header)."""
     blocks = [_block(*t) for t in tables]
+    sides = {}
+    for form, _, _, side in tables:
+        sides.setdefault(form, side)
+    blocks += [_generator(form, side) for form, side in sides.items()]
     data = np.concatenate(blocks).astype("<f8")
     with open(path, "wb") as fh:
         fh.write(_DATA_MAGIC + struct.pack("<qq", len(blocks), data.size))
         fh.write(data.tobytes())
+
+
+def read_string_arrays(data: bytes, info: dict) -> dict:
+    """The string side's arrays (as :func:`hammerbit.model.string_model.load_model` gives them) from
+    the generator blocks of a native FMU's :data:`DATA_FILE`: the matrices at the build's parameter
+    values, without their derivatives (the native FMU takes no other values)."""
+    from hammerbit.model.string_model import FORMS, PARAMETERS
+    if data[:8] != _DATA_MAGIC:
+        raise ValueError(f"{DATA_FILE}: not a string table of this version")
+    nblocks, total = struct.unpack("<qq", data[8:24])
+    x = np.frombuffer(data[24:], dtype="<f8", count=total)
+    forms, p = {}, 0
+    for _ in range(nblocks):
+        form, kind, n = int(x[p]), int(x[p + 2]), int(x[p + 3])
+        if kind == GENERATOR:
+            m = int(x[p + 4])
+            p += 5
+            f = forms[FORMS[form]] = {"d": {}}
+            for key, shape in (("A1", (n, n)), ("E", (n, 2)), ("frow", (n,)), ("rows", (5, n))):
+                size = int(np.prod(shape))
+                f[key] = x[p:p + size].reshape(shape).copy()
+                p += size
+            p += 6 * m
+        else:
+            p += 4 + (28 * n + 6 if kind else n + 5 * n + (n + 1) * (n + 6))   # as model_string.c reads it
+    sc = info["scalars"]
+    values = {"damping_ratio": sc["damping_ratio"], "proportional_gain": info["proportional_gain"],
+              "integral_gain": info["integral_gain"]}
+    return {"forms": forms, "build_values": {k: float(values[k]) for k in PARAMETERS}}
 
 
 def _c_str(text: str) -> str:
@@ -107,8 +169,12 @@ def _c_ident(name: str) -> str:
 
 def string_header(md_xml: bytes, build, steps) -> str:
     """Text of ``hs_string.h``: value references, start and build values, ranges, constants."""
+    from hammerbit.model.string_kernels import N_COEFFS
+    from hammerbit.model.string_model import OUTPUT_ROWS
     from hammerbit.model.string_slave import INPUT_LIMIT, MAX_FEED, MAX_GAIN, TIME_TOLERANCE
     from hammerbit.model.validation import RANGES
+    from hammerbit.model.string_exponentials import PADE_WORK
+    from hammerbit.model.string_step import BUILT_STEP_MATCH, STEP_CACHE
     root = ET.fromstring(md_xml)
     vrs = {sv.get("name"): int(sv.get("valueReference")) for sv in root.find("ModelVariables")}
     info, sc, bv = build.info, build.info["scalars"], build.arrays["build_values"]
@@ -138,21 +204,27 @@ def string_header(md_xml: bytes, build, steps) -> str:
               f"#define HS_WOB_RANGE_TEXT {_c_str(f'[0, {buoyed:.6g}] N (the buoyed weight)')}",
               f"#define HS_POSITION_RANGE_TEXT {_c_str(f'[-{INPUT_LIMIT:g}, {INPUT_LIMIT:g}] m')}",
               f"#define HS_FEED_RANGE_TEXT {_c_str(f'[-{MAX_FEED:.4g}, {MAX_FEED:.4g}] m/s (1000 m/h)')}",
-              f"#define HS_STEPS_TEXT {_c_str(', '.join(f'{h:g} s' for h in steps))}",
-              f"#define HS_DATA_FILE {_c_str(DATA_FILE)}", ""]
+              f"#define HS_BUILT_STEP_MATCH {float(BUILT_STEP_MATCH)!r}",
+              f"#define HS_STEP_CACHE {int(STEP_CACHE)}",
+              f"#define HS_PADE_WORK {int(PADE_WORK)}",
+              f"#define HS_DATA_FILE {_c_str(DATA_FILE)}",
+              f"#define HS_DATA_MAGIC {_c_str(_DATA_MAGIC.decode('ascii'))}",
+              f"#define HS_N_COEFFS {N_COEFFS}",
+              f"#define HS_N_ROWS {len(OUTPUT_ROWS)}"]
+    lines += [f"#define HS_ROW_{_c_ident(r).upper()} {i}" for i, r in enumerate(OUTPUT_ROWS)] + [""]
     return "\n".join(lines)
 
 
-def native_string_description(xml: bytes, steps) -> bytes:
+def native_string_description(xml: bytes) -> bytes:
     """The Python flavour's model description for the native binaries: no execution tool, FMU
-    states, a variable step only when more than one step size is carried."""
+    states, any communication step."""
     root = ET.fromstring(xml)
     root.set("generationTool", NATIVE_STRING_TOOL)
     cs = root.find("CoSimulation")
     cs.attrib.pop("needsExecutionTool", None)
     cs.set("canGetAndSetFMUstate", "true")
     cs.set("canSerializeFMUstate", "true")
-    cs.set("canHandleVariableCommunicationStepSize", "true" if len(steps) > 1 else "false")
+    cs.set("canHandleVariableCommunicationStepSize", "true")
     ET.indent(root, space="  ")
     return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8") + b"\n"
 
@@ -163,11 +235,12 @@ def build_native_string_fmu(string_arg, out=None, *, steps=None, build=None, log
     ``steps``: the communication step sizes [s] it carries (default :data:`DEFAULT_STEPS`);
     ``kw`` go to :func:`~hammerbit.fmu.build_string.string_build`."""
     from hammerbit.fmu.build_string import MODEL_NAME, build_string_fmu, string_build, string_fmu_path
+    from hammerbit.fmu.c_description import write_description_header
     from hammerbit.fmu.native import generate_header, read_model_description
     from hammerbit.fmu.native_build import TARGETS, link_binary, select_platforms
     from hammerbit.fmu.native_build import find_compiler, MINGW_CC
     from hammerbit.fmu.native_kernels import build_objects
-    from hammerbit.model.string_model import INFO_FILE, MODEL_FILE
+    from hammerbit.model.string_model import INFO_FILE
     steps = tuple(float(h) for h in (DEFAULT_STEPS if steps is None else steps))
     for h in steps:
         if not (0.0 < h < float("inf")):
@@ -178,12 +251,13 @@ def build_native_string_fmu(string_arg, out=None, *, steps=None, build=None, log
         tmp = Path(tmp)
         py_fmu = build_string_fmu(string_arg, tmp / "python" / f"{MODEL_NAME}.fmu", build=build)
         with zipfile.ZipFile(py_fmu) as zf:
-            md = native_string_description(zf.read("modelDescription.xml"), steps)
-            info_json = zf.read(f"resources/{INFO_FILE}")
-            arrays_npz = zf.read(f"resources/{MODEL_FILE}")
+            md = native_string_description(zf.read("modelDescription.xml"))
+            info = json.loads(zf.read(f"resources/{INFO_FILE}"))
+        info["steps"] = list(steps)
         write_tables(tmp / DATA_FILE, string_tables(build, steps))
         spec = read_model_description(md)
         (tmp / "hb_model.h").write_text(generate_header(spec, wrapper_file="", python_modules=()))
+        write_description_header(tmp)
         (tmp / "hs_string.h").write_text(string_header(md, build, steps))
         platforms = select_platforms(log)
         build_objects(tmp, platforms, kernels="string")
@@ -201,9 +275,7 @@ def build_native_string_fmu(string_arg, out=None, *, steps=None, build=None, log
             for plat, path in sorted(built.items()):
                 zf.write(path, f"binaries/{plat}/{path.name}")
             zf.write(tmp / DATA_FILE, f"resources/{DATA_FILE}")
-            zf.writestr(f"resources/{INFO_FILE}", info_json)
-            # not read by the binaries: the string side's arrays for hammerbit cosim --ssp
-            zf.writestr(f"resources/{MODEL_FILE}", arrays_npz)
-            zf.writestr("resources/string.toml", build.source_text)
+            # the description (hammerbit cosim --ssp reads it, and the side from DATA_FILE)
+            zf.writestr(f"resources/{INFO_FILE}", json.dumps(info, indent=1))
         tmp_out.replace(out)
     return out

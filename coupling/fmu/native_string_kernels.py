@@ -2,7 +2,10 @@
 
 The native ``Drillstring.fmu`` steps the string with the library's own
 kernels of :mod:`hammerbit.model.string_kernels` (:func:`exchange_step`, the
-master's Jacobi exchange in its FMU form, which also gives the held force), compiled
+master's Jacobi exchange in its FMU form, which also gives the held force) and
+the exponentials of a step length it was not built for
+(:mod:`hammerbit.model.string_exponentials`: :func:`modal_exponentials`,
+:func:`dense_exponential`), compiled
 ahead of time by :mod:`hammerbit.fmu.native_kernels` exactly as the hammer's
 kernels are.  The entry points take flat C arrays; the complex modal arrays
 are ``double _Complex`` (interleaved real and imaginary parts).
@@ -18,11 +21,17 @@ STRING_ENTRY_POINTS = {
                    "double _Complex *G, double _Complex *irow, double *icol, double _Complex *eta, "
                    "double _Complex *frow, double *k3, double *th, double *wh, double *Fh, double *out, "
                    "double F_held, double *c, double *feed)",
+    "hs_modal_exponentials": "void hs_modal_exponentials(int64_t n, double h, double *k2, double _Complex *lam, "
+                             "double _Complex *B, double _Complex *frow, double _Complex *d, "
+                             "double _Complex *G, double _Complex *irow, double *icol)",
+    "hs_dense_exponential": "void hs_dense_exponential(int64_t n, double h, double *k2, double *A1, double *E, "
+                            "double *frow, double *P, double *work)",
 }
 
 
 def compile_string_entry_points() -> dict:
     """``{C name: numba cfunc}`` of :data:`STRING_ENTRY_POINTS` (compiles them in this process)."""
+    import numpy as np
     from numba import carray, cfunc
     from numba.core.types import CPointer, complex128, float64, int64
 
@@ -56,6 +65,25 @@ def compile_string_entry_points() -> dict:
                              carray(tmpp, (n + 1,)), carray(frp, (n,)))
         return exchange_step_dense(scheme, h, form, iface, hist, hammer)[EXCHANGE_HELD]
 
-    funcs = {"hs_exchange": hs_exchange}
+    from hammerbit.model.string_exponentials import N_PHI, PADE_WORK, dense_exponential, modal_exponentials
+    from numba.core.types import void
+
+    # the exponentials of a step length the FMU was not built for (string_step's kernels)
+    @cfunc(void(int64, float64, f64p, c128p, c128p, c128p, c128p, c128p, c128p, f64p))
+    def hs_modal_exponentials(n, h, k2p, lamp, Bp, frowp, dp, Gp, irowp, icolp):
+        # n kept modes; k2 = (ki, ci); writes d (n), G (n x 6), irow (n), icol (6)
+        modal_exponentials(h, carray(lamp, (n,)), carray(Bp, (n, 2)), carray(frowp, (n,)), carray(k2p, (2,)),
+                           carray(dp, (n,)), carray(Gp, (n, NC)), carray(irowp, (n,)), carray(icolp, (NC,)),
+                           np.empty(N_PHI, np.complex128))
+
+    @cfunc(void(int64, float64, f64p, f64p, f64p, f64p, f64p, f64p))
+    def hs_dense_exponential(n, h, k2p, A1p, Ep, frowp, Pp, workp):
+        # n states; writes P ((n + 1) x (n + 6)); work: PADE_WORK N^2 doubles, N = n + 7
+        N = n + NC + 1
+        dense_exponential(h, carray(A1p, (n, n)), carray(Ep, (n, 2)), carray(frowp, (n,)), carray(k2p, (2,)),
+                          carray(Pp, (n + 1, n + NC)), carray(workp, (PADE_WORK, N, N)))
+
+    funcs = {"hs_exchange": hs_exchange, "hs_modal_exponentials": hs_modal_exponentials,
+             "hs_dense_exponential": hs_dense_exponential}
     assert set(funcs) == set(STRING_ENTRY_POINTS)
     return funcs

@@ -40,8 +40,17 @@ class SSPSystem:
 
 
 def _string_resources(fmu_path: Path, dest: Path) -> tuple:
+    """``(arrays, info)`` of the package's Drillstring FMU: from its ``string_model.npz`` (the
+    pythonfmu flavour) or the generator blocks of its ``string_native.bin`` (the native one)."""
+    import json
+
+    from hammerbit.fmu.native_string import DATA_FILE, read_string_arrays
     from hammerbit.model.string_model import INFO_FILE, MODEL_FILE, load_model
     with zipfile.ZipFile(fmu_path) as z:
+        names = set(z.namelist())
+        if f"resources/{MODEL_FILE}" not in names:
+            info = json.loads(z.read(f"resources/{INFO_FILE}"))
+            return read_string_arrays(z.read(f"resources/{DATA_FILE}"), info), info
         for name in (MODEL_FILE, INFO_FILE):
             (dest / name).write_bytes(z.read(f"resources/{name}"))
     return load_model(str(dest))

@@ -20,7 +20,7 @@ from hammerbit.model.validation import RANGES, ParameterError
 from hammerbit.model.solver_options import SolverOptions
 from hammerbit.model.stepping import Stepper
 
-from hammerbit.scene.analysis import detect_period
+from hammerbit.scene.flags import stepper_flags
 from .executor import Executor, ExecutorOptions
 
 __all__ = ["BifurcationResult", "bifurcation", "penetration_sweep", "poincare_tail",
@@ -43,7 +43,8 @@ class BifurcationResult:
     points : ndarray, shape (m, k, 5)
         The last k Poincaré samples [tau, x1, x2, x3, x4] for each value.
     periods : list of int or None
-        Detected period-n for each value.
+        Period-n of each value, by the rule of :func:`hammerbit.scene.simulate.simulate`: the
+        last half of the whole run (not only the kept samples).
     drift : ndarray, shape (m,)
         Penetration per forcing period over the kept samples [x0].
     wall_time_s : float
@@ -54,6 +55,8 @@ class BifurcationResult:
         Worker processes that ran it (1: in process).
     groups : Groups, optional
         The base scene (its scales turn the results into SI).
+    regime : ndarray of int, shape (m,)
+        The regime verdict of each value (:mod:`hammerbit.model.regime_codes`; 0: drilling).
     """
 
     param: str
@@ -65,6 +68,7 @@ class BifurcationResult:
     total_periods: int
     workers: int = 1
     groups: Optional[Groups] = None
+    regime: Optional[np.ndarray] = None
 
     @property
     def periods_per_second(self) -> float:
@@ -107,13 +111,18 @@ def poincare_tail(groups: Groups, periods: int, keep: int, solver: SolverOptions
     ``keep`` returned: the same sampling times, to the bit, as
     :func:`hammerbit.scene.simulate.simulate` with ``Record(poincare=True)``.
     """
+    return _tail_and_flags(groups, periods, keep, solver, phase)[0]
+
+
+def _tail_and_flags(groups: Groups, periods: int, keep: int, solver: SolverOptions, phase: float):
+    """The last ``keep`` Poincaré rows and the scene's flags from all of them (the rule of ``simulate``)."""
     T = groups.period
     st = Stepper(groups, solver=solver)
     st.opts[kernel_layouts.O_POIN_T0] = phase * T
     poin = np.zeros((periods + 1, 5))
     st.advance(periods * T + (phase * T if phase > 0 else 0.0), poincare=poin)
     n = int(st.istate[kernel_layouts.I_POIN_NEXT])
-    return poin[max(n - keep, 0):n].copy()
+    return poin[max(n - keep, 0):n].copy(), stepper_flags(groups, st, poin[:n])
 
 
 def _scenes(groups: Groups, param: str, values: np.ndarray) -> list:
@@ -122,7 +131,12 @@ def _scenes(groups: Groups, param: str, values: np.ndarray) -> list:
 
 
 def _bifurcation_chunk(scenes, periods, keep, solver, phase):
-    return [poincare_tail(g, periods, keep, solver, phase) for g in scenes]
+    """Per scene: its tail, and its period-n and verdict by the rule of ``simulate`` (the whole run)."""
+    out = []
+    for g in scenes:
+        tail, flags = _tail_and_flags(g, periods, keep, solver, phase)
+        out.append((tail, flags.period, flags.code))
+    return out
 
 
 def _penetration_chunk(scenes, periods, solver):
@@ -186,14 +200,15 @@ def bifurcation(groups: Groups, param: str, values: Sequence[float], *, periods:
         if own:
             ex.close()
     out = np.full((values.size, keep, 5), np.nan)
-    per, drift = [], np.zeros(values.size)
-    for i, pts in enumerate(tails):
+    per, drift, codes = [], np.zeros(values.size), np.zeros(values.size, dtype=np.int64)
+    for i, (pts, period, code) in enumerate(tails):
         out[i, : pts.shape[0]] = pts
-        per.append(detect_period(pts))
+        per.append(period)
+        codes[i] = code
         drift[i] = (out[i, -1, 3] - out[i, 0, 3]) / max(keep - 1, 1)
     return BifurcationResult(param=param, values=values, points=out, periods=per, drift=drift,
                              wall_time_s=wall, total_periods=int(periods * values.size), workers=workers,
-                             groups=groups)
+                             groups=groups, regime=codes)
 
 
 def penetration_sweep(groups: Groups, values: Sequence[float], *, param: str = "a", periods: int = 100,

@@ -63,14 +63,15 @@ from hammerbit.model.solver_errors import MaxStepsError, SolverError
 from hammerbit.model.solver_options import SolverOptions
 from hammerbit.model.stepping import Stepper
 
+from hammerbit.model.regime_codes import REGIME_BITS
 from hammerbit.scene.contact import peak_of_run, steady_peak
 from hammerbit.scene.flags import SceneFlags, stepper_flags
 from .bifurcation import SECONDS_PER_PERIOD
 from .executor import Executor, ExecutorOptions
 
 __all__ = ["Axis", "CELL_DTYPE", "MapCell", "run_cell", "cell_figures", "regime_map", "map_to_json", "axis_unit",
-           "best_valid_cell", "FLAG_FIELDS", "DOMAIN_FIELDS", "STATUS_OK", "STATUS_SOLVER", "STATUS_INVALID",
-           "map_chunk"]
+           "best_valid_cell", "eligible_cells", "FLAG_FIELDS", "DOMAIN_FIELDS", "STATUS_OK", "STATUS_SOLVER",
+           "STATUS_INVALID", "map_chunk"]
 
 STATUS_OK, STATUS_SOLVER, STATUS_INVALID = 0, 1, 2
 
@@ -80,11 +81,11 @@ CELL_DTYPE = np.dtype([("period", "f8"), ("transient", "i1"), ("settled_after", 
                        ("peak_contact_force_n", "f8"), ("peak_contact_force_steady_n", "f8"),
                        ("min_drive_f0", "f8"), ("min_drive_n", "f8"),
                        ("runaway", "i1"), ("bounce", "i1"), ("bounces", "f8"), ("tension", "i1"),
-                       ("valid", "i1"), ("domain_a_ge_b", "i1"), ("domain_a_plus_b_gt_1", "i1"),
+                       ("stall", "i1"), ("regime", "i2"), ("valid", "i1"), ("domain_a_ge_b", "i1"), ("domain_a_plus_b_gt_1", "i1"),
                        ("domain_b_gt_mu", "i1"), ("status", "i1")])
 
 #: The scene flags and the paper's rules of a cell (1 = set), in ``CELL_DTYPE`` order.
-FLAG_FIELDS = ("runaway", "bounce", "tension", "transient")
+FLAG_FIELDS = ("runaway", "bounce", "tension", "stall", "transient")
 DOMAIN_FIELDS = {"bounce": "domain_a_ge_b", "overload": "domain_a_plus_b_gt_1", "runaway": "domain_b_gt_mu"}
 
 #: Units of SI names (spec symbols and RigParameters/FMU names).
@@ -98,7 +99,7 @@ _SI_UNITS = {
 _VARS = {
     "period": ("period-n of the bounded motion over the second half (NaN: none up to 32)", "1"),
     "transient": ("flag: the period has not settled within the horizon", "1"),
-    "settled_after": ("forcing periods the orbit needed to settle (extrapolated when transient)", "1"),
+    "settled_after": ("forcing period from which the last quarter's period repeats up to the end (seen)", "1"),
     "rop_x0_per_period": ("rate of penetration over the second half, nondimensional", "x0 per forcing period"),
     "rop_mm_per_period": ("rate of penetration over the second half", "mm per forcing period"),
     "rop_m_per_h": ("rate of penetration over the second half", "m/h"),
@@ -111,6 +112,8 @@ _VARS = {
     "bounce": ("flag: the drive fell below -F_s while the bit was stuck", "1"),
     "bounces": ("bounce violations (drive below -F_s while stuck)", "1"),
     "tension": ("flag: the drive on the bit fell below zero", "1"),
+    "stall": ("flag: the bit has not slipped over the last STALL_PERIODS forcing periods", "1"),
+    "regime": ("the regime verdict: sum of runaway 1, bounce 2, tension 4, stall 8, transient 16", "1"),
     "valid": ("1: a drilling point (ran, no runaway, no bounce)", "1"),
     "domain_a_ge_b": ("paper's domain broken: a >= b", "1"),
     "domain_a_plus_b_gt_1": ("paper's domain broken: a + b > 1", "1"),
@@ -198,7 +201,7 @@ class MapCell:
                 self.peak_contact_force_n, self.peak_contact_force_steady_n,
                 f.min_drive if f else nan, f.min_drive * F0 if f else nan,
                 int(f.runaway) if f else 0, int(f.bounce) if f else 0, float(f.bounces) if f else nan,
-                int(f.tension) if f else 0, int(self.valid),
+                int(f.tension) if f else 0, int(f.stall) if f else 0, f.code if f else 0, int(self.valid),
                 int(dom.bounce) if dom else 0, int(dom.overload) if dom else 0, int(dom.runaway) if dom else 0,
                 self.status)
 
@@ -392,9 +395,21 @@ def _nested(a: np.ndarray, *, integer: bool = False):
     return [_nested(x, integer=integer) for x in a]
 
 
+def eligible_cells(ds) -> np.ndarray:
+    """Cells that may be the best one: valid (ran, a drilling point), no flag of the scene
+    (:data:`FLAG_FIELDS`: runaway, bounce, tension, a transient period, ...) and inside the paper's
+    domain (:data:`DOMAIN_FIELDS`: a < b, a + b <= 1, b <= mu) (boolean array, the map's shape)."""
+    ok = ds["valid"].values == 1
+    for name in tuple(FLAG_FIELDS) + tuple(DOMAIN_FIELDS.values()):
+        if name in ds:
+            ok &= ds[name].values == 0
+    return ok
+
+
 def best_valid_cell(ds) -> Optional[dict]:
-    """The valid cell (a drilling point) of the highest ROP: ``{"index", "values", "rop_m_per_h"}``, or None."""
-    rop = np.where(ds["valid"].values == 1, ds["rop_m_per_h"].values, np.nan)
+    """The eligible cell (:func:`eligible_cells`: a drilling point, unflagged, inside the domain) of
+    the highest ROP: ``{"index", "values", "rop_m_per_h", ...}``, or None."""
+    rop = np.where(eligible_cells(ds), ds["rop_m_per_h"].values, np.nan)
     if not np.isfinite(rop).any():
         return None
     i = np.unravel_index(int(np.nanargmax(rop)), rop.shape)
@@ -424,12 +439,13 @@ def map_to_json(ds) -> dict:
         "flags": nest(flags),
         "paper_domain_outside": nest(domain),
         "best_valid_cell": best_valid_cell(ds),
+        "regime_bits": dict(REGIME_BITS),
     }
     for name in CELL_DTYPE.names:
         if name in ("period",) + FLAG_FIELDS or name in rules:
             continue
         out[name] = _nested(ds[name].values.astype(float),
-                            integer=name in ("status", "valid", "bounces", "settled_after"))
+                            integer=name in ("status", "valid", "bounces", "settled_after", "regime"))
     for f in FLAG_FIELDS:
         out[f] = _nested(ds[f].values.astype(float), integer=True)
     for k in ("periods", "method", "rtol", "failed_cells", "wall_time_s", "workers", "total_periods"):

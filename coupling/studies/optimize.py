@@ -44,7 +44,8 @@ from .map import Axis, MapCell, axis_unit, run_cell
 from .refine import pattern_search
 from .bifurcation import SECONDS_PER_PERIOD
 
-__all__ = ["Bound", "OptimizeConfig", "Candidate", "OptimizeResult", "optimize", "frequency_windows"]
+__all__ = ["Bound", "OptimizeConfig", "Candidate", "OptimizeResult", "optimize", "frequency_windows",
+           "Infeasibility", "infeasibility", "violations", "VIOLATION_BASIS"]
 
 
 @dataclass(frozen=True)
@@ -175,6 +176,8 @@ class Candidate:
                 "rop_mm_per_period": self.rop_mm_per_period,
                 "peak_contact_force_n": self.peak_contact_force_n,
                 "margins": {k: _margin_dict(k, v, self.checks.get(k)) for k, v in self.margins.items()},
+                "regime": None if self.flags is None else self.flags["regime"],
+                "regime_names": None if self.flags is None else self.flags["regime_names"],
                 "flags": self.flags, "feasible": self.feasible}
 
 
@@ -185,6 +188,92 @@ MARGIN_UNITS = {"bounce": "N", "threshold": "N", "runaway": "flag", "frequency":
 
 def _margin_dict(name, v, ok):
     return {"margin": v, "unit": MARGIN_UNITS[name], "ok": ok}
+
+
+#: What each constraint's violation is relative to, for people.
+VIOLATION_BASIS = {"threshold": "F0 (a + b <= 1)", "bounce": "F_s (the drive above -F_s while stuck)",
+                   "contact_force": "the contact-force limit", "frequency": "the frequency",
+                   "runaway": "a flag (1: set)", "ran": "the scene ran (inf: it did not)"}
+
+
+def violations(c: Candidate, max_contact_force: float) -> dict:
+    """Constraint -> violation of ``c``, relative to the constraint's limit (0: met): the
+    threshold and bounce margins over ``F0``, the contact force's over its limit, the frequency
+    margin as it is (relative to the frequency), a flag 1, a scene that did not run inf."""
+    F0 = c.groups.scales.friction_force
+    out = {}
+    for name, ok in c.checks.items():
+        if ok is None:
+            continue
+        m = c.margins.get(name)
+        if name == "ran":
+            v = 0.0 if ok else math.inf
+        elif m is None or not math.isfinite(m):
+            v = 0.0 if ok else 1.0
+        elif name == "contact_force":
+            v = max(0.0, -m) / max_contact_force
+        elif name == "frequency":
+            v = max(0.0, -m)
+        else:
+            v = max(0.0, -m) / F0
+        out[name] = 0.0 if ok else max(v, 1e-300)
+    return out
+
+
+@dataclass(frozen=True)
+class Infeasibility:
+    """Why no point is feasible: the least-violating point and the constraint that binds there.
+
+    Attributes
+    ----------
+    binding : str
+        The constraint with the largest relative violation at ``point``.
+    point : Candidate
+        The evaluated point whose largest relative violation is the smallest.
+    violations : dict
+        Constraint -> relative violation at ``point`` (:func:`violations`).
+    cells_violating : dict
+        Constraint -> evaluated points that violate it.
+    """
+
+    binding: str
+    point: Candidate
+    violations: dict
+    cells_violating: dict
+
+    def to_dict(self) -> dict:
+        return {"binding_constraint": self.binding, "least_violating_point": self.point.to_dict(),
+                "violations": {k: {"relative": v, "relative_to": VIOLATION_BASIS.get(k, "its limit")}
+                               for k, v in self.violations.items()},
+                "points_violating": dict(self.cells_violating)}
+
+    def text(self) -> str:
+        """One line for people (SI)."""
+        p = self.point.to_dict()
+        v = self.violations[self.binding]
+        return (f"binding constraint: {self.binding} (violated by {self.cells_violating[self.binding]} of the "
+                f"points evaluated); least-violating point: frequency {p['frequency_hz']:.4g} Hz, amplitude "
+                f"{p['amplitude_n']:.4g} N, preload {p['preload_n']:.4g} N, peak contact force "
+                f"{p['peak_contact_force_n']:.4g} N, where {self.binding} is violated by {v:.3g} relative to "
+                f"{VIOLATION_BASIS.get(self.binding, 'its limit')}")
+
+
+def infeasibility(points, max_contact_force: float) -> Optional[Infeasibility]:
+    """The :class:`Infeasibility` of evaluated ``points`` none of which is feasible (None if empty)."""
+    scored = []
+    counts: dict = {}
+    for c in points:
+        v = violations(c, max_contact_force)
+        for k, x in v.items():
+            if x > 0.0:
+                counts[k] = counts.get(k, 0) + 1
+        if v:
+            scored.append((max(v.values()), sum(v.values()), c, v))
+    if not scored:
+        return None
+    worst, _, point, v = min(scored, key=lambda s: (s[0], s[1]))
+    binding = max(v, key=lambda k: v[k])
+    return Infeasibility(binding, point, v, counts)
 
 
 @dataclass
@@ -217,6 +306,8 @@ class OptimizeResult:
     evaluations: int
     frequency_windows_hz: Optional[list]
     wall_time_s: float = 0.0
+    infeasible: Optional[Infeasibility] = None
+    """Without a feasible point: the least-violating one and the binding constraint."""
 
     def at_bounds(self, bounds) -> dict:
         """Variables of the optimum that sit on a bound: name -> ``"lower"`` or ``"upper"``."""
@@ -238,7 +329,8 @@ class OptimizeResult:
                 "best_grid_cell": None if self.best_grid is None else self.best_grid.to_dict(),
                 "grid_shape": list(self.grid_shape), "grid_feasible_cells": self.grid_feasible,
                 "evaluations": self.evaluations, "frequency_windows_hz": self.frequency_windows_hz,
-                "wall_time_s": self.wall_time_s}
+                "wall_time_s": self.wall_time_s,
+                "infeasible": None if self.infeasible is None else self.infeasible.to_dict()}
 
 
 def frequency_windows(string, lo_hz: float, hi_hz: float, margin: float) -> list:
@@ -417,7 +509,8 @@ def optimize(groups: Groups, config: OptimizeConfig, *, string=None, executor: O
     feasible.sort(key=lambda x: -x.rop_m_per_h)
     if not feasible:
         return OptimizeResult(None, [], None, 0, grid.shape[:-1], prob.evaluations, windows,
-                              _time.perf_counter() - t0)
+                              _time.perf_counter() - t0,
+                              infeasible=infeasibility(prob.seen.values(), c.max_contact_force))
     best_grid = feasible[0]
     step = (prob.hi - prob.lo) / max(c.grid - 1, 1)
     for s0 in _starts(feasible, c.starts, step, names):

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["plot_map", "PERIOD_COLORS"]
+__all__ = ["plot_map", "PERIOD_COLORS", "FLAG_HATCHES"]
 
 #: Colours of period-n, one hue each: period-1 (the paper's "regions with period-1 behaviour")
 #: green, then blue, orange, purple, brown, pink (tab10, no two alike).
@@ -59,19 +59,50 @@ def _codes(period: np.ndarray, status: np.ndarray, rop: np.ndarray):
     return code, colors, labels
 
 
-def plot_map(ds, path, *, rop_levels: int = 8):
+#: Hatches of the cells that are not drilling points or carry a flag, by what they are.
+FLAG_HATCHES = (("runaway or bounce (not valid)", "//"), ("tension (drive below zero)", "\\\\"),
+                ("other flag of the scene", "++"), ("outside the paper's domain (a >= b, a + b > 1, b > mu)", ".."))
+
+
+def _flag_marks(sel, valid: np.ndarray, status: np.ndarray) -> list:
+    """``(label, hatch, mask)`` of each kind of flagged cell present (cells that ran); the
+    transient flag is drawn apart (dots)."""
+    from .map import DOMAIN_FIELDS, FLAG_FIELDS
+    ran = status == 0
+    kinds = dict(FLAG_HATCHES)
+    other = np.zeros(valid.shape, dtype=bool)
+    for name in FLAG_FIELDS:
+        if name not in ("runaway", "bounce", "tension", "transient") and name in sel:
+            other |= sel[name].values == 1
+    outside = np.zeros(valid.shape, dtype=bool)
+    for name in DOMAIN_FIELDS.values():
+        if name in sel:
+            outside |= sel[name].values == 1
+    tension = sel["tension"].values == 1 if "tension" in sel else np.zeros(valid.shape, dtype=bool)
+    masks = [("runaway or bounce (not valid)", ~valid & ran), ("tension (drive below zero)", tension & ran),
+             ("other flag of the scene", other & ran),
+             ("outside the paper's domain (a >= b, a + b > 1, b > mu)", outside & ran)]
+    return [(label, kinds[label], m) for label, m in masks if m.any()]
+
+
+def plot_map(ds, path, *, rop_levels: int = 8, overlay=None):
     """Period map coloured by period-n (period-1 green) with ROP contours [m/h].
 
     One axis: period-n and ROP against it.  Two axes: the map.  Three axes:
     the map over the first two at the middle value of the third.  Cells the
-    scene's dynamics make invalid (runaway, bounce) are hatched; the ROP
-    contours and the star of the best cell use valid cells only.
+    scene's dynamics make invalid (runaway, bounce), cells with tension or
+    another flag, and cells outside the paper's domain are hatched, each kind
+    its own way (:data:`FLAG_HATCHES`), with a legend; the ROP contours use
+    valid cells, the star the best unflagged cell inside the domain
+    (:func:`~hammerbit.studies.map.eligible_cells`).  ``overlay``: curves of
+    ``hammerbit continue --json`` drawn over a map of their two parameters.
     """
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.colors import ListedColormap
     from matplotlib.patches import Patch
+    from .map import best_valid_cell, eligible_cells
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     dims = list(ds["period"].dims)
@@ -89,7 +120,16 @@ def plot_map(ds, path, *, rop_levels: int = 8):
         per = sel["period"].values
         ax[0].plot(x, per, "k.")
         ax[0].set_ylabel("period-n")
-        ax[1].plot(x, np.where(sel["valid"].values == 1, sel["rop_m_per_h"].values, np.nan), ".-")
+        rop1 = sel["rop_m_per_h"].values
+        ok = eligible_cells(sel)
+        ax[1].plot(x, np.where(sel["valid"].values == 1, rop1, np.nan), ".-", label="valid cells")
+        if (~ok & (sel["status"].values == 0)).any():
+            ax[1].plot(x[~ok], rop1[~ok], "rx", label="flagged or outside the paper's domain")
+        if ok.any() and np.isfinite(rop1[ok]).any():
+            k = int(np.nanargmax(np.where(ok, rop1, np.nan)))
+            ax[1].plot([x[k]], [rop1[k]], marker="*", ms=14, mfc="gold", mec="k", ls="none",
+                       label=f"best valid cell, {rop1[k]:.3g} m/h")
+        ax[1].legend(fontsize=8)
         ax[1].set_ylabel("ROP [m/h]")
         ax[1].set_xlabel(_label(sel, dims[0]))
         ax[0].set_title(title, fontsize=10)
@@ -106,17 +146,16 @@ def plot_map(ds, path, *, rop_levels: int = 8):
     ax.pcolormesh(x, y, code, cmap=ListedColormap(colors), vmin=-0.5, vmax=len(colors) - 0.5,
                   shading="nearest")
     valid = sel["valid"].values == 1
-    flagged = ~valid & (status == 0)
-    if flagged.any():
-        ax.contourf(x, y, flagged.astype(float), levels=[0.5, 1.5], colors="none", hatches=["//"])
+    marks = _flag_marks(sel, valid, status)
+    for _, hatch, mask in marks:
+        ax.contourf(x, y, mask.astype(float), levels=[0.5, 1.5], colors="none", hatches=[hatch])
     # contours and the best cell from valid cells only: a runaway cell's ROP is no drilling rate
     rop = np.where(valid, sel["rop_m_per_h"].values, np.nan)
     if np.isfinite(rop).sum() > 3 and np.nanmax(rop) > np.nanmin(rop):
         cs = ax.contour(x, y, rop, levels=rop_levels, colors="k", linewidths=0.7)
         ax.clabel(cs, fmt="%.3g m/h", fontsize=7)
     handles = [Patch(facecolor=c, edgecolor="0.5", label=l) for c, l in zip(colors, labels)]
-    if flagged.any():
-        handles.append(Patch(facecolor="none", hatch="//", edgecolor="k", label="runaway or bounce (not valid)"))
+    handles += [Patch(facecolor="none", hatch=hatch, edgecolor="k", label=label) for label, hatch, _ in marks]
     handles.append(plt.Line2D([], [], color="k", lw=0.7, label="ROP contours [m/h], valid cells"))
     trans = sel["transient"].values == 1
     if trans.any():
@@ -124,11 +163,16 @@ def plot_map(ds, path, *, rop_levels: int = 8):
         ax.plot(x[tj], y[ti], ls="none", marker=".", ms=3, color="k")
         handles.append(plt.Line2D([], [], ls="none", marker=".", ms=5, color="k",
                                   label="period not settled (transient)"))
-    if np.isfinite(rop).any():
-        i, j = np.unravel_index(int(np.nanargmax(rop)), rop.shape)
-        ax.plot([x[j]], [y[i]], marker="*", ms=16, mfc="gold", mec="k", ls="none")
+    best = best_valid_cell(sel)
+    if best is not None:
+        i, j = best["index"]
+        ax.plot([x[j]], [y[i]], marker="*", ms=16, mfc="gold", mec="k", ls="none", gid="best-valid-cell")
         handles.append(plt.Line2D([], [], marker="*", ms=12, mfc="gold", mec="k", ls="none",
-                                  label=f"best valid cell, {rop[i, j]:.3g} m/h"))
+                                  label=f"best valid cell (unflagged, in the domain), {best['rop_m_per_h']:.3g} m/h"))
+    if overlay:
+        from hammerbit.continuation.output import draw_curves
+        if draw_curves(ax, overlay, xn, yn):
+            handles.append(plt.Line2D([], [], color="k", lw=2.0, label="bifurcation curves (continuation)"))
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.12, 1.0), fontsize=8)
     ax.set_xlabel(_label(sel, xn))
     ax.set_ylabel(_label(sel, yn))

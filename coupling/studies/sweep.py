@@ -27,7 +27,9 @@ import numpy as np
 
 from hammerbit.model.validation import ParameterError
 
-from hammerbit.cosim.config import CosimConfig
+from hammerbit.model.regime_codes import REGIME_TRANSIENT
+
+from hammerbit.cosim.config import CosimConfig, cosim_regime
 from hammerbit.cosim.linear_modes import coupled_system
 from hammerbit.cosim.amplitude import fundamental
 from hammerbit.cosim.master import cosimulate
@@ -40,7 +42,7 @@ __all__ = ["SWEEP_DTYPE", "sweep", "plot_sweep", "write_sweep_csv", "wob_frf", "
 SWEEP_DTYPE = np.dtype([("frequency_hz", "f8"), ("wob_mean_n", "f8"), ("wob_amplitude_n", "f8"),
                         ("wob_min_n", "f8"), ("bounce_margin", "f8"), ("rop_m_per_h", "f8"),
                         ("penetration_m", "f8"), ("duration_s", "f8"), ("amplitude_change", "f8"),
-                        ("steady", "i1")])
+                        ("steady", "i1"), ("regime", "i2")])
 
 
 # one discretised string side per worker process, keyed by what it depends on
@@ -169,8 +171,9 @@ def _sweep_one(string, f, config, fmu, window_periods, steady_tol, max_duration)
         if steady or 2 * dur > max_duration + 1e-12:
             break
         dur *= 2
+    code = cosim_regime(r)["code"] | (0 if steady else REGIME_TRANSIENT)
     return (f, fig["wob_mean_n"], fig["wob_amplitude_n"], fig["wob_min_n"], fig["bounce_margin"],
-            fig["rop_m_per_h"], r.penetration_m, dur, fig["amplitude_change"], int(steady))
+            fig["rop_m_per_h"], r.penetration_m, dur, fig["amplitude_change"], int(steady), code)
 
 
 def _sweep_chunk(freqs, string, config, fmu, window_periods, steady_tol, max_duration):
@@ -195,7 +198,10 @@ def sweep(string, frequencies, config: CosimConfig = CosimConfig(), *, fmu=None,
     * ``rop_m_per_h``: rate of penetration [m/h];
     * ``duration_s``, ``amplitude_change``, ``steady``: the simulated time
       used, the relative amplitude change between the two windows and whether
-      it is within ``steady_tol``.
+      it is within ``steady_tol``;
+    * ``regime``: the co-simulation's verdict
+      (:func:`hammerbit.cosim.config.cosim_regime`), with ``transient`` also
+      set where ``steady`` is 0.
 
     Parameters
     ----------

@@ -26,14 +26,15 @@ from dataclasses import dataclass
 from pathlib import Path
 
 __all__ = ["FrontBuildError", "FrontSpec", "Variable", "STATUS_VARIABLE", "PYTHON_MODULES",
-           "SOURCE_DIR", "SOURCES", "c_string", "read_model_description", "generate_header", "find_compiler",
-           "build_front"]
+           "SOURCE_DIR", "FRONT_SOURCES", "SOURCES", "c_string", "read_model_description", "generate_header",
+           "find_compiler", "build_front"]
 
 #: directory of the C sources (package data)
 SOURCE_DIR = Path(__file__).resolve().parent
-#: the front's C sources (front.h says what each holds)
-SOURCES = tuple(SOURCE_DIR / f for f in ("front.c", "python_embed.c", "pythonfmu_wrapper.c",
-                                         "resource_uri.c"))
+#: the FMI 2.0 front's C sources (front.h says what each holds), for every flavour
+FRONT_SOURCES = ("front.c", "front_core.c", "front_state.c", "front_inquiry.c", "front_me.c",
+                 "resource_uri.c")
+SOURCES = tuple(SOURCE_DIR / f for f in (*FRONT_SOURCES, "python_embed.c", "pythonfmu_wrapper.c"))
 
 #: name of the slave's Integer variable holding the FMI status its last call should have returned
 STATUS_VARIABLE = "last_status"

@@ -1,9 +1,16 @@
-/* Internal interface between the parts of the native front (not installed with the FMU).
+/* Internal interface between the FMI 2.0 front and what it calls (not installed with the FMU).
  *
- *   front.c              the FMI 2.0 functions: state machine, checks, status mapping, logging
- *   python_embed.c       Python in the process: found, loaded, initialised, checked
- *   pythonfmu_wrapper.c  pythonfmu's export library: loaded, its exit order fixed
+ * The front (front_internal.h: what its parts share):
+ *   front.c              life cycle, fmi2Get* and fmi2Set*, fmi2DoStep
+ *   front_core.c         state machine, checks of value references, status mapping, logging
+ *   front_state.c        FMU states (the front's header around the model's state)
+ *   front_inquiry.c      status inquiries, the functions the capability flags leave out
+ *   front_me.c           Model Exchange (when the model description has it)
  *   resource_uri.c       fmuResourceLocation -> directory path
+ * Behind it, one backend fills the table hb_W:
+ *   pythonfmu_wrapper.c  the Python flavour: pythonfmu's export library, loaded, its exit order
+ *                        fixed (python_embed.c: Python in the process, found, loaded, checked)
+ *   model_backend.c      the native flavour: the linked model fills it (model.h)
  */
 #ifndef HAMMERBIT_FRONT_H
 #define HAMMERBIT_FRONT_H
@@ -30,7 +37,7 @@ __asm__(".symver dladdr,dladdr@GLIBC_2.2.5");
 
 /* The model backend behind the front: fills hb_W (below) with the model's functions; 1, or 0 with
  * the reason in err.  pythonfmu_wrapper.c: Python in the process and pythonfmu's library loaded
- * (the Python flavour); model_native.c: the compiled kernels (the native flavour).
+ * (the Python flavour); model_backend.c: the linked native model (model.h).
  * Not thread-safe: the caller serialises. */
 int hb_backend_load(char *err, size_t n);
 

@@ -1,5 +1,11 @@
-/* The native model backend (native flavour): its state, the tables the build writes into
- * hb_native.h, and what model_native.c and model_me.c share. */
+/* The native HammerBitRock model (native flavour): its state, the tables the build writes into
+ * hb_native.h, and what its files share:
+ *   model_native.c  life cycle, fmi2DoStep, hb_model_fill (model.h)
+ *   model_params.c  parameters -> the kernel's arrays (hb_commit, hb_apply_inputs)
+ *   model_checks.c  messages, ranges, the inputs' limits
+ *   model_values.c  fmi2Get*, fmi2Set*
+ *   model_state.c   FMU states
+ *   model_me.c      Model Exchange */
 #ifndef HAMMERBIT_MODEL_NATIVE_H
 #define HAMMERBIT_MODEL_NATIVE_H
 
@@ -7,6 +13,7 @@
 #include <stdint.h>
 
 #include "front.h"
+#include "model.h"
 
 /* allowed values of one real number (hammerbit.model.validation.Range) */
 typedef struct {
@@ -31,6 +38,7 @@ typedef struct {
     hb_range range;
 } hb_group;
 
+#include "hb_description.h"
 #include "hb_native.h"
 
 /* ------------------------------------------------------------------------------------------ */
@@ -60,17 +68,13 @@ typedef struct {
 } model_state;
 
 typedef struct {
+    hb_model_base base;            /* name, callbacks (model.h) */
     model_state s;
-    char *name;
-    fmi2CallbackFunctions cb;
     int event_iterations;          /* Model Exchange: mode switches in the current event mode */
     unsigned armed, fired;         /* event kinds watched when Event Mode began; taken since (bits) */
 } model;
 
-/* a float as Python's repr() writes it */
-void hb_repr(double v, char *out, size_t n);
-/* log a message with a status through the host's (the front's) logger */
-void hb_mlog(model *m, fmi2Status st, const char *fmt, ...);
+/* model_checks.c ---------------------------------------------------------------------------- */
 /* record st as the call's status (last_status), log the message; st */
 fmi2Status hb_fail(model *m, fmi2Status st, const char *fmt, ...);
 /* v in the range r (validation.Range.contains) */
@@ -80,6 +84,8 @@ int hb_range_error(const char *name, double v, const hb_range *r, char *out, siz
 /* an input value within +-1000 F0 of the parameters in use; its refusal message */
 int hb_input_ok(const model_state *s, int k, double v);
 void hb_input_error(const model_state *s, int k, double v, char *out, size_t n);
+
+/* model_params.c ---------------------------------------------------------------------------- */
 /* validate the values v[] (and impact) and build the solver state into s; 1, or 0 with the
  * message in err (s unchanged then); keep: carry y, ist, fst and p of s over */
 int hb_commit(model_state *s, const double *v, int impact, int keep, char *err, size_t n);

@@ -9,94 +9,21 @@
  *   - outputs from the state (the output rows of the string side);
  *   - FMU states: the whole model state as plain data, the string's state vector included.
  * The exact step's matrices of each form and communication step size the FMU was built for are
- * read from resources/string_native.bin (written by hammerbit.fmu.native_string): the matrices
- * need an eigendecomposition and a matrix exponential, done at build time.  So the parameters
- * they depend on (damping_ratio, and the auto-driller's gains) keep their build values here. */
+ * read from resources/string_native.bin (written by hammerbit.fmu.native_string), with each
+ * form's generator: a step of another length gets its exponentials from the compiled kernels
+ * (find_block).  The eigendecomposition is done at build time, so the parameters the matrices
+ * depend on (damping_ratio, and the auto-driller's gains) keep their build values here. */
 #include <math.h>
-#include <stdarg.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "model.h"
 #include "model_string.h"
 #include "string_api.h"
 
-static int read_doubles(FILE *f, double *p, size_t k) { return fread(p, sizeof(double), k, f) == k; }
-
-/* the table from <resources>/string_native.bin; 1, or 0 with the reason in err */
-static int load_table(const char *dir, table *t, char *err, size_t en) {
-    char path[4200];
-    snprintf(path, sizeof path, "%s/%s", dir, HS_DATA_FILE);
-    FILE *f = fopen(path, "rb");
-    if (!f) {
-        snprintf(err, en, "cannot open %s", path);
-        return 0;
-    }
-    char magic[8];
-    int64_t hdr[2];
-    memset(t, 0, sizeof *t);
-    int ok = fread(magic, 1, 8, f) == 8 && memcmp(magic, DATA_MAGIC, 8) == 0 &&
-             fread(hdr, sizeof(int64_t), 2, f) == 2 && hdr[0] > 0 && hdr[0] < 1000 && hdr[1] > 0;
-    if (ok) {
-        t->nblocks = hdr[0];
-        size_t total = (size_t)hdr[1];
-        t->b = calloc((size_t)t->nblocks, sizeof *t->b);
-        t->mem = malloc(total * sizeof(double));
-        ok = t->b && t->mem && read_doubles(f, t->mem, total);
-        double *p = t->mem, *end = t->mem + total;
-        for (int64_t i = 0; ok && i < t->nblocks; i++) {
-            block *b = &t->b[i];
-            if (end - p < 4) { ok = 0; break; }
-            b->form = (int64_t)p[0];
-            b->h = p[1];
-            b->modal = (int64_t)p[2];
-            b->n = (int64_t)p[3];
-            p += 4;
-            int64_t n = b->n;
-            size_t need = b->modal ? (size_t)(2 * n + 2 * N_ROWS * n + 2 * n + 2 * n * N_COEFFS + 2 * n +
-                                              N_COEFFS)
-                                   : (size_t)(n + N_ROWS * n + (n + 1) * (n + N_COEFFS));
-            if (n <= 0 || (size_t)(end - p) < need) { ok = 0; break; }
-            if (n > t->nmax) t->nmax = n;
-            if (b->modal) {
-                b->frow_c = (double _Complex *)p; p += 2 * n;
-                b->rows_c = (double _Complex *)p; p += 2 * N_ROWS * n;
-                b->d = (double _Complex *)p; p += 2 * n;
-                b->G = (double _Complex *)p; p += 2 * n * N_COEFFS;
-                b->irow = (double _Complex *)p; p += 2 * n;
-                memcpy(b->icol, p, sizeof b->icol); p += N_COEFFS;
-            } else {
-                b->frow_r = p; p += n;
-                b->rows_r = p; p += N_ROWS * n;
-                b->P = p; p += (n + 1) * (n + N_COEFFS);
-            }
-        }
-        ok = ok && p == end;
-    }
-    fclose(f);
-    if (!ok) {
-        free(t->b);
-        free(t->mem);
-        memset(t, 0, sizeof *t);
-        snprintf(err, en, "%s is corrupt or of another build", path);
-    }
-    return ok;
-}
-
 static size_t state_size(const table *t) { return sizeof(sstate) + 2 * (size_t)t->nmax * sizeof(double); }
-
-void hs_log(model *m, fmi2Status st, const char *fmt, ...) {
-    if (!m->cb.logger) return;
-    char msg[2048];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(msg, sizeof msg, fmt, ap);
-    va_end(ap);
-    const char *cat = st == fmi2OK ? "logAll" : st == fmi2Warning ? "logStatusWarning"
-                      : st == fmi2Discard ? "logStatusDiscard" : "logStatusError";
-    m->cb.logger(m->cb.componentEnvironment, m->name, st, cat, msg);
-}
 
 static void set_start_values(model *m) {
     sstate *s = m->s;
@@ -148,9 +75,9 @@ static int check_parameters(const sstate *s, char *out, size_t n) {
         snprintf(out, n, "parameter 'extrapolation' = %d is out of range: allowed 0, 1, 2", s->extrapolation);
         return 0;
     }
-    if (s->top_condition < 0 || s->top_condition > 2) {
-        snprintf(out, n, "parameter 'top_condition' = %d is out of range: allowed 0 (fixed), 1 (feed), "
-                 "2 (auto-driller)", s->top_condition);
+    if (s->top_condition < 0 || s->top_condition >= HB_N_TOP_CONDITIONS) {
+        snprintf(out, n, "parameter 'top_condition' = %d is out of range: allowed " HB_TOP_CONDITIONS_TEXT,
+                 s->top_condition);
         return 0;
     }
     hb_repr(s->feed_velocity, r, sizeof r);
@@ -158,9 +85,9 @@ static int check_parameters(const sstate *s, char *out, size_t n) {
         snprintf(out, n, "parameter 'feed_velocity' = %s is out of range: allowed %s", r, HS_FEED_RANGE_TEXT);
         return 0;
     }
-    if (s->feed_velocity != 0.0 && s->top_condition != TOP_FEED) {
-        snprintf(out, n, "parameter 'feed_velocity' = %s: only top_condition = 1 (feed) takes a feed "
-                 "velocity; allowed 0 with top_condition = %d", r, s->top_condition);
+    if (s->feed_velocity != 0.0 && !HB_TOP_TAKES_FEED[s->top_condition]) {
+        snprintf(out, n, "parameter 'feed_velocity' = %s: only top_condition = " HB_TOP_FEED_TEXT " takes "
+                 "a feed velocity; allowed 0 with top_condition = %d", r, s->top_condition);
         return 0;
     }
     const char *gn[2] = {"proportional_gain", "integral_gain"};
@@ -171,9 +98,9 @@ static int check_parameters(const sstate *s, char *out, size_t n) {
             snprintf(out, n, "parameter '%s' = %s is out of range: allowed [0, %g]", gn[i], r, HS_MAX_GAIN);
             return 0;
         }
-    if (s->top_condition == TOP_AUTO && !HS_HAS_AUTO) {
+    if (HB_TOP_FORM[s->top_condition] == HB_FORM_AUTO && !HS_HAS_AUTO) {
         snprintf(out, n, "parameter 'top_condition' = %d: this string has no auto-driller (%s); allowed "
-                 "0 (fixed), 1 (feed)", s->top_condition, HS_AUTO_REFUSED);
+                 HB_TOP_NOT_AUTO_TEXT, s->top_condition, HS_AUTO_REFUSED);
         return 0;
     }
     /* the native flavour: the matrices are those of the build's values */
@@ -185,7 +112,7 @@ static int check_parameters(const sstate *s, char *out, size_t n) {
                  "in the string's file, or use the Python flavour, which recomputes them)", r, r2);
         return 0;
     }
-    for (int i = 0; s->top_condition == TOP_AUTO && i < 2; i++)
+    for (int i = 0; HB_TOP_FORM[s->top_condition] == HB_FORM_AUTO && i < 2; i++)
         if (gv[i] != gb[i]) {
             hb_repr(gv[i], r, sizeof r);
             hb_repr(gb[i], r2, sizeof r2);
@@ -200,19 +127,53 @@ static int check_parameters(const sstate *s, char *out, size_t n) {
 /* ------------------------------------------------------------------------------------------ */
 /* Outputs                                                                                     */
 /* ------------------------------------------------------------------------------------------ */
-static const block *find_block(const table *t, int64_t form, double h) {
-    char key[40];
-    snprintf(key, sizeof key, "%.12g", h);   /* step_key(h): steps equal to 12 digits share one */
-    double k = strtod(key, NULL);
+/* The exponentials of a step h: a built step's within HS_BUILT_STEP_MATCH (relative), else those
+ * computed for h by the compiled kernels (hammerbit.model.string_exponentials), kept in a cache of
+ * HS_STEP_CACHE step lengths; NULL (with the reason in err) only when memory runs out or a kernel
+ * raised. */
+static const block *find_block(model *m, int64_t form, double h, char *err, size_t en) {
+    const table *t = &m->tab;
     for (int64_t i = 0; i < t->nblocks; i++)
-        if (t->b[i].form == form && t->b[i].h == k) return &t->b[i];
-    return NULL;
-}
-
-const block *hs_any_block(const table *t, int64_t form) {
-    for (int64_t i = 0; i < t->nblocks; i++)
-        if (t->b[i].form == form) return &t->b[i];
-    return NULL;
+        if (t->b[i].form == form && fabs(h - t->b[i].h) <= HS_BUILT_STEP_MATCH * t->b[i].h) return &t->b[i];
+    for (int i = 0; i < HS_STEP_CACHE; i++)
+        if (m->cache[i].b.n && m->cache[i].b.form == form && m->cache[i].b.h == h) return &m->cache[i].b;
+    const block *built = hs_any_block(t, form);
+    const generator *g = &t->gen[form];
+    if (!built || g->n <= 0 || (built->modal && g->m != built->n) || (!built->modal && g->n != built->n)) {
+        snprintf(err, en, "the FMU's tables have no generator for this form");
+        return NULL;
+    }
+    cached_step *c = &m->cache[m->next_slot];
+    int64_t n = built->n, N = n + N_COEFFS + 1;
+    size_t need = built->modal ? (size_t)(2 * n + 2 * n * N_COEFFS + 2 * n) : (size_t)((n + 1) * (n + N_COEFFS));
+    if (need > c->cap) {
+        double *mem = realloc(c->mem, need * sizeof(double));
+        if (!mem) { snprintf(err, en, "out of memory"); return NULL; }
+        c->mem = mem, c->cap = need;
+    }
+    if (!built->modal && !m->work) {
+        m->work = malloc((size_t)HS_PADE_WORK * (size_t)(N * N) * sizeof(double));
+        if (!m->work) { snprintf(err, en, "out of memory"); return NULL; }
+    }
+    block *b = &c->b;
+    *b = *built;
+    b->n = 0;                            /* empty until it is filled */
+    double k2[2] = {HS_INTERFACE_STIFFNESS, HS_INTERFACE_DAMPING};
+    hb_kernel_raised();
+    if (built->modal) {
+        b->d = (double _Complex *)c->mem;
+        b->G = b->d + n;
+        b->irow = b->G + n * N_COEFFS;
+        hs_modal_exponentials(n, h, k2, g->lam, g->B, built->frow_c, b->d, b->G, b->irow, b->icol);
+    } else {
+        b->P = c->mem;
+        hs_dense_exponential(n, h, k2, g->A1, g->E, g->frow, b->P, m->work);
+    }
+    if (hb_kernel_raised()) { snprintf(err, en, "a kernel raised an exception"); return NULL; }
+    b->h = h;
+    b->n = n;
+    m->next_slot = (m->next_slot + 1) % HS_STEP_CACHE;
+    return b;
 }
 
 static void set_outputs(model *m) {
@@ -252,18 +213,13 @@ static fmi2Component s_instantiate(fmi2String name, fmi2Type type, fmi2String gu
                                    const fmi2CallbackFunctions *cb, fmi2Boolean visible,
                                    fmi2Boolean logging) {
     (void)type, (void)guid, (void)visible, (void)logging;
-    model *m = calloc(1, sizeof *m);
-    if (!m || !(m->name = strdup(name))) {
-        free(m);
-        return NULL;
-    }
-    m->cb = *cb;
+    model *m = hb_model_new(sizeof *m, name, cb);
+    if (!m) return NULL;
     char err[4400];
     const char *dir = strncmp(uri, "file://", 7) == 0 ? uri + 7 : uri;   /* the front's plain path */
-    if (!load_table(dir, &m->tab, err, sizeof err)) {
+    if (!hs_load_table(dir, &m->tab, err, sizeof err)) {
         hs_log(m, fmi2Error, "fmi2Instantiate: the string's matrices: %s", err);
-        free(m->name);
-        free(m);
+        hb_model_free(m);
         return NULL;
     }
     m->size = state_size(&m->tab);
@@ -272,8 +228,8 @@ static fmi2Component s_instantiate(fmi2String name, fmi2Type type, fmi2String gu
     m->tmp = calloc((size_t)m->tab.nmax + 1, sizeof(double));
     if (!m->s || !m->buf || !m->tmp) {
         hs_log(m, fmi2Error, "fmi2Instantiate: out of memory");
-        free(m->s), free(m->buf), free(m->tmp), free(m->tab.b), free(m->tab.mem), free(m->name);
-        free(m);
+        free(m->s), free(m->buf), free(m->tmp), free(m->tab.b), free(m->tab.mem);
+        hb_model_free(m);
         return NULL;
     }
     set_start_values(m);
@@ -283,8 +239,10 @@ static fmi2Component s_instantiate(fmi2String name, fmi2Type type, fmi2String gu
 static void s_free_instance(fmi2Component c) {
     model *m = c;
     if (!m) return;
-    free(m->s), free(m->buf), free(m->tmp), free(m->tab.b), free(m->tab.mem), free(m->name);
-    free(m);
+    for (int i = 0; i < HS_STEP_CACHE; i++) free(m->cache[i].mem);
+    free(m->work);
+    free(m->s), free(m->buf), free(m->tmp), free(m->tab.b), free(m->tab.mem);
+    hb_model_free(m);
 }
 
 static fmi2Status s_setup_experiment(fmi2Component c, fmi2Boolean tol_defined, fmi2Real tol,
@@ -309,13 +267,13 @@ static fmi2Status s_exit_init(fmi2Component c) {
         snprintf(s->error, sizeof s->error, "initialisation failed: %s", bad);
         return FAIL(m, "%s", s->error);
     }
-    s->form = s->top_condition == TOP_AUTO ? 1 : 0;
+    s->form = HB_TOP_FORM[s->top_condition];
     const block *b = hs_any_block(&m->tab, s->form);
     s->n = b->n;
     s->modal = b->modal;
     s->W = s->wob;
     s->hook_eq = HS_BUOYED_WEIGHT - s->W;
-    double feed = s->top_condition == TOP_FEED ? s->feed_velocity : 0.0;
+    double feed = HB_TOP_TAKES_FEED[s->top_condition] ? s->feed_velocity : 0.0;
     s->feed[0] = feed;
     s->feed[1] = s->t_start;
     s->k3[0] = HS_INTERFACE_STIFFNESS;
@@ -371,12 +329,12 @@ static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
         return FAIL(m, "currentCommunicationPoint = %s s is not the current time of the FMU, %s s; step "
                     "refused, state unchanged", a, b2);
     }
-    const block *b = find_block(&m->tab, s->form, h);
+    char why[256];
+    const block *b = find_block(m, s->form, h, why, sizeof why);
     if (!b) {
         hb_repr(h, a, sizeof a);
-        return FAIL(m, "communication step size h = %s s is not one this native FMU was built for: "
-                    "allowed %s (build it with --step to add step sizes); step refused, state "
-                    "unchanged", a, HS_STEPS_TEXT);
+        return FAIL(m, "fmi2DoStep failed: the exponentials of the step h = %s s: %s; step refused, state "
+                    "unchanged", a, why);
     }
     double x = 0.0, v = 0.0;      /* the first step: the hammer at rest in the static equilibrium */
     if (s->started) {
@@ -407,23 +365,17 @@ static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
     set_outputs(m);
     return fmi2OK;
 }
-
 /* ------------------------------------------------------------------------------------------ */
-/* The backend table for front.c                                                                */
+/* The model's functions for the backend table (model.h)                                        */
 /* ------------------------------------------------------------------------------------------ */
-hb_wrapper hb_W;
-
-int hb_backend_load(char *err, size_t n) {
-    (void)err, (void)n;
-    if (hb_W.Instantiate) return 1;
-    hb_W.FreeInstance = s_free_instance;
-    hb_W.SetupExperiment = s_setup_experiment;
-    hb_W.EnterInitializationMode = s_enter_init;
-    hb_W.ExitInitializationMode = s_exit_init;
-    hb_W.Terminate = s_terminate;
-    hb_W.Reset = s_reset;
-    hs_access_fill(&hb_W);
-    hb_W.DoStep = s_do_step;
-    hb_W.Instantiate = s_instantiate;
-    return 1;
+void hb_model_fill(hb_wrapper *w) {
+    w->FreeInstance = s_free_instance;
+    w->SetupExperiment = s_setup_experiment;
+    w->EnterInitializationMode = s_enter_init;
+    w->ExitInitializationMode = s_exit_init;
+    w->Terminate = s_terminate;
+    w->Reset = s_reset;
+    hs_access_fill(w);
+    w->DoStep = s_do_step;
+    w->Instantiate = s_instantiate;
 }

@@ -1,5 +1,8 @@
-/* The native Drillstring backend (model_string.c, model_string_access.c): the exact step's
- * tables, the model state and what the two files share. */
+/* The native Drillstring model: the exact step's tables, the model state and what its files
+ * share:
+ *   model_string.c         life cycle, parameters, fmi2DoStep, hb_model_fill (model.h)
+ *   model_string_table.c   the tables read from the resources
+ *   model_string_access.c  fmi2Get*, fmi2Set*, FMU states */
 #ifndef HAMMERBIT_MODEL_STRING_H
 #define HAMMERBIT_MODEL_STRING_H
 
@@ -8,17 +11,19 @@
 #include <stdint.h>
 
 #include "front.h"
+#include "model.h"
+#include "hb_description.h"
 #include "hs_string.h"
 
-#define N_COEFFS 6
-#define N_ROWS 5                 /* bottom u, v, top tension, top position, top velocity */
-#define ROW_HOOK 2
-#define ROW_TOP_U 3
-#define ROW_TOP_V 4
-#define TOP_FEED 1
-#define TOP_AUTO 2
+/* the exact step's sizes and output rows, from the Python side (hs_string.h) */
+#define N_COEFFS HS_N_COEFFS
+#define N_ROWS HS_N_ROWS
+#define ROW_HOOK HS_ROW_HOOK_TENSION
+#define ROW_TOP_U HS_ROW_TOP_POSITION
+#define ROW_TOP_V HS_ROW_TOP_VELOCITY
 #define STATE_MAGIC 0x48425331u  /* "HBS1": layout version of the string model state */
-#define DATA_MAGIC "HBSTRN01"
+#define DATA_MAGIC HS_DATA_MAGIC
+#define GENERATOR_KIND 2         /* a block of a form's generator (step blocks: 0 dense, 1 modal) */
 
 /* ------------------------------------------------------------------------------------------ */
 /* The exact step of one form over one step length, as read from the resources                 */
@@ -32,11 +37,26 @@ typedef struct {
     double icol[N_COEFFS];
 } block;
 
+/* what the exponentials of a step length the FMU was not built for are computed from */
+typedef struct {
+    int64_t n, m;                /* states; kept modes (0: a dense form) */
+    double *A1, *E, *frow, *rows;
+    double _Complex *lam, *B;    /* modal: the kept modes' eigenvalues and inputs V^-1 E */
+} generator;
+
 typedef struct {
     int64_t nblocks, nmax;       /* nmax: the longest state vector (in doubles: 2 nmax) */
     block *b;
+    generator gen[2];            /* per form (n = 0: the form is absent) */
     double *mem;
 } table;
+
+/* the exponentials of a step length other than the built ones (a bounded cache of them) */
+typedef struct {
+    block b;                     /* b.n = 0: an empty slot */
+    double *mem;
+    size_t cap;
+} cached_step;
 
 /* ------------------------------------------------------------------------------------------ */
 /* State                                                                                       */
@@ -57,17 +77,22 @@ typedef struct {
 } sstate;
 
 typedef struct {
-    char *name;
-    fmi2CallbackFunctions cb;
+    hb_model_base base;          /* name, callbacks (model.h) */
     table tab;
     double *buf, *tmp;           /* scratch of the dense step */
+    cached_step cache[HS_STEP_CACHE];
+    int next_slot;               /* the slot a new step length takes (the oldest) */
+    double *work;                /* scratch of the dense exponential (allocated at its first use) */
     size_t size;
     sstate *s;
 } model;
 
-/* log a message with a status through the front's logger */
-void hs_log(model *m, fmi2Status st, const char *fmt, ...);
+/* log a message with a status through the front's logger (model.h) */
+#define hs_log hb_model_log
 #define FAIL(m, ...) (hs_log((m), fmi2Error, __VA_ARGS__), fmi2Error)
+/* model_string_table.c: the table from <resources>/string_native.bin; 1, or 0 with the reason
+ * in err */
+int hs_load_table(const char *dir, table *t, char *err, size_t en);
 /* the first block of a form (its n and modal flag are those of every step size of the form) */
 const block *hs_any_block(const table *t, int64_t form);
 

@@ -19,6 +19,16 @@ double hs_exchange(int64_t order, double h, int64_t modal, int64_t n, double *P,
                    double *k3, double *th, double *wh, double *Fh, double *out, double F_held, double *c,
                    double *feed);
 
+/* The exponentials of a step h the FMU was not built for (hammerbit.model.string_exponentials): the modal
+ * form's d (n), G (n x 6), irow (n), icol (6) from the n kept modes' eigenvalues lam, inputs B
+ * (n x 2) and frow; or the dense form's P ((n + 1) x (n + 6)) from A1 (n x n), E (n x 2), frow,
+ * with work of HS_PADE_WORK (n + 7)^2 doubles. k2 = (ki, ci). */
+void hs_modal_exponentials(int64_t n, double h, double *k2, double _Complex *lam, double _Complex *B,
+                           double _Complex *frow, double _Complex *d, double _Complex *G,
+                           double _Complex *irow, double *icol);
+void hs_dense_exponential(int64_t n, double h, double *k2, double *A1, double *E, double *frow, double *P,
+                          double *work);
+
 /* nrt_shim.c: 1 if a kernel raised an exception on this thread since the last call (then 0) */
 int hb_kernel_raised(void);
 

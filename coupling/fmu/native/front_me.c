@@ -1,9 +1,10 @@
-/* Model Exchange functions of the front (compiled into front.c when the model description has a
- * <ModelExchange> element, HB_HAS_ME: the native flavour).  Same rules as the co-simulation
+/* Model Exchange functions of the front (compiled when the model description
+ * has a <ModelExchange> element, HB_HAS_ME: the native flavour).  Same rules as the co-simulation
  * functions: the FMI 2.0 state machine (Event Mode, Continuous-Time Mode), NULL and size checks,
  * errors logged, the backend's status recorded. */
-#ifndef HAMMERBIT_FRONT_ME_H
-#define HAMMERBIT_FRONT_ME_H
+#include "front_internal.h"
+
+#if HB_HAS_ME
 
 #define M_ME_VALUES (ST_INIT | ST_EVENT | ST_CONT | ST_TERMINATED | ST_ERROR)
 

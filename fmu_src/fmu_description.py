@@ -1,0 +1,145 @@
+"""The one description of the FMUs' codes and SI formulas, from which the C headers are generated.
+
+What both languages need to agree on is written here once, in Python, and the builds write it
+into C (:mod:`hammerbit.fmu.c_description`); nothing of it is typed again in C:
+
+* the FMI types of the variables (FMI 3 names, with the FMI 2 type each maps to);
+* the integer codes of the Drillstring's ``top_condition`` (:data:`TOP_CONDITIONS`) and the
+  bits of the ``regime`` verdict (:mod:`.regime_codes`);
+* the formulas from the SI rig parameters to the paper's groups and the scales
+  (:data:`SCALE_FORMULAS`, :data:`GROUP_FORMULAS`), in a small expression form: a formula is a
+  name, a number, or a tuple ``(operation, operand, ...)`` of :data:`OPERATIONS`.  Python
+  evaluates it (:func:`evaluate`, used by ``RigParameters.to_groups``) and the generator writes
+  it out as C with the same operations in the same order, so that both give the same bits.
+
+The variables themselves (names, units, ranges, descriptions) are the tables of
+:mod:`.fmu_variables` (HammerBitRock) and of the Drillstring slave; the value references are
+the order in which the slaves register them, read back from ``modelDescription.xml`` by the
+builds.
+"""
+from __future__ import annotations
+
+import math
+import operator
+from dataclasses import dataclass
+
+from . import kernel_layouts
+from .regime_codes import REGIME_BITS
+
+__all__ = ["FMI2_TYPE", "TopCondition", "TOP_CONDITIONS", "top_condition", "top_conditions_text", "REGIME_BITS", "TWO_PI", "OPERATIONS",
+           "SI_NAMES", "SCALE_FORMULAS", "GROUP_FORMULAS", "GROUP_SLOTS", "KERNEL_SLOTS", "evaluate", "si_to_groups", "formula_names"]
+
+#: the FMI 3 type of a variable -> its FMI 2 type
+FMI2_TYPE = {"Float64": "Real", "Int32": "Integer", "UInt64": "Integer", "Boolean": "Boolean",
+             "String": "String"}
+
+
+@dataclass(frozen=True)
+class TopCondition:
+    """One value of the Drillstring's ``top_condition`` parameter."""
+
+    name: str           #: as the CLI and the build name it (``--top``)
+    code: int           #: the parameter's value
+    form: str           #: the string side's form it steps with (``string_model.FORMS``)
+    takes_feed: bool    #: whether ``feed_velocity`` may be non-zero
+    description: str
+
+
+#: the Drillstring's top conditions, in the order of their codes (0, 1, ...)
+TOP_CONDITIONS = (
+    TopCondition("fixed", 0, "fixed", False, "the hook is held at its static position"),
+    TopCondition("feed", 1, "fixed", True, "the hook moves down at feed_velocity"),
+    TopCondition("auto-driller", 2, "auto", False, "a PI controller moves the hook to hold the WOB set point"),
+)
+
+
+def top_condition(key) -> TopCondition:
+    """The top condition of a name (``fixed``, ``feed``, ``auto-driller``) or a code."""
+    for top in TOP_CONDITIONS:
+        if key in (top.name, top.code) and not isinstance(key, bool):
+            return top
+    raise ValueError(f"top condition {key!r} is unknown; known: {top_conditions_text()}")
+
+
+def top_conditions_text(tops=None) -> str:
+    """``0 (fixed), 1 (feed), 2 (auto-driller)``: the codes as a message lists them."""
+    return ", ".join(f"{t.code} ({t.name})" for t in (TOP_CONDITIONS if tops is None else tops))
+
+
+#: 2 pi as Python rounds 2.0 * math.pi (one constant, the same double in C)
+TWO_PI = 2.0 * math.pi
+
+#: name -> (arity, Python function, C template); the C template writes the same IEEE operation
+OPERATIONS = {
+    "add": (2, operator.add, "({0} + {1})"),
+    "sub": (2, operator.sub, "({0} - {1})"),
+    "mul": (2, operator.mul, "({0} * {1})"),
+    "div": (2, operator.truediv, "({0} / {1})"),
+    "sqrt": (1, math.sqrt, "sqrt({0})"),
+    "pow": (2, math.pow, "pow({0}, {1})"),
+}
+
+#: the SI rig parameters the formulas read (``RigParameters`` fields)
+SI_NAMES = ("hammer_mass", "bit_mass", "stiffness", "damping", "mu_static", "mu_kinetic",
+            "friction_decay", "normal_force", "contact_stiffness", "contact_exponent",
+            "contact_damping", "gap", "preload", "amplitude", "frequency", "phase")
+
+#: the scales, in the order they are computed (each may use the ones before it)
+SCALE_FORMULAS = (
+    ("F0", ("mul", "mu_static", "normal_force")),              # static friction threshold [N]
+    ("Omega", ("sqrt", ("div", "stiffness", "hammer_mass"))),  # time scale [rad/s]
+    ("x0", ("div", "F0", "stiffness")),                        # length scale [m]
+)
+
+#: the paper's twelve groups (``Groups`` fields, in their order) from the SI parameters and scales
+GROUP_FORMULAS = (
+    ("rho", ("div", "bit_mass", "hammer_mass")),
+    ("xi", ("div", "damping", ("mul", 2.0, ("sqrt", ("mul", "stiffness", "hammer_mass"))))),
+    ("eta", ("div", ("mul", TWO_PI, "frequency"), "Omega")),
+    ("a", ("div", "amplitude", "F0")),
+    ("b", ("div", "preload", "F0")),
+    ("r", ("div", "gap", "x0")),
+    ("mu", ("div", "mu_kinetic", "mu_static")),
+    ("gamma_hat", ("mul", ("mul", "friction_decay", "x0"), "Omega")),
+    ("kc", ("div", ("mul", "contact_stiffness", ("pow", "x0", "contact_exponent")), "F0")),
+    ("n", "contact_exponent"),
+    ("lam_hat", ("mul", ("mul", "contact_damping", "x0"), "Omega")),
+    ("phi", "phase"),
+)
+
+#: the slot of each group in the kernels' parameter vector (``kernel_layouts.P_*``)
+GROUP_SLOTS = {"rho": "P_RHO", "xi": "P_XI", "eta": "P_ETA", "a": "P_A", "b": "P_B", "r": "P_R", "mu": "P_MU",
+               "gamma_hat": "P_GAMMA", "kc": "P_KC", "n": "P_N", "lam_hat": "P_LAM", "phi": "P_PHI"}
+#: ``((group, its index in the kernels' parameter vector), ...)`` in the order of the groups
+KERNEL_SLOTS = tuple((name, getattr(kernel_layouts, GROUP_SLOTS[name])) for name, _ in GROUP_FORMULAS)
+
+
+def formula_names(expr) -> set:
+    """The names a formula reads."""
+    if isinstance(expr, str):
+        return {expr}
+    if isinstance(expr, tuple):
+        return set().union(*(formula_names(e) for e in expr[1:]))
+    return set()
+
+
+def evaluate(expr, env: dict) -> float:
+    """The value of the formula ``expr`` with the names of ``env``."""
+    if isinstance(expr, str):
+        return env[expr]
+    if isinstance(expr, tuple):
+        arity, fn, _ = OPERATIONS[expr[0]]
+        if len(expr) != arity + 1:
+            raise ValueError(f"{expr[0]} takes {arity} operands, the formula {expr!r} gives {len(expr) - 1}")
+        return fn(*(evaluate(e, env) for e in expr[1:]))
+    return float(expr)
+
+
+def si_to_groups(si: dict) -> tuple:
+    """``(scales, groups)``: the dicts of :data:`SCALE_FORMULAS` and :data:`GROUP_FORMULAS` for the
+    SI parameters ``si`` (every name of :data:`SI_NAMES`)."""
+    env = dict(si)
+    scales = {}
+    for name, expr in SCALE_FORMULAS:
+        env[name] = scales[name] = evaluate(expr, env)
+    return scales, {name: evaluate(expr, env) for name, expr in GROUP_FORMULAS}
