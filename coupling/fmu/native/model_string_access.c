@@ -133,8 +133,8 @@ static const char *derived_invalid(const model *m, const sstate *s) {
     char bad[512];
     if (!hs_check_parameters(s, bad, sizeof bad)) return "its parameters are invalid";
     const block *b = hs_any_block(&m->tab, s->form);
-    double feed = s->top_condition == TOP_FEED ? s->feed_velocity : 0.0;
-    if (s->form != (s->top_condition == TOP_AUTO ? 1 : 0) || !b || s->n != b->n || s->modal != b->modal ||
+    double feed = HB_TOP_TAKES_FEED[s->top_condition] ? s->feed_velocity : 0.0;
+    if (s->form != HB_TOP_FORM[s->top_condition] || !b || s->n != b->n || s->modal != b->modal ||
         s->order != s->extrapolation)
         return "its form, size or extrapolation order is not the one of its parameters";
     if (s->W != s->wob || s->hook_eq != HS_BUOYED_WEIGHT - s->W || s->k3[0] != HS_INTERFACE_STIFFNESS ||
@@ -154,7 +154,7 @@ static const char *state_invalid(const model *m, const sstate *s) {
         s->t < s->t_start)
         return "its times are out of range or t < t_start";
     if (s->form < 0 || s->form > 1 || s->order < 0 || s->order > 2 || s->extrapolation < 0 ||
-        s->extrapolation > 2 || s->top_condition < 0 || s->top_condition > TOP_AUTO)
+        s->extrapolation > 2 || s->top_condition < 0 || s->top_condition >= HB_N_TOP_CONDITIONS)
         return "its form, extrapolation order or top condition is out of range";
     if (!memchr(s->error, '\0', sizeof s->error)) return "its error message is not terminated";
     const double reals[] = {s->damping_ratio, s->wob, s->at_rest, s->feed_velocity, s->kp, s->kig,
