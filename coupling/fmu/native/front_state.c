@@ -173,8 +173,8 @@ EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serial
         h.last_successful > h.time) {
         char a[32], b[32];
         LOG(I, fmi2Error, "fmi2DeSerializeFMUstate: the state's header holds the time %s s and the "
-                          "last successful time %s s: both must be within the FMU's time range, "
-                          "the second <= the first; refused", fmt_real(a, h.time), fmt_real(b, h.last_successful));
+                          "last successful time %s s: both must be finite and within the FMU's "
+                          "time range, the second <= the first; refused", fmt_real(a, h.time), fmt_real(b, h.last_successful));
         return settle(I, fmi2Error);
     }
     hb_fmustate *s = (hb_fmustate *)*FMUstate;
