@@ -46,7 +46,7 @@ MINGW_CC = "x86_64-w64-mingw32-gcc"
 NATIVE_SOURCES = tuple(SOURCE_DIR / f for f in (*FRONT_SOURCES, "model_backend.c", "model_common.c",
                                                 "model_native.c", "model_params.c", "model_checks.c",
                                                 "model_values.c", "model_me.c", "model_state.c",
-                                                "real_repr.c", "nrt_shim.c"))
+                                                "real_repr.c", "nrt_shim.c", "glibc_compat.c"))
 #: the linux64 binaries' shim to glibc 2.17 (manylinux2014): the math functions glibc 2.27/2.29
 #: re-versioned, bound to their oldest version (the link wraps every reference to them)
 GLIBC_COMPAT_SOURCE = SOURCE_DIR / "glibc_compat.c"
@@ -170,7 +170,7 @@ def link_binary(platform: str, cc: str, obj: Path, include: Path, out: Path, sou
         # glibc_compat.c and --wrap: no symbol version above glibc 2.17 (see that file)
         wrap = "-Wl," + ",".join(f"--wrap={name}" for name in GLIBC_WRAPPED)
         cmd = [cc, *common, "-fPIC", "-shared", "-fvisibility=hidden", "-o", str(out), *srcs,
-               str(GLIBC_COMPAT_SOURCE), str(obj), "-Wl,-Bsymbolic", "-Wl,--no-undefined", wrap, "-lm",
+               str(obj), "-Wl,-Bsymbolic", "-Wl,--no-undefined", wrap, "-lm",
                "-lpthread"]
     else:
         # static libgcc/winpthread: the DLL needs only the system's KERNEL32 and msvcrt

@@ -57,7 +57,7 @@ def _sources():
     from hammerbit.fmu.native import FRONT_SOURCES, SOURCE_DIR
     return tuple(SOURCE_DIR / f for f in (*FRONT_SOURCES, "model_backend.c", "model_common.c", "model_string.c",
                                           "model_string_table.c", "model_string_access.c", "real_repr.c",
-                                          "nrt_shim.c"))
+                                          "nrt_shim.c", "glibc_compat.c"))
 
 
 #: C sources of the native string FMU (front, resource URIs, string backend, repr, runtime shim)

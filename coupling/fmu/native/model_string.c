@@ -54,9 +54,6 @@ static int in_range(double v, double lo, double hi, int hi_open) {
 
 /* the first bad parameter as the Python slave words it (then the native flavour's own refusal
  * of a value the build's matrices do not cover); 1 if all are fine */
-static int check_parameters(const sstate *s, char *out, size_t n);
-int hs_check_parameters(const sstate *s, char *out, size_t n) { return check_parameters(s, out, n); }
-
 static int check_parameters(const sstate *s, char *out, size_t n) {
     char r[40], r2[40];
     const struct { const char *name; double v, lo, hi; int open; const char *text; } checks[] = {

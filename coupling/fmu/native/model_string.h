@@ -96,9 +96,6 @@ int hs_load_table(const char *dir, table *t, char *err, size_t en);
 /* the first block of a form (its n and modal flag are those of every step size of the form) */
 const block *hs_any_block(const table *t, int64_t form);
 
-/* 1 if the parameters of s are valid; else 0 and the first bad one named in out */
-int hs_check_parameters(const sstate *s, char *out, size_t n);
-
 /* model_string_access.c: fmi2Get*, fmi2Set* and the FMU-state functions of the backend table */
 void hs_access_fill(hb_wrapper *w);
 

@@ -130,8 +130,6 @@ static int all_finite(const double *v, size_t n) {
 
 /* what exit of initialisation derives from the parameters, as it derives it */
 static const char *derived_invalid(const model *m, const sstate *s) {
-    char bad[512];
-    if (!hs_check_parameters(s, bad, sizeof bad)) return "its parameters are invalid";
     const block *b = hs_any_block(&m->tab, s->form);
     double feed = HB_TOP_TAKES_FEED[s->top_condition] ? s->feed_velocity : 0.0;
     if (s->form != HB_TOP_FORM[s->top_condition] || !b || s->n != b->n || s->modal != b->modal ||
