@@ -50,9 +50,14 @@ def state_from_bytes(data: bytes, check=None):
             raise ValueError(why)
         if "inputs" in s:
             s["inputs"] = tuple(s["inputs"])
-    except (ValueError, TypeError) as e:   # JSON and UTF-8 errors are ValueErrors
+    except ValueError as e:   # JSON and UTF-8 errors are ValueErrors
         _DESERIALIZED.status = FMI_ERROR
         _DESERIALIZED.reason = f"cannot deserialise the FMU state: {e}"
+        return {"format": "invalid", "reason": _DESERIALIZED.reason}
+    except Exception as e:  # noqa: BLE001 -- bytes from outside: any failure to read them is a refusal
+        # (a huge JSON integer overflows a float, deep nesting recurses, a field of the wrong type)
+        _DESERIALIZED.status = FMI_ERROR
+        _DESERIALIZED.reason = f"cannot deserialise the FMU state: {type(e).__name__}: {e}"
         return {"format": "invalid", "reason": _DESERIALIZED.reason}
     _DESERIALIZED.status = FMI_OK
     return s

@@ -16,7 +16,7 @@ import struct
 from .params import RigParameters
 from .validation import RANGES, Range
 
-__all__ = ["UNITS", "PARAMETERS", "BOOL_PARAMETERS", "INPUTS", "OUTPUTS", "RIG_FIELDS",
+__all__ = ["MAX_PERIODS_PER_STEP", "UNITS", "PARAMETERS", "BOOL_PARAMETERS", "INPUTS", "OUTPUTS", "RIG_FIELDS",
            "FIXED_REALS", "range_key", "variable_range", "start_values", "nominal_values",
            "DEFAULT_TOLERANCE", "INPUT_GROUPS", "input_range", "accepted_bounds"]
 
@@ -112,6 +112,12 @@ OUTPUTS = (
     ("bounce_count", "Integer", None, "number of bit-bounce violations (F_d < -F_s while stuck: the "
                                       "rock would have to pull the bit back; the bit is held)"),
 )
+
+
+#: forcing periods one fmi2DoStep of HammerBitRock may span: the solver's limits count per period
+#: (steps, events), so the work of a step is bounded in advance by this times those limits; a
+#: longer step is refused at once, naming this limit, instead of running for minutes
+MAX_PERIODS_PER_STEP = 100_000
 
 
 def range_key(name: str) -> str:

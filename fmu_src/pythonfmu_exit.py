@@ -1,8 +1,16 @@
 """pythonfmu 0.7.0's exit-time double free, and the guard against it (no numba import here).
 
 Any host that loads a pythonfmu FMU into a Python process can call
-:func:`guard_pythonfmu_exit` with the FMU's resources directory (the slave
-calls it for its own binary).
+:func:`guard_pythonfmu_exit` with the FMU's resources directory (both slaves,
+HammerBitRock and Drillstring, call it for their own binary).  At every exit
+an unguarded wrapper releases a freed control block once more; whether the
+process then aborts
+(``corrupted double-linked list``, exit 134) depends on what else the exit
+frees: FMPy's SSP runner with the two pythonfmu FMUs of ``drilling.ssp`` in
+one process aborted in most runs while only HammerBitRock's binary was
+guarded.  The native front (``native/pythonfmu_wrapper.c``) resets the same
+pointer from its own exit handler, so an FMU with the front is guarded in any
+host.
 """
 import atexit
 import ctypes

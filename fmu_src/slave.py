@@ -45,14 +45,14 @@ from . import kernel_driver, kernel_forces, kernel_layouts
 from . import numba_cache
 from .fmu_state import STATE_FORMAT, pop_deserialize_reason, pop_deserialize_status
 from .fmu_variable_xml import KIND, RealVar
-from .fmu_variables import (BOOL_PARAMETERS, DEFAULT_TOLERANCE, FIXED_REALS, INPUTS, OUTPUTS, PARAMETERS, RIG_FIELDS, UNITS, accepted_bounds, input_range, nominal_values, range_key, start_values, variable_range)
+from .fmu_variables import (BOOL_PARAMETERS, DEFAULT_TOLERANCE, FIXED_REALS, INPUTS, MAX_PERIODS_PER_STEP, OUTPUTS, PARAMETERS, RIG_FIELDS, UNITS, accepted_bounds, input_range, nominal_values, range_key, start_values, variable_range)
 from .kernel_layouts import P_B, P_FEXT
 from .params import RigParameters
 from .pythonfmu_exit import guard_pythonfmu_exit
 from .solver_errors import EventStormError, SolverError, StepSizeError, StepStormError
 from .solver_options import SolverOptions
 from .stepping import NO_LOG, NO_POINCARE, NO_SAMPLE_TIMES, NO_SAMPLES, Stepper
-from .validation import ParameterError, check
+from .validation import RANGES, ParameterError, check
 from .numba_dispatch import entry_point as _entry_point
 from .fmi_status import DISCARD, ERROR, OK, WARNING
 from .slave_access import VariableAccess
@@ -256,6 +256,7 @@ class HammerBitRock(VariableAccess, SavedState, Fmi2Slave):
         self._kernel = kernel_driver.advance_hammer if st.fast else _general_advance(st)
         self._slow = True          # do_step rebuilds its tuple of the stepper's arrays
         self._rig = rig
+        self._step_cap = MAX_PERIODS_PER_STEP / rig.frequency     # the longest step accepted [s]
         self._x0 = x0
         self._v0 = s.velocity
         self._F0 = s.friction_force
@@ -299,9 +300,14 @@ class HammerBitRock(VariableAccess, SavedState, Fmi2Slave):
     # ------------------------------------------------------------------
     def setup_experiment(self, start_time, stop_time=None, tolerance=None):
         self.last_status = OK
-        if not _isfinite(start_time):
-            return self._fail(f"fmi2SetupExperiment: startTime = {start_time!r} s is not finite; "
-                              f"refused, the start time stays {self._t_start!r} s")
+        rng = RANGES["fmu.time"]
+        if not rng.contains(start_time):
+            return self._fail(f"fmi2SetupExperiment: startTime = {start_time!r} s is out of range: allowed "
+                              f"{rng.text()}; refused, the start time stays {self._t_start!r} s")
+        if stop_time is not None and not (rng.contains(stop_time) and stop_time >= start_time):
+            return self._fail(f"fmi2SetupExperiment: stopTime = {stop_time!r} s is out of range: allowed "
+                              f"[startTime = {start_time!r}, {rng.hi:g}] s; refused, the start time stays "
+                              f"{self._t_start!r} s")
         self._t_start = float(start_time)
         self._t = float(start_time)
         self._slow = True
@@ -352,7 +358,7 @@ class HammerBitRock(VariableAccess, SavedState, Fmi2Slave):
     def do_step(self, current_time, step_size):
         try:
             # the checks of the common case first: initialised, on the FMU's time, a valid step
-            if (self._slow or current_time != self._t or not 0.0 < step_size < _INF) \
+            if (self._slow or current_time != self._t or not 0.0 < step_size <= self._step_cap) \
                     and not self._step_allowed(current_time, step_size):
                 return False
             kernel, y, ist, fst, p, opts, t_start, omega, state = self._hot
@@ -381,7 +387,7 @@ class HammerBitRock(VariableAccess, SavedState, Fmi2Slave):
         if self._slow and not self._prepare_step():
             return False
         t = self._t
-        if not (0.0 < step_size < _INF) or (
+        if not (0.0 < step_size <= self._step_cap) or (
                 current_time != t and not abs(current_time - t) <= _time_tol(t)):
             return self._reject_step(current_time, step_size)
         return True
@@ -440,6 +446,13 @@ class HammerBitRock(VariableAccess, SavedState, Fmi2Slave):
         if not (0.0 < step_size < _INF):
             return self._fail(f"communication step size h = {step_size!r} s is invalid: "
                               f"it must be > 0 and finite; step refused, state unchanged")
+        if step_size > self._step_cap:
+            f = self._rig.frequency
+            return self._fail(f"communication step size h = {step_size!r} s spans {step_size * f:.6g} forcing "
+                              f"periods (frequency = {f!r} Hz), more than MAX_PERIODS_PER_STEP = "
+                              f"{MAX_PERIODS_PER_STEP} (h <= {self._step_cap:.6g} s): the solver's limits "
+                              f"count per period, so such a step's work has no useful bound; take shorter "
+                              f"steps; step refused, state unchanged")
         return self._fail(f"currentCommunicationPoint = {current_time!r} s is not the current "
                           f"time of the FMU, {self._t!r} s (tolerance {_time_tol(self._t):g} s); step "
                           f"refused, state unchanged")

@@ -12,8 +12,9 @@ import numpy as np
 
 from . import build_info
 from .fmu_state import STATE_FORMAT, state_from_bytes, state_to_bytes
-from .fmu_state_checks import state_problem
-from .fmu_variables import FIXED_REALS, INPUTS, input_range
+from .fmu_state_checks import kernel_problem, state_problem
+from .fmu_variables import FIXED_REALS, INPUT_GROUPS, INPUTS, input_range
+from .validation import RANGES
 from .validation import ParameterError
 from .fmi_status import OK
 
@@ -104,5 +105,12 @@ class SavedState:
             rng = input_range(name, rig.scales.friction_force)
             if not rng.contains(v):
                 return f"input {name!r} = {v!r} is outside {rng.text()} (1000 F0 of its parameters)"
-        return None
+        # the kernel's arrays as the parameters in use build them (the slave's _commit)
+        groups = rig.to_groups()
+        if s["t_start"] != 0.0:
+            groups = groups.replace(phi=math.fmod(rig.phase + 2.0 * math.pi * rig.frequency * s["t_start"],
+                                                  2.0 * math.pi))
+        # the inputs enter the kernel divided by F0: their group's bound, and a rounding's margin
+        limits = [RANGES[INPUT_GROUPS[name]].hi * (1.0 + 1e-12) for name in ("preload", "harmonic_force")]
+        return kernel_problem(s["stepper"], groups.to_kernel(), s["t"], s["t_start"], rig.scales.omega, limits)
 

@@ -46,6 +46,7 @@ from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Initial, Fmi2Slave, 
     Real
 from pythonfmu.enums import Fmi2Status
 
+from .pythonfmu_exit import guard_pythonfmu_exit
 from .fmu_description import TOP_CONDITIONS, top_condition, top_conditions_text
 from .string_model import OUTPUT_ROWS, form_of, load_model, string_matrices
 from .numba_dispatch import entry_point
@@ -79,6 +80,7 @@ class Drillstring(Fmi2Slave):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
+        guard_pythonfmu_exit(self.resources)     # pythonfmu 0.7.0's double free at exit
         self._arrays, self._info = load_model(str(self.resources))
         sc = self._info["scalars"]
         self.description = self._info.get("description", "")
@@ -211,6 +213,25 @@ class Drillstring(Fmi2Slave):
                     f"({self._info.get('auto_driller_refused')}); allowed "
                     f"{top_conditions_text([t for t in TOP_CONDITIONS if t.form != 'auto'])}")
         return None
+
+    # -- FMU states: not supported (canGetAndSetFMUstate is false) ------------------------
+    # pythonfmu's default saves the variables only, not the string's state: a state restored from
+    # it would go on from a wrong string state.  The native front refuses every state call of an
+    # FMU that declares no states (fmi2Error); without the front (pythonfmu's binary alone, which
+    # returns OK whatever the slave says) these log an error and change nothing.
+    _NO_STATES = ("FMU states are not supported by the pythonfmu Drillstring.fmu "
+                  "(canGetAndSetFMUstate is false; the native flavour supports them)")
+
+    def _get_fmu_state(self):
+        self._fail(f"fmi2GetFMUstate: {self._NO_STATES}")
+        return {"format": "unsupported"}
+
+    def _set_fmu_state(self, state):
+        self._fail(f"fmi2SetFMUstate: {self._NO_STATES}; state unchanged")
+
+    @classmethod
+    def _fmu_state_from_bytes(cls, data: bytes):
+        return {"format": "unsupported"}
 
     # -- life cycle ----------------------------------------------------------------
     def setup_experiment(self, start_time, stop_time=None, tolerance=None):

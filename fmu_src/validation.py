@@ -183,6 +183,8 @@ RANGES: dict[str, Range] = {
     "check.n_grid": Range(11, 1e7),
     # -- the FMU's own parameters and its inputs --------------------------------
     "fmu.tolerance": Range(1e-14, 1e-2, unit="1"),
+    # the FMU's clock: start, stop and every communication point (fmi2SetupExperiment, fmi2DoStep)
+    "fmu.time": Range(-1e9, 1e9, unit="s"),
     "fmu.initial_hammer_position": Range(-1e6, 1e6, unit="m"),
     "fmu.initial_bit_position": Range(-1e6, 1e6, unit="m"),
     # physical range of the inputs: |force| up to 1e9 N (a 100,000 t load);

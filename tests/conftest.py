@@ -90,3 +90,23 @@ def pytest_collection_modifyitems(config, items):
     for item in items:
         if item.nodeid in SLOW_TESTS or item.nodeid.split("[")[0] in SLOW_TESTS:
             item.add_marker(pytest.mark.slow)
+
+
+@pytest.fixture(scope="session")
+def built_string_fmu(tmp_path_factory):
+    """``Drillstring.fmu`` of the lab string, pythonfmu flavour, built once per session."""
+    from hammerbit.fmu.build_string import build_string_fmu
+    return build_string_fmu("lab", tmp_path_factory.mktemp("string_py") / "Drillstring.fmu")
+
+
+@pytest.fixture(scope="session")
+def built_native_string_fmu(tmp_path_factory):
+    """``Drillstring.fmu`` of the lab string, native flavour, built once per session."""
+    from hammerbit.fmu.native import FrontBuildError, find_compiler
+    from hammerbit.fmu.native_string import build_native_string_fmu
+    try:
+        find_compiler()
+    except FrontBuildError as e:
+        pytest.skip(str(e))
+    return build_native_string_fmu("lab", tmp_path_factory.mktemp("string_native") / "Drillstring.fmu",
+                                   log=lambda msg: None)

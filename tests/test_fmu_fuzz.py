@@ -6,7 +6,12 @@ process or changes the state.  Both runtime flavours (pythonfmu, native) are fuz
 saved before it (FMI 2.0.4: the recovery from fmi2Error), and the fuzzed
 instance ends bit-identical to a clean instance that made only the valid calls.
 """
+import json
 import math
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -90,3 +95,65 @@ def test_state_from_another_instance_and_terminate_twice(any_fmu):
         b.fmu.terminate()
         assert b.call(b.fmu.terminate) == 3          # fmi2Error, and the instance is still freed
         b.fmu.freeInstance()
+
+
+# ---------------------------------------------------------------------------
+# fuzzed FMU states, in a host process of their own (tests/state_fuzz_host.py)
+# ---------------------------------------------------------------------------
+STATE_FUZZ_HOST = Path(__file__).resolve().parent / "state_fuzz_host.py"
+#: every FMU the project builds, both flavours (session fixtures of conftest.py)
+ALL_FMUS = ["built_fmu", "built_native_fmu", "built_string_fmu", "built_native_string_fmu"]
+
+
+def fuzz_states(fmu: Path, tmp: Path, *, seed: int, count: int, watchdog: float, timeout: float) -> dict:
+    """Run the state fuzzing host on ``fmu``; its counts per kind and outcome.
+
+    A crash of the host (a signal), a hang of one state beyond ``watchdog`` seconds (the
+    host's own watchdog ends it with a traceback), an accepted state whose outputs leave their
+    declared ranges, or a lost instance fails the calling test, naming the state."""
+    d = tmp / "fmu"
+    with zipfile.ZipFile(fmu) as zf:
+        zf.extractall(d)
+    try:
+        proc = subprocess.run([sys.executable, str(STATE_FUZZ_HOST), str(d), str(seed), str(count), str(watchdog)],
+                              capture_output=True, text=True, timeout=timeout)
+    except subprocess.TimeoutExpired as e:
+        last = (e.stdout or b"")[-300:]
+        pytest.fail(f"{fmu.name}: the fuzzing host did not finish in {timeout} s; last lines: {last!r}")
+    lines = proc.stdout.splitlines()
+    last = lines[-1] if lines else ""
+    if proc.returncode != 0:
+        done = [ln for ln in lines if ln[:1].isdigit()]
+        after = f"after state {done[-1]!r}" if done else "before the first state"
+        kind = (f"crashed with signal {-proc.returncode}" if proc.returncode < 0 else
+                "hung (watchdog)" if "Timeout" in proc.stderr else f"exited {proc.returncode}")
+        pytest.fail(f"{fmu.name}: the host {kind} {after}: {last}\n{proc.stderr[-2000:]}")
+    counts = json.loads(last)
+    assert sum(counts.values()) == count
+    return counts
+
+
+def _assert_exercised(counts: dict, fmu_fixture: str) -> None:
+    """Each kind was refused at times; a field-corrupted state is accepted at times too (the checks
+    do not refuse everything) where the FMU declares states."""
+    for kind in ("flip", "field", "random"):
+        assert counts[f"{kind}:refused"] > 0, counts
+    if fmu_fixture != "built_string_fmu":          # the pythonfmu Drillstring declares no states
+        assert counts["field:ran"] + counts["field:failed"] > 0, counts
+
+
+@pytest.mark.parametrize("fmu_fixture", ALL_FMUS)
+def test_fuzzed_states_never_crash_or_hang_the_host(fmu_fixture, request, tmp_path):
+    """A few hundred states per FMU and flavour, a third field-corrupted: 0 crashes, 0 hangs (the
+    subprocess's generous bound shows a hang; the slow set's twin asks 1 s per state)."""
+    counts = fuzz_states(request.getfixturevalue(fmu_fixture), tmp_path, seed=11, count=300,
+                         watchdog=60.0, timeout=900.0)
+    _assert_exercised(counts, fmu_fixture)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("fmu_fixture", ALL_FMUS)
+def test_ten_thousand_fuzzed_states_never_crash_or_hang_over_a_second(fmu_fixture, request, tmp_path):
+    counts = fuzz_states(request.getfixturevalue(fmu_fixture), tmp_path, seed=12345, count=10_002,
+                         watchdog=1.0, timeout=3600.0)
+    _assert_exercised(counts, fmu_fixture)

@@ -44,7 +44,7 @@ from typing import Mapping, Optional
 from xml.etree import ElementTree as ET
 
 __all__ = ["MODEL_NAME", "RUNTIME_PREFIX", "ENTRY_PREFIX", "RUNTIMES", "BuildOptions", "FMUBuildError",
-           "UnknownVariableError", "build_fmu", "runtime_dir", "runtime_files", "build_hash",
+           "UnknownVariableError", "build_fmu", "add_native_front", "runtime_dir", "runtime_files", "build_hash",
            "check_start_values", "default_output"]
 
 MODEL_NAME = "HammerBitRock"
@@ -293,8 +293,9 @@ def _native_front():
     return build_front
 
 
-def _add_front(files: dict, md_xml: str, model_identifier: str, work: Path) -> Optional[str]:
-    """Replace pythonfmu's binary by the native front (pythonfmu's renamed beside it)."""
+def add_native_front(files: dict, md_xml: str, model_identifier: str, work: Path) -> Optional[str]:
+    """Replace pythonfmu's binary in ``files`` (the FMU's contents by name) by the native front,
+    pythonfmu's renamed ``<id>_python.so`` beside it; the wrapper's name, or None without the front."""
     build_front = _native_front()
     if build_front is None:
         return None
@@ -396,7 +397,7 @@ def build_fmu(out=None, *, options: BuildOptions = BuildOptions(), **kw) -> Path
         contents["modelDescription.xml"] = md
         model_identifier = ET.fromstring(md).find("CoSimulation").get("modelIdentifier")
         if options.native_front:
-            _add_front(contents, md.decode("utf-8"), model_identifier, work)
+            add_native_front(contents, md.decode("utf-8"), model_identifier, work)
         tmp_out = out.with_name(out.name + ".tmp")
         with zipfile.ZipFile(tmp_out, "w", zipfile.ZIP_DEFLATED) as zf:
             for name in sorted(contents):

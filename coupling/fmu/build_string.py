@@ -6,7 +6,10 @@ at the file's damping ratio, writes its arrays and the description into the
 FMU's resources, and ships :mod:`hammerbit.model` (the ``fmu_src`` runtime,
 whose :mod:`~hammerbit.model.string_step` is the master's exact string step)
 as the package ``hammerbit_string_runtime_<hash>``.  The pythonfmu flavour:
-the FMU runs in a host with Python, numpy, scipy, numba and pythonfmu.
+the FMU runs in a host with Python, numpy, scipy, numba and pythonfmu; its
+native front (``binaries/linux64/Drillstring.so``, pythonfmu's binary beside it
+as ``Drillstring_python.so``) loads that Python into a native host, as
+HammerBitRock's does.
 
 From Python::
 
@@ -24,10 +27,11 @@ import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
+from xml.etree import ElementTree as ET
 
 import numpy as np
 
-from hammerbit.fmu.build import build_hash, forget_staged_modules, runtime_files
+from hammerbit.fmu.build import add_native_front, build_hash, forget_staged_modules, runtime_files
 
 __all__ = ["MODEL_NAME", "StringBuild", "build_string_fmu", "string_build",
            "default_string_output", "string_fmu_path"]
@@ -236,6 +240,11 @@ def build_string_fmu(string_arg, out=None, *, build: Optional[StringBuild] = Non
             forget_staged_modules(staging, (entry_name, pkg_name))
         with zipfile.ZipFile(raw) as zf:
             contents = {n: zf.read(n) for n in zf.namelist() if not n.endswith("/")}
+        # the native front, as HammerBitRock's: loads Python into a native host (pythonfmu's own
+        # binary expects the host to be Python) and keeps the FMI calling sequence
+        md = contents["modelDescription.xml"]
+        model_identifier = ET.fromstring(md).find("CoSimulation").get("modelIdentifier")
+        add_native_front(contents, md.decode("utf-8"), model_identifier, work)
         tmp_out = out.with_name(out.name + ".tmp")
         with zipfile.ZipFile(tmp_out, "w", zipfile.ZIP_DEFLATED) as zf:
             for name in sorted(contents):

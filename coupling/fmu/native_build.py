@@ -34,7 +34,7 @@ from hammerbit.fmu.native import FRONT_SOURCES, SOURCE_DIR, FrontBuildError, c_s
 from hammerbit.fmu.c_description import write_description_header
 from hammerbit.fmu.native_kernels import TARGETS, ALLOWED_UNDEFINED, build_objects, undefined_symbols
 
-__all__ = ["NATIVE_GENERATION_TOOL", "MINGW_CC", "C_FLAGS", "NATIVE_SOURCES", "STATES", "NativeBuildError", "native_header",
+__all__ = ["NATIVE_GENERATION_TOOL", "MINGW_CC", "C_FLAGS", "NATIVE_SOURCES", "GLIBC_COMPAT_SOURCE", "GLIBC_WRAPPED", "STATES", "NativeBuildError", "native_header",
            "select_platforms", "build_binaries", "link_binary", "nm_for",
            "native_model_description", "assemble_native_fmu"]
 
@@ -46,7 +46,11 @@ MINGW_CC = "x86_64-w64-mingw32-gcc"
 NATIVE_SOURCES = tuple(SOURCE_DIR / f for f in (*FRONT_SOURCES, "model_backend.c", "model_common.c",
                                                 "model_native.c", "model_params.c", "model_checks.c",
                                                 "model_values.c", "model_me.c", "model_state.c",
-                                                "real_repr.c", "nrt_shim.c"))
+                                                "real_repr.c", "nrt_shim.c", "glibc_compat.c"))
+#: the linux64 binaries' shim to glibc 2.17 (manylinux2014): the math functions glibc 2.27/2.29
+#: re-versioned, bound to their oldest version (the link wraps every reference to them)
+GLIBC_COMPAT_SOURCE = SOURCE_DIR / "glibc_compat.c"
+GLIBC_WRAPPED = ("exp", "log", "pow", "exp2", "log2", "expf", "logf", "powf", "exp2f", "log2f")
 #: the nondimensional group whose range bounds each input, in units of the static friction
 #: threshold F0 (preload b = B/F0, forcing amplitude a = A/F0): |input| <= hi * F0
 INPUT_GROUPS = {"preload": "group.b", "harmonic_force": "group.a"}
@@ -123,6 +127,9 @@ def native_header(model_description_xml, start_values: dict, layout: dict) -> st
         if f.name in ("max_events_per_period", "max_step", "graze_tol", "max_steps",
                       "max_steps_per_period", "bisection_tol"):
             lines.append(f"#define HB_SOLVER_{f.name.upper()} {_c_double(float(getattr(solver, f.name)))}")
+    from hammerbit.model.fmu_variables import MAX_PERIODS_PER_STEP
+    lines.append(f"#define HB_MAX_PERIODS_PER_STEP {_c_double(float(MAX_PERIODS_PER_STEP))}")
+    lines.append(f"#define HB_STATE_TIME_LIMIT {_c_double(RANGES['fmu.time'].hi)}")
     if set(slots) != {n for n, _ in stored}:
         raise NativeBuildError("duplicate stored variable")
     return "\n".join(lines) + "\n"
@@ -160,8 +167,11 @@ def link_binary(platform: str, cc: str, obj: Path, include: Path, out: Path, sou
     common = [*C_FLAGS, "-Wall", "-Wextra", "-Wno-unused-parameter", "-DHB_NATIVE_MODEL",
               "-I", str(include), "-I", str(SOURCE_DIR)]
     if platform == "linux64":
-        cmd = [cc, *common, "-fPIC", "-shared", "-fvisibility=hidden", "-o", str(out), *srcs, str(obj),
-               "-Wl,-Bsymbolic", "-Wl,--no-undefined", "-lm", "-lpthread"]
+        # glibc_compat.c and --wrap: no symbol version above glibc 2.17 (see that file)
+        wrap = "-Wl," + ",".join(f"--wrap={name}" for name in GLIBC_WRAPPED)
+        cmd = [cc, *common, "-fPIC", "-shared", "-fvisibility=hidden", "-o", str(out), *srcs,
+               str(obj), "-Wl,-Bsymbolic", "-Wl,--no-undefined", wrap, "-lm",
+               "-lpthread"]
     else:
         # static libgcc/winpthread: the DLL needs only the system's KERNEL32 and msvcrt
         cmd = [cc, *common, "-D__USE_MINGW_ANSI_STDIO=1", "-shared", "-static", "-o", str(out), *srcs,

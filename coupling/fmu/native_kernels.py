@@ -94,6 +94,7 @@ ALLOWED_UNDEFINED = frozenset({
 #: kernel layout constants the C side reads from the generated header (``layout()``)
 LAYOUT_NAMES = (
     "N_ISTATE", "N_FSTATE", "N_OPTS", "I_STICK", "I_CONTACT", "I_BOUNCE", "I_WIN", "I_COUNT0",
+    "I_POIN_NEXT", "I_SAMP_NEXT", "I_NLOG", "I_SWIN",
     "F_T", "F_H", "STICK", "SLIP", "FREE", "CONTACT", "CLAMPED", "EV_SLIP_START", "EV_STICK",
     "EV_SLIP_ON", "EV_IMPACT", "EV_SEPARATION", "EV_CLAMP", "EV_UNCLAMP", "EV_BOUNCE",
     "EV_BOUNCE_END", "N_EVENT_KINDS", "O_RTOL", "O_ATOL", "O_HMAX", "O_HFIXED", "O_EVCAP",

@@ -57,7 +57,7 @@ def _sources():
     from hammerbit.fmu.native import FRONT_SOURCES, SOURCE_DIR
     return tuple(SOURCE_DIR / f for f in (*FRONT_SOURCES, "model_backend.c", "model_common.c", "model_string.c",
                                           "model_string_table.c", "model_string_access.c", "real_repr.c",
-                                          "nrt_shim.c"))
+                                          "nrt_shim.c", "glibc_compat.c"))
 
 
 #: C sources of the native string FMU (front, resource URIs, string backend, repr, runtime shim)
@@ -172,6 +172,7 @@ def string_header(md_xml: bytes, build, steps) -> str:
     from hammerbit.model.string_kernels import N_COEFFS
     from hammerbit.model.string_model import OUTPUT_ROWS
     from hammerbit.model.string_slave import INPUT_LIMIT, MAX_FEED, MAX_GAIN, TIME_TOLERANCE
+    from hammerbit.model.validation import RANGES
     from hammerbit.model.string_exponentials import PADE_WORK
     from hammerbit.model.string_step import BUILT_STEP_MATCH, STEP_CACHE
     root = ET.fromstring(md_xml)
@@ -199,6 +200,7 @@ def string_header(md_xml: bytes, build, steps) -> str:
               f"#define HS_MAX_FEED {float(MAX_FEED)!r}",
               f"#define HS_MAX_GAIN {float(MAX_GAIN)!r}",
               f"#define HS_TIME_TOLERANCE {float(TIME_TOLERANCE)!r}",
+              f"#define HS_STATE_TIME_LIMIT {float(RANGES['fmu.time'].hi)!r}",
               f"#define HS_WOB_RANGE_TEXT {_c_str(f'[0, {buoyed:.6g}] N (the buoyed weight)')}",
               f"#define HS_POSITION_RANGE_TEXT {_c_str(f'[-{INPUT_LIMIT:g}, {INPUT_LIMIT:g}] m')}",
               f"#define HS_FEED_RANGE_TEXT {_c_str(f'[-{MAX_FEED:.4g}, {MAX_FEED:.4g}] m/s (1000 m/h)')}",

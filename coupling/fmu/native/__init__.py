@@ -90,6 +90,8 @@ class FrontSpec:
     log_categories: tuple[str, ...]
     status_vr: int | None     #: value reference of ``last_status`` (None: the slave has none)
     model_exchange: bool = False   #: the description has <ModelExchange> (the native flavour)
+    can_get_set_state: bool = False   #: <CoSimulation canGetAndSetFMUstate="true">
+    can_serialize_state: bool = False   #: <CoSimulation canSerializeFMUstate="true">
 
 
 def _default_initial(causality: str, variability: str) -> str | None:
@@ -137,7 +139,9 @@ def read_model_description(xml) -> FrontSpec:
     cats = tuple(c.get("name") for c in root.iter("Category") if c.get("name"))
     return FrontSpec(guid=guid, model_identifier=cs.get("modelIdentifier"), variables=tuple(variables),
                      log_categories=cats, status_vr=status[0].value_reference if status else None,
-                     model_exchange=root.find("ModelExchange") is not None)
+                     model_exchange=root.find("ModelExchange") is not None,
+                     can_get_set_state=cs.get("canGetAndSetFMUstate") == "true",
+                     can_serialize_state=cs.get("canSerializeFMUstate") == "true")
 
 
 def c_string(s: str) -> str:
@@ -171,6 +175,7 @@ def _vr_index(order) -> list:
 
 def generate_header(spec: FrontSpec, *, wrapper_file: str, python_modules=PYTHON_MODULES) -> str:
     """Text of ``hb_model.h``: the model's tables for front.c (included there only)."""
+    from hammerbit.model.validation import RANGES
     order = sorted(spec.variables, key=lambda v: (_TYPES.index(v.type), v.value_reference))
     types = {"Real": "HB_REAL", "Integer": "HB_INTEGER", "Boolean": "HB_BOOLEAN", "String": "HB_STRING"}
     rows = [f"    {{{types[v.type]}, {v.value_reference}u, {v.set_mask}, {c_string(v.name)}, "
@@ -184,6 +189,9 @@ def generate_header(spec: FrontSpec, *, wrapper_file: str, python_modules=PYTHON
         f"#define HB_HAS_STATUS_VR {0 if spec.status_vr is None else 1}",
         f"#define HB_STATUS_VR {0 if spec.status_vr is None else spec.status_vr}u",
         f"#define HB_HAS_ME {int(spec.model_exchange)}",
+        f"#define HB_CAN_GET_SET_STATE {int(spec.can_get_set_state)}",
+        f"#define HB_CAN_SERIALIZE_STATE {int(spec.can_serialize_state)}",
+        f"#define HB_TIME_LIMIT {RANGES['fmu.time'].hi!r}",
         f"#define HB_PYTHON_MODULES {c_string(' '.join(python_modules))}",
         f"#define HB_NVARS {len(order)}u",
         f"static const hb_var HB_VARS[{max(len(order), 1)}] = {{",

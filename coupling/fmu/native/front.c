@@ -145,14 +145,18 @@ EXPORT fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefi
                                       fmi2Real tolerance, fmi2Real startTime,
                                       fmi2Boolean stopTimeDefined, fmi2Real stopTime) {
     BEGIN("fmi2SetupExperiment", ST_INSTANTIATED);
-    if (!isfinite(startTime)) {
-        LOG(I, fmi2Error, "fmi2SetupExperiment: startTime = %g is not finite", startTime);
+    char a[32], b[32];
+    /* the FMU's clock is declared within +-HB_TIME_LIMIT: far outside it a double's resolution
+     * (1e-7 s at 1e9 s, 1e129 s at -6e144 s) is no clock the model's steps can run on */
+    if (!(fabs(startTime) <= HB_TIME_LIMIT)) {   /* also NaN */
+        LOG(I, fmi2Error, "fmi2SetupExperiment: startTime = %s s is out of range: allowed [-%g, %g] s; "
+                          "refused", fmt_real(a, startTime), HB_TIME_LIMIT, HB_TIME_LIMIT);
         return settle(I, fmi2Error);
     }
-    if (stopTimeDefined && !(isfinite(stopTime) && stopTime >= startTime)) {
-        char a[32], b[32];
-        LOG(I, fmi2Error, "fmi2SetupExperiment: stopTime = %s s must be finite and >= startTime = "
-                          "%s s", fmt_real(a, stopTime), fmt_real(b, startTime));
+    if (stopTimeDefined && !(stopTime >= startTime && stopTime <= HB_TIME_LIMIT)) {
+        LOG(I, fmi2Error, "fmi2SetupExperiment: stopTime = %s s is out of range: allowed [startTime = "
+                          "%s, %g] s; refused", fmt_real(a, stopTime), fmt_real(b, startTime),
+            HB_TIME_LIMIT);
         return settle(I, fmi2Error);
     }
     fmi2Status st = hb_W.SetupExperiment(I->w, toleranceDefined, tolerance, startTime, stopTimeDefined,
@@ -253,6 +257,13 @@ EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint
         LOG(I, fmi2Error, "fmi2DoStep: currentCommunicationPoint = %s s is not the current time of "
                           "the FMU, %s s (tolerance %g s); step refused, state unchanged",
             fmt_real(a, currentCommunicationPoint), fmt_real(b, I->time), tol);
+        return settle(I, fmi2Error);
+    }
+    if (communicationStepSize > 0 && isfinite(communicationStepSize) &&
+        !(currentCommunicationPoint + communicationStepSize <= HB_TIME_LIMIT)) {
+        LOG(I, fmi2Error, "fmi2DoStep: at communication point %s s a step of %s s would end after %g s, "
+                          "the end of the FMU's time range; step refused, state unchanged",
+            fmt_real(a, currentCommunicationPoint), fmt_real(b, communicationStepSize), HB_TIME_LIMIT);
         return settle(I, fmi2Error);
     }
     if (I->stop_defined && communicationStepSize > 0 &&

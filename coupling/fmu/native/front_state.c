@@ -28,8 +28,19 @@ typedef struct {   /* serialised header of an hb_fmustate (followed by pythonfmu
     double last_successful;
 } hb_serial_header;
 
+/* an FMU whose model description declares no states (canGetAndSetFMUstate, canSerializeFMUstate
+ * false) has a slave that cannot save its whole state: every such call is refused */
+static int states_supported(hb_inst *I, const char *fn, int supported) {
+    if (!supported)
+        LOG(I, fmi2Error, "%s: this FMU does not support FMU states (%s is false in its model "
+                          "description)", fn, HB_CAN_GET_SET_STATE ? "canSerializeFMUstate"
+                                                                   : "canGetAndSetFMUstate");
+    return supported;
+}
+
 EXPORT fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
     BEGIN("fmi2GetFMUstate", M_ANY_LIVE);
+    if (!states_supported(I, "fmi2GetFMUstate", HB_CAN_GET_SET_STATE)) return settle(I, fmi2Error);
     if (!FMUstate) {
         LOG(I, fmi2Error, "fmi2GetFMUstate: FMUstate is NULL");
         return settle(I, fmi2Error);
@@ -69,6 +80,7 @@ static int check_state(hb_inst *I, const char *fn, fmi2FMUstate FMUstate) {
 
 EXPORT fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) {
     BEGIN("fmi2SetFMUstate", M_ANY_LIVE);
+    if (!states_supported(I, "fmi2SetFMUstate", HB_CAN_GET_SET_STATE)) return settle(I, fmi2Error);
     if (!check_state(I, "fmi2SetFMUstate", FMUstate)) return settle(I, fmi2Error);
     hb_fmustate *s = (hb_fmustate *)FMUstate;
     fmi2Status st = slave_status(I, hb_W.SetFMUstate(I->w, s->inner));
@@ -99,6 +111,7 @@ EXPORT fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
 
 EXPORT fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size) {
     BEGIN("fmi2SerializedFMUstateSize", M_ANY_LIVE);
+    if (!states_supported(I, "fmi2SerializedFMUstateSize", HB_CAN_SERIALIZE_STATE)) return settle(I, fmi2Error);
     if (!size || !check_state(I, "fmi2SerializedFMUstateSize", FMUstate)) {
         if (!size) LOG(I, fmi2Error, "fmi2SerializedFMUstateSize: size is NULL");
         return settle(I, fmi2Error);
@@ -113,6 +126,7 @@ EXPORT fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUst
 EXPORT fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate,
                                         fmi2Byte serializedState[], size_t size) {
     BEGIN("fmi2SerializeFMUstate", M_ANY_LIVE);
+    if (!states_supported(I, "fmi2SerializeFMUstate", HB_CAN_SERIALIZE_STATE)) return settle(I, fmi2Error);
     if (!check_state(I, "fmi2SerializeFMUstate", FMUstate)) return settle(I, fmi2Error);
     hb_fmustate *s = (hb_fmustate *)FMUstate;
     size_t inner = 0;
@@ -137,6 +151,7 @@ EXPORT fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate,
 EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[],
                                           size_t size, fmi2FMUstate *FMUstate) {
     BEGIN("fmi2DeSerializeFMUstate", M_ANY_LIVE);
+    if (!states_supported(I, "fmi2DeSerializeFMUstate", HB_CAN_SERIALIZE_STATE)) return settle(I, fmi2Error);
     hb_serial_header h;
     if (!FMUstate || !serializedState || size < sizeof h) {
         LOG(I, fmi2Error, "fmi2DeSerializeFMUstate: %s", !FMUstate ? "FMUstate is NULL"
@@ -154,11 +169,12 @@ EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serial
                           "FMU (GUID %s)", HB_GUID);
         return settle(I, fmi2Error);
     }
-    if (!isfinite(h.time) || !isfinite(h.last_successful) || h.last_successful > h.time) {
+    if (!(fabs(h.time) <= HB_TIME_LIMIT) || !(fabs(h.last_successful) <= HB_TIME_LIMIT) ||
+        h.last_successful > h.time) {
         char a[32], b[32];
         LOG(I, fmi2Error, "fmi2DeSerializeFMUstate: the state's header holds the time %s s and the "
-                          "last successful time %s s: both must be finite, the second <= the "
-                          "first; refused", fmt_real(a, h.time), fmt_real(b, h.last_successful));
+                          "last successful time %s s: both must be finite and within the FMU's "
+                          "time range, the second <= the first; refused", fmt_real(a, h.time), fmt_real(b, h.last_successful));
         return settle(I, fmi2Error);
     }
     hb_fmustate *s = (hb_fmustate *)*FMUstate;

@@ -187,6 +187,17 @@ static fmi2Status n_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
         return hb_fail(m, fmi2Error, "communication step size h = %s s is invalid: it must be > 0 and "
                     "finite; step refused, state unchanged", a);
     }
+    if (h * s->committed[HBS_frequency] > HB_MAX_PERIODS_PER_STEP) {
+        /* the solver's limits count per forcing period: beyond this many periods a step's work
+         * has no useful bound (minutes), so it is refused at once */
+        hb_repr(h, a, sizeof a);
+        hb_repr(s->committed[HBS_frequency], b, sizeof b);
+        return hb_fail(m, fmi2Error, "communication step size h = %s s spans %.6g forcing periods "
+                    "(frequency = %s Hz), more than MAX_PERIODS_PER_STEP = %.0f (h <= %.6g s): the "
+                    "solver's limits count per period, so such a step's work has no useful bound; take "
+                    "shorter steps; step refused, state unchanged", a, h * s->committed[HBS_frequency], b,
+                    HB_MAX_PERIODS_PER_STEP, HB_MAX_PERIODS_PER_STEP / s->committed[HBS_frequency]);
+    }
     if (t != s->t) {
         double tol = fmax(TIME_ABS_TOL, TIME_ULPS * (nextafter(fabs(s->t), INFINITY) - fabs(s->t)));
         if (!(fabs(t - s->t) <= tol)) {

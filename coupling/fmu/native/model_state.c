@@ -18,23 +18,82 @@ static fmi2Status n_get_state(fmi2Component c, fmi2FMUstate *state) {
     return fmi2OK;
 }
 
-/* 1 if `s` can be a state of this build (sizes, flags, modes, finite numbers); else the reason */
+/* the kernel's clock tau = omega (t - t_start) may differ from the communication time's by this
+ * much, relative to max(1, |tau|) (the driver ends a step at its end time to the last bits) */
+#define TAU_REL_TOL 1e-9
+/* the largest count an integer state entry may hold (exact in a double, as the Python flavour's) */
+#define MAX_COUNT 9007199254740992.0
+
+static int in_time_range(double t) { return fabs(t) <= HB_STATE_TIME_LIMIT; }   /* also NaN */
+
+/* the integer state: modes among their values, record indexes 0 (the FMU records nothing: its
+ * record buffers are empty, so another index would write outside them), windows >= -1, counts
+ * >= 0 */
+static const char *ist_invalid(const int64_t *ist) {
+    if (ist[HBK_I_STICK] < 0 || ist[HBK_I_STICK] > 1 || ist[HBK_I_CONTACT] < 0 ||
+        ist[HBK_I_CONTACT] > 2 || ist[HBK_I_BOUNCE] < 0 || ist[HBK_I_BOUNCE] > 1)
+        return "its hybrid mode is out of range";
+    if (ist[HBK_I_POIN_NEXT] != 0 || ist[HBK_I_SAMP_NEXT] != 0 || ist[HBK_I_NLOG] != 0)
+        return "a record index is not 0 (the FMU's record buffers are empty)";
+    for (int i = 0; i < HBK_N_ISTATE; i++) {
+        int64_t lowest = (i == HBK_I_WIN || i == HBK_I_SWIN) ? -1 : 0;
+        if (ist[i] < lowest || (double)ist[i] >= MAX_COUNT) return "a counter is out of range";
+    }
+    for (int i = HBK_I_COUNT0; i < HBK_I_COUNT0 + HBK_N_EVENT_KINDS; i++)   /* 32-bit Integer outputs */
+        if (ist[i] > INT32_MAX) return "an event counter is above 2**31 - 1";
+    return NULL;
+}
+
+/* the arrays the parameters in use give (hb_commit of the committed values at the state's start
+ * time), bit for bit; the inputs in p within their limits */
+static const char *derived_invalid(const model_state *s) {
+    model_state trial = *s;
+    char err[512];
+    if (!hb_commit(&trial, s->committed, s->committed_impact, 0, err, sizeof err))
+        return "its parameters in use are invalid";
+    for (int i = 0; i < HBK_N_P; i++) {
+        if (i == HBK_P_B || i == HBK_P_FEXT) continue;
+        if (memcmp(&s->p[i], &trial.p[i], sizeof(double)) != 0)
+            return "its kernel parameters are not those of its parameters in use";
+    }
+    if (!(fabs(s->p[HBK_P_B]) <= HB_INPUT_LIMIT_F0_preload * (1.0 + 1e-12)) ||
+        !(fabs(s->p[HBK_P_FEXT]) <= HB_INPUT_LIMIT_F0_harmonic_force * (1.0 + 1e-12)))
+        return "an input held in its kernel parameters is out of range";
+    if (memcmp(s->opts, trial.opts, sizeof s->opts) != 0 || s->x0 != trial.x0 || s->v0 != trial.v0 ||
+        s->F0 != trial.F0 || s->omega != trial.omega || s->x3_start != trial.x3_start)
+        return "its solver options or scales are not those of its parameters in use";
+    for (int k = HBS_preload; s->ready && k <= HBS_harmonic_force; k++)
+        if (!hb_input_ok(s, k, s->value[k])) return "an input is out of range";
+    double tau = (s->t - s->t_start) * s->omega;
+    if (!(fabs(s->fst[HBK_F_T] - tau) <= TAU_REL_TOL * fmax(1.0, fabs(tau))))
+        return "its solver time is not omega (t - t_start)";
+    return NULL;
+}
+
+/* NULL if `s` can be a state of this build, checked in full; else the reason */
 static const char *state_invalid(const model_state *s) {
     if (s->magic != MODEL_STATE_MAGIC || s->size != sizeof *s) return "it is not a state of this build";
     if ((s->ready | s->terminated | s->dirty | s->stale | s->has_commit | s->impact_enabled |
          s->committed_impact) & ~1)
         return "a flag is neither 0 nor 1";
-    if (!isfinite(s->t) || !isfinite(s->t_start)) return "its time is not finite";
+    if (!s->has_commit) return "it holds no parameters in use";
+    if (s->last_status < fmi2OK || s->last_status > fmi2Pending) return "its last status is not a status";
+    if (!memchr(s->error, '\0', sizeof s->error)) return "its error message is not terminated";
+    if (!in_time_range(s->t) || !in_time_range(s->t_start) || s->t < s->t_start)
+        return "its times are out of range or t < t_start";
+    /* the values as set: a parameter's is checked where it is used (fmi2ExitInitializationMode,
+     * the tolerance's at the next step), an input's at the step (below for a ready state) */
+    for (int i = 0; i < HB_NSTORED; i++)
+        if (isnan(s->value[i])) return "a variable's value is NaN";
     for (int i = 0; i < 4; i++)
-        if (!isfinite(s->y[i])) return "its state holds a non-finite number";
+        if (!hb_contains(&HB_RANGE_STATE_POSITION, s->y[i]))
+            return "its state holds a position or velocity out of range";
     for (int i = 0; i < HBK_N_FSTATE; i++)
         if (isnan(s->fst[i])) return "its solver state holds NaN";
-    if (s->ist[HBK_I_STICK] < 0 || s->ist[HBK_I_STICK] > 1 || s->ist[HBK_I_CONTACT] < 0 ||
-        s->ist[HBK_I_CONTACT] > 2)
-        return "its hybrid mode is out of range";
-    if (s->has_commit && !(s->x0 > 0.0 && isfinite(s->x0) && s->F0 > 0.0 && s->omega > 0.0))
-        return "its scales are not positive";
-    return NULL;
+    if (!isfinite(s->fst[HBK_F_T]) || !(s->fst[HBK_F_H] > 0.0 && isfinite(s->fst[HBK_F_H])))
+        return "its solver time or step proposal is not finite and positive";
+    const char *why = ist_invalid(s->ist);
+    return why ? why : derived_invalid(s);
 }
 
 static fmi2Status n_set_state(fmi2Component c, fmi2FMUstate state) {

@@ -118,17 +118,58 @@ static fmi2Status s_no_set_string(fmi2Component c, const fmi2ValueReference vr[]
 /* ------------------------------------------------------------------------------------------ */
 /* FMU states: the whole state as plain data                                                   */
 /* ------------------------------------------------------------------------------------------ */
+/* the largest magnitude of a state's number (forces [N], positions [m], velocities, the
+ * string's coordinates): the library's state range; beyond it a step's products overflow */
+#define STATE_MAGNITUDE 1e12
+
+static int all_finite(const double *v, size_t n) {
+    for (size_t i = 0; i < n; i++)
+        if (!(fabs(v[i]) <= STATE_MAGNITUDE)) return 0;   /* also NaN */
+    return 1;
+}
+
+/* what exit of initialisation derives from the parameters, as it derives it */
+static const char *derived_invalid(const model *m, const sstate *s) {
+    const block *b = hs_any_block(&m->tab, s->form);
+    double feed = HB_TOP_TAKES_FEED[s->top_condition] ? s->feed_velocity : 0.0;
+    if (s->form != HB_TOP_FORM[s->top_condition] || !b || s->n != b->n || s->modal != b->modal ||
+        s->order != s->extrapolation)
+        return "its form, size or extrapolation order is not the one of its parameters";
+    if (s->W != s->wob || s->hook_eq != HS_BUOYED_WEIGHT - s->W || s->k3[0] != HS_INTERFACE_STIFFNESS ||
+        s->k3[1] != HS_INTERFACE_DAMPING || s->k3[2] != s->W || s->feed[0] != feed ||
+        s->feed[1] != s->t_start)
+        return "its interface or top is not the one of its parameters";
+    if (s->started && !(s->th[0] > s->th[1] && s->th[1] > s->th[2]))
+        return "its communication times are not increasing";
+    return NULL;
+}
+
+/* NULL if `s` can be a state of this build, checked in full; else the reason */
 static const char *state_invalid(const model *m, const sstate *s) {
     if (s->magic != STATE_MAGIC || s->size != m->size) return "it is not a state of this build";
-    if ((s->ready | s->terminated | s->started) & ~1) return "a flag is neither 0 nor 1";
-    if (!isfinite(s->t) || !isfinite(s->t_start)) return "its time is not finite";
-    if (s->ready && (s->form < 0 || s->form > 1 || !hs_any_block(&m->tab, s->form) ||
-                     s->n != hs_any_block(&m->tab, s->form)->n || s->order < 0 || s->order > 2))
-        return "its form or extrapolation order is not one of this FMU";
-    size_t nv = 2 * (size_t)m->tab.nmax;
-    for (size_t i = 0; i < nv; i++)
-        if (!isfinite(s->v[i])) return "its string state holds a non-finite number";
-    return NULL;
+    if ((s->ready | s->terminated | s->started) & ~1 || (s->modal & ~1)) return "a flag is neither 0 nor 1";
+    if (!(fabs(s->t) <= HS_STATE_TIME_LIMIT) || !(fabs(s->t_start) <= HS_STATE_TIME_LIMIT) ||
+        s->t < s->t_start)
+        return "its times are out of range or t < t_start";
+    if (s->form < 0 || s->form > 1 || s->order < 0 || s->order > 2 || s->extrapolation < 0 ||
+        s->extrapolation > 2 || s->top_condition < 0 || s->top_condition >= HB_N_TOP_CONDITIONS)
+        return "its form, extrapolation order or top condition is out of range";
+    if (!memchr(s->error, '\0', sizeof s->error)) return "its error message is not terminated";
+    const double reals[] = {s->damping_ratio, s->wob, s->at_rest, s->feed_velocity, s->kp, s->kig,
+                            s->interface_force, s->held, s->hook_load, s->top_position,
+                            s->top_velocity, s->W, s->hook_eq, s->F_held};
+    /* k3 (the interface's constants) is compared with the build's below */
+    if (!all_finite(reals, sizeof reals / sizeof *reals) || !all_finite(s->feed, 2) ||
+        !all_finite(s->wh, 6) || !all_finite(s->Fh, 3) || !all_finite(s->out, 4))
+        return "it holds a number that is not finite or above 1e12 in magnitude";
+    for (int i = 0; i < 3; i++)
+        if (!(fabs(s->th[i]) <= HS_STATE_TIME_LIMIT + 1.0)) return "its communication times are out of range";
+    if (isnan(s->x_in) || isnan(s->v_in)) return "an input is NaN";
+    for (int i = 0; i < N_COEFFS; i++)   /* the last exchange's coefficients: any finite scale */
+        if (!isfinite(s->c[i])) return "it holds a non-finite number";
+    if (!all_finite(s->v, 2 * (size_t)m->tab.nmax))
+        return "its string state holds a number that is not finite or above 1e12 in magnitude";
+    return s->ready ? derived_invalid(m, s) : NULL;
 }
 
 static fmi2Status s_get_state(fmi2Component c, fmi2FMUstate *state) {
