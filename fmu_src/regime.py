@@ -114,6 +114,9 @@ def _oscillator_l1(rho: float, xi: float) -> tuple:
     disc = sigma * sigma - k
     slow = sigma - math.sqrt(disc) if disc > 0 else sigma      # slowest decay rate
     fast = sigma + math.sqrt(disc) if disc > 0 else sigma      # fastest
+    if not slow > 0.0:
+        # undamped (xi = 0): the responses never decay, their L1 norms are unbounded, no certificate
+        return math.inf, math.inf
     cycle = 2.0 * math.pi / math.sqrt(-disc) if disc < 0 else 1.0 / fast
     ds = min(cycle, 1.0 / math.sqrt(k)) / STEPS_PER_CYCLE
     n = int(math.ceil(DECAY_TIMES / slow / ds))

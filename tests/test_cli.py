@@ -305,6 +305,9 @@ def documented_commands():
             pending = ""
             for part in line.split("&&"):
                 words = shlex.split(part, comments=True)
+                # the shell's redirections and pipes are not the command's arguments
+                cut = [i for i, w in enumerate(words) if w in (">", ">>", "|", "2>", "2>&1")]
+                words = words[:cut[0]] if cut else words
                 if words[:1] == ["hammerbit"]:
                     code = DOCUMENTED_EXIT.search(part)
                     found.append((doc.name, words[1:], int(code.group(1)) if code else None))
