@@ -12,10 +12,13 @@ __all__ = ["register", "cmd_fmu_build", "cmd_fmu_build_string"]
 
 def cmd_fmu_build(args) -> int:
     from hammerbit.fmu.build import BuildOptions, UnknownVariableError, build_fmu
+    if args.fmi_version == 3 and args.runtime != "native":
+        raise UsageError("--fmi-version 3 is an option of --runtime native")
     try:
         start = parse_settings(args.set)
         opts = BuildOptions(start_values=start, portable_cache=not args.no_portable_cache,
-                            native_front=not args.no_native_front, runtime=args.runtime)
+                            native_front=not args.no_native_front, runtime=args.runtime,
+                            fmi_version=args.fmi_version)
         # the build compiles the kernels and the native front: tens of seconds with nothing to show
         work = [w for w, on in (("compiling the kernels for the portable CPU target", opts.portable_cache),
                                 ("building the native front", opts.native_front)) if on]
@@ -107,4 +110,8 @@ def register(sub) -> None:
                    help="pythonfmu (default): the model runs in Python in the host; native: the "
                         "binaries (linux64, and win64 with x86_64-w64-mingw32-gcc) hold the compiled "
                         "kernels and need no Python")
+    b.add_argument("--fmi-version", type=int, choices=(2, 3), default=2,
+                   help="2 (default): FMI 2.0; 3: FMI 3.0 (--runtime native; binaries x86_64-linux "
+                        "and x86_64-windows; Co-Simulation with early return at events and Event "
+                        "Mode, Model Exchange)")
     add_build_string(fsub)

@@ -147,7 +147,14 @@ def nm_for(platform: str) -> str:
     return "nm"
 
 
-def link_binary(platform: str, cc: str, obj: Path, include: Path, out: Path, sources=NATIVE_SOURCES) -> None:
+#: what the FMI 3.0 binaries add: the FMI 3.0 front over the FMI 2.0 front (fmi3_front.h)
+FMI3_SOURCES = tuple(SOURCE_DIR / f for f in ("fmi3_front.c", "fmi3_values.c"))
+#: the FMI 3.0 binaries compile the FMI 2.0 front's functions without exporting them
+FMI3_DEFINES = ("-DEXPORT=",)
+
+
+def link_binary(platform: str, cc: str, obj: Path, include: Path, out: Path, sources=NATIVE_SOURCES,
+                defines=()) -> None:
     """Link ``sources`` and the kernel object ``obj`` (generated headers in ``include``) into ``out``.
 
     The object may reference only what the shim provides (libm, numba's error path, NRT): checked
@@ -157,7 +164,7 @@ def link_binary(platform: str, cc: str, obj: Path, include: Path, out: Path, sou
         raise NativeBuildError(f"the {platform} kernel object {obj.name} needs symbols no shim provides: "
                                f"{sorted(extra)}")
     srcs = [str(s) for s in sources]
-    common = [*C_FLAGS, "-Wall", "-Wextra", "-Wno-unused-parameter", "-DHB_NATIVE_MODEL",
+    common = [*C_FLAGS, "-Wall", "-Wextra", "-Wno-unused-parameter", "-DHB_NATIVE_MODEL", *defines,
               "-I", str(include), "-I", str(SOURCE_DIR)]
     if platform == "linux64":
         cmd = [cc, *common, "-fPIC", "-shared", "-fvisibility=hidden", "-o", str(out), *srcs, str(obj),
@@ -181,11 +188,12 @@ def select_platforms(log=print) -> list:
 
 
 def build_binaries(model_description_xml, out_dir, *, start_values=None, platforms=None,
-                   log=print) -> dict:
+                   log=print, fmi3_xml=None) -> dict:
     """Build ``<out_dir>/<platform>/<modelIdentifier>.<so|dll>``; return ``{platform: path}``.
 
     ``platforms`` defaults to linux64, and win64 when ``x86_64-w64-mingw32-gcc``
-    is on PATH (otherwise ``log`` says that it is skipped and why).
+    is on PATH (otherwise ``log`` says that it is skipped and why).  With ``fmi3_xml`` (the FMI
+    3.0 description of :mod:`hammerbit.fmu.fmi3_description`) the binaries are FMI 3.0's.
     """
     spec = read_model_description(model_description_xml)
     if platforms is None:
@@ -214,11 +222,16 @@ def build_binaries(model_description_xml, out_dir, *, start_values=None, platfor
         write_description_header(tmp)
         (tmp / "hb_native.h").write_text(native_header(model_description_xml, start_values or {},
                                                        summary["layout"]))
+        sources, defines = NATIVE_SOURCES, ()
+        if fmi3_xml is not None:
+            from hammerbit.fmu.fmi3_description import fmi3_header
+            (tmp / "hb_fmi3.h").write_text(fmi3_header(fmi3_xml, len(STATES)))
+            sources, defines = NATIVE_SOURCES + FMI3_SOURCES, FMI3_DEFINES
         for plat in platforms:
             obj = tmp / f"kernels_{plat}.o"
             dest = out_dir / plat / f"{spec.model_identifier}{TARGETS[plat].suffix}"
             dest.parent.mkdir(parents=True, exist_ok=True)
-            link_binary(plat, compilers[plat], obj, tmp, dest)
+            link_binary(plat, compilers[plat], obj, tmp, dest, sources, defines)
             built[plat] = dest
     return built
 
@@ -288,17 +301,23 @@ def native_model_description(xml: bytes) -> bytes:
     return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8") + b"\n"
 
 
-def assemble_native_fmu(python_fmu: Path, out: Path, start_values: dict, *, log=print) -> Path:
-    """Write the native FMU ``out`` from the model description of the Python flavour's ``python_fmu``."""
+def assemble_native_fmu(python_fmu: Path, out: Path, start_values: dict, *, log=print,
+                        fmi_version: int = 2) -> Path:
+    """Write the native FMU ``out`` from the model description of the Python flavour's ``python_fmu``
+    (an FMI 2.0 FMU, or with ``fmi_version=3`` an FMI 3.0 one)."""
+    from hammerbit.fmu.fmi3_description import FMI3_PLATFORMS, fmi3_model_description
+    from hammerbit.model.kernel_layouts import EVENT_NAMES
     with zipfile.ZipFile(python_fmu) as zf:
         md = native_model_description(zf.read("modelDescription.xml"))
+    md3 = fmi3_model_description(md, EVENT_NAMES) if fmi_version == 3 else None
     with tempfile.TemporaryDirectory(prefix="hammerbit_native_fmu_") as tmp:
-        built = build_binaries(md, Path(tmp), start_values=start_values, log=log)
+        built = build_binaries(md, Path(tmp), start_values=start_values, log=log, fmi3_xml=md3)
         tmp_out = out.with_name(out.name + ".tmp")
         with zipfile.ZipFile(tmp_out, "w", zipfile.ZIP_DEFLATED) as zf:
-            zf.writestr("modelDescription.xml", md)
+            zf.writestr("modelDescription.xml", md3 if md3 is not None else md)
             for plat, path in sorted(built.items()):
-                zf.write(path, f"binaries/{plat}/{path.name}")
+                folder = FMI3_PLATFORMS[plat] if md3 is not None else plat
+                zf.write(path, f"binaries/{folder}/{path.name}")
             # the resource directory every host passes to fmi2Instantiate: the build's start values
             zf.writestr("resources/start_values.json",
                         json.dumps(start_values, indent=1, sort_keys=True) + "\n")

@@ -66,6 +66,8 @@ PORTABLE_CPU = "x86-64"
 ENTRY_POINTS = {
     "hb_advance": "int64_t hb_advance(double *y, int64_t *ist, double *fst, double tau_end, "
                   "double *p, double *opts)",
+    "hb_advance_to_event": "int64_t hb_advance_to_event(double *y, int64_t *ist, double *fst, "
+                           "double tau_end, double *p, double *opts, double *log)",
     "hb_init_modes": "int64_t hb_init_modes(double *y, int64_t *ist, double *p)",
     "hb_forces": "int64_t hb_forces(double *y, int64_t *ist, double *p, double *out)",
     "hb_rhs": "int64_t hb_rhs(double tau, double *y, double *p, int64_t mode_s, int64_t mode_c, "
@@ -94,7 +96,7 @@ ALLOWED_UNDEFINED = frozenset({
 #: kernel layout constants the C side reads from the generated header (``layout()``)
 LAYOUT_NAMES = (
     "N_ISTATE", "N_FSTATE", "N_OPTS", "I_STICK", "I_CONTACT", "I_BOUNCE", "I_WIN", "I_COUNT0",
-    "F_T", "F_H", "STICK", "SLIP", "FREE", "CONTACT", "CLAMPED", "EV_SLIP_START", "EV_STICK",
+    "F_T", "F_H", "I_NLOG", "L_T", "L_KIND", "N_LOG_COLS", "STICK", "SLIP", "FREE", "CONTACT", "CLAMPED", "EV_SLIP_START", "EV_STICK",
     "EV_SLIP_ON", "EV_IMPACT", "EV_SEPARATION", "EV_CLAMP", "EV_UNCLAMP", "EV_BOUNCE",
     "EV_BOUNCE_END", "N_EVENT_KINDS", "O_RTOL", "O_ATOL", "O_HMAX", "O_HFIXED", "O_EVCAP",
     "O_BISECT", "O_MAXSTEPS", "O_POIN_T0", "O_POIN_DT", "O_GRAZE", "O_STEPCAP", "ST_DONE",
@@ -149,6 +151,14 @@ def compile_entry_points() -> dict:
                               carray(pp, (N_P,)), carray(op, (NO,)), (np.empty((0, 5)), np.empty(0),
                                                                       np.empty((0, NS)), np.empty((0, NL))))
 
+    @cfunc(int64(f64p, i64p, f64p, float64, f64p, f64p, f64p))
+    def hb_advance_to_event(yp, ip, fp, tau_end, pp, op, lp):
+        # an event log of one row (the caller zeroes ist[I_NLOG]): the driver returns ST_LOG_FULL
+        # at the first event, its reset applied, as Stepper.advance does with such a log
+        return advance_hammer(carray(yp, (NY,)), carray(ip, (NI,)), carray(fp, (NF,)), tau_end,
+                              carray(pp, (N_P,)), carray(op, (NO,)), (np.empty((0, 5)), np.empty(0),
+                                                                      np.empty((0, NS)), carray(lp, (1, NL))))
+
     @cfunc(int64(f64p, i64p, f64p))
     def hb_init_modes(yp, ip, pp):
         # the modes of a state at rest, as Stepper does at construction
@@ -190,7 +200,7 @@ def compile_entry_points() -> dict:
         return apply_event(kind, carray(yp, (NY,)), carray(ip, (NI,)), carray(fp, (NF,)),
                            carray(pp, (N_P,)))
 
-    funcs = {"hb_advance": hb_advance, "hb_init_modes": hb_init_modes, "hb_forces": hb_forces,
+    funcs = {"hb_advance": hb_advance, "hb_advance_to_event": hb_advance_to_event, "hb_init_modes": hb_init_modes, "hb_forces": hb_forces,
              "hb_rhs": hb_rhs, "hb_watched": hb_watched, "hb_watch_value": hb_watch_value,
              "hb_apply_event": hb_apply_event}
     assert set(funcs) == set(ENTRY_POINTS)
