@@ -50,6 +50,8 @@ NATIVE_SOURCES = tuple(SOURCE_DIR / f for f in (*FRONT_SOURCES, "model_backend.c
 #: the nondimensional group whose range bounds each input, in units of the static friction
 #: threshold F0 (preload b = B/F0, forcing amplitude a = A/F0): |input| <= hi * F0
 INPUT_GROUPS = {"preload": "group.b", "harmonic_force": "group.a"}
+#: the cross-compiler of the aarch64-linux binary of the FMI 3.0 FMU (Debian gcc-aarch64-linux-gnu)
+AARCH64_CC = "aarch64-linux-gnu-gcc"
 #: compiler flags of every native binary: C11 with GNU extensions, optimised, and no fused
 #: multiply-add, so that the generated formulas round as Python does (aarch64 has FMA)
 C_FLAGS = ("-std=gnu11", "-O2", "-ffp-contract=off")
@@ -144,6 +146,8 @@ def nm_for(platform: str) -> str:
     """The ``nm`` that reads the objects of ``platform``."""
     if platform == "win64":
         return shutil.which("x86_64-w64-mingw32-nm") or "nm"
+    if platform == "aarch64-linux":
+        return shutil.which("aarch64-linux-gnu-nm") or "nm"
     return "nm"
 
 
@@ -166,7 +170,7 @@ def link_binary(platform: str, cc: str, obj: Path, include: Path, out: Path, sou
     srcs = [str(s) for s in sources]
     common = [*C_FLAGS, "-Wall", "-Wextra", "-Wno-unused-parameter", "-DHB_NATIVE_MODEL", *defines,
               "-I", str(include), "-I", str(SOURCE_DIR)]
-    if platform == "linux64":
+    if platform in ("linux64", "aarch64-linux"):
         cmd = [cc, *common, "-fPIC", "-shared", "-fvisibility=hidden", "-o", str(out), *srcs, str(obj),
                "-Wl,-Bsymbolic", "-Wl,--no-undefined", "-lm", "-lpthread"]
     else:
@@ -176,14 +180,21 @@ def link_binary(platform: str, cc: str, obj: Path, include: Path, out: Path, sou
     _run(cmd, f"linking the {platform} binary")
 
 
-def select_platforms(log=print) -> list:
-    """linux64, and win64 when ``x86_64-w64-mingw32-gcc`` is on PATH (else ``log`` says why not)."""
+def select_platforms(log=print, fmi_version: int = 2) -> list:
+    """linux64, and win64 when ``x86_64-w64-mingw32-gcc`` is on PATH (else ``log`` says why not);
+    for FMI 3.0 also aarch64-linux when ``aarch64-linux-gnu-gcc`` is."""
     platforms = ["linux64"]
     if shutil.which(MINGW_CC):
         platforms.append("win64")
     else:
         log(f"hammerbit fmu build: no {MINGW_CC} on PATH: the FMU gets no binaries/win64 (install "
             f"the mingw-w64 cross-compiler, Debian: apt-get install gcc-mingw-w64-x86-64)")
+    if fmi_version == 3:
+        if shutil.which(AARCH64_CC):
+            platforms.append("aarch64-linux")
+        else:
+            log(f"hammerbit fmu build: no {AARCH64_CC} on PATH: the FMU gets no binaries/aarch64-linux "
+                f"(Debian: apt-get install gcc-aarch64-linux-gnu)")
     return platforms
 
 
@@ -197,7 +208,7 @@ def build_binaries(model_description_xml, out_dir, *, start_values=None, platfor
     """
     spec = read_model_description(model_description_xml)
     if platforms is None:
-        platforms = select_platforms(log)
+        platforms = select_platforms(log, 3 if fmi3_xml is not None else 2)
     compilers = {}
     for plat in platforms:
         if plat not in TARGETS:
@@ -208,10 +219,14 @@ def build_binaries(model_description_xml, out_dir, *, start_values=None, platfor
             except FrontBuildError as e:
                 raise NativeBuildError(str(e)) from None
         else:
-            cc = shutil.which(MINGW_CC)
+            cross = MINGW_CC if plat == "win64" else AARCH64_CC
+            cc = shutil.which(cross)
             if not cc:
-                raise NativeBuildError(f"the win64 binary needs {MINGW_CC} (Debian: apt-get install "
-                                       f"gcc-mingw-w64-x86-64)")
+                raise NativeBuildError(f"the {plat} binary needs {cross} (Debian: apt-get install "
+                                       f"{'gcc-mingw-w64-x86-64' if plat == 'win64' else 'gcc-aarch64-linux-gnu'})")
+            if plat == "aarch64-linux" and fmi3_xml is None:
+                raise NativeBuildError("aarch64-linux is a platform of the FMI 3.0 FMU only (FMI 2.0 "
+                                       "names no AArch64 platform)")
             compilers[plat] = cc
     out_dir = Path(out_dir)
     built = {}

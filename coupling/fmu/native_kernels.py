@@ -51,16 +51,19 @@ class Target:
     platform: str      #: FMI binaries directory name (linux64, win64)
     triple: str        #: LLVM target triple
     suffix: str        #: shared-library suffix (.so, .dll)
+    #: the CPU the object is emitted for: the architecture's baseline, which every CPU of it runs
+    #: (x86-64: SSE2)
+    cpu: str = "x86-64"
 
 
-#: the platforms of the native flavour; win64 is linked by mingw-w64
+#: the platforms of the native flavour; win64 is linked by mingw-w64, aarch64-linux (FMI 3.0's
+#: name; the FMI 3.0 FMU only) by aarch64-linux-gnu-gcc, for the AArch64 baseline (ARMv8-A)
 TARGETS = {
     "linux64": Target("linux64", "x86_64-unknown-linux-gnu", ".so"),
     "win64": Target("win64", "x86_64-w64-windows-gnu", ".dll"),
+    "aarch64-linux": Target("aarch64-linux", "aarch64-unknown-linux-gnu", ".so", cpu="generic"),
 }
 
-#: the CPU the objects are emitted for: the x86-64 baseline (SSE2), which every x86-64 CPU runs
-PORTABLE_CPU = "x86-64"
 
 #: C names of the entry points and their C prototypes (kernel_api.h in native/ declares the same)
 ENTRY_POINTS = {
@@ -260,7 +263,7 @@ def emit_object(ir: str, target: Target) -> bytes:
     # numba ran with NUMBA_CPU_NAME=generic: its IR carries no CPU attributes; the target machine
     # emits for the baseline CPU
     tm = llvm.Target.from_triple(target.triple).create_target_machine(
-        cpu=PORTABLE_CPU, features="", opt=3, reloc="pic", codemodel="default")
+        cpu=target.cpu, features="", opt=3, reloc="pic", codemodel="default")
     mod.triple = target.triple
     mod.data_layout = str(tm.target_data)
     pto = llvm.create_pipeline_tuning_options(speed_level=2)
