@@ -48,12 +48,15 @@ def cmd_fmu_build_string(args) -> int:
             raise UsageError(f"--step {h!r} is out of range: allowed a finite step size > 0 s")
     if steps and args.runtime != "native":
         raise UsageError("--step is an option of --runtime native (the pythonfmu flavour takes any step)")
+    if args.fmi_version == 3 and args.runtime != "native":
+        raise UsageError("--fmi-version 3 is an option of --runtime native")
     try:
         if args.runtime == "native":
             from hammerbit.fmu.native_string import build_native_string_fmu
             print("hammerbit fmu build-string: building Drillstring.fmu (native runtime; compiling the "
                   "string's kernels) ...", file=sys.stderr, flush=True)
             path = build_native_string_fmu(args.string, args.out, top=top, steps=steps,
+                                           fmi_version=args.fmi_version,
                                            log=lambda m: print(m, file=sys.stderr))
         else:
             path = build_string_fmu(args.string, args.out, top=top)
@@ -86,6 +89,8 @@ def add_build_string(fsub) -> None:
     b.add_argument("--step", type=float, action="append", default=None, metavar="SECONDS",
                    help="--runtime native: a communication step size [s] the FMU carries (repeatable; "
                         "default 0.001, the default experiment's)")
+    b.add_argument("--fmi-version", type=int, choices=(2, 3), default=2,
+                   help="2 (default): FMI 2.0; 3: FMI 3.0 (--runtime native)")
     b.set_defaults(func=cmd_fmu_build_string)
 
 

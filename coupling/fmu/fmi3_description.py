@@ -6,8 +6,9 @@ value references, units, ranges and start values:
 
 * the types by :func:`hammerbit.model.fmu_description.fmi3_type` (Float64, Int32, UInt64,
   Boolean, String);
-* ``<CoSimulation>`` declares ``mightReturnEarlyFromDoStep``, ``hasEventMode`` and
-  ``canHandleVariableCommunicationStepSize``; ``<ModelExchange>`` as in FMI 2.0;
+* ``<CoSimulation>`` declares ``mightReturnEarlyFromDoStep`` and ``hasEventMode`` where the model
+  has events, ``canHandleVariableCommunicationStepSize`` as in FMI 2.0; ``<ModelExchange>`` as
+  in FMI 2.0;
 * what FMI 3.0 has as variables: the independent variable ``time`` and the event indicators
   ``event_indicator_<kind>`` (one per event kind of the kernels, in the kernels' order), with
   value references after the FMI 2.0 ones;
@@ -77,7 +78,8 @@ def fmi3_model_description(xml2: bytes, event_names) -> bytes:
     """The FMI 3.0 ``modelDescription.xml`` of a native FMU from its FMI 2.0 one.
 
     ``event_names`` names the event indicators (the kernels' event kinds, in the order of
-    ``fmi2GetEventIndicators``); empty for an FMU without Model Exchange."""
+    ``fmi2GetEventIndicators``); empty for an FMU without events (no Model Exchange, no early
+    return, no Event Mode: the Drillstring)."""
     from hammerbit.model.fmu_description import fmi3_type
     md2 = ET.fromstring(xml2)
     if md2.get("fmiVersion") != "2.0":
@@ -89,10 +91,13 @@ def fmi3_model_description(xml2: bytes, event_names) -> bytes:
     if me2 is not None:
         ET.SubElement(root, "ModelExchange", {"modelIdentifier": me2.get("modelIdentifier"),
                                               "needsCompletedIntegratorStep": "false", **flags})
+    # early return and Event Mode where the model has events (HammerBitRock; not the Drillstring)
+    events = "true" if event_names else "false"
     ET.SubElement(root, "CoSimulation", {
         "modelIdentifier": cs2.get("modelIdentifier"), **flags,
-        "canHandleVariableCommunicationStepSize": "true", "hasEventMode": "true",
-        "mightReturnEarlyFromDoStep": "true", "canReturnEarlyAfterIntermediateUpdate": "false"})
+        "canHandleVariableCommunicationStepSize": cs2.get("canHandleVariableCommunicationStepSize", "false"),
+        "hasEventMode": events, "mightReturnEarlyFromDoStep": events,
+        "canReturnEarlyAfterIntermediateUpdate": "false"})
     for tag in ("UnitDefinitions", "LogCategories", "DefaultExperiment"):
         el = md2.find(tag)
         if el is not None:
@@ -150,5 +155,6 @@ def fmi3_header(xml3: bytes, n_states: int) -> str:
         f"#define HB3_INDICATOR_VR0 {ind0}u",
         f"#define HB3_NZ {len(ind)}u",
         f"#define HB3_NX {n_states}u",
+        f"#define HB3_HAS_ME {int(root.find('ModelExchange') is not None)}",
         "#define HB3_IS_INDICATOR(vr) ((vr) >= HB3_INDICATOR_VR0 && (vr) < HB3_INDICATOR_VR0 + HB3_NZ)",
         ""])

@@ -102,6 +102,12 @@ FMI3_Export fmi3Instance fmi3InstantiateModelExchange(
     fmi3String instanceName, fmi3String instantiationToken, fmi3String resourcePath,
     fmi3Boolean visible, fmi3Boolean loggingOn, fmi3InstanceEnvironment instanceEnvironment,
     fmi3LogMessageCallback logMessage) {
+    if (!HB3_HAS_ME) {
+        if (logMessage)
+            logMessage(instanceEnvironment, fmi3Error, "logStatusError",
+                       "fmi3InstantiateModelExchange: this FMU has no Model Exchange interface");
+        return NULL;
+    }
     return instantiate(instanceName, instantiationToken, resourcePath, visible, loggingOn,
                        instanceEnvironment, logMessage, 1);
 }
@@ -177,7 +183,7 @@ FMI3_Export fmi3Status fmi3EnterEventMode(fmi3Instance instance) {
         I->state = F3_ERROR;
         return fmi3Error;
     }
-    fmi3Status st = I->me ? hb3_status(I, fmi2EnterEventMode(I->c2)) : fmi3OK;
+    fmi3Status st = I->me ? hb3_status(I, HB3_ME(fmi2EnterEventMode(I->c2))) : fmi3OK;
     if (st <= fmi3Warning) I->state = F3_EVENT;
     return st;
 }
@@ -242,7 +248,7 @@ FMI3_Export fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boole
         return fmi3Error;
     }
     fmi2EventInfo info = {0, 0, 0, 0, 0, 0.0};
-    fmi3Status st = I->me ? hb3_status(I, fmi2NewDiscreteStates(I->c2, &info)) : fmi3OK;
+    fmi3Status st = I->me ? hb3_status(I, HB3_ME(fmi2NewDiscreteStates(I->c2, &info))) : fmi3OK;
     *discreteStatesNeedUpdate = info.newDiscreteStatesNeeded != 0;
     *terminateSimulation = info.terminateSimulation != 0;
     *nominalsOfContinuousStatesChanged = info.nominalsOfContinuousStatesChanged != 0;
@@ -259,7 +265,7 @@ FMI3_Export fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boole
 
 FMI3_Export fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance instance) {
     ME_ONLY("fmi3EnterContinuousTimeMode", HB3_M(F3_EVENT));
-    fmi3Status st = hb3_status(I, fmi2EnterContinuousTimeMode(I->c2));
+    fmi3Status st = hb3_status(I, HB3_ME(fmi2EnterContinuousTimeMode(I->c2)));
     if (st <= fmi3Warning) I->state = F3_CONT;
     return st;
 }
@@ -270,9 +276,9 @@ FMI3_Export fmi3Status fmi3CompletedIntegratorStep(fmi3Instance instance,
                                                    fmi3Boolean *terminateSimulation) {
     ME_ONLY("fmi3CompletedIntegratorStep", HB3_M(F3_CONT));
     fmi2Boolean ev = 0, term = 0;
-    fmi3Status st = hb3_status(I, fmi2CompletedIntegratorStep(
+    fmi3Status st = hb3_status(I, HB3_ME(fmi2CompletedIntegratorStep(
                                       I->c2, noSetFMUStatePriorToCurrentPoint,
-                                      enterEventMode ? &ev : NULL, terminateSimulation ? &term : NULL));
+                                      enterEventMode ? &ev : NULL, terminateSimulation ? &term : NULL)));
     if (enterEventMode) *enterEventMode = ev != 0;
     if (terminateSimulation) *terminateSimulation = term != 0;
     return st;
@@ -280,14 +286,14 @@ FMI3_Export fmi3Status fmi3CompletedIntegratorStep(fmi3Instance instance,
 
 FMI3_Export fmi3Status fmi3SetTime(fmi3Instance instance, fmi3Float64 time) {
     ME_ONLY("fmi3SetTime", HB3_M(F3_EVENT) | HB3_M(F3_CONT));
-    fmi3Status st = hb3_status(I, fmi2SetTime(I->c2, time));
+    fmi3Status st = hb3_status(I, HB3_ME(fmi2SetTime(I->c2, time)));
     if (st <= fmi3Warning) I->me_time = time;
     return st;
 }
 
 FMI3_Export fmi3Status fmi3SetContinuousStates(fmi3Instance instance, const fmi3Float64 x[], size_t nx) {
     ME_ONLY("fmi3SetContinuousStates", HB3_M(F3_CONT));
-    return hb3_status(I, fmi2SetContinuousStates(I->c2, x, nx));
+    return hb3_status(I, HB3_ME(fmi2SetContinuousStates(I->c2, x, nx)));
 }
 
 #define ME_VALUES (HB3_M(F3_INIT) | HB3_M(F3_EVENT) | HB3_M(F3_CONT) | HB3_M(F3_TERMINATED) | \
@@ -295,7 +301,7 @@ FMI3_Export fmi3Status fmi3SetContinuousStates(fmi3Instance instance, const fmi3
 #define ME_GETTER(NAME3, NAME2, MASK)                                                        \
     FMI3_Export fmi3Status NAME3(fmi3Instance instance, fmi3Float64 v[], size_t n) {          \
         ME_ONLY(#NAME3, MASK);                                                               \
-        return hb3_status(I, NAME2(I->c2, v, n));                                            \
+        return hb3_status(I, HB3_ME(NAME2(I->c2, v, n)));                                            \
     }
 ME_GETTER(fmi3GetContinuousStateDerivatives, fmi2GetDerivatives, ME_VALUES)
 ME_GETTER(fmi3GetEventIndicators, fmi2GetEventIndicators, ME_VALUES)

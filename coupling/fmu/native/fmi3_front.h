@@ -58,6 +58,14 @@ double hb3_time(const hb3_inst *I);
 /* values and FMU states: any live state (the FMI 2.0 front applies its rules) */
 #define BEGIN3_VALUES(fn) BEGIN3(fn, HB3_M_LIVE)
 
+/* a call of the FMI 2.0 front's Model Exchange functions, which exist where the model has Model
+ * Exchange (HB3_HAS_ME; not the Drillstring, whose instances are never Model Exchange ones) */
+#if HB3_HAS_ME
+#define HB3_ME(call) (call)
+#else
+#define HB3_ME(call) fmi2Error
+#endif
+
 /* the FMI 2.0 front's functions this front calls (front.c, front_state.c, front_me.c) */
 fmi2Component fmi2Instantiate(fmi2String, fmi2Type, fmi2String, fmi2String,
                               const fmi2CallbackFunctions *, fmi2Boolean, fmi2Boolean);

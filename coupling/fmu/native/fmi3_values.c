@@ -75,7 +75,7 @@ FMI3_Export fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueRefe
         if (r == HB3_TIME_VR) {
             values[k] = hb3_time(I);
         } else if (HB3_IS_INDICATOR(r)) {
-            if (!have_z) st = worse(st, fmi2GetEventIndicators(I->c2, z, HB3_NZ));
+            if (!have_z) st = worse(st, HB3_ME(fmi2GetEventIndicators(I->c2, z, HB3_NZ)));
             have_z = 1;
             values[k] = z[r - HB3_INDICATOR_VR0];
         } else {
