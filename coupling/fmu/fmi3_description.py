@@ -98,7 +98,13 @@ def fmi3_model_description(xml2: bytes, event_names) -> bytes:
         "canHandleVariableCommunicationStepSize": cs2.get("canHandleVariableCommunicationStepSize", "false"),
         "hasEventMode": events, "mightReturnEarlyFromDoStep": events,
         "canReturnEarlyAfterIntermediateUpdate": "false"})
-    for tag in ("UnitDefinitions", "LogCategories", "DefaultExperiment"):
+    units = md2.find("UnitDefinitions")
+    if units is None:
+        units = ET.Element("UnitDefinitions")
+    if "s" not in {u.get("name") for u in units}:      # the unit of time
+        ET.SubElement(ET.SubElement(units, "Unit", {"name": "s"}), "BaseUnit", {"s": "1"})
+    root.append(units)
+    for tag in ("LogCategories", "DefaultExperiment"):
         el = md2.find(tag)
         if el is not None:
             root.append(el)

@@ -27,6 +27,7 @@ subprocess with an empty kernel cache and ``NUMBA_CPU_NAME=generic``.
 from __future__ import annotations
 
 import json
+import re
 import os
 import shutil
 import subprocess
@@ -256,9 +257,37 @@ def linked_ir(funcs: dict, entry_points=None) -> str:
 # ---------------------------------------------------------------------------
 # 3. object files
 # ---------------------------------------------------------------------------
+#: numba's optimiser (run for x86-64) turns NRT_decref's atomic decrement and test for zero into
+#: an x86 intrinsic (condition code 4: equal, the result is zero); other targets get the generic
+#: IR it stands for
+_X86_ATOMIC_SUB_CC = re.compile(r"(%[\w.]+) = (?:tail )?call i8 @llvm\.x86\.atomic\.sub\.cc\.i64\("
+                                r"ptr (?:nonnull )?(%[\w.]+), i64 (-?\d+), i32 4\)")
+
+
+def generic_atomics(ir: str) -> str:
+    """``ir`` without x86 atomic intrinsics (for a target that is not x86-64); raises
+    :class:`KernelBuildError` on one it does not know."""
+    count = iter(range(1 << 30))
+
+    def replace(m):
+        res, ptr, v = m.groups()
+        k = next(count)
+        return (f"%hb.atomic{k}.old = atomicrmw sub ptr {ptr}, i64 {v} seq_cst\n"
+                f"  %hb.atomic{k}.zero = icmp eq i64 %hb.atomic{k}.old, {v}\n"
+                f"  {res} = zext i1 %hb.atomic{k}.zero to i8")
+    out = _X86_ATOMIC_SUB_CC.sub(replace, ir)
+    out = "\n".join(line for line in out.splitlines() if not line.startswith("declare i8 @llvm.x86.atomic.sub.cc"))
+    if "@llvm.x86." in out:
+        raise KernelBuildError("the kernels' IR uses x86 intrinsics the non-x86 build cannot translate: "
+                               + ", ".join(sorted(set(re.findall(r"@llvm\.x86\.[\w.]+", out)))))
+    return out
+
+
 def emit_object(ir: str, target: Target) -> bytes:
     """Object file of ``ir`` for ``target`` and the portable CPU (optimised; unused code removed)."""
     llvm = _llvm()
+    if not target.triple.startswith("x86_64"):
+        ir = generic_atomics(ir)
     mod = llvm.parse_assembly(ir)
     # numba ran with NUMBA_CPU_NAME=generic: its IR carries no CPU attributes; the target machine
     # emits for the baseline CPU
