@@ -292,3 +292,13 @@ def test_calls_out_of_place_are_errors_with_messages(fmu3_dir):
     with pytest.raises(FMICallException):
         e.doStep(0.0, H)
     e.freeInstance()
+
+
+@pytest.mark.parametrize("argv", [["fmu", "build", "--fmi-version", "3"],
+                                  ["fmu", "build-string", "--string", "lab", "--fmi-version", "3"],
+                                  ["fmu", "build", "--runtime", "native", "--fmi-version", "4"]])
+def test_cli_refuses_fmi3_without_the_native_runtime(argv, capsys, tmp_path):
+    from cli_run import run_cli
+    code, out, err = run_cli([*argv, "--out", str(tmp_path / "x.fmu")], capsys)
+    assert code == 2 and "Traceback" not in err and "--fmi-version" in err
+    assert not (tmp_path / "x.fmu").exists()
