@@ -21,6 +21,18 @@ HOST_SOURCE = Path(__file__).resolve().parent / "fmi3_host.c"
 FMI_HEADERS = Path(fmpy.__file__).parent / "c-code"
 OUTS = ("hammer_position", "hammer_velocity", "bit_position", "bit_velocity", "rock_force")
 QEMU_SYSROOT = "/usr/aarch64-linux-gnu"
+REL = 1e-13
+
+
+def assert_close(got, want, label):
+    """Each output equal to REL relative, against its scale where it is smaller (the lab rig's x0,
+    x0 Omega, F0: the velocities pass through zero), as the FMI 2.0 platform tests compare."""
+    from hammerbit.model.params import RigParameters
+    sc = RigParameters().scales                            # the FMU's default start values
+    scales = (sc.length, sc.velocity, sc.length, sc.velocity, sc.friction_force)
+    assert len(got) == len(want) == len(OUTS)
+    for name, a, b, s in zip(OUTS, got, want, scales):
+        assert abs(a - b) <= REL * max(abs(b), s), f"{label}: {name} {a!r} vs {b!r}"
 
 
 @pytest.fixture(scope="module")
@@ -74,8 +86,8 @@ def test_aarch64_under_qemu_equals_x86_64(fmu3_dir, tmp_path, steps, early):
                                                             steps, early)])
     lin = _linux_run(fmu3_dir, tmp_path, steps, early)
     a, x = _values(arm), _values(lin)
-    assert len(a) == len(x) == len(OUTS) and x[2] > 0.0
-    assert a == pytest.approx(x, rel=1e-13, abs=1e-15)
+    assert x[2] > 0.0                                      # the lab rig drills
+    assert_close(a, x, "aarch64 (qemu) vs x86_64-linux")
     assert arm.split("returns")[1] == lin.split("returns")[1]       # the same early returns
 
 
@@ -92,9 +104,7 @@ def test_windows_dll_under_wine_equals_x86_64_linux(fmu3_dir, tmp_path, steps):
     res = "Z:" + str(fmu3_dir / "resources").replace("/", "\\") + "\\"
     win = _run([wine, str(exe), *_args(fmu3_dir, win_path, res, steps, True)], env=env)
     lin = _linux_run(fmu3_dir, tmp_path, steps, True)
-    w, x = _values(win), _values(lin)
-    assert len(w) == len(x) == len(OUTS)
-    assert w == pytest.approx(x, rel=1e-13, abs=1e-15)
+    assert_close(_values(win), _values(lin), "x86_64-windows (wine) vs x86_64-linux")
 
 
 @pytest.mark.xfail(strict=True, reason="libm's exp/log/pow bind GLIBC_2.29 until the glibc shim of the "
