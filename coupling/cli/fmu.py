@@ -116,7 +116,7 @@ def register(sub) -> None:
                         "binaries (linux64, and win64 with x86_64-w64-mingw32-gcc) hold the compiled "
                         "kernels and need no Python")
     b.add_argument("--fmi-version", type=int, choices=(2, 3), default=2,
-                   help="2 (default): FMI 2.0; 3: FMI 3.0 (--runtime native; binaries x86_64-linux "
-                        "and x86_64-windows; Co-Simulation with early return at events and Event "
+                   help="2 (default): FMI 2.0; 3: FMI 3.0 (--runtime native; binaries x86_64-linux, "
+                        "x86_64-windows and aarch64-linux; Co-Simulation with early return at events and Event "
                         "Mode, Model Exchange)")
     add_build_string(fsub)
