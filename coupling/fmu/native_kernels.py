@@ -100,7 +100,8 @@ ALLOWED_UNDEFINED = frozenset({
 #: kernel layout constants the C side reads from the generated header (``layout()``)
 LAYOUT_NAMES = (
     "N_ISTATE", "N_FSTATE", "N_OPTS", "I_STICK", "I_CONTACT", "I_BOUNCE", "I_WIN", "I_COUNT0",
-    "F_T", "F_H", "I_NLOG", "L_T", "L_KIND", "N_LOG_COLS", "STICK", "SLIP", "FREE", "CONTACT", "CLAMPED", "EV_SLIP_START", "EV_STICK",
+    "F_T", "F_H", "I_NLOG", "L_T", "L_KIND", "N_LOG_COLS",
+    "STICK", "SLIP", "FREE", "CONTACT", "CLAMPED", "EV_SLIP_START", "EV_STICK",
     "EV_SLIP_ON", "EV_IMPACT", "EV_SEPARATION", "EV_CLAMP", "EV_UNCLAMP", "EV_BOUNCE",
     "EV_BOUNCE_END", "N_EVENT_KINDS", "O_RTOL", "O_ATOL", "O_HMAX", "O_HFIXED", "O_EVCAP",
     "O_BISECT", "O_MAXSTEPS", "O_POIN_T0", "O_POIN_DT", "O_GRAZE", "O_STEPCAP", "ST_DONE",
@@ -204,7 +205,8 @@ def compile_entry_points() -> dict:
         return apply_event(kind, carray(yp, (NY,)), carray(ip, (NI,)), carray(fp, (NF,)),
                            carray(pp, (N_P,)))
 
-    funcs = {"hb_advance": hb_advance, "hb_advance_to_event": hb_advance_to_event, "hb_init_modes": hb_init_modes, "hb_forces": hb_forces,
+    funcs = {"hb_advance": hb_advance, "hb_advance_to_event": hb_advance_to_event,
+             "hb_init_modes": hb_init_modes, "hb_forces": hb_forces,
              "hb_rhs": hb_rhs, "hb_watched": hb_watched, "hb_watch_value": hb_watch_value,
              "hb_apply_event": hb_apply_event}
     assert set(funcs) == set(ENTRY_POINTS)
