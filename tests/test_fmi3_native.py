@@ -7,8 +7,8 @@ early return does; the library's own simulation for Model Exchange.
 """
 from __future__ import annotations
 
+import ctypes
 import math
-import os
 import zipfile
 from pathlib import Path
 
@@ -302,3 +302,30 @@ def test_cli_refuses_fmi3_without_the_native_runtime(argv, capsys, tmp_path):
     code, out, err = run_cli([*argv, "--out", str(tmp_path / "x.fmu")], capsys)
     assert code == 2 and "Traceback" not in err and "--fmi-version" in err
     assert not (tmp_path / "x.fmu").exists()
+
+
+def test_model_exchange_time_and_states_round_trip(fmu3_dir):
+    from fmpy.fmi3 import FMU3Model
+    md = read_model_description(str(fmu3_dir / "modelDescription.xml"))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    m = FMU3Model(guid=md.guid, unzipDirectory=str(fmu3_dir), modelIdentifier=md.modelExchange.modelIdentifier,
+                  instanceName="me")
+    m.instantiate()
+    m.enterInitializationMode(startTime=0.0)
+    m.exitInitializationMode()
+    m.updateDiscreteStates()
+    m.enterContinuousTimeMode()
+    m.setTime(0.25)
+    state = m.getFMUState()
+    z = m.getFloat64([vr[f"event_indicator_{n}"] for n in KL.EVENT_NAMES])
+    buf = (ctypes.c_double * KL.N_EVENT_KINDS)()
+    m.getEventIndicators(buf, KL.N_EVENT_KINDS)
+    assert list(buf) == z                                # the variables are the indicators
+    m.setTime(0.5)
+    assert m.getFloat64([vr["time"]]) == [0.5]
+    m.setFMUState(state)
+    assert m.getFloat64([vr["time"]]) == [0.25]         # the time is part of the FMU state
+    assert m.getFloat64([vr[f"event_indicator_{n}"] for n in KL.EVENT_NAMES]) == z
+    m.freeFMUState(state)
+    m.terminate()
+    m.freeInstance()

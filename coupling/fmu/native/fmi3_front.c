@@ -65,7 +65,7 @@ fmi3Status hb3_status(hb3_inst *I, fmi2Status st) {
 }
 
 double hb3_time(const hb3_inst *I) {
-    return I->me ? I->me_time : hb_front_time(I->c2);
+    return hb_front_time(I->c2);
 }
 
 /* ------------------------------------------------------------------------------------------ */
@@ -162,10 +162,7 @@ FMI3_Export fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Bo
                                                       stopTimeDefined, stopTime));
     if (st > fmi3Warning) return st;
     fmi3Status st2 = hb3_status(I, fmi2EnterInitializationMode(I->c2));
-    if (st2 <= fmi3Warning) {
-        I->state = F3_INIT;
-        I->me_time = startTime;
-    }
+    if (st2 <= fmi3Warning) I->state = F3_INIT;
     return st2 > st ? st2 : st;
 }
 
@@ -286,9 +283,7 @@ FMI3_Export fmi3Status fmi3CompletedIntegratorStep(fmi3Instance instance,
 
 FMI3_Export fmi3Status fmi3SetTime(fmi3Instance instance, fmi3Float64 time) {
     ME_ONLY("fmi3SetTime", HB3_M(F3_EVENT) | HB3_M(F3_CONT));
-    fmi3Status st = hb3_status(I, HB3_ME(fmi2SetTime(I->c2, time)));
-    if (st <= fmi3Warning) I->me_time = time;
-    return st;
+    return hb3_status(I, HB3_ME(fmi2SetTime(I->c2, time)));
 }
 
 FMI3_Export fmi3Status fmi3SetContinuousStates(fmi3Instance instance, const fmi3Float64 x[], size_t nx) {

@@ -35,7 +35,6 @@ typedef struct {
     int me;                           /* Model Exchange */
     int event_mode_used, early_return_allowed;
     int state;                        /* F3_* */
-    double me_time;                   /* Model Exchange: the time of fmi3SetTime [s] */
 } hb3_inst;
 
 /* fmi3_front.c: a message through the host's logger (printf format) */

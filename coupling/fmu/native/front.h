@@ -96,7 +96,8 @@ typedef struct {
 fmi2Status hb_front_step(fmi2Component c, fmi2Real currentCommunicationPoint,
                          fmi2Real communicationStepSize, fmi2Boolean noSetFMUStatePriorToCurrentPoint,
                          int to_event);
-/* the current communication point of an instance [s] (NaN for NULL) */
+/* the current time of an instance [s]: its communication point, or in Model Exchange the time of
+ * fmi2SetTime (NaN for NULL) */
 fmi2Real hb_front_time(fmi2Component c);
 
 /* the loaded library (all NULL before hb_load_wrapper succeeded) */
