@@ -99,9 +99,10 @@ def _link_sets() -> dict:
     """{binary: its C files}: the Python flavour's front, the native HammerBitRock, the native
     Drillstring, as the builds link them."""
     from hammerbit.fmu.native import SOURCES
-    from hammerbit.fmu.native_build import NATIVE_SOURCES
+    from hammerbit.fmu.native_build import FMI3_SOURCES, NATIVE_SOURCES
     from hammerbit.fmu.native_string import STRING_SOURCES
     return {"python front": SOURCES, "native HammerBitRock": NATIVE_SOURCES,
+            "native HammerBitRock FMI 3": NATIVE_SOURCES + FMI3_SOURCES,
             "native Drillstring": STRING_SOURCES}
 
 
@@ -125,6 +126,10 @@ def _write_headers(inc: Path) -> None:
     (inc / "hb_model.h").write_text(generate_header(read_model_description(md), wrapper_file="x.so"))
     (inc / "hb_python.h").write_text('#define HB_WRAPPER_FILE "x.so"\n#define HB_PYTHON_MODULES ""\n')
     (inc / "hb_native.h").write_text(native_header(md, {}, layout()))
+    from hammerbit.fmu.fmi3_description import fmi3_header, fmi3_model_description
+    from hammerbit.fmu.native_build import STATES
+    from hammerbit.model.kernel_layouts import EVENT_NAMES
+    (inc / "hb_fmi3.h").write_text(fmi3_header(fmi3_model_description(md, EVENT_NAMES), len(STATES)))
     write_description_header(inc)
     build = string_build("lab")
     res = inc / "resources"
@@ -158,7 +163,8 @@ def test_every_c_file_is_linked_into_a_binary():
     assert not unused, f"C files no build links: {sorted(unused)}"
 
 
-@pytest.mark.parametrize("binary", ["python front", "native HammerBitRock", "native Drillstring"])
+@pytest.mark.parametrize("binary", ["python front", "native HammerBitRock", "native HammerBitRock FMI 3",
+                                    "native Drillstring"])
 def test_no_call_circles_between_c_files(objects, binary):
     files = [Path(s).name for s in _link_sets()[binary]]
     definer = {}

@@ -16,10 +16,13 @@ def cmd_fmu_build(args) -> int:
         refuse_unless(args, dest, args.runtime == "pythonfmu", "an option of --runtime pythonfmu: the native "
                                                                "runtime ships compiled binaries and no Python front")
     from hammerbit.fmu.build import MODEL_NAME, BuildOptions, UnknownVariableError, build_fmu, default_output
+    if args.fmi_version == 3 and args.runtime != "native":
+        raise UsageError("--fmi-version 3 is an option of --runtime native")
     try:
         start = parse_settings(args.set)
         opts = BuildOptions(start_values=start, portable_cache=not args.no_portable_cache,
-                            native_front=not args.no_native_front, runtime=args.runtime)
+                            native_front=not args.no_native_front, runtime=args.runtime,
+                            fmi_version=args.fmi_version)
         # the build compiles the kernels and the native front: tens of seconds with nothing to show
         work = [w for w, on in (("compiling the kernels for the portable CPU target", opts.portable_cache),
                                 ("building the native front", opts.native_front)) if on]
@@ -61,6 +64,8 @@ def cmd_fmu_build_string(args) -> int:
             raise UsageError(f"--step {h!r} is out of range: allowed a finite step size > 0 s")
     if steps and args.runtime != "native":
         raise UsageError("--step is an option of --runtime native (the pythonfmu flavour takes any step)")
+    if args.fmi_version == 3 and args.runtime != "native":
+        raise UsageError("--fmi-version 3 is an option of --runtime native")
     try:
         path = string_fmu_path(args.out)
         if args.runtime == "native":
@@ -68,6 +73,7 @@ def cmd_fmu_build_string(args) -> int:
             print("hammerbit fmu build-string: building Drillstring.fmu (native runtime; compiling the "
                   "string's kernels) ...", file=sys.stderr, flush=True)
             build_native_string_fmu(args.string, staged(path), top=top, steps=steps,
+                                           fmi_version=args.fmi_version,
                                            log=lambda m: print(m, file=sys.stderr))
         else:
             build_string_fmu(args.string, staged(path), top=top)
@@ -102,6 +108,8 @@ def add_build_string(fsub) -> None:
                    help="--runtime native: a communication step size [s] whose exponentials the FMU carries "
                         "(repeatable; default 0.001, the default experiment's; any other step gets "
                         "its own at its first use)")
+    b.add_argument("--fmi-version", type=int, choices=(2, 3), default=2,
+                   help="2 (default): FMI 2.0; 3: FMI 3.0 (--runtime native)")
     b.set_defaults(func=cmd_fmu_build_string)
 
 
@@ -126,4 +134,8 @@ def register(sub) -> None:
                    help="pythonfmu (default): the model runs in Python in the host; native: the "
                         "binaries (linux64, and win64 with x86_64-w64-mingw32-gcc) hold the compiled "
                         "kernels and need no Python")
+    b.add_argument("--fmi-version", type=int, choices=(2, 3), default=2,
+                   help="2 (default): FMI 2.0; 3: FMI 3.0 (--runtime native; binaries x86_64-linux, "
+                        "x86_64-windows and aarch64-linux; Co-Simulation with early return at events and Event "
+                        "Mode, Model Exchange)")
     add_build_string(fsub)

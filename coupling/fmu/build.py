@@ -92,6 +92,8 @@ class BuildOptions:
         ``native``: the binaries hold the compiled kernels and need no Python
         (:mod:`hammerbit.fmu.native_build`; ``portable_cache`` and
         ``native_front`` do not apply).
+    fmi_version : {2, 3}
+        The FMI version of the FMU (3: native runtime only; :mod:`hammerbit.fmu.fmi3_description`).
     """
 
     start_values: Mapping[str, float] = field(default_factory=dict)
@@ -99,6 +101,7 @@ class BuildOptions:
     native_front: bool = True
     python: str = sys.executable
     runtime: str = "pythonfmu"
+    fmi_version: int = 2
 
 
 def runtime_dir() -> Path:
@@ -358,6 +361,9 @@ def build_fmu(out=None, *, options: BuildOptions = BuildOptions(), **kw) -> Path
     out = out.resolve()
     if options.runtime not in RUNTIMES:
         raise FMUBuildError(f"runtime {options.runtime!r} is not one of {', '.join(RUNTIMES)}")
+    if options.fmi_version not in (2, 3) or (options.fmi_version == 3 and options.runtime != "native"):
+        raise FMUBuildError(f"fmi_version = {options.fmi_version!r} is not allowed: 2, or 3 with the "
+                            f"native runtime")
     out.parent.mkdir(parents=True, exist_ok=True)
     start = check_start_values(dict(options.start_values))
     if options.runtime == "native":
@@ -415,9 +421,9 @@ def _build_native(out: Path, options: BuildOptions, start: dict) -> Path:
     with tempfile.TemporaryDirectory(prefix="hammerbit_fmu_md_") as tmp:
         python_fmu = build_fmu(Path(tmp) / f"{MODEL_NAME}.fmu",
                                options=replace(options, runtime="pythonfmu", portable_cache=False,
-                                               native_front=False))
+                                               native_front=False, fmi_version=2))
         try:
-            return assemble_native_fmu(python_fmu, out, start,
+            return assemble_native_fmu(python_fmu, out, start, fmi_version=options.fmi_version,
                                        log=lambda msg: print(msg, file=sys.stderr))
         except NativeBuildError as e:
             raise FMUBuildError(f"the native runtime: {e}") from None

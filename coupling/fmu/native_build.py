@@ -54,6 +54,8 @@ GLIBC_WRAPPED = ("exp", "log", "pow", "exp2", "log2", "expf", "logf", "powf", "e
 #: the nondimensional group whose range bounds each input, in units of the static friction
 #: threshold F0 (preload b = B/F0, forcing amplitude a = A/F0): |input| <= hi * F0
 INPUT_GROUPS = {"preload": "group.b", "harmonic_force": "group.a"}
+#: the cross-compiler of the aarch64-linux binary of the FMI 3.0 FMU (Debian gcc-aarch64-linux-gnu)
+AARCH64_CC = "aarch64-linux-gnu-gcc"
 #: compiler flags of every native binary: C11 with GNU extensions, optimised, and no fused
 #: multiply-add, so that the generated formulas round as Python does (aarch64 has FMA)
 C_FLAGS = ("-std=gnu11", "-O2", "-ffp-contract=off")
@@ -151,10 +153,19 @@ def nm_for(platform: str) -> str:
     """The ``nm`` that reads the objects of ``platform``."""
     if platform == "win64":
         return shutil.which("x86_64-w64-mingw32-nm") or "nm"
+    if platform == "aarch64-linux":
+        return shutil.which("aarch64-linux-gnu-nm") or "nm"
     return "nm"
 
 
-def link_binary(platform: str, cc: str, obj: Path, include: Path, out: Path, sources=NATIVE_SOURCES) -> None:
+#: what the FMI 3.0 binaries add: the FMI 3.0 front over the FMI 2.0 front (fmi3_front.h)
+FMI3_SOURCES = tuple(SOURCE_DIR / f for f in ("fmi3_front.c", "fmi3_values.c"))
+#: the FMI 3.0 binaries compile the FMI 2.0 front's functions without exporting them
+FMI3_DEFINES = ("-DEXPORT=",)
+
+
+def link_binary(platform: str, cc: str, obj: Path, include: Path, out: Path, sources=NATIVE_SOURCES,
+                defines=()) -> None:
     """Link ``sources`` and the kernel object ``obj`` (generated headers in ``include``) into ``out``.
 
     The object may reference only what the shim provides (libm, numba's error path, NRT): checked
@@ -164,9 +175,9 @@ def link_binary(platform: str, cc: str, obj: Path, include: Path, out: Path, sou
         raise NativeBuildError(f"the {platform} kernel object {obj.name} needs symbols no shim provides: "
                                f"{sorted(extra)}")
     srcs = [str(s) for s in sources]
-    common = [*C_FLAGS, "-Wall", "-Wextra", "-Wno-unused-parameter", "-DHB_NATIVE_MODEL",
+    common = [*C_FLAGS, "-Wall", "-Wextra", "-Wno-unused-parameter", "-DHB_NATIVE_MODEL", *defines,
               "-I", str(include), "-I", str(SOURCE_DIR)]
-    if platform == "linux64":
+    if platform in ("linux64", "aarch64-linux"):
         # glibc_compat.c and --wrap: no symbol version above glibc 2.17 (see that file)
         wrap = "-Wl," + ",".join(f"--wrap={name}" for name in GLIBC_WRAPPED)
         cmd = [cc, *common, "-fPIC", "-shared", "-fvisibility=hidden", "-o", str(out), *srcs,
@@ -179,27 +190,35 @@ def link_binary(platform: str, cc: str, obj: Path, include: Path, out: Path, sou
     _run(cmd, f"linking the {platform} binary")
 
 
-def select_platforms(log=print) -> list:
-    """linux64, and win64 when ``x86_64-w64-mingw32-gcc`` is on PATH (else ``log`` says why not)."""
+def select_platforms(log=print, fmi_version: int = 2) -> list:
+    """linux64, and win64 when ``x86_64-w64-mingw32-gcc`` is on PATH (else ``log`` says why not);
+    for FMI 3.0 also aarch64-linux when ``aarch64-linux-gnu-gcc`` is."""
     platforms = ["linux64"]
     if shutil.which(MINGW_CC):
         platforms.append("win64")
     else:
         log(f"hammerbit fmu build: no {MINGW_CC} on PATH: the FMU gets no binaries/win64 (install "
             f"the mingw-w64 cross-compiler, Debian: apt-get install gcc-mingw-w64-x86-64)")
+    if fmi_version == 3:
+        if shutil.which(AARCH64_CC):
+            platforms.append("aarch64-linux")
+        else:
+            log(f"hammerbit fmu build: no {AARCH64_CC} on PATH: the FMU gets no binaries/aarch64-linux "
+                f"(Debian: apt-get install gcc-aarch64-linux-gnu)")
     return platforms
 
 
 def build_binaries(model_description_xml, out_dir, *, start_values=None, platforms=None,
-                   log=print) -> dict:
+                   log=print, fmi3_xml=None) -> dict:
     """Build ``<out_dir>/<platform>/<modelIdentifier>.<so|dll>``; return ``{platform: path}``.
 
     ``platforms`` defaults to linux64, and win64 when ``x86_64-w64-mingw32-gcc``
-    is on PATH (otherwise ``log`` says that it is skipped and why).
+    is on PATH (otherwise ``log`` says that it is skipped and why).  With ``fmi3_xml`` (the FMI
+    3.0 description of :mod:`hammerbit.fmu.fmi3_description`) the binaries are FMI 3.0's.
     """
     spec = read_model_description(model_description_xml)
     if platforms is None:
-        platforms = select_platforms(log)
+        platforms = select_platforms(log, 3 if fmi3_xml is not None else 2)
     compilers = {}
     for plat in platforms:
         if plat not in TARGETS:
@@ -210,10 +229,14 @@ def build_binaries(model_description_xml, out_dir, *, start_values=None, platfor
             except FrontBuildError as e:
                 raise NativeBuildError(str(e)) from None
         else:
-            cc = shutil.which(MINGW_CC)
+            cross = MINGW_CC if plat == "win64" else AARCH64_CC
+            cc = shutil.which(cross)
             if not cc:
-                raise NativeBuildError(f"the win64 binary needs {MINGW_CC} (Debian: apt-get install "
-                                       f"gcc-mingw-w64-x86-64)")
+                raise NativeBuildError(f"the {plat} binary needs {cross} (Debian: apt-get install "
+                                       f"{'gcc-mingw-w64-x86-64' if plat == 'win64' else 'gcc-aarch64-linux-gnu'})")
+            if plat == "aarch64-linux" and fmi3_xml is None:
+                raise NativeBuildError("aarch64-linux is a platform of the FMI 3.0 FMU only (FMI 2.0 "
+                                       "names no AArch64 platform)")
             compilers[plat] = cc
     out_dir = Path(out_dir)
     built = {}
@@ -224,11 +247,16 @@ def build_binaries(model_description_xml, out_dir, *, start_values=None, platfor
         write_description_header(tmp)
         (tmp / "hb_native.h").write_text(native_header(model_description_xml, start_values or {},
                                                        summary["layout"]))
+        sources, defines = NATIVE_SOURCES, ()
+        if fmi3_xml is not None:
+            from hammerbit.fmu.fmi3_description import fmi3_header
+            (tmp / "hb_fmi3.h").write_text(fmi3_header(fmi3_xml, len(STATES)))
+            sources, defines = NATIVE_SOURCES + FMI3_SOURCES, FMI3_DEFINES
         for plat in platforms:
             obj = tmp / f"kernels_{plat}.o"
             dest = out_dir / plat / f"{spec.model_identifier}{TARGETS[plat].suffix}"
             dest.parent.mkdir(parents=True, exist_ok=True)
-            link_binary(plat, compilers[plat], obj, tmp, dest)
+            link_binary(plat, compilers[plat], obj, tmp, dest, sources, defines)
             built[plat] = dest
     return built
 
@@ -298,17 +326,23 @@ def native_model_description(xml: bytes) -> bytes:
     return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8") + b"\n"
 
 
-def assemble_native_fmu(python_fmu: Path, out: Path, start_values: dict, *, log=print) -> Path:
-    """Write the native FMU ``out`` from the model description of the Python flavour's ``python_fmu``."""
+def assemble_native_fmu(python_fmu: Path, out: Path, start_values: dict, *, log=print,
+                        fmi_version: int = 2) -> Path:
+    """Write the native FMU ``out`` from the model description of the Python flavour's ``python_fmu``
+    (an FMI 2.0 FMU, or with ``fmi_version=3`` an FMI 3.0 one)."""
+    from hammerbit.fmu.fmi3_description import FMI3_PLATFORMS, fmi3_model_description
+    from hammerbit.model.kernel_layouts import EVENT_NAMES
     with zipfile.ZipFile(python_fmu) as zf:
         md = native_model_description(zf.read("modelDescription.xml"))
+    md3 = fmi3_model_description(md, EVENT_NAMES) if fmi_version == 3 else None
     with tempfile.TemporaryDirectory(prefix="hammerbit_native_fmu_") as tmp:
-        built = build_binaries(md, Path(tmp), start_values=start_values, log=log)
+        built = build_binaries(md, Path(tmp), start_values=start_values, log=log, fmi3_xml=md3)
         tmp_out = out.with_name(out.name + ".tmp")
         with zipfile.ZipFile(tmp_out, "w", zipfile.ZIP_DEFLATED) as zf:
-            zf.writestr("modelDescription.xml", md)
+            zf.writestr("modelDescription.xml", md3 if md3 is not None else md)
             for plat, path in sorted(built.items()):
-                zf.write(path, f"binaries/{plat}/{path.name}")
+                folder = FMI3_PLATFORMS[plat] if md3 is not None else plat
+                zf.write(path, f"binaries/{folder}/{path.name}")
             # the resource directory every host passes to fmi2Instantiate: the build's start values
             zf.writestr("resources/start_values.json",
                         json.dumps(start_values, indent=1, sort_keys=True) + "\n")

@@ -27,6 +27,7 @@ subprocess with an empty kernel cache and ``NUMBA_CPU_NAME=generic``.
 from __future__ import annotations
 
 import json
+import re
 import os
 import shutil
 import subprocess
@@ -51,21 +52,26 @@ class Target:
     platform: str      #: FMI binaries directory name (linux64, win64)
     triple: str        #: LLVM target triple
     suffix: str        #: shared-library suffix (.so, .dll)
+    #: the CPU the object is emitted for: the architecture's baseline, which every CPU of it runs
+    #: (x86-64: SSE2)
+    cpu: str = "x86-64"
 
 
-#: the platforms of the native flavour; win64 is linked by mingw-w64
+#: the platforms of the native flavour; win64 is linked by mingw-w64, aarch64-linux (FMI 3.0's
+#: name; the FMI 3.0 FMU only) by aarch64-linux-gnu-gcc, for the AArch64 baseline (ARMv8-A)
 TARGETS = {
     "linux64": Target("linux64", "x86_64-unknown-linux-gnu", ".so"),
     "win64": Target("win64", "x86_64-w64-windows-gnu", ".dll"),
+    "aarch64-linux": Target("aarch64-linux", "aarch64-unknown-linux-gnu", ".so", cpu="generic"),
 }
 
-#: the CPU the objects are emitted for: the x86-64 baseline (SSE2), which every x86-64 CPU runs
-PORTABLE_CPU = "x86-64"
 
 #: C names of the entry points and their C prototypes (kernel_api.h in native/ declares the same)
 ENTRY_POINTS = {
     "hb_advance": "int64_t hb_advance(double *y, int64_t *ist, double *fst, double tau_end, "
                   "double *p, double *opts)",
+    "hb_advance_to_event": "int64_t hb_advance_to_event(double *y, int64_t *ist, double *fst, "
+                           "double tau_end, double *p, double *opts, double *log)",
     "hb_init_modes": "int64_t hb_init_modes(double *y, int64_t *ist, double *p)",
     "hb_forces": "int64_t hb_forces(double *y, int64_t *ist, double *p, double *out)",
     "hb_rhs": "int64_t hb_rhs(double tau, double *y, double *p, int64_t mode_s, int64_t mode_c, "
@@ -94,7 +100,7 @@ ALLOWED_UNDEFINED = frozenset({
 #: kernel layout constants the C side reads from the generated header (``layout()``)
 LAYOUT_NAMES = (
     "N_ISTATE", "N_FSTATE", "N_OPTS", "I_STICK", "I_CONTACT", "I_BOUNCE", "I_WIN", "I_COUNT0",
-    "I_POIN_NEXT", "I_SAMP_NEXT", "I_NLOG", "I_SWIN",
+    "I_POIN_NEXT", "I_SAMP_NEXT", "I_NLOG", "I_SWIN", "L_T", "L_KIND", "N_LOG_COLS",
     "F_T", "F_H", "STICK", "SLIP", "FREE", "CONTACT", "CLAMPED", "EV_SLIP_START", "EV_STICK",
     "EV_SLIP_ON", "EV_IMPACT", "EV_SEPARATION", "EV_CLAMP", "EV_UNCLAMP", "EV_BOUNCE",
     "EV_BOUNCE_END", "N_EVENT_KINDS", "O_RTOL", "O_ATOL", "O_HMAX", "O_HFIXED", "O_EVCAP",
@@ -150,6 +156,14 @@ def compile_entry_points() -> dict:
                               carray(pp, (N_P,)), carray(op, (NO,)), (np.empty((0, 5)), np.empty(0),
                                                                       np.empty((0, NS)), np.empty((0, NL))))
 
+    @cfunc(int64(f64p, i64p, f64p, float64, f64p, f64p, f64p))
+    def hb_advance_to_event(yp, ip, fp, tau_end, pp, op, lp):
+        # an event log of one row (the caller zeroes ist[I_NLOG]): the driver returns ST_LOG_FULL
+        # at the first event, its reset applied, as Stepper.advance does with such a log
+        return advance_hammer(carray(yp, (NY,)), carray(ip, (NI,)), carray(fp, (NF,)), tau_end,
+                              carray(pp, (N_P,)), carray(op, (NO,)), (np.empty((0, 5)), np.empty(0),
+                                                                      np.empty((0, NS)), carray(lp, (1, NL))))
+
     @cfunc(int64(f64p, i64p, f64p))
     def hb_init_modes(yp, ip, pp):
         # the modes of a state at rest, as Stepper does at construction
@@ -191,7 +205,8 @@ def compile_entry_points() -> dict:
         return apply_event(kind, carray(yp, (NY,)), carray(ip, (NI,)), carray(fp, (NF,)),
                            carray(pp, (N_P,)))
 
-    funcs = {"hb_advance": hb_advance, "hb_init_modes": hb_init_modes, "hb_forces": hb_forces,
+    funcs = {"hb_advance": hb_advance, "hb_advance_to_event": hb_advance_to_event,
+             "hb_init_modes": hb_init_modes, "hb_forces": hb_forces,
              "hb_rhs": hb_rhs, "hb_watched": hb_watched, "hb_watch_value": hb_watch_value,
              "hb_apply_event": hb_apply_event}
     assert set(funcs) == set(ENTRY_POINTS)
@@ -244,14 +259,42 @@ def linked_ir(funcs: dict, entry_points=None) -> str:
 # ---------------------------------------------------------------------------
 # 3. object files
 # ---------------------------------------------------------------------------
+#: numba's optimiser (run for x86-64) turns NRT_decref's atomic decrement and test for zero into
+#: an x86 intrinsic (condition code 4: equal, the result is zero); other targets get the generic
+#: IR it stands for
+_X86_ATOMIC_SUB_CC = re.compile(r"(%[\w.]+) = (?:tail )?call i8 @llvm\.x86\.atomic\.sub\.cc\.i64\("
+                                r"ptr (?:nonnull )?(%[\w.]+), i64 (-?\d+), i32 4\)")
+
+
+def generic_atomics(ir: str) -> str:
+    """``ir`` without x86 atomic intrinsics (for a target that is not x86-64); raises
+    :class:`KernelBuildError` on one it does not know."""
+    count = iter(range(1 << 30))
+
+    def replace(m):
+        res, ptr, v = m.groups()
+        k = next(count)
+        return (f"%hb.atomic{k}.old = atomicrmw sub ptr {ptr}, i64 {v} seq_cst\n"
+                f"  %hb.atomic{k}.zero = icmp eq i64 %hb.atomic{k}.old, {v}\n"
+                f"  {res} = zext i1 %hb.atomic{k}.zero to i8")
+    out = _X86_ATOMIC_SUB_CC.sub(replace, ir)
+    out = "\n".join(line for line in out.splitlines() if not line.startswith("declare i8 @llvm.x86.atomic.sub.cc"))
+    if "@llvm.x86." in out:
+        raise KernelBuildError("the kernels' IR uses x86 intrinsics the non-x86 build cannot translate: "
+                               + ", ".join(sorted(set(re.findall(r"@llvm\.x86\.[\w.]+", out)))))
+    return out
+
+
 def emit_object(ir: str, target: Target) -> bytes:
     """Object file of ``ir`` for ``target`` and the portable CPU (optimised; unused code removed)."""
     llvm = _llvm()
+    if not target.triple.startswith("x86_64"):
+        ir = generic_atomics(ir)
     mod = llvm.parse_assembly(ir)
     # numba ran with NUMBA_CPU_NAME=generic: its IR carries no CPU attributes; the target machine
     # emits for the baseline CPU
     tm = llvm.Target.from_triple(target.triple).create_target_machine(
-        cpu=PORTABLE_CPU, features="", opt=3, reloc="pic", codemodel="default")
+        cpu=target.cpu, features="", opt=3, reloc="pic", codemodel="default")
     mod.triple = target.triple
     mod.data_layout = str(tm.target_data)
     pto = llvm.create_pipeline_tuning_options(speed_level=2)

@@ -229,11 +229,17 @@ def native_string_description(xml: bytes) -> bytes:
     return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8") + b"\n"
 
 
-def build_native_string_fmu(string_arg, out=None, *, steps=None, build=None, log=print, **kw) -> Path:
+def build_native_string_fmu(string_arg, out=None, *, steps=None, build=None, log=print, fmi_version=2,
+                            **kw) -> Path:
     """Build the native ``Drillstring.fmu`` of ``string_arg`` (TOML path or example name).
 
     ``steps``: the communication step sizes [s] it carries (default :data:`DEFAULT_STEPS`);
+    ``fmi_version``: 2, or 3 for an FMI 3.0 FMU (:mod:`hammerbit.fmu.fmi3_description`);
     ``kw`` go to :func:`~hammerbit.fmu.build_string.string_build`."""
+    from hammerbit.fmu.fmi3_description import FMI3_PLATFORMS, fmi3_header, fmi3_model_description
+    from hammerbit.fmu.native_build import AARCH64_CC, FMI3_DEFINES, FMI3_SOURCES
+    if fmi_version not in (2, 3):
+        raise ValueError(f"fmi_version = {fmi_version!r} is out of range: allowed 2 or 3")
     from hammerbit.fmu.build_string import MODEL_NAME, build_string_fmu, string_build, string_fmu_path
     from hammerbit.fmu.c_description import write_description_header
     from hammerbit.fmu.native import generate_header, read_model_description
@@ -259,21 +265,27 @@ def build_native_string_fmu(string_arg, out=None, *, steps=None, build=None, log
         (tmp / "hb_model.h").write_text(generate_header(spec, wrapper_file="", python_modules=()))
         write_description_header(tmp)
         (tmp / "hs_string.h").write_text(string_header(md, build, steps))
-        platforms = select_platforms(log)
+        md3, sources, defines = None, STRING_SOURCES, ()
+        if fmi_version == 3:
+            md3 = fmi3_model_description(md, ())
+            (tmp / "hb_fmi3.h").write_text(fmi3_header(md3, 0))
+            sources, defines = STRING_SOURCES + FMI3_SOURCES, FMI3_DEFINES
+        platforms = select_platforms(log, fmi_version)
         build_objects(tmp, platforms, kernels="string")
         built = {}
         for plat in platforms:
             obj = tmp / f"kernels_{plat}.o"
-            cc = find_compiler() if plat == "linux64" else shutil.which(MINGW_CC)
+            cc = {"linux64": find_compiler(), "win64": shutil.which(MINGW_CC),
+                  "aarch64-linux": shutil.which(AARCH64_CC)}[plat]
             dest = tmp / "bin" / plat / f"{spec.model_identifier}{TARGETS[plat].suffix}"
             dest.parent.mkdir(parents=True, exist_ok=True)
-            link_binary(plat, cc, obj, tmp, dest, sources=STRING_SOURCES)
+            link_binary(plat, cc, obj, tmp, dest, sources, defines)
             built[plat] = dest
         tmp_out = out.with_name(out.name + ".tmp")
         with zipfile.ZipFile(tmp_out, "w", zipfile.ZIP_DEFLATED) as zf:
-            zf.writestr("modelDescription.xml", md)
+            zf.writestr("modelDescription.xml", md if md3 is None else md3)
             for plat, path in sorted(built.items()):
-                zf.write(path, f"binaries/{plat}/{path.name}")
+                zf.write(path, f"binaries/{plat if md3 is None else FMI3_PLATFORMS[plat]}/{path.name}")
             zf.write(tmp / DATA_FILE, f"resources/{DATA_FILE}")
             # the description (hammerbit cosim --ssp reads it, and the side from DATA_FILE)
             zf.writestr(f"resources/{INFO_FILE}", json.dumps(info, indent=1))

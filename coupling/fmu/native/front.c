@@ -250,6 +250,13 @@ SETTER(String, fmi2String, HB_STRING)
 EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
                              fmi2Real communicationStepSize,
                              fmi2Boolean noSetFMUStatePriorToCurrentPoint) {
+    return hb_front_step(c, currentCommunicationPoint, communicationStepSize,
+                         noSetFMUStatePriorToCurrentPoint, 0);
+}
+
+fmi2Status hb_front_step(fmi2Component c, fmi2Real currentCommunicationPoint,
+                         fmi2Real communicationStepSize, fmi2Boolean noSetFMUStatePriorToCurrentPoint,
+                         int to_event) {
     BEGIN("fmi2DoStep", ST_STEP_COMPLETE);
     char a[32], b[32], c2[32];
     double off = currentCommunicationPoint - I->time, tol = time_tol(I->time);
@@ -274,15 +281,24 @@ EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint
             fmt_real(c2, I->stop_time));
         return settle(I, fmi2Error);
     }
-    fmi2Status st = hot_status(I, hb_W.DoStep(I->w, currentCommunicationPoint, communicationStepSize,
-                                           noSetFMUStatePriorToCurrentPoint));
+    fmi2Real reached = currentCommunicationPoint + communicationStepSize;
+    fmi2Status st = hot_status(I, to_event && hb_W.StepToEvent
+                                      ? hb_W.StepToEvent(I->w, currentCommunicationPoint,
+                                                         communicationStepSize, &reached)
+                                      : hb_W.DoStep(I->w, currentCommunicationPoint,
+                                                    communicationStepSize,
+                                                    noSetFMUStatePriorToCurrentPoint));
     if (st <= fmi2Warning) {
-        I->time = currentCommunicationPoint + communicationStepSize;
+        I->time = reached;
         I->last_successful = I->time;
     } else if (st == fmi2Discard) {
         I->last_successful = I->time;   /* the slave refuses a step as a whole */
     }
     return record(I, st);
+}
+
+fmi2Real hb_front_time(fmi2Component c) {
+    return c ? ((hb_inst *)c)->time : NAN;
 }
 
 EXPORT fmi2Status fmi2CancelStep(fmi2Component c) {

@@ -20,10 +20,14 @@
 
 #include "fmi2_abi.h"
 
+/* the FMI 3.0 binary compiles this front with EXPORT defined empty: its fmi2* functions are then
+ * internal, called by the FMI 3.0 front (fmi3_front.h) and not exported */
+#ifndef EXPORT
 #if defined(_WIN32)
 #define EXPORT __declspec(dllexport)
 #else
 #define EXPORT __attribute__((visibility("default")))
+#endif
 #endif
 
 /* The dl* functions bound to their first version: a front built with glibc >= 2.34 (where they
@@ -72,6 +76,9 @@ typedef struct {
     fmi2SerializeFMUstateFn SerializeFMUstate;
     fmi2DeSerializeFMUstateFn DeSerializeFMUstate;
     fmi2DoStepFn DoStep;
+    /* the step from t towards t + h, stopped just after the first event inside it (the event's
+     * reset applied); *reached: the event time, or t + h (NULL in the Python flavour) */
+    fmi2Status (*StepToEvent)(fmi2Component, fmi2Real t, fmi2Real h, fmi2Real *reached);
     void (*finalize)(void);
     /* Model Exchange (NULL in the Python flavour) */
     fmi2ComponentFn EnterEventMode, EnterContinuousTimeMode;
@@ -82,6 +89,16 @@ typedef struct {
         GetNominalsOfContinuousStates;
     fmi2CompletedIntegratorStepFn CompletedIntegratorStep;
 } hb_wrapper;
+
+/* front.c, for the FMI 3.0 front (fmi3_front.h) ------------------------------------------------
+ * fmi2DoStep; to_event: stop just after the first event inside the step (StepToEvent of the
+ * model), the instance's time then the event's (fmi2GetRealStatus(fmi2LastSuccessfulTime)) */
+fmi2Status hb_front_step(fmi2Component c, fmi2Real currentCommunicationPoint,
+                         fmi2Real communicationStepSize, fmi2Boolean noSetFMUStatePriorToCurrentPoint,
+                         int to_event);
+/* the current time of an instance [s]: its communication point, or in Model Exchange the time of
+ * fmi2SetTime (NaN for NULL) */
+fmi2Real hb_front_time(fmi2Component c);
 
 /* the loaded library (all NULL before hb_load_wrapper succeeded) */
 extern hb_wrapper hb_W;

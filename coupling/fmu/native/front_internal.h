@@ -87,6 +87,7 @@ double time_tol(double t);
 const char *fmt_real(char buf[32], double x);
 void free_inst(hb_inst *I);
 
+
 #define BEGIN(fn, mask)                           \
     hb_inst *I = (hb_inst *)c;                    \
     if (!I) return fmi2Error;                     \

@@ -52,7 +52,9 @@ EXPORT fmi2Status fmi2CompletedIntegratorStep(fmi2Component c,
 
 EXPORT fmi2Status fmi2SetTime(fmi2Component c, fmi2Real time) {
     BEGIN_ME("fmi2SetTime", ST_EVENT | ST_CONT);
-    return record(I, hb_W.SetTime(I->w, time));
+    fmi2Status st = hb_W.SetTime(I->w, time);
+    if (st <= fmi2Warning) I->time = time;   /* the instance's time, kept in its FMU states */
+    return record(I, st);
 }
 
 EXPORT fmi2Status fmi2SetContinuousStates(fmi2Component c, const fmi2Real x[], size_t nx) {

@@ -1,4 +1,4 @@
-/* The glibc baseline of the linux64 binaries: glibc 2.17 (manylinux2014).
+/* The glibc baseline of the Linux binaries (x86-64 and AArch64): glibc 2.17 (manylinux2014).
  *
  * glibc 2.27 and 2.29 gave exp, log, pow, exp2 and log2 (and their float forms) new symbol
  * versions; a binary linked on a newer system binds to those and no longer loads on glibc
@@ -9,12 +9,18 @@
  * compatibility symbol whose result is its current implementation's (it adds only the old errno
  * handling), so a result here can differ from an old glibc's only in the last bit.
  *
- * Only for x86-64 Linux with glibc: other targets (mingw-w64) do not compile this file. */
+ * Only for x86-64 and AArch64 Linux with glibc; elsewhere (mingw-w64) this file is empty. */
 #include <math.h>   /* first: it defines __GLIBC__ */
 
-#if defined(__linux__) && defined(__x86_64__) && defined(__GLIBC__)
+#if defined(__linux__) && defined(__GLIBC__) && (defined(__x86_64__) || defined(__aarch64__))
 
-#define HB_OLD_VERSION(name) __asm__(".symver " #name "," #name "@GLIBC_2.2.5")
+/* the first version of each function on the target: glibc's first release for it */
+#if defined(__x86_64__)
+#define HB_FIRST_VERSION "GLIBC_2.2.5"
+#else
+#define HB_FIRST_VERSION "GLIBC_2.17"
+#endif
+#define HB_OLD_VERSION(name) __asm__(".symver " #name "," #name "@" HB_FIRST_VERSION)
 HB_OLD_VERSION(exp);
 HB_OLD_VERSION(log);
 HB_OLD_VERSION(pow);

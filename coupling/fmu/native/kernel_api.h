@@ -11,6 +11,11 @@
 
 /* advance the hybrid system to the nondimensional time tau_end; an HBK_ST_* status */
 int64_t hb_advance(double *y, int64_t *ist, double *fst, double tau_end, double *p, double *opts);
+/* hb_advance with an event log of one row (log[HBK_N_LOG_COLS]; the caller zeroes
+ * ist[HBK_I_NLOG]): HBK_ST_LOG_FULL just after the first event (reset applied), its time in
+ * fst[HBK_F_T] and log[HBK_L_T] */
+int64_t hb_advance_to_event(double *y, int64_t *ist, double *fst, double tau_end, double *p,
+                            double *opts, double *log);
 /* the modes of a state at rest (stick unless x4 > 0; contact if the gap is closed) */
 int64_t hb_init_modes(double *y, int64_t *ist, double *p);
 /* out = [spring-damper, contact (CONTACT mode only), force on the bit, friction] / F0 */

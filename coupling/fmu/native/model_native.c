@@ -172,9 +172,22 @@ static int apply_tolerance(model *m) {
     return 1;
 }
 
-static fmi2Status n_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_prior) {
-    (void)no_prior;
-    model *m = c;
+/* the kernel's advance to tau_end; to_event: stop just after the first event later than the
+ * step's start (one at the start was reported by the step that ended there) */
+static int64_t advance(model_state *s, double tau_end, int to_event, int *stopped) {
+    *stopped = 0;
+    if (!to_event) return hb_advance(s->y, s->ist, s->fst, tau_end, s->p, s->opts);
+    double tau0 = s->fst[HBK_F_T], log[HBK_N_LOG_COLS];
+    int64_t status;
+    do {
+        s->ist[HBK_I_NLOG] = 0;
+        status = hb_advance_to_event(s->y, s->ist, s->fst, tau_end, s->p, s->opts, log);
+    } while (status == HBK_ST_LOG_FULL && !(s->fst[HBK_F_T] > tau0));
+    *stopped = status == HBK_ST_LOG_FULL;
+    return *stopped ? HBK_ST_DONE : status;
+}
+
+static fmi2Status do_step(model *m, fmi2Real t, fmi2Real h, int to_event, fmi2Real *reached) {
     model_state *s = &m->s;
     s->last_status = fmi2OK;
     if (s->terminated)
@@ -216,7 +229,8 @@ static fmi2Status n_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
     memcpy(ist, s->ist, sizeof ist);
     memcpy(fst, s->fst, sizeof fst);
     hb_kernel_raised();
-    int64_t status = hb_advance(s->y, s->ist, s->fst, (t + h - s->t_start) * s->omega, s->p, s->opts);
+    int stopped;
+    int64_t status = advance(s, (t + h - s->t_start) * s->omega, to_event, &stopped);
     int raised = hb_kernel_raised();
     if (raised || status != HBK_ST_DONE) {
         double tau = s->fst[HBK_F_T];
@@ -244,8 +258,19 @@ static fmi2Status n_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
                     "tau = %.9g; state restored to t = %s s (retry with a shorter step)", a, b,
                     raised ? "a kernel raised an exception" : solver_failure(status), tau, a);
     }
-    s->t = t + h;
+    s->t = stopped ? fmin(s->t_start + s->fst[HBK_F_T] / s->omega, t + h) : t + h;
+    *reached = s->t;
     return fmi2OK;
+}
+
+static fmi2Status n_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_prior) {
+    (void)no_prior;
+    fmi2Real reached;
+    return do_step(c, t, h, 0, &reached);
+}
+
+static fmi2Status n_step_to_event(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Real *reached) {
+    return do_step(c, t, h, 1, reached);
 }
 /* ------------------------------------------------------------------------------------------ */
 /* The model's functions for the backend table (model.h)                                        */
@@ -260,6 +285,7 @@ void hb_model_fill(hb_wrapper *w) {
     hb_values_fill(w);
     hb_state_fill(w);
     w->DoStep = n_do_step;
+    w->StepToEvent = n_step_to_event;
     hb_me_fill(w);
     w->Instantiate = n_instantiate;
 }
