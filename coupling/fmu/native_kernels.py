@@ -269,18 +269,21 @@ def undefined_symbols(obj: Path, *, nm: str = "nm") -> set:
 
 
 def _kernel_set(name: str):
-    """``(compile function, entry points)`` of a kernel set: ``hammer`` (HammerBitRock) or
-    ``string`` (Drillstring)."""
+    """``(compile function, entry points)`` of a kernel set: ``hammer`` (HammerBitRock),
+    ``string`` (Drillstring) or ``system`` (DrillingSystem)."""
     if name == "string":
         from hammerbit.fmu.native_string_kernels import STRING_ENTRY_POINTS, compile_string_entry_points
         return compile_string_entry_points, STRING_ENTRY_POINTS
+    if name == "system":
+        from hammerbit.fmu.native_system_kernels import SYSTEM_ENTRY_POINTS, compile_system_entry_points
+        return compile_system_entry_points, SYSTEM_ENTRY_POINTS
     if name == "hammer":
         return compile_entry_points, ENTRY_POINTS
-    raise KernelBuildError(f"unknown kernel set {name!r}; known: hammer, string")
+    raise KernelBuildError(f"unknown kernel set {name!r}; known: hammer, string, system")
 
 
 #: the kernel sets of :func:`build_objects`
-KERNEL_SETS = ("hammer", "string")
+KERNEL_SETS = ("hammer", "string", "system")
 
 
 def main(argv=None) -> int:
@@ -319,7 +322,8 @@ def sources_key(platforms, kernels: str = "hammer") -> str:
         if f.name != "build_info.py":          # rewritten by the Python flavour's build
             h.update(f.name.encode() + b"\0" + f.read_bytes() + b"\0")
     h.update(Path(__file__).read_bytes())
-    h.update((Path(__file__).parent / "native_string_kernels.py").read_bytes())
+    for name in ("native_string_kernels.py", "native_system_kernels.py"):
+        h.update((Path(__file__).parent / name).read_bytes())
     h.update(f"kernels {kernels} numba {version('numba')} llvmlite {version('llvmlite')} {sorted(platforms)}".encode())
     return h.hexdigest()[:16]
 
