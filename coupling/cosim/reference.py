@@ -109,7 +109,7 @@ def monolithic(string, config=None):
     for r in c.record:
         if r in m:
             data[r] = m[r]
-    stats = {"string_states": n, "events": st.counts}
+    stats = {"string_states": side.n, "events": st.counts}
     return CosimResult(data, c, len(t_s) - 1, wall, setup, float(st.y[2] * x0), stats, "monolithic",
                        counts=event_counts(st.counts), dense=dense)
 

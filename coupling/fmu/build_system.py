@@ -264,6 +264,8 @@ def build_system_fmu(string, config, out=None, *, tolerance: float = 1e-3, log=p
         tmp_out = out.with_name(out.name + ".tmp")
         with zipfile.ZipFile(tmp_out, "w", zipfile.ZIP_DEFLATED) as zf:
             zf.writestr("modelDescription.xml", md)
+            # the front requires the resources directory; the model reads nothing from it
+            zf.writestr(zipfile.ZipInfo("resources/"), "")
             for plat, path in sorted(built.items()):
                 zf.write(path, f"binaries/{plat}/{path.name}")
         tmp_out.replace(out)
