@@ -1,0 +1,244 @@
+"""DrillingSystem.fmu (``hammerbit fmu build-system``) against the monolithic reference.
+
+The oracle is the library's monolithic reference (:func:`hammerbit.cosim.reference.monolithic`,
+or a Stepper run of the same subsystem with the same input schedule) at a tolerance a hundred
+times tighter than the FMU's: penetration at each whole second and the mean WOB over each second
+(from the reference's dense output) must agree to the FMU's ``tolerance`` (1e-3), for any master
+step.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+fmpy = pytest.importorskip("fmpy")
+
+from hammerbit.cosim.config import CosimConfig, default_hammer  # noqa: E402
+from hammerbit.drillstring import load_string  # noqa: E402
+from hammerbit.drillstring.top import TopCondition  # noqa: E402
+
+TOL = 1e-3
+STOP = 2.0
+REF_RTOL = 1e-6
+
+
+def _config(string, top, stop=STOP, rtol=REF_RTOL):
+    return CosimConfig(stop=stop, step=0.01, rig=default_hammer(string), top=TopCondition.parse(top), rtol=rtol)
+
+
+@pytest.fixture(scope="module")
+def field():
+    return load_string("field-2200m")
+
+
+@pytest.fixture(scope="module")
+def field_auto_fmu(field, tmp_path_factory):
+    from hammerbit.fmu.build_system import build_system_fmu
+    return build_system_fmu(field, _config(field, "auto-driller"), tmp_path_factory.mktemp("sys") / "DS.fmu",
+                            log=lambda m: None)
+
+
+class Slave:
+    """The FMU in fmpy's FMU2Slave, started at t = 0."""
+
+    def __init__(self, path):
+        from fmpy import extract, read_model_description
+        from fmpy.fmi2 import FMU2Slave
+        md = read_model_description(str(path))
+        self.vr = {v.name: v.valueReference for v in md.modelVariables}
+        self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(path)),
+                             modelIdentifier=md.coSimulation.modelIdentifier, instanceName="system")
+        self.fmu.instantiate()
+        self.fmu.setupExperiment(startTime=0.0)
+        self.fmu.enterInitializationMode()
+        self.fmu.exitInitializationMode()
+        self.t = 0.0
+
+    def real(self, *names):
+        return self.fmu.getReal([self.vr[n] for n in names])
+
+    def set(self, **values):
+        self.fmu.setReal([self.vr[n] for n in values], list(values.values()))
+
+    def step(self, h):
+        self.fmu.doStep(self.t, h)
+        self.t += h
+
+    def close(self):
+        self.fmu.terminate()
+        self.fmu.freeInstance()
+
+
+def run_seconds(path, stop, next_step, schedule=None):
+    """``[(bit position [m], WOB impulse [N s]) at each whole second]`` of a run whose master steps
+    are ``next_step(k)`` (cut at the whole seconds); ``schedule``: ``{time: inputs}`` set there."""
+    s = Slave(path)
+    out, impulse, sec, k = [], 0.0, 1, 0
+    schedule = dict(schedule or {})
+    try:
+        while s.t < stop - 1e-12:
+            for when in [w for w in schedule if w <= s.t + 1e-12]:
+                s.set(**schedule.pop(when))
+            h = min(next_step(k), sec - s.t)
+            nxt = min([w for w in schedule] + [math.inf])
+            h = min(h, nxt - s.t) if nxt > s.t + 1e-12 else h
+            s.step(h)
+            k += 1
+            impulse += s.real("mean_wob")[0] * h
+            if abs(s.t - sec) < 1e-9:
+                s.t = float(sec)          # the master's clock on the second (steps were cut there)
+                out.append((s.real("bit_position")[0], impulse))
+                impulse, sec = 0.0, sec + 1
+    finally:
+        s.close()
+    return np.array(out)
+
+
+def per_second(time, bit, dense, stop):
+    """The reference's bit position at each whole second and the WOB impulse over each second."""
+    rows = []
+    for sec in range(1, int(stop) + 1):
+        m = (dense["time"] >= sec - 1 - 1e-12) & (dense["time"] <= sec + 1e-12)
+        rows.append((np.interp(sec, time, bit), np.trapezoid(dense["wob"][m], dense["time"][m])))
+    return np.array(rows)
+
+
+@pytest.fixture(scope="module")
+def field_auto_ref(field):
+    from hammerbit.cosim.reference import monolithic
+    r = monolithic(field, _config(field, "auto-driller"))
+    return per_second(r.data["time"], r.data["bit_position"], r.dense, STOP)
+
+
+def assert_agrees(got, ref, tol=TOL):
+    pen = np.abs(got[:, 0] - ref[:, 0]) / np.abs(ref[:, 0]).max()
+    wob = np.abs(got[:, 1] / ref[:, 1] - 1.0)
+    assert ref[-1, 0] > 0.0, "the reference does not drill: the penetration check would be vacuous"
+    assert pen.max() <= tol, f"penetration off by {pen.max():.3g} (relative)"
+    assert wob.max() <= tol, f"mean WOB off by {wob.max():.3g} (relative)"
+
+
+def test_validates(field_auto_fmu):
+    from fmpy.validation import validate_fmu
+    assert validate_fmu(str(field_auto_fmu)) == []
+
+
+@pytest.mark.parametrize("h", [0.01, 0.05])
+def test_fixed_steps_agree_with_reference(field_auto_fmu, field_auto_ref, h):
+    assert_agrees(run_seconds(field_auto_fmu, STOP, lambda k: h), field_auto_ref)
+
+
+def test_uneven_steps_agree_with_reference(field_auto_fmu, field_auto_ref):
+    # log-uniform steps from 1e-13 s to 0.3 s: a leftover sliver must not spoil what follows
+    rng = np.random.default_rng(31)
+    steps = 10.0 ** rng.uniform(-13, math.log10(0.3), 400)
+    assert_agrees(run_seconds(field_auto_fmu, STOP, lambda k: steps[k % len(steps)]), field_auto_ref)
+
+
+def test_whole_run_in_one_step(field_auto_fmu, field_auto_ref):
+    assert_agrees(run_seconds(field_auto_fmu, STOP, lambda k: 1.0), field_auto_ref)
+
+
+def schedule_reference(string, cfg, schedule, stop):
+    """A Stepper run of the monolithic subsystem with the inputs of ``schedule`` ({time: {amplitude,
+    wob_set_point}}) changed there: one Stepper per set point, the state carried over."""
+    from hammerbit.cosim.reference import monolithic_subsystem
+    from hammerbit.cosim.string_side import StringSide
+    from hammerbit.model import kernel_layouts as L
+    from hammerbit.model.solver_options import SolverOptions
+    from hammerbit.model.stepping import Stepper
+    side = StringSide(string, cfg)
+    sc = cfg.rig.scales
+    F0, Om = sc.friction_force, sc.omega
+    grp = cfg.rig.to_groups().replace(b=0.0)
+    t_d = np.linspace(0.0, stop, int(stop * cfg.rig.frequency * 4096) + 1)
+    samples = np.zeros((len(t_d), L.N_SAMPLE_COLS))
+    st, snap, amp = None, None, grp.a
+    times = sorted(schedule) + [stop]
+    dW = 0.0
+    for i, t_next in enumerate(times[1:]):
+        inputs = schedule[times[i]]
+        dW = inputs.get("wob_set_point", side.wob + dW) - side.wob
+        lin, x1eq = monolithic_subsystem(string, side, cfg, set_point_offset=dW)
+        new = Stepper(grp, solver=SolverOptions(rtol=REF_RTOL, atol=REF_RTOL * 1e-2), linear=lin,
+                      y0=[x1eq, 0.0, 0.0, 0.0])
+        if snap is not None:
+            new.restore(snap)
+        amp = inputs.get("amplitude", amp * F0) / F0
+        new.p[L.P_A] = amp
+        st = new
+        m = (t_d > times[i] - 1e-15) & (t_d <= t_next + 1e-15)
+        st.advance(Om * t_next, sample_times=Om * t_d[m], samples=samples[m])
+        snap = st.snapshot()
+    fk = (samples[:, L.X_HAMMER] - samples[:, L.X_BIT]) + 2.0 * st.p[L.P_XI] * (
+        samples[:, L.V_HAMMER] - samples[:, L.V_BIT])
+    dense = {"time": t_d, "wob": (fk + samples[:, 4]) * F0}
+    return per_second(t_d, samples[:, L.X_BIT] * sc.length, dense, stop)
+
+
+def test_input_schedule_agrees_with_reference(field, field_auto_fmu):
+    cfg = _config(field, "auto-driller")
+    W, A = cfg.weight_on_bit, cfg.rig.amplitude
+    schedule = {0.0: {"wob_set_point": W, "amplitude": A}, 0.5: {"wob_set_point": W + 5000.0},
+                1.25: {"amplitude": 0.8 * A}}
+    ref = schedule_reference(field, cfg, schedule, STOP)
+    got = run_seconds(field_auto_fmu, STOP, lambda k: 0.01, schedule={k: v for k, v in schedule.items() if k > 0})
+    assert_agrees(got, ref)
+
+
+def test_unused_input_refused_and_unchanged(field_auto_fmu):
+    s = Slave(field_auto_fmu)
+    try:
+        before = s.real("feed_velocity")[0]
+        with pytest.raises(Exception):
+            s.set(feed_velocity=before + 0.001)
+        assert s.real("feed_velocity")[0] == before
+        with pytest.raises(Exception):
+            s.set(wob_set_point=float("nan"))
+        s.step(0.01)                      # the instance still runs
+    finally:
+        s.close()
+
+
+def test_state_restores_exactly_and_corrupt_bytes_are_refused(field_auto_fmu):
+    s = Slave(field_auto_fmu)
+    try:
+        s.step(0.05)
+        st = s.fmu.getFMUstate()
+        s.step(0.05)
+        first = s.real("bit_position", "mean_wob", "hook_load")
+        s.fmu.setFMUstate(st)
+        s.t = 0.05
+        s.step(0.05)
+        assert s.real("bit_position", "mean_wob", "hook_load") == first
+        data = bytes(s.fmu.serializeFMUstate(st))
+        rng = np.random.default_rng(7)
+        refused = 0
+        for _ in range(100):
+            b = bytearray(data)
+            for i in rng.integers(0, len(b), 4):
+                b[i] = int(rng.integers(0, 256))
+            try:
+                other = s.fmu.deSerializeFMUstate(bytes(b))
+            except Exception:
+                refused += 1
+                continue
+            s.fmu.setFMUstate(other)        # accepted: it must run and stay finite
+            s.t = 0.05
+            try:
+                s.step(0.01)
+            except Exception:
+                pass
+            s.fmu.freeFMUstate(other)
+            s.fmu.setFMUstate(st)
+        # the header and the state's integers, times and reals are checked: most random flips land in
+        # the subsystem's values (finite after a flip, accepted) -- but a non-finite one is refused
+        b = bytearray(data)
+        b[8:16] = np.array([np.nan]).tobytes()    # the tolerance
+        with pytest.raises(Exception):
+            s.fmu.deSerializeFMUstate(bytes(b))
+        s.fmu.freeFMUstate(st)
+    finally:
+        s.close()
