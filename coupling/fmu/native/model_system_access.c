@@ -114,6 +114,7 @@ static fmi2Status s_no_set_string(fmi2Component c, const fmi2ValueReference vr[]
 /* FMU states: the whole state as plain data, checked in full                                  */
 /* ------------------------------------------------------------------------------------------ */
 static int all_finite(const double *v, size_t n) {
+    /* (the subsystem's values are compared with the build's instead) */
     for (size_t i = 0; i < n; i++)
         if (!isfinite(v[i])) return 0;
     return 1;
@@ -137,16 +138,36 @@ static const char *state_invalid(const sysstate *s) {
     if (s->stick_slip < 0 || s->stick_slip > 1 || s->impact_count < 0 || s->slip_count < 0 || s->regime < 0 ||
         s->regime > 31)
         return "an integer output is out of range";
-    if (!all_finite(s->y, SYS_NY) || !all_finite(s->p, HSYS_N_P) || !all_finite(s->opts, HSYS_N_OPTS) ||
-        !all_finite(s->lin, HSYS_NNZ + HSYS_NZ + 2))
-        return "its solver state holds a non-finite number";
+    if (!all_finite(s->y, SYS_NY)) return "its solver state holds a non-finite number";
+    /* the parameters, options and subsystem are the build's, but for what the inputs set */
+    for (int i = 0; i < HSYS_N_P; i++) {
+        int input = i == HSYS_P_A || i == HSYS_P_ETA || i == HSYS_P_PHI;
+        if (input ? !isfinite(s->p[i]) : memcmp(&s->p[i], &HSYS_P[i], sizeof(double)) != 0)
+            return "its kernel parameters are not this build's";
+    }
+    if (!(s->p[HSYS_P_ETA] > 0.0 && s->p[HSYS_P_A] >= 0.0)) return "its forcing is out of range";
+    for (int i = 0; i < HSYS_N_OPTS; i++) {
+        int tol = i == HSYS_O_RTOL || i == HSYS_O_ATOL;
+        if (tol ? !(isfinite(s->opts[i]) && s->opts[i] > 0.0) : memcmp(&s->opts[i], &HSYS_OPTS[i], sizeof(double)) != 0)
+            return "its solver options are not this build's";
+    }
+    double dv = s->applied[IN_FEED_VELOCITY] - HSYS_FEED_BUILD, dw = s->applied[IN_WOB_SET_POINT] - HSYS_WOB_BUILD;
+    for (int64_t i = 0; i < HSYS_NZ; i++)
+        for (int64_t k = HSYS_CSR[i]; k < HSYS_CSR[i + 1]; k++) {
+            double want = k == HSYS_POS_IC[i] ? HSYS_COL_IC[i] + dv * HSYS_DCOL_V[i] + dw * HSYS_DCOL_W[i] : HSYS_AX[k];
+            if (memcmp(&s->lin[k], &want, sizeof want) != 0) return "its subsystem is not this build's";
+        }
+    for (int64_t i = 0; i < HSYS_NZ + 2; i++) {
+        double want = i < HSYS_NZ ? HSYS_G[i] : HSYS_GLINK[i - HSYS_NZ];
+        if (i == HSYS_IC) want = HSYS_G_IC + dv * HSYS_DG_V + dw * HSYS_DG_W;
+        if (memcmp(&s->lin[HSYS_NNZ + i], &want, sizeof want) != 0) return "its subsystem is not this build's";
+    }
     for (int i = 0; i < HSYS_N_FSTATE; i++)
         if (!(isfinite(s->fst[i]) || (i == HSYS_F_DRIVE_MIN && s->fst[i] == INFINITY)))
             return "its solver state holds a non-finite number";
     if (s->ready && !(fabs(s->fst[HSYS_F_T] - HSYS_OMEGA * s->t) <= 1e-6 * fmax(1.0, fabs(HSYS_OMEGA * s->t))))
         return "its solver time is not its communication time";
     if (!(s->fst[HSYS_F_H] > 0.0)) return "its proposed solver step is not positive";
-    if (!(s->opts[HSYS_O_RTOL] > 0.0 && s->opts[HSYS_O_ATOL] > 0.0)) return "its tolerances are not positive";
     const int64_t *ist = s->ist;
     if (ist[HSYS_I_STICK] != HSYS_STICK && ist[HSYS_I_STICK] != HSYS_SLIP) return "its stick mode is unknown";
     if (ist[HSYS_I_CONTACT] < HSYS_FREE || ist[HSYS_I_CONTACT] > HSYS_CLAMPED) return "its contact mode is unknown";
