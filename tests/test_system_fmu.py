@@ -128,7 +128,7 @@ def test_validates(field_auto_fmu):
     assert validate_fmu(str(field_auto_fmu)) == []
 
 
-@pytest.mark.parametrize("h", [0.01, 0.05])
+@pytest.mark.parametrize("h", [0.01, pytest.param(0.05, marks=pytest.mark.slow)])
 def test_fixed_steps_agree_with_reference(field_auto_fmu, field_auto_ref, h):
     assert_agrees(run_seconds(field_auto_fmu, STOP, lambda k: h), field_auto_ref)
 
@@ -265,6 +265,7 @@ def _build_and_reference(string_name, top, stop, tmp_path):
     return fmu, per_second(r.data["time"], r.data["bit_position"], r.dense, stop)
 
 
+@pytest.mark.slow
 def test_feed_agrees_with_reference(tmp_path):
     fmu, ref = _build_and_reference("field-2200m", "feed:20", STOP, tmp_path)
     assert_agrees(run_seconds(fmu, STOP, lambda k: 0.01), ref)
@@ -288,3 +289,50 @@ def test_twenty_seconds_agree_with_reference(string_name, top, drills, tmp_path)
     uneven = 10.0 ** rng.uniform(-13, 0, 500)
     for steps in (lambda k: 0.001, lambda k: 0.01, lambda k: 0.05, lambda k: uneven[k % len(uneven)]):
         assert_agrees(run_seconds(fmu, stop, steps), ref, drills=drills)
+
+
+def _host_values(cmd, env):
+    import subprocess
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=600, env=env)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    return [float(ln.split()[1]) for ln in proc.stdout.splitlines() if ln.startswith("value ")]
+
+
+def test_c_host_under_empty_environment(field_auto_fmu, field_auto_ref, tmp_path):
+    # a plain C host (no Python anywhere in the process) under env -i: 2 s at 10 ms
+    import zipfile
+
+    from fmpy import read_model_description
+    from native_hosts import linux_host
+    d = tmp_path / "x"
+    zipfile.ZipFile(field_auto_fmu).extractall(d)
+    md = read_model_description(str(field_auto_fmu))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    got = _host_values([str(linux_host(tmp_path)), str(d / "binaries/linux64/DrillingSystem.so"),
+                        (d / "resources").as_uri(), md.guid, "steps=200", "h=0.01",
+                        f"out={vr['bit_position']}"], env={})
+    assert len(got) == 1
+    assert abs(got[0] / field_auto_ref[-1, 0] - 1.0) <= TOL
+
+
+@pytest.mark.slow
+def test_windows_binary_under_wine(field_auto_fmu, field_auto_ref, tmp_path):
+    import os
+    import zipfile
+    from urllib.parse import quote
+
+    from fmpy import read_model_description
+    from native_hosts import windows_host_or_skip
+    d = tmp_path / "x"
+    zipfile.ZipFile(field_auto_fmu).extractall(d)
+    dll = d / "binaries/win64/DrillingSystem.dll"
+    wine, exe = windows_host_or_skip(dll, tmp_path)
+    md = read_model_description(str(field_auto_fmu))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    env = {"PATH": "/usr/bin:/bin", "HOME": str(tmp_path), "WINEDEBUG": "-all",
+           "WINEPREFIX": os.environ.get("WINEPREFIX", os.path.expanduser("~/.wine"))}
+    got = _host_values([wine, str(exe), "Z:" + str(dll).replace("/", "\\"),
+                        "file:///Z:" + quote((d / "resources").as_posix()), md.guid, "steps=200", "h=0.01",
+                        f"out={vr['bit_position']}"], env)
+    assert len(got) == 1
+    assert abs(got[0] / field_auto_ref[-1, 0] - 1.0) <= TOL
