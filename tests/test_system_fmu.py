@@ -336,3 +336,37 @@ def test_windows_binary_under_wine(field_auto_fmu, field_auto_ref, tmp_path):
                         f"out={vr['bit_position']}"], env)
     assert len(got) == 1
     assert abs(got[0] / field_auto_ref[-1, 0] - 1.0) <= TOL
+
+
+def run_libcosim_seconds(path, stop, h):
+    """:func:`run_seconds` in libcosim (libcosimpy) at the fixed step ``h``."""
+    cosim = pytest.importorskip("libcosimpy.CosimExecution")
+    from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+    from libcosimpy.CosimObserver import CosimObserver
+    from libcosimpy.CosimSlave import CosimLocalSlave
+    log_output_level(CosimLogLevel.ERROR)
+    ns = 1_000_000_000
+    ex = cosim.CosimExecution.from_step_size(step_size=int(round(h * ns)))
+    idx = ex.add_local_slave(CosimLocalSlave(fmu_path=str(path), instance_name="system"))
+    obs = CosimObserver.create_last_value()
+    ex.add_observer(obs)
+    vr = {v.name.decode(): v.reference for v in ex.slave_variables(idx)}
+    refs = [vr["bit_position"], vr["mean_wob"]]
+    out, impulse, sec, last = [], 0.0, 1, 0
+    while True:
+        assert ex.step(), "libcosim: a step failed"
+        t_ns = ex.status().current_time
+        x, mw = obs.last_real_values(idx, refs)
+        impulse += mw * (t_ns - last) / ns
+        last = t_ns
+        if t_ns >= sec * ns:
+            out.append((x, impulse))
+            impulse, sec = 0.0, sec + 1
+            if sec > stop:
+                break
+    return np.array(out)
+
+
+@pytest.mark.parametrize("h", [0.01, pytest.param(0.001, marks=pytest.mark.slow)])
+def test_libcosim_agrees_with_reference(field_auto_fmu, field_auto_ref, h):
+    assert_agrees(run_libcosim_seconds(field_auto_fmu, STOP, h), field_auto_ref)
