@@ -28,8 +28,8 @@ def compile_system_entry_points() -> dict:
     from numba import carray, cfunc, njit
     from numba.core.types import CPointer, float64, int64
 
+    from hammerbit.fmu.native_forces import forces_entry_point
     from hammerbit.model import kernel_driver as KD
-    from hammerbit.model import kernel_forces as KF
     from hammerbit.model import kernel_layouts as KL
     from hammerbit.model import tableaux
     from hammerbit.model.numba_partial import bind
@@ -38,9 +38,6 @@ def compile_system_entry_points() -> dict:
     NI, NF, NO, N_P = KL.N_ISTATE, KL.N_FSTATE, KL.N_OPTS, KL.N_P
     NS, NL = KL.N_SAMPLE_COLS, KL.N_LOG_COLS
     advance_system = njit(nogil=True)(bind(KD.advance, "advance_system", method=tableaux.METHODS["dop853"]))
-    spring, on_bit, contact, kinetic, overlap = (KF.spring_damper_force, KF.force_on_bit, KF.contact_force,
-                                                 KF.kinetic_friction, KF.overlap)
-    I_STICK, I_CONTACT, SLIP, CONTACT = KL.I_STICK, KL.I_CONTACT, KL.SLIP, KL.CONTACT
 
     @cfunc(int64(f64p, i64p, f64p, float64, f64p, f64p, int64, i64p, f64p, f64p))
     def hsys_advance(yp, ip, fp, tau_end, pp, op, nz, csrp, linp, hp):
@@ -55,17 +52,6 @@ def compile_system_entry_points() -> dict:
                               carray(pp, (N_P,)), carray(op, (NO,)), sub,
                               (np.empty((0, 5)), np.empty(0), np.empty((0, NS)), np.empty((0, NL))))
 
-    @cfunc(int64(f64p, i64p, f64p, f64p))
-    def hsys_forces(yp, ip, pp, op):
-        # [spring-damper, contact (CONTACT mode only), force on the bit, friction] / F0
-        y, ist, p, out = carray(yp, (4,)), carray(ip, (NI,)), carray(pp, (N_P,)), carray(op, (4,))
-        mc = ist[I_CONTACT]
-        out[0] = spring(y, p)
-        out[1] = contact(overlap(y, p), y[1] - y[3], p, mc) if mc == CONTACT else 0.0
-        out[2] = on_bit(y, p, mc)
-        out[3] = kinetic(y[3], p) if ist[I_STICK] == SLIP else out[2]
-        return 0
-
-    funcs = {"hsys_advance": hsys_advance, "hsys_forces": hsys_forces}
+    funcs = {"hsys_advance": hsys_advance, "hsys_forces": forces_entry_point()}
     assert set(funcs) == set(SYSTEM_ENTRY_POINTS)
     return funcs

@@ -13,22 +13,14 @@
 
 #include "model_system.h"
 
-static const double START_IN[N_INPUTS] = {HSYS_START_amplitude, HSYS_START_frequency,
-                                          HSYS_START_wob_set_point, HSYS_START_feed_velocity};
-static const double MIN_IN[N_INPUTS] = {HSYS_MIN_amplitude, HSYS_MIN_frequency, HSYS_MIN_wob_set_point,
-                                        -HSYS_MAX_FEED};
-static const double MAX_IN[N_INPUTS] = {1e9, HSYS_MAX_frequency, HSYS_BUOYED, HSYS_MAX_FEED};
-static const char *const IN_NAME[N_INPUTS] = {"amplitude", "frequency", "wob_set_point", "feed_velocity"};
-static const char *const IN_UNIT[N_INPUTS] = {"N", "Hz", "N", "m/s"};
-
 static void set_start_values(model *m) {
     sysstate *s = &m->s;
     memset(s, 0, sizeof *s);
     s->magic = SYS_STATE_MAGIC;
     s->size = (uint32_t)sizeof *s;
     s->tolerance = HSYS_START_tolerance;
-    memcpy(s->in, START_IN, sizeof s->in);
-    memcpy(s->applied, START_IN, sizeof s->applied);
+    memcpy(s->in, SYS_START_IN, sizeof s->in);
+    memcpy(s->applied, SYS_START_IN, sizeof s->applied);
     memcpy(s->y, HSYS_Y0, sizeof s->y);
     memcpy(s->ist, HSYS_IST0, sizeof s->ist);
     memcpy(s->fst, HSYS_FST0, sizeof s->fst);
@@ -44,28 +36,6 @@ static void set_start_values(model *m) {
 /* ------------------------------------------------------------------------------------------ */
 /* Inputs                                                                                      */
 /* ------------------------------------------------------------------------------------------ */
-const char *sys_input_refused(const sysstate *s, int idx, double v, char *buf, size_t n) {
-    char r[40], r2[40];
-    (void)s;
-    hb_repr(v, r, sizeof r);
-    if (!(isfinite(v) && MIN_IN[idx] <= v && v <= MAX_IN[idx])) {
-        snprintf(buf, n, "input '%s' = %s is out of range: allowed [%.6g, %.6g] %s", IN_NAME[idx], r,
-                 MIN_IN[idx], MAX_IN[idx], IN_UNIT[idx]);
-        return buf;
-    }
-    int unused = (idx == IN_WOB_SET_POINT && HSYS_TOP != HB_TOP_AUTO_DRILLER) ||
-                 (idx == IN_FEED_VELOCITY && HSYS_TOP != HB_TOP_FEED);
-    if (unused && v != START_IN[idx]) {
-        hb_repr(START_IN[idx], r2, sizeof r2);
-        snprintf(buf, n, "input '%s' = %s has no effect with the top condition '%s' this FMU was built "
-                 "with (only %s uses it); allowed %s (rebuild with --top %s)", IN_NAME[idx], r,
-                 HSYS_TOP_TEXT, idx == IN_FEED_VELOCITY ? "the feed" : "the auto-driller", r2,
-                 idx == IN_FEED_VELOCITY ? "feed:RATE" : "auto-driller");
-        return buf;
-    }
-    return NULL;
-}
-
 /* the inputs as set into the kernels' parameters and the subsystem */
 static void apply_inputs(sysstate *s) {
     s->p[HSYS_P_A] = s->in[IN_AMPLITUDE] / HSYS_F0;

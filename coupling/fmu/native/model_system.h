@@ -25,8 +25,10 @@ int64_t hsys_advance(double *y, int64_t *ist, double *fst, double tau_end, doubl
 int64_t hsys_forces(double *y, int64_t *ist, double *p, double *out);
 int hb_kernel_raised(void);
 
-/* the inputs, in the order of their value references */
+/* the inputs, in the order of their value references, and their start values */
 enum { IN_AMPLITUDE, IN_FREQUENCY, IN_WOB_SET_POINT, IN_FEED_VELOCITY, N_INPUTS };
+static const double SYS_START_IN[N_INPUTS] = {HSYS_START_amplitude, HSYS_START_frequency,
+                                              HSYS_START_wob_set_point, HSYS_START_feed_velocity};
 
 typedef struct {
     uint32_t magic, size;
@@ -60,9 +62,8 @@ typedef struct {
 /* model_system.c: the outputs of the state (after a step of nondimensional length dtau from the
  * hammer velocity x2a, bit position x3a; dtau = 0: at a communication point without a step) */
 void sys_outputs(sysstate *s, double dtau, double x2a, double x3a, double tau_a);
-/* why an input value is refused (NULL: accepted); idx an IN_* */
+/* model_system_access.c: why an input value is refused (NULL: accepted; idx an IN_*) */
 const char *sys_input_refused(const sysstate *s, int idx, double v, char *buf, size_t n);
-
 /* model_system_access.c: fmi2Get*, fmi2Set* and the FMU-state functions */
 void sys_access_fill(hb_wrapper *w);
 

@@ -9,6 +9,37 @@
 #include "model_system.h"
 
 /* ------------------------------------------------------------------------------------------ */
+/* Inputs                                                                                      */
+/* ------------------------------------------------------------------------------------------ */
+static const double MIN_IN[N_INPUTS] = {HSYS_MIN_amplitude, HSYS_MIN_frequency, HSYS_MIN_wob_set_point,
+                                        -HSYS_MAX_FEED};
+static const double MAX_IN[N_INPUTS] = {1e9, HSYS_MAX_frequency, HSYS_BUOYED, HSYS_MAX_FEED};
+static const char *const IN_NAME[N_INPUTS] = {"amplitude", "frequency", "wob_set_point", "feed_velocity"};
+static const char *const IN_UNIT[N_INPUTS] = {"N", "Hz", "N", "m/s"};
+
+const char *sys_input_refused(const sysstate *s, int idx, double v, char *buf, size_t n) {
+    char r[40], r2[40];
+    (void)s;
+    hb_repr(v, r, sizeof r);
+    if (!(isfinite(v) && MIN_IN[idx] <= v && v <= MAX_IN[idx])) {
+        snprintf(buf, n, "input '%s' = %s is out of range: allowed [%.6g, %.6g] %s", IN_NAME[idx], r,
+                 MIN_IN[idx], MAX_IN[idx], IN_UNIT[idx]);
+        return buf;
+    }
+    int unused = (idx == IN_WOB_SET_POINT && HSYS_TOP != HB_TOP_AUTO_DRILLER) ||
+                 (idx == IN_FEED_VELOCITY && HSYS_TOP != HB_TOP_FEED);
+    if (unused && v != SYS_START_IN[idx]) {
+        hb_repr(SYS_START_IN[idx], r2, sizeof r2);
+        snprintf(buf, n, "input '%s' = %s has no effect with the top condition '%s' this FMU was built "
+                 "with (only %s uses it); allowed %s (rebuild with --top %s)", IN_NAME[idx], r,
+                 HSYS_TOP_TEXT, idx == IN_FEED_VELOCITY ? "the feed" : "the auto-driller", r2,
+                 idx == IN_FEED_VELOCITY ? "feed:RATE" : "auto-driller");
+        return buf;
+    }
+    return NULL;
+}
+
+/* ------------------------------------------------------------------------------------------ */
 /* Values                                                                                       */
 /* ------------------------------------------------------------------------------------------ */
 static int input_index(fmi2ValueReference vr) {
