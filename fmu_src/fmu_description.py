@@ -4,6 +4,8 @@ What both languages need to agree on is written here once, in Python, and the bu
 into C (:mod:`hammerbit.fmu.c_description`); nothing of it is typed again in C:
 
 * the FMI types of the variables (FMI 3 names, with the FMI 2 type each maps to);
+* the variables of ``DrillingSystem.fmu`` (:data:`SYSTEM_VARIABLES`; its value references are
+  their order);
 * the integer codes of the Drillstring's ``top_condition`` (:data:`TOP_CONDITIONS`) and the
   bits of the ``regime`` verdict (:mod:`.regime_codes`);
 * the formulas from the SI rig parameters to the paper's groups and the scales
@@ -26,7 +28,7 @@ from dataclasses import dataclass
 from . import kernel_layouts
 from .regime_codes import REGIME_BITS
 
-__all__ = ["FMI2_TYPE", "COUNTER_SUFFIX", "fmi3_type", "TopCondition", "TOP_CONDITIONS", "top_condition", "top_conditions_text", "REGIME_BITS", "TWO_PI", "OPERATIONS",
+__all__ = ["FMI2_TYPE", "COUNTER_SUFFIX", "fmi3_type", "SystemVariable", "SYSTEM_VARIABLES", "SYSTEM_INPUT_TOPS", "TopCondition", "TOP_CONDITIONS", "top_condition", "top_conditions_text", "REGIME_BITS", "TWO_PI", "OPERATIONS",
            "SI_NAMES", "SCALE_FORMULAS", "GROUP_FORMULAS", "GROUP_SLOTS", "KERNEL_SLOTS", "evaluate", "si_to_groups", "formula_names"]
 
 #: the FMI 3 type of a variable -> its FMI 2 type
@@ -156,3 +158,54 @@ def si_to_groups(si: dict) -> tuple:
     for name, expr in SCALE_FORMULAS:
         env[name] = scales[name] = evaluate(expr, env)
     return scales, {name: evaluate(expr, env) for name, expr in GROUP_FORMULAS}
+
+
+@dataclass(frozen=True)
+class SystemVariable:
+    """One variable of ``DrillingSystem.fmu`` (value reference: its index in :data:`SYSTEM_VARIABLES`)."""
+
+    name: str
+    type: str           #: FMI 3 type name (:data:`FMI2_TYPE` gives the FMI 2 one)
+    causality: str      #: parameter, input or output
+    unit: str           #: SI unit ("" for counts and codes)
+    description: str
+    start: object = None  #: parameters and inputs: the start value (None: the build's value)
+    min: object = None
+    max: object = None
+
+
+#: the variables of DrillingSystem.fmu, in value-reference order (the C model reads them by name)
+SYSTEM_VARIABLES = (
+    SystemVariable("tolerance", "Float64", "parameter", "", "relative accuracy of penetration and mean "
+                   "WOB against the monolithic reference (the solver runs at rtol = tolerance / 10)",
+                   1e-3, 1e-8, 0.1),
+    SystemVariable("amplitude", "Float64", "input", "N", "amplitude of the hammer's harmonic force", None, 0.0),
+    SystemVariable("frequency", "Float64", "input", "Hz", "frequency of the harmonic force (the phase is "
+                   "kept continuous when it changes)", None, 1e-3, 1e4),
+    SystemVariable("wob_set_point", "Float64", "input", "N", "the auto-driller's WOB set point (only "
+                   "with the auto-driller; other top conditions refuse a change)", None, 0.0),
+    SystemVariable("feed_velocity", "Float64", "input", "m/s", "the block's downward velocity (only with "
+                   "the feed; other top conditions refuse a change)", None),
+    SystemVariable("bit_position", "Float64", "output", "m", "bit position (down positive)"),
+    SystemVariable("rate_of_penetration", "Float64", "output", "m/s", "mean bit velocity over the last "
+                   "communication step"),
+    SystemVariable("wob", "Float64", "output", "N", "weight on bit: spring, damper and contact force on "
+                   "the bit at the communication point"),
+    SystemVariable("mean_wob", "Float64", "output", "N", "weight on bit averaged over the last "
+                   "communication step (from the hammer's momentum balance, exact to the solver's accuracy)"),
+    SystemVariable("hook_load", "Float64", "output", "N", "tension at the top of the string"),
+    SystemVariable("hammer_position", "Float64", "output", "m", "hammer position (down positive)"),
+    SystemVariable("hammer_velocity", "Float64", "output", "m/s", "hammer velocity"),
+    SystemVariable("contact_force", "Float64", "output", "N", "contact force between hammer and bit"),
+    SystemVariable("stick_slip", "Int32", "output", "", "1 while the bit sticks, 0 while it slips"),
+    SystemVariable("impact_count", "Int32", "output", "", "impacts of the hammer on the bit so far"),
+    SystemVariable("slip_count", "Int32", "output", "", "slip phases of the bit started so far"),
+    SystemVariable("coupling_error", "Float64", "output", "", "error estimate of the integration: the "
+                   "relative local error of the last accepted solver step (no exchange: the system is "
+                   "integrated as one)"),
+    SystemVariable("regime", "Int32", "output", "", "regime bits seen in the last communication step "
+                   "(bounce, tension; runaway and stall are not computed: 0)"),
+)
+
+#: the inputs that only some top conditions use: input -> the top condition that uses it
+SYSTEM_INPUT_TOPS = {"wob_set_point": "auto-driller", "feed_velocity": "feed"}

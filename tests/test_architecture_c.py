@@ -101,9 +101,10 @@ def _link_sets() -> dict:
     from hammerbit.fmu.native import SOURCES
     from hammerbit.fmu.native_build import FMI3_SOURCES, NATIVE_SOURCES
     from hammerbit.fmu.native_string import STRING_SOURCES
+    from hammerbit.fmu.build_system import SYSTEM_SOURCES
     return {"python front": SOURCES, "native HammerBitRock": NATIVE_SOURCES,
             "native HammerBitRock FMI 3": NATIVE_SOURCES + FMI3_SOURCES,
-            "native Drillstring": STRING_SOURCES}
+            "native Drillstring": STRING_SOURCES, "native DrillingSystem": SYSTEM_SOURCES}
 
 
 def _model_description(slave) -> bytes:
@@ -138,6 +139,11 @@ def _write_headers(inc: Path) -> None:
     (res / INFO_FILE).write_text(json.dumps(build.info))
     md = _model_description(Drillstring(instance_name="x", resources=str(res)))
     (inc / "hs_string.h").write_text(string_header(md, build, DEFAULT_STEPS))
+    from hammerbit.cosim.config import CosimConfig, default_hammer
+    from hammerbit.drillstring import load_string
+    from hammerbit.fmu.build_system import system_data, system_header
+    lab = load_string("lab")
+    (inc / "hsys_data.h").write_text(system_header(system_data(lab, CosimConfig(rig=default_hammer(lab)))))
 
 
 @pytest.fixture(scope="module")

@@ -7,7 +7,7 @@ import time
 
 from hammerbit.cli.common import UsageError, add_set_argument, parse_settings, staged
 
-__all__ = ["register", "cmd_fmu_build", "cmd_fmu_build_string"]
+__all__ = ["register", "cmd_fmu_build", "cmd_fmu_build_string", "cmd_fmu_build_system"]
 
 
 def cmd_fmu_build(args) -> int:
@@ -113,6 +113,47 @@ def add_build_string(fsub) -> None:
     b.set_defaults(func=cmd_fmu_build_string)
 
 
+def cmd_fmu_build_system(args) -> int:
+    from hammerbit.cli.cosim import config_from_args, load_string_arg
+    from hammerbit.fmu.build_system import build_system_fmu
+    from hammerbit.model.fmu_description import SYSTEM_VARIABLES
+    tol = next(v for v in SYSTEM_VARIABLES if v.name == "tolerance")
+    if not (tol.min <= args.tolerance <= tol.max):
+        raise UsageError(f"--tolerance {args.tolerance!r} is out of range: allowed [{tol.min:g}, {tol.max:g}]")
+    string = load_string_arg(args)
+    cfg = config_from_args(args)
+    print("hammerbit fmu build-system: building DrillingSystem.fmu (native runtime; compiling the "
+          "solver's kernels) ...", file=sys.stderr, flush=True)
+    t0 = time.perf_counter()
+    path = build_system_fmu(string, cfg, args.out, tolerance=args.tolerance,
+                            log=lambda m: print(m, file=sys.stderr))
+    print(f"hammerbit fmu build-system: done in {time.perf_counter() - t0:.0f} s", file=sys.stderr)
+    print(path)
+    return 0
+
+
+def add_build_system(fsub) -> None:
+    """``hammerbit fmu build-system``: hammer, bit, string and top condition in one FMU."""
+    from hammerbit.cli.cosim import add_hammer_options
+    b = fsub.add_parser("build-system", help="build DrillingSystem.fmu: hammer, bit, string and top condition "
+                                             "integrated as one system (native)",
+                        description="Build DrillingSystem.fmu (FMI 2.0 co-simulation, native binaries): the "
+                                    "hammer-bit-rock model, the string and its top condition integrated as one "
+                                    "hybrid system by the library's adaptive event-located solver; the master's "
+                                    "step is only where it reads and writes.")
+    b.add_argument("--string", required=True, help="drillstring TOML file or example name (field-2200m, lab)")
+    b.add_argument("--top", dest="top_condition", default="fixed", metavar="CONDITION",
+                   help="fixed (default), feed:RATE (m/h, downward) or auto-driller[:kp=KP,ki=KI]")
+    b.add_argument("--f-max", type=float, default=None,
+                   help="modal truncation of the string [Hz] (default: none, every nodal degree of freedom)")
+    b.add_argument("--tolerance", type=float, default=1e-3,
+                   help="start value of the FMU's tolerance parameter (default 1e-3)")
+    b.add_argument("--out", default=None, metavar="PATH",
+                   help="the .fmu file to write, or a directory (default dist/DrillingSystem.fmu)")
+    add_hammer_options(b)
+    b.set_defaults(func=cmd_fmu_build_system)
+
+
 def register(sub) -> None:
     p = sub.add_parser("fmu", help="the HammerBitRock FMU (FMI 2.0 co-simulation)")
     fsub = p.add_subparsers(dest="fmu_command", required=True)
@@ -139,3 +180,4 @@ def register(sub) -> None:
                         "x86_64-windows and aarch64-linux; Co-Simulation with early return at events and Event "
                         "Mode, Model Exchange)")
     add_build_string(fsub)
+    add_build_system(fsub)

@@ -17,7 +17,7 @@ import numpy as np
 from hammerbit.cosim.config import CosimConfig, CosimResult, event_counts, record_dtype, steady_start
 from hammerbit.cosim.string_side import StringSide
 
-__all__ = ["monolithic", "DENSE_PER_PERIOD"]
+__all__ = ["monolithic", "monolithic_subsystem", "DENSE_PER_PERIOD"]
 
 #: Samples of the reference's dense output per forcing period over the steady window (the WOB
 #: figures: a contact spike lasts a few hundredths of a period), at most DENSE_MAX in all.
@@ -48,37 +48,14 @@ def monolithic(string, config=None):
     """
     from hammerbit.model import kernel_layouts
     from hammerbit.model.solver_options import SolverOptions
-    from hammerbit.model.stepping import LinearSubsystem, Stepper
+    from hammerbit.model.stepping import Stepper
     c = CosimConfig() if config is None else config
     ts = _time.perf_counter()
     side = StringSide(string, c)
     rig = c.rig
     s = rig.scales
     F0, x0, Om, v0 = s.friction_force, s.length, s.omega, s.velocity
-    W = side.wob
-    n = side.n
-    scale = {"x": x0, "v": v0, "z": F0 / Om}
-    D = np.array([scale[k] for k in side.matrices.kinds])
-    x1eq = W / F0  # hammer position [x0] with the bit at 0: spring compressed by W/K
-    V = float(side.feed[0])
-    # z = [xi / D, u_feed / x0, 1]: a feed's block is one more state, u' = V (exact for the solver)
-    iu, ic = n, n + 1
-    A = np.zeros((n + 2, n + 2))
-    A[:n, :n] = (side.A1 * D[None, :]) / D[:, None] / Om
-    Hm = (side.E * np.array([x0, v0])[None, :]) / D[:, None] / Om
-    A[:n, ic] = -Hm[:, 0] * x1eq - Hm[:, 1] * V / v0   # the hammer relative to the block
-    A[:n, iu] = -Hm[:, 0]
-    A[iu, ic] = V / v0
-    Hz = np.zeros((n + 2, 2))
-    Hz[:n] = Hm
-    G = np.zeros(n + 2)
-    G[:n] = side.frow * D / F0
-    G[iu] = side.ki * x0 / F0
-    G[ic] = (W + side.ki * x0 * x1eq + side.ci * V) / F0
-    g = np.array([-side.ki * x0 / F0, -side.ci * v0 / F0])
-    z0 = np.zeros(n + 2)
-    z0[ic] = 1.0
-    lin = LinearSubsystem(A=A, H=Hz, G=G, g=g, z0=z0)
+    lin, x1eq = monolithic_subsystem(string, side, c)
     grp = rig.to_groups().replace(b=0.0)
     st = Stepper(grp, solver=SolverOptions(rtol=c.rtol, atol=c.rtol * 1e-2), linear=lin,
                  y0=[x1eq, 0.0, 0.0, 0.0])
@@ -132,6 +109,62 @@ def monolithic(string, config=None):
     for r in c.record:
         if r in m:
             data[r] = m[r]
-    stats = {"string_states": n, "events": st.counts}
+    stats = {"string_states": side.n, "events": st.counts}
     return CosimResult(data, c, len(t_s) - 1, wall, setup, float(st.y[2] * x0), stats, "monolithic",
                        counts=event_counts(st.counts), dense=dense)
+
+
+def monolithic_subsystem(string, side, config, *, feed_velocity=None, set_point_offset=0.0):
+    """``(LinearSubsystem, x1eq)``: the string with the interface spring as the linear subsystem of
+    the hammer's :class:`~hammerbit.model.stepping.Stepper` (nondimensional), and the hammer's
+    position of the static equilibrium [x0].
+
+    ``z = [xi / D, u_feed / x0, 1]``: the string's state in the hammer's scales, the feed's block
+    and a constant state carrying the equilibrium offsets.  ``feed_velocity`` [m/s] (default the top
+    condition's) and ``set_point_offset`` [N] (the auto-driller's WOB set point minus the WOB of the
+    static equilibrium) enter only the constant state's column of ``A`` and its entry of ``G``, both
+    affinely: a host that changes them between steps changes those entries alone.
+    """
+    from hammerbit.drillstring.top import rigid_inertia
+    from hammerbit.model.stepping import LinearSubsystem
+    s = config.rig.scales
+    F0, x0, Om, v0 = s.friction_force, s.length, s.omega, s.velocity
+    W = side.wob
+    n = side.n
+    scale = {"x": x0, "v": v0, "z": F0 / Om}
+    D = np.array([scale[k] for k in side.matrices.kinds])
+    x1eq = W / F0  # hammer position [x0] with the bit at 0: spring compressed by W/K
+    V = float(side.feed[0] if feed_velocity is None else feed_velocity)
+    # z = [xi / D, u_feed / x0, 1]: a feed's block is one more state, u' = V (exact for the solver)
+    iu, ic = n, n + 1
+    A = np.zeros((n + 2, n + 2))
+    A[:n, :n] = (side.A1 * D[None, :]) / D[:, None] / Om
+    Hm = (side.E * np.array([x0, v0])[None, :]) / D[:, None] / Om
+    A[:n, ic] = -Hm[:, 0] * x1eq - Hm[:, 1] * V / v0   # the hammer relative to the block
+    A[:n, iu] = -Hm[:, 0]
+    A[iu, ic] = V / v0
+    Hz = np.zeros((n + 2, 2))
+    Hz[:n] = Hm
+    G = np.zeros(n + 2)
+    G[:n] = side.frow * D / F0
+    G[iu] = side.ki * x0 / F0
+    G[ic] = (W + side.ki * x0 * x1eq + side.ci * V) / F0
+    dW = float(set_point_offset)
+    if dW != 0.0:
+        # the auto-driller's error e = hook load - set point gains dW: v_top = kp e + ki z gains
+        # kp dW, a_top = kp e' + ki e gains ki dW, z' = e gains dW (top.top_matrices' X coordinates)
+        m, kp, ki = side.matrices, side.gains.proportional_gain, side.gains.integral_gain
+        ns = m.n_string
+        nq = ns // 2
+        g_acc = np.zeros(ns)
+        g_acc[nq:] = -np.linalg.solve(side.ss.mass_matrix, rigid_inertia(string, side.ss, config.mass))
+        c = np.zeros(n)
+        c[:ns] = g_acc * ki - m.E[:ns, 1] * kp
+        c[ns] = kp
+        c[ns + 1] = 1.0
+        A[:n, ic] += c * dW / D / Om
+        G[ic] += side.ci * kp * dW / F0
+    g = np.array([-side.ki * x0 / F0, -side.ci * v0 / F0])
+    z0 = np.zeros(n + 2)
+    z0[ic] = 1.0
+    return LinearSubsystem(A=A, H=Hz, G=G, g=g, z0=z0), x1eq

@@ -36,6 +36,8 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
+from hammerbit.fmu.native_forces import forces_entry_point
+
 __all__ = ["TARGETS", "ENTRY_POINTS", "KernelBuildError", "Target", "LAYOUT_NAMES", "layout",
            "compile_entry_points", "linked_ir", "emit_object", "undefined_symbols",
            "ALLOWED_UNDEFINED", "build_objects"]
@@ -143,8 +145,6 @@ def compile_entry_points() -> dict:
     NY = 4                                     # x1..x4: the FMU has no subsystem, no energy block
     advance_hammer, rhs, watched, watch_value = KD.advance_hammer, KF.rhs, KE.watched, KE.watch_value
     apply_event, overlap, impact_mode = KR.apply_event, KF.overlap, KF.contact_mode_at_impact
-    spring, on_bit, contact, kinetic = (KF.spring_damper_force, KF.force_on_bit, KF.contact_force,
-                                        KF.kinetic_friction)
     I_STICK, I_CONTACT, I_WIN, P_CONTACT = KL.I_STICK, KL.I_CONTACT, KL.I_WIN, KL.P_CONTACT
     STICK, SLIP, FREE, CONTACT, V_BIT = KL.STICK, KL.SLIP, KL.FREE, KL.CONTACT, KL.V_BIT
     no_sub = KD.NO_SUB                         # the FMU has no linear subsystem
@@ -176,16 +176,7 @@ def compile_entry_points() -> dict:
         ist[I_WIN] = -1
         return 0
 
-    @cfunc(int64(f64p, i64p, f64p, f64p))
-    def hb_forces(yp, ip, pp, op):
-        # [spring-damper, contact (CONTACT mode only), force on the bit, friction] / F0
-        y, ist, p, out = carray(yp, (NY,)), carray(ip, (NI,)), carray(pp, (N_P,)), carray(op, (4,))
-        mc = ist[I_CONTACT]
-        out[0] = spring(y, p)
-        out[1] = contact(overlap(y, p), y[1] - y[3], p, mc) if mc == CONTACT else 0.0
-        out[2] = on_bit(y, p, mc)
-        out[3] = kinetic(y[3], p) if ist[I_STICK] == SLIP else out[2]
-        return 0
+    hb_forces = forces_entry_point()
 
     @cfunc(int64(float64, f64p, f64p, int64, int64, f64p))
     def hb_rhs(tau, yp, pp, ms, mc, op):
@@ -313,18 +304,21 @@ def undefined_symbols(obj: Path, *, nm: str = "nm") -> set:
 
 
 def _kernel_set(name: str):
-    """``(compile function, entry points)`` of a kernel set: ``hammer`` (HammerBitRock) or
-    ``string`` (Drillstring)."""
+    """``(compile function, entry points)`` of a kernel set: ``hammer`` (HammerBitRock),
+    ``string`` (Drillstring) or ``system`` (DrillingSystem)."""
     if name == "string":
         from hammerbit.fmu.native_string_kernels import STRING_ENTRY_POINTS, compile_string_entry_points
         return compile_string_entry_points, STRING_ENTRY_POINTS
+    if name == "system":
+        from hammerbit.fmu.native_system_kernels import SYSTEM_ENTRY_POINTS, compile_system_entry_points
+        return compile_system_entry_points, SYSTEM_ENTRY_POINTS
     if name == "hammer":
         return compile_entry_points, ENTRY_POINTS
-    raise KernelBuildError(f"unknown kernel set {name!r}; known: hammer, string")
+    raise KernelBuildError(f"unknown kernel set {name!r}; known: hammer, string, system")
 
 
 #: the kernel sets of :func:`build_objects`
-KERNEL_SETS = ("hammer", "string")
+KERNEL_SETS = ("hammer", "string", "system")
 
 
 def main(argv=None) -> int:
@@ -363,7 +357,8 @@ def sources_key(platforms, kernels: str = "hammer") -> str:
         if f.name != "build_info.py":          # rewritten by the Python flavour's build
             h.update(f.name.encode() + b"\0" + f.read_bytes() + b"\0")
     h.update(Path(__file__).read_bytes())
-    h.update((Path(__file__).parent / "native_string_kernels.py").read_bytes())
+    for name in ("native_string_kernels.py", "native_system_kernels.py", "native_forces.py"):
+        h.update((Path(__file__).parent / name).read_bytes())
     h.update(f"kernels {kernels} numba {version('numba')} llvmlite {version('llvmlite')} {sorted(platforms)}".encode())
     return h.hexdigest()[:16]
 

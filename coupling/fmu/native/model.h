@@ -31,4 +31,12 @@ void hb_model_free(void *m);
  * its '%') */
 void hb_model_log(const void *m, fmi2Status st, const char *fmt, ...);
 
+/* fmi2Get/SetBoolean and fmi2Get/SetString of a model with no variable of either type: an error
+ * naming the type when asked for any */
+void hb_model_no_booleans_strings(hb_wrapper *w);
+/* fmi2FreeFMUstate of a state that is one malloc'd block */
+fmi2Status hb_model_free_state(fmi2Component c, fmi2FMUstate *state);
+/* a life-cycle call with nothing to do (fmi2EnterInitializationMode) */
+fmi2Status hb_model_no_op(fmi2Component c);
+
 #endif

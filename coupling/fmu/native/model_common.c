@@ -36,3 +36,45 @@ void hb_model_log(const void *m, fmi2Status st, const char *fmt, ...) {
     /* the message is the format: the front (inner_logger) escapes its '%' for the host */
     cb->logger(cb->componentEnvironment, ((const hb_model_base *)m)->name, st, cat, msg);
 }
+
+/* the Boolean and String functions of a model with no variable of either type */
+static fmi2Status no_get_boolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Boolean v[]) {
+    (void)vr, (void)v;
+    return nvr ? (hb_model_log(c, fmi2Error, "fmi2GetBoolean: the model has no Boolean variable"), fmi2Error) : fmi2OK;
+}
+
+static fmi2Status no_set_boolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                                 const fmi2Boolean v[]) {
+    (void)vr, (void)v;
+    return nvr ? (hb_model_log(c, fmi2Error, "fmi2SetBoolean: the model has no Boolean variable"), fmi2Error) : fmi2OK;
+}
+
+static fmi2Status no_get_string(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String v[]) {
+    (void)vr, (void)v;
+    return nvr ? (hb_model_log(c, fmi2Error, "fmi2GetString: the model has no String variable"), fmi2Error) : fmi2OK;
+}
+
+static fmi2Status no_set_string(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                                const fmi2String v[]) {
+    (void)vr, (void)v;
+    return nvr ? (hb_model_log(c, fmi2Error, "fmi2SetString: the model has no String variable"), fmi2Error) : fmi2OK;
+}
+
+void hb_model_no_booleans_strings(hb_wrapper *w) {
+    w->GetBoolean = no_get_boolean;
+    w->SetBoolean = no_set_boolean;
+    w->GetString = no_get_string;
+    w->SetString = no_set_string;
+}
+
+fmi2Status hb_model_free_state(fmi2Component c, fmi2FMUstate *state) {
+    (void)c;
+    free(*state);
+    *state = NULL;
+    return fmi2OK;
+}
+
+fmi2Status hb_model_no_op(fmi2Component c) {
+    (void)c;
+    return fmi2OK;
+}

@@ -250,11 +250,6 @@ static fmi2Status s_setup_experiment(fmi2Component c, fmi2Boolean tol_defined, f
     return fmi2OK;
 }
 
-static fmi2Status s_enter_init(fmi2Component c) {
-    (void)c;
-    return fmi2OK;
-}
-
 static fmi2Status s_exit_init(fmi2Component c) {
     model *m = c;
     sstate *s = m->s;
@@ -368,7 +363,7 @@ static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
 void hb_model_fill(hb_wrapper *w) {
     w->FreeInstance = s_free_instance;
     w->SetupExperiment = s_setup_experiment;
-    w->EnterInitializationMode = s_enter_init;
+    w->EnterInitializationMode = hb_model_no_op;
     w->ExitInitializationMode = s_exit_init;
     w->Terminate = s_terminate;
     w->Reset = s_reset;

@@ -93,28 +93,6 @@ static fmi2Status s_set_integer(fmi2Component c, const fmi2ValueReference vr[], 
     return fmi2OK;
 }
 
-static fmi2Status s_no_boolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Boolean v[]) {
-    (void)vr, (void)v;
-    return nvr ? FAIL(c, "fmi2GetBoolean: the model has no Boolean variable") : fmi2OK;
-}
-
-static fmi2Status s_no_set_boolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                                   const fmi2Boolean v[]) {
-    (void)vr, (void)v;
-    return nvr ? FAIL(c, "fmi2SetBoolean: the model has no Boolean variable") : fmi2OK;
-}
-
-static fmi2Status s_no_string(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String v[]) {
-    (void)vr, (void)v;
-    return nvr ? FAIL(c, "fmi2GetString: the model has no String variable") : fmi2OK;
-}
-
-static fmi2Status s_no_set_string(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                                  const fmi2String v[]) {
-    (void)vr, (void)v;
-    return nvr ? FAIL(c, "fmi2SetString: the model has no String variable") : fmi2OK;
-}
-
 /* ------------------------------------------------------------------------------------------ */
 /* FMU states: the whole state as plain data                                                   */
 /* ------------------------------------------------------------------------------------------ */
@@ -189,13 +167,6 @@ static fmi2Status s_set_state(fmi2Component c, fmi2FMUstate state) {
     return fmi2OK;
 }
 
-static fmi2Status s_free_state(fmi2Component c, fmi2FMUstate *state) {
-    (void)c;
-    free(*state);
-    *state = NULL;
-    return fmi2OK;
-}
-
 static fmi2Status s_state_size(fmi2Component c, fmi2FMUstate state, size_t *size) {
     (void)state;
     *size = ((model *)c)->size;
@@ -232,13 +203,10 @@ void hs_access_fill(hb_wrapper *w) {
     w->SetReal = s_set_real;
     w->GetInteger = s_get_integer;
     w->SetInteger = s_set_integer;
-    w->GetBoolean = s_no_boolean;
-    w->SetBoolean = s_no_set_boolean;
-    w->GetString = s_no_string;
-    w->SetString = s_no_set_string;
+    hb_model_no_booleans_strings(w);
     w->GetFMUstate = s_get_state;
     w->SetFMUstate = s_set_state;
-    w->FreeFMUstate = s_free_state;
+    w->FreeFMUstate = hb_model_free_state;
     w->SerializedFMUstateSize = s_state_size;
     w->SerializeFMUstate = s_serialize;
     w->DeSerializeFMUstate = s_deserialize;

@@ -1,0 +1,252 @@
+/* The native model backend of DrillingSystem.fmu: hammer, bit, string and top condition as one
+ * hybrid system (model_system.h), integrated by the library's compiled event-located driver with
+ * the string as its linear subsystem, as the co-simulation's monolithic reference does.
+ *
+ * The master's communication step is only where it reads and writes: a step advances the solver
+ * to t + h on its own adaptive steps and events.  Inputs set between steps take effect at the
+ * step's start: the amplitude and frequency in the kernels' parameters (the forcing's phase kept
+ * continuous), the feed velocity and the auto-driller's set point in the constant state's column
+ * of the subsystem (they enter it affinely; the generated header carries the derivatives). */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "model_system.h"
+
+static void set_start_values(model *m) {
+    sysstate *s = &m->s;
+    memset(s, 0, sizeof *s);
+    s->magic = SYS_STATE_MAGIC;
+    s->size = (uint32_t)sizeof *s;
+    s->tolerance = HSYS_START_tolerance;
+    memcpy(s->in, SYS_START_IN, sizeof s->in);
+    memcpy(s->applied, SYS_START_IN, sizeof s->applied);
+    memcpy(s->y, HSYS_Y0, sizeof s->y);
+    memcpy(s->ist, HSYS_IST0, sizeof s->ist);
+    memcpy(s->fst, HSYS_FST0, sizeof s->fst);
+    memcpy(s->p, HSYS_P, sizeof s->p);
+    memcpy(s->opts, HSYS_OPTS, sizeof s->opts);
+    memcpy(s->lin, HSYS_AX, sizeof(double) * HSYS_NNZ);
+    memcpy(s->lin + HSYS_NNZ, HSYS_G, sizeof(double) * HSYS_NZ);
+    memcpy(s->lin + HSYS_NNZ + HSYS_NZ, HSYS_GLINK, 2 * sizeof(double));
+    sys_outputs(s, 0.0, 0.0, 0.0, 0.0);
+    snprintf(s->error, sizeof s->error, "not initialised (fmi2ExitInitializationMode)");
+}
+
+/* ------------------------------------------------------------------------------------------ */
+/* Inputs                                                                                      */
+/* ------------------------------------------------------------------------------------------ */
+/* the inputs as set into the kernels' parameters and the subsystem */
+static void apply_inputs(sysstate *s) {
+    s->p[HSYS_P_A] = s->in[IN_AMPLITUDE] / HSYS_F0;
+    double eta = HB_TWO_PI * s->in[IN_FREQUENCY] / HSYS_OMEGA, eta0 = s->p[HSYS_P_ETA];
+    if (eta != eta0) {
+        /* the forcing's phase continuous at the current time */
+        double phi = fmod(s->p[HSYS_P_PHI] + (eta0 - eta) * s->fst[HSYS_F_T], HB_TWO_PI);
+        s->p[HSYS_P_PHI] = phi < 0.0 ? phi + HB_TWO_PI : phi;
+        s->p[HSYS_P_ETA] = eta;
+    }
+    double dv = s->in[IN_FEED_VELOCITY] - HSYS_FEED_BUILD, dw = s->in[IN_WOB_SET_POINT] - HSYS_WOB_BUILD;
+    for (int64_t i = 0; i < HSYS_NZ; i++)
+        if (HSYS_POS_IC[i] >= 0) s->lin[HSYS_POS_IC[i]] = HSYS_COL_IC[i] + dv * HSYS_DCOL_V[i] + dw * HSYS_DCOL_W[i];
+    s->lin[HSYS_NNZ + HSYS_IC] = HSYS_G_IC + dv * HSYS_DG_V + dw * HSYS_DG_W;
+    memcpy(s->applied, s->in, sizeof s->applied);
+}
+
+/* ------------------------------------------------------------------------------------------ */
+/* Outputs                                                                                     */
+/* ------------------------------------------------------------------------------------------ */
+void sys_outputs(sysstate *s, double dtau, double x2a, double x3a, double tau_a) {
+    double f[4];
+    hsys_forces(s->y, s->ist, s->p, f);
+    const double *y = s->y;
+    s->wob = f[2] * HSYS_F0;
+    s->contact_force = f[1] * HSYS_F0;
+    if (dtau > 0.0) {
+        /* the hammer's momentum balance over the step: x2' = drive + f_link - wob, with q = int f_link */
+        double a = s->p[HSYS_P_A], eta = s->p[HSYS_P_ETA], phi = s->p[HSYS_P_PHI];
+        double forcing = a / eta * (cos(eta * tau_a + phi) - cos(eta * (tau_a + dtau) + phi));
+        double constant = (s->p[HSYS_P_B] + s->p[HSYS_P_FEXT]) * dtau;
+        s->mean_wob = (y[4 + HSYS_IQ] + forcing + constant - (y[HSYS_V_HAMMER] - x2a)) / dtau * HSYS_F0;
+        s->rate_of_penetration = (y[HSYS_X_BIT] - x3a) / dtau * HSYS_X0 * HSYS_OMEGA;
+    } else {
+        s->mean_wob = s->wob;
+        s->rate_of_penetration = y[HSYS_V_BIT] * HSYS_X0 * HSYS_OMEGA;
+    }
+    s->bit_position = y[HSYS_X_BIT] * HSYS_X0;
+    s->hammer_position = y[HSYS_X_HAMMER] * HSYS_X0;
+    s->hammer_velocity = y[HSYS_V_HAMMER] * HSYS_X0 * HSYS_OMEGA;
+    double hook = 0.0;
+    for (int64_t i = 0; i < HSYS_NZ; i++) hook += HSYS_HOOK_ROW[i] * y[4 + i];
+    s->hook_load = HSYS_HOOK_EQ + hook;
+    s->stick_slip = s->ist[HSYS_I_STICK] == HSYS_STICK;
+    s->impact_count = s->ist[HSYS_I_COUNT0 + HSYS_EV_IMPACT];
+    s->slip_count = s->ist[HSYS_I_COUNT0 + HSYS_EV_SLIP_START];
+    s->coupling_error = s->fst[HSYS_F_ERRACC] * s->opts[HSYS_O_RTOL];
+}
+
+/* ------------------------------------------------------------------------------------------ */
+/* Life cycle                                                                                  */
+/* ------------------------------------------------------------------------------------------ */
+static fmi2Component s_instantiate(fmi2String name, fmi2Type type, fmi2String guid, fmi2String uri,
+                                   const fmi2CallbackFunctions *cb, fmi2Boolean visible,
+                                   fmi2Boolean logging) {
+    (void)type, (void)guid, (void)uri, (void)visible, (void)logging;
+    model *m = hb_model_new(sizeof *m, name, cb);
+    if (!m) return NULL;
+    memcpy(m->csr, HSYS_CSR, sizeof m->csr);
+    memcpy(m->H, HSYS_H, sizeof m->H);
+    set_start_values(m);
+    return m;
+}
+
+static void s_free_instance(fmi2Component c) {
+    if (c) hb_model_free(c);
+}
+
+/* the largest |time| a run may reach [s] (the kernels' time range, with margin) */
+#define SYS_TIME_LIMIT 1e9
+/* the shortest advance the solver is asked for [s]: a master's leftover sliver (1e-13 s to land on
+ * an output point) moves the FMU's clock only, and the solver catches up at the next step, so that
+ * slivers leave its steps and events as they would be without them */
+#define SYS_MIN_ADVANCE 1e-9
+
+static fmi2Status s_setup_experiment(fmi2Component c, fmi2Boolean tol_defined, fmi2Real tol,
+                                     fmi2Real start, fmi2Boolean stop_defined, fmi2Real stop) {
+    (void)tol_defined, (void)tol;
+    model *m = c;
+    char r[40];
+    if (!(isfinite(start) && fabs(start) <= SYS_TIME_LIMIT)) {
+        hb_repr(start, r, sizeof r);
+        return FAIL(m, "fmi2SetupExperiment: startTime = %s s is out of range: allowed [-1e9, 1e9] s", r);
+    }
+    if (stop_defined && !(isfinite(stop) && stop >= start && fabs(stop) <= SYS_TIME_LIMIT)) {
+        hb_repr(stop, r, sizeof r);
+        return FAIL(m, "fmi2SetupExperiment: stopTime = %s s is out of range: allowed [startTime, 1e9] s", r);
+    }
+    m->s.t_start = m->s.t = start;
+    return fmi2OK;
+}
+
+static fmi2Status s_exit_init(fmi2Component c) {
+    model *m = c;
+    sysstate *s = &m->s;
+    char bad[512], r[40];
+    if (!(isfinite(s->tolerance) && HSYS_MIN_tolerance <= s->tolerance && s->tolerance <= HSYS_MAX_tolerance)) {
+        hb_repr(s->tolerance, r, sizeof r);
+        snprintf(s->error, sizeof s->error, "initialisation failed: parameter 'tolerance' = %s is out of "
+                 "range: allowed [%g, %g]", r, HSYS_MIN_tolerance, HSYS_MAX_tolerance);
+        return FAIL(m, "%s", s->error);
+    }
+    for (int i = 0; i < N_INPUTS; i++)
+        if (sys_input_refused(s, i, s->in[i], bad, sizeof bad)) {
+            snprintf(s->error, sizeof s->error, "initialisation failed: %s", bad);
+            return FAIL(m, "%s", s->error);
+        }
+    double in[N_INPUTS];
+    memcpy(in, s->in, sizeof in);
+    double t_start = s->t_start, tol = s->tolerance;
+    set_start_values(m);
+    memcpy(s->in, in, sizeof in);
+    s->tolerance = tol;
+    s->t_start = s->t = t_start;
+    s->fst[HSYS_F_T] = HSYS_OMEGA * t_start;
+    if (s->fst[HSYS_F_T_STICK] >= 0.0) s->fst[HSYS_F_T_STICK] = s->fst[HSYS_F_T];
+    s->opts[HSYS_O_RTOL] = tol * HSYS_RTOL_PER_TOLERANCE;
+    s->opts[HSYS_O_ATOL] = s->opts[HSYS_O_RTOL] * HSYS_ATOL_PER_RTOL;
+    apply_inputs(s);
+    s->ready = 1;
+    s->error[0] = '\0';
+    sys_outputs(s, 0.0, 0.0, 0.0, 0.0);
+    return fmi2OK;
+}
+
+static fmi2Status s_terminate(fmi2Component c) {
+    sysstate *s = &((model *)c)->s;
+    s->ready = 0;
+    s->terminated = 1;
+    snprintf(s->error, sizeof s->error, "terminated (fmi2Terminate)");
+    return fmi2OK;
+}
+
+static fmi2Status s_reset(fmi2Component c) {
+    set_start_values(c);
+    return fmi2OK;
+}
+
+/* ------------------------------------------------------------------------------------------ */
+/* fmi2DoStep                                                                                   */
+/* ------------------------------------------------------------------------------------------ */
+static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_prior) {
+    (void)no_prior;
+    model *m = c;
+    sysstate *s = &m->s;
+    char a[40], b[40];
+    if (!s->ready) return FAIL(m, "fmi2DoStep refused: %s", s->error);
+    if (!(0.0 < h && h < INFINITY)) {
+        hb_repr(h, a, sizeof a);
+        return FAIL(m, "communication step size h = %s s is invalid: it must be > 0 and finite; step "
+                    "refused, state unchanged", a);
+    }
+    if (t != s->t && !(fabs(t - s->t) <= 1e-9 * fmax(fabs(s->t), h))) {
+        hb_repr(t, a, sizeof a);
+        hb_repr(s->t, b, sizeof b);
+        return FAIL(m, "currentCommunicationPoint = %s s is not the current time of the FMU, %s s; step "
+                    "refused, state unchanged", a, b);
+    }
+    if (!(fabs(s->t + h) <= SYS_TIME_LIMIT)) {
+        hb_repr(s->t + h, a, sizeof a);
+        return FAIL(m, "the step would end at t = %s s, beyond the FMU's time range [-1e9, 1e9] s; step "
+                    "refused, state unchanged", a);
+    }
+    /* kept to put back if the solver fails: the state stays at t */
+    double y[SYS_NY], fst[HSYS_N_FSTATE];
+    int64_t ist[HSYS_N_ISTATE];
+    memcpy(y, s->y, sizeof y), memcpy(ist, s->ist, sizeof ist), memcpy(fst, s->fst, sizeof fst);
+    if (memcmp(s->in, s->applied, sizeof s->in) != 0) apply_inputs(s);
+    double tau_end = HSYS_OMEGA * (s->t + h);
+    if (tau_end - s->fst[HSYS_F_T] < SYS_MIN_ADVANCE * HSYS_OMEGA) {
+        s->t = t + h;
+        sys_outputs(s, 0.0, 0.0, 0.0, 0.0);
+        return fmi2OK;
+    }
+    double tau_a = s->fst[HSYS_F_T], x2a = s->y[HSYS_V_HAMMER], x3a = s->y[HSYS_X_BIT];
+    int64_t bounces = s->ist[HSYS_I_COUNT0 + HSYS_EV_BOUNCE];
+    s->y[4 + HSYS_IQ] = 0.0;                 /* the link force's integral over this step */
+    s->fst[HSYS_F_DRIVE_MIN] = INFINITY;     /* the lowest drive on the bit in this step */
+    int64_t st;
+    hb_kernel_raised();
+    do {
+        double before = s->fst[HSYS_F_T];
+        st = hsys_advance(s->y, s->ist, s->fst, tau_end, s->p, s->opts, HSYS_NZ, m->csr, s->lin, m->H);
+        if (st == HSYS_ST_MAX_STEPS && !(s->fst[HSYS_F_T] > before)) break;
+    } while (st == HSYS_ST_MAX_STEPS);
+    if (hb_kernel_raised() || st != HSYS_ST_DONE) {
+        memcpy(s->y, y, sizeof y), memcpy(s->ist, ist, sizeof ist), memcpy(s->fst, fst, sizeof fst);
+        hb_repr(s->t, a, sizeof a);
+        return FAIL(m, "fmi2DoStep failed at t = %s s: the solver stopped (status %lld: an event storm, a "
+                    "step below the time resolution or a non-finite state); state unchanged", a,
+                    (long long)st);
+    }
+    s->t = t + h;
+    sys_outputs(s, s->fst[HSYS_F_T] - tau_a, x2a, x3a, tau_a);
+    s->regime = 0;
+    if (s->ist[HSYS_I_COUNT0 + HSYS_EV_BOUNCE] > bounces || s->ist[HSYS_I_BOUNCE] == 1) s->regime |= HB_REGIME_BOUNCE;
+    if (s->fst[HSYS_F_DRIVE_MIN] < 0.0) s->regime |= HB_REGIME_TENSION;
+    return fmi2OK;
+}
+
+/* ------------------------------------------------------------------------------------------ */
+/* The model's functions for the backend table (model.h)                                        */
+/* ------------------------------------------------------------------------------------------ */
+void hb_model_fill(hb_wrapper *w) {
+    w->FreeInstance = s_free_instance;
+    w->SetupExperiment = s_setup_experiment;
+    w->EnterInitializationMode = hb_model_no_op;
+    w->ExitInitializationMode = s_exit_init;
+    w->Terminate = s_terminate;
+    w->Reset = s_reset;
+    sys_access_fill(w);
+    w->DoStep = s_do_step;
+    w->Instantiate = s_instantiate;
+}

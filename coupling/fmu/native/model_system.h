@@ -1,0 +1,70 @@
+/* The native DrillingSystem model: hammer, bit, string and top condition integrated as one hybrid
+ * system by the library's compiled driver, with the string as its linear subsystem:
+ *   model_system.c          life cycle, inputs, fmi2DoStep, outputs, hb_model_fill (model.h)
+ *   model_system_access.c   fmi2Get*, fmi2Set*, FMU states
+ * The subsystem, the layouts and the value references are generated (hsys_data.h, by
+ * hammerbit.fmu.build_system). */
+#ifndef HAMMERBIT_MODEL_SYSTEM_H
+#define HAMMERBIT_MODEL_SYSTEM_H
+
+#include <math.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "front.h"
+#include "model.h"
+#include "hb_description.h"
+#include "hsys_data.h"
+
+#define SYS_STATE_MAGIC 0x48425359u  /* "HBSY": layout version of the system model state */
+#define SYS_NY (4 + HSYS_NZ)
+
+/* the compiled kernels (hammerbit.fmu.native_system_kernels) */
+int64_t hsys_advance(double *y, int64_t *ist, double *fst, double tau_end, double *p, double *opts,
+                     int64_t nz, int64_t *csr, double *lin, double *H);
+int64_t hsys_forces(double *y, int64_t *ist, double *p, double *out);
+int hb_kernel_raised(void);
+
+/* the inputs, in the order of their value references, and their start values */
+enum { IN_AMPLITUDE, IN_FREQUENCY, IN_WOB_SET_POINT, IN_FEED_VELOCITY, N_INPUTS };
+static const double SYS_START_IN[N_INPUTS] = {HSYS_START_amplitude, HSYS_START_frequency,
+                                              HSYS_START_wob_set_point, HSYS_START_feed_velocity};
+
+typedef struct {
+    uint32_t magic, size;
+    double tolerance;
+    double in[N_INPUTS];          /* inputs as set */
+    double applied[N_INPUTS];     /* inputs the system runs with */
+    int32_t ready, terminated;
+    double t, t_start;
+    /* outputs */
+    double bit_position, rate_of_penetration, wob, mean_wob, hook_load, hammer_position,
+        hammer_velocity, contact_force, coupling_error;
+    int64_t stick_slip, impact_count, slip_count, regime;
+    /* the solver's arrays */
+    double y[SYS_NY];
+    int64_t ist[HSYS_N_ISTATE];
+    double fst[HSYS_N_FSTATE];
+    double p[HSYS_N_P], opts[HSYS_N_OPTS];
+    double lin[HSYS_NNZ + HSYS_NZ + 2];    /* A's values, G, g (the inputs change A's column IC) */
+    char error[256];
+} sysstate;
+
+typedef struct {
+    hb_model_base base;          /* name, callbacks (model.h) */
+    int64_t csr[HSYS_NZ + 1 + HSYS_NNZ];
+    double H[2 * HSYS_NZ];
+    sysstate s;
+} model;
+
+#define FAIL(m, ...) (hb_model_log((m), fmi2Error, __VA_ARGS__), fmi2Error)
+
+/* model_system.c: the outputs of the state (after a step of nondimensional length dtau from the
+ * hammer velocity x2a, bit position x3a; dtau = 0: at a communication point without a step) */
+void sys_outputs(sysstate *s, double dtau, double x2a, double x3a, double tau_a);
+/* model_system_access.c: why an input value is refused (NULL: accepted; idx an IN_*) */
+const char *sys_input_refused(const sysstate *s, int idx, double v, char *buf, size_t n);
+/* model_system_access.c: fmi2Get*, fmi2Set* and the FMU-state functions */
+void sys_access_fill(hb_wrapper *w);
+
+#endif

@@ -1,0 +1,251 @@
+/* fmi2Get*, fmi2Set* and FMU states of the native DrillingSystem backend: inputs checked when they
+ * are set (a refused value leaves the input as it was), outputs from the state, and the whole state
+ * as plain data (a copy per fmi2GetFMUstate, its bytes when serialized), checked in full before it
+ * is used: every integer against its range, every real finite. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "model_system.h"
+
+/* ------------------------------------------------------------------------------------------ */
+/* Inputs                                                                                      */
+/* ------------------------------------------------------------------------------------------ */
+static const double MIN_IN[N_INPUTS] = {HSYS_MIN_amplitude, HSYS_MIN_frequency, HSYS_MIN_wob_set_point,
+                                        -HSYS_MAX_FEED};
+static const double MAX_IN[N_INPUTS] = {1e9, HSYS_MAX_frequency, HSYS_BUOYED, HSYS_MAX_FEED};
+static const char *const IN_NAME[N_INPUTS] = {"amplitude", "frequency", "wob_set_point", "feed_velocity"};
+static const char *const IN_UNIT[N_INPUTS] = {"N", "Hz", "N", "m/s"};
+
+const char *sys_input_refused(const sysstate *s, int idx, double v, char *buf, size_t n) {
+    char r[40], r2[40];
+    (void)s;
+    hb_repr(v, r, sizeof r);
+    if (!(isfinite(v) && MIN_IN[idx] <= v && v <= MAX_IN[idx])) {
+        snprintf(buf, n, "input '%s' = %s is out of range: allowed [%.6g, %.6g] %s", IN_NAME[idx], r,
+                 MIN_IN[idx], MAX_IN[idx], IN_UNIT[idx]);
+        return buf;
+    }
+    int unused = (idx == IN_WOB_SET_POINT && HSYS_TOP != HB_TOP_AUTO_DRILLER) ||
+                 (idx == IN_FEED_VELOCITY && HSYS_TOP != HB_TOP_FEED);
+    if (unused && v != SYS_START_IN[idx]) {
+        hb_repr(SYS_START_IN[idx], r2, sizeof r2);
+        snprintf(buf, n, "input '%s' = %s has no effect with the top condition '%s' this FMU was built "
+                 "with (only %s uses it); allowed %s (rebuild with --top %s)", IN_NAME[idx], r,
+                 HSYS_TOP_TEXT, idx == IN_FEED_VELOCITY ? "the feed" : "the auto-driller", r2,
+                 idx == IN_FEED_VELOCITY ? "feed:RATE" : "auto-driller");
+        return buf;
+    }
+    return NULL;
+}
+
+/* ------------------------------------------------------------------------------------------ */
+/* Values                                                                                       */
+/* ------------------------------------------------------------------------------------------ */
+static int input_index(fmi2ValueReference vr) {
+    switch (vr) {
+    case HSYS_VR_amplitude: return IN_AMPLITUDE;
+    case HSYS_VR_frequency: return IN_FREQUENCY;
+    case HSYS_VR_wob_set_point: return IN_WOB_SET_POINT;
+    case HSYS_VR_feed_velocity: return IN_FEED_VELOCITY;
+    default: return -1;
+    }
+}
+
+static const double *real_output(const sysstate *s, fmi2ValueReference vr) {
+    switch (vr) {
+    case HSYS_VR_tolerance: return &s->tolerance;
+    case HSYS_VR_bit_position: return &s->bit_position;
+    case HSYS_VR_rate_of_penetration: return &s->rate_of_penetration;
+    case HSYS_VR_wob: return &s->wob;
+    case HSYS_VR_mean_wob: return &s->mean_wob;
+    case HSYS_VR_hook_load: return &s->hook_load;
+    case HSYS_VR_hammer_position: return &s->hammer_position;
+    case HSYS_VR_hammer_velocity: return &s->hammer_velocity;
+    case HSYS_VR_contact_force: return &s->contact_force;
+    case HSYS_VR_coupling_error: return &s->coupling_error;
+    default: return NULL;
+    }
+}
+
+static fmi2Status s_get_real(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[]) {
+    model *m = c;
+    for (size_t i = 0; i < nvr; i++) {
+        int k = input_index(vr[i]);
+        const double *p = k >= 0 ? &m->s.in[k] : real_output(&m->s, vr[i]);
+        if (!p) return FAIL(m, "fmi2GetReal: unknown value reference %u", vr[i]);
+        value[i] = *p;
+    }
+    return fmi2OK;
+}
+
+static fmi2Status s_set_real(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                             const fmi2Real value[]) {
+    model *m = c;
+    char why[512];
+    for (size_t i = 0; i < nvr; i++) {      /* all checked first: a refused call changes nothing */
+        int k = input_index(vr[i]);
+        if (vr[i] == HSYS_VR_tolerance) continue;
+        if (k < 0) return FAIL(m, "fmi2SetReal: value reference %u is not an input or a parameter", vr[i]);
+        if (sys_input_refused(&m->s, k, value[i], why, sizeof why))
+            return FAIL(m, "fmi2SetReal: %s; value refused, input unchanged", why);
+    }
+    for (size_t i = 0; i < nvr; i++) {
+        int k = input_index(vr[i]);
+        if (k >= 0) m->s.in[k] = value[i];
+        else m->s.tolerance = value[i];
+    }
+    return fmi2OK;
+}
+
+static fmi2Status s_get_integer(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                                fmi2Integer value[]) {
+    model *m = c;
+    for (size_t i = 0; i < nvr; i++) {
+        switch (vr[i]) {
+        case HSYS_VR_stick_slip: value[i] = (fmi2Integer)m->s.stick_slip; break;
+        case HSYS_VR_impact_count: value[i] = (fmi2Integer)m->s.impact_count; break;
+        case HSYS_VR_slip_count: value[i] = (fmi2Integer)m->s.slip_count; break;
+        case HSYS_VR_regime: value[i] = (fmi2Integer)m->s.regime; break;
+        default: return FAIL(m, "fmi2GetInteger: unknown value reference %u", vr[i]);
+        }
+    }
+    return fmi2OK;
+}
+
+static fmi2Status s_set_integer(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                                const fmi2Integer v[]) {
+    (void)vr, (void)v;
+    return nvr ? FAIL(c, "fmi2SetInteger: the model has no Integer input or parameter") : fmi2OK;
+}
+
+/* ------------------------------------------------------------------------------------------ */
+/* FMU states: the whole state as plain data, checked in full                                  */
+/* ------------------------------------------------------------------------------------------ */
+static int all_finite(const double *v, size_t n) {
+    /* (the subsystem's values are compared with the build's instead) */
+    for (size_t i = 0; i < n; i++)
+        if (!isfinite(v[i])) return 0;
+    return 1;
+}
+
+static const char *state_invalid(const sysstate *s) {
+    if (s->magic != SYS_STATE_MAGIC || s->size != sizeof *s) return "it is not a state of this build";
+    if ((s->ready | s->terminated) & ~1) return "a flag is neither 0 nor 1";
+    if (!(isfinite(s->t) && isfinite(s->t_start) && fabs(s->t) <= 1e9 && fabs(s->t_start) <= 1e9))
+        return "its time is not finite or beyond 1e9 s";
+    if (!(isfinite(s->tolerance) && HSYS_MIN_tolerance <= s->tolerance && s->tolerance <= HSYS_MAX_tolerance))
+        return "its tolerance is out of range";
+    char why[512];
+    for (int i = 0; i < N_INPUTS; i++)
+        if (sys_input_refused(s, i, s->in[i], why, sizeof why) || sys_input_refused(s, i, s->applied[i], why, sizeof why))
+            return "an input is out of range";
+    const double *reals[] = {&s->bit_position, &s->rate_of_penetration, &s->wob, &s->mean_wob, &s->hook_load,
+                             &s->hammer_position, &s->hammer_velocity, &s->contact_force, &s->coupling_error};
+    for (size_t i = 0; i < sizeof reals / sizeof reals[0]; i++)
+        if (!isfinite(*reals[i])) return "an output is not finite";
+    if (s->stick_slip < 0 || s->stick_slip > 1 || s->impact_count < 0 || s->slip_count < 0 || s->regime < 0 ||
+        s->regime > 31)
+        return "an integer output is out of range";
+    if (!all_finite(s->y, SYS_NY)) return "its solver state holds a non-finite number";
+    /* the parameters, options and subsystem are the build's, but for what the inputs set */
+    for (int i = 0; i < HSYS_N_P; i++) {
+        int input = i == HSYS_P_A || i == HSYS_P_ETA || i == HSYS_P_PHI;
+        if (input ? !isfinite(s->p[i]) : memcmp(&s->p[i], &HSYS_P[i], sizeof(double)) != 0)
+            return "its kernel parameters are not this build's";
+    }
+    if (!(s->p[HSYS_P_ETA] > 0.0 && s->p[HSYS_P_A] >= 0.0)) return "its forcing is out of range";
+    for (int i = 0; i < HSYS_N_OPTS; i++) {
+        int tol = i == HSYS_O_RTOL || i == HSYS_O_ATOL;
+        if (tol ? !(isfinite(s->opts[i]) && s->opts[i] > 0.0) : memcmp(&s->opts[i], &HSYS_OPTS[i], sizeof(double)) != 0)
+            return "its solver options are not this build's";
+    }
+    double dv = s->applied[IN_FEED_VELOCITY] - HSYS_FEED_BUILD, dw = s->applied[IN_WOB_SET_POINT] - HSYS_WOB_BUILD;
+    for (int64_t i = 0; i < HSYS_NZ; i++)
+        for (int64_t k = HSYS_CSR[i]; k < HSYS_CSR[i + 1]; k++) {
+            double want = k == HSYS_POS_IC[i] ? HSYS_COL_IC[i] + dv * HSYS_DCOL_V[i] + dw * HSYS_DCOL_W[i] : HSYS_AX[k];
+            if (memcmp(&s->lin[k], &want, sizeof want) != 0) return "its subsystem is not this build's";
+        }
+    for (int64_t i = 0; i < HSYS_NZ + 2; i++) {
+        double want = i < HSYS_NZ ? HSYS_G[i] : HSYS_GLINK[i - HSYS_NZ];
+        if (i == HSYS_IC) want = HSYS_G_IC + dv * HSYS_DG_V + dw * HSYS_DG_W;
+        if (memcmp(&s->lin[HSYS_NNZ + i], &want, sizeof want) != 0) return "its subsystem is not this build's";
+    }
+    for (int i = 0; i < HSYS_N_FSTATE; i++)
+        if (!(isfinite(s->fst[i]) || (i == HSYS_F_DRIVE_MIN && s->fst[i] == INFINITY)))
+            return "its solver state holds a non-finite number";
+    if (s->ready && !(fabs(s->fst[HSYS_F_T] - HSYS_OMEGA * s->t) <= 1e-6 * fmax(1.0, fabs(HSYS_OMEGA * s->t))))
+        return "its solver time is not its communication time";
+    if (!(s->fst[HSYS_F_H] > 0.0)) return "its proposed solver step is not positive";
+    const int64_t *ist = s->ist;
+    if (ist[HSYS_I_STICK] != HSYS_STICK && ist[HSYS_I_STICK] != HSYS_SLIP) return "its stick mode is unknown";
+    if (ist[HSYS_I_CONTACT] < HSYS_FREE || ist[HSYS_I_CONTACT] > HSYS_CLAMPED) return "its contact mode is unknown";
+    if (ist[HSYS_I_BOUNCE] < 0 || ist[HSYS_I_BOUNCE] > 1) return "its bounce flag is neither 0 nor 1";
+    for (int i = 0; i < HSYS_N_ISTATE; i++) {
+        /* the forcing-period indices may be -1 (none yet) or negative before t = 0; the rest count */
+        int64_t lo = (i == HSYS_I_WIN || i == HSYS_I_SWIN) ? -(INT64_C(1) << 40) : 0;
+        if (ist[i] < lo || ist[i] > (INT64_C(1) << 40)) return "a counter or index of its solver state is out of range";
+    }
+    return NULL;
+}
+
+static fmi2Status s_get_state(fmi2Component c, fmi2FMUstate *state) {
+    model *m = c;
+    sysstate *copy = malloc(sizeof *copy);
+    if (!copy) return FAIL(m, "fmi2GetFMUstate: out of memory");
+    memcpy(copy, &m->s, sizeof *copy);
+    *state = copy;
+    return fmi2OK;
+}
+
+static fmi2Status s_set_state(fmi2Component c, fmi2FMUstate state) {
+    model *m = c;
+    const char *why = state_invalid(state);
+    if (why) return FAIL(m, "fmi2SetFMUstate: %s; state unchanged", why);
+    memcpy(&m->s, state, sizeof m->s);
+    return fmi2OK;
+}
+
+static fmi2Status s_state_size(fmi2Component c, fmi2FMUstate state, size_t *size) {
+    (void)c, (void)state;
+    *size = sizeof(sysstate);
+    return fmi2OK;
+}
+
+static fmi2Status s_serialize(fmi2Component c, fmi2FMUstate state, fmi2Byte out[], size_t size) {
+    if (size != sizeof(sysstate))
+        return FAIL(c, "fmi2SerializeFMUstate: size = %zu, the state needs %zu bytes", size, sizeof(sysstate));
+    memcpy(out, state, size);
+    return fmi2OK;
+}
+
+static fmi2Status s_deserialize(fmi2Component c, const fmi2Byte in[], size_t size, fmi2FMUstate *state) {
+    model *m = c;
+    if (size != sizeof(sysstate))
+        return FAIL(m, "fmi2DeSerializeFMUstate: %zu bytes, but a state of this build has %zu; state "
+                    "unchanged", size, sizeof(sysstate));
+    sysstate *copy = malloc(sizeof *copy);
+    if (!copy) return FAIL(m, "fmi2DeSerializeFMUstate: out of memory");
+    memcpy(copy, in, size);
+    const char *why = state_invalid(copy);
+    if (why) {
+        free(copy);
+        return FAIL(m, "fmi2DeSerializeFMUstate: the bytes are corrupt (%s); state unchanged", why);
+    }
+    *state = copy;
+    return fmi2OK;
+}
+
+void sys_access_fill(hb_wrapper *w) {
+    w->GetReal = s_get_real;
+    w->SetReal = s_set_real;
+    w->GetInteger = s_get_integer;
+    w->SetInteger = s_set_integer;
+    hb_model_no_booleans_strings(w);
+    w->GetFMUstate = s_get_state;
+    w->SetFMUstate = s_set_state;
+    w->FreeFMUstate = hb_model_free_state;
+    w->SerializedFMUstateSize = s_state_size;
+    w->SerializeFMUstate = s_serialize;
+    w->DeSerializeFMUstate = s_deserialize;
+}
