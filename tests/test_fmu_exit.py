@@ -112,12 +112,14 @@ def test_a_few_process_runs_exit_0(packages, flavour, code, n):
     _assert_clean(_runs(code, packages[flavour], n))
 
 
+@pytest.mark.soak
 @pytest.mark.slow
 @pytest.mark.parametrize("flavour", ["front", "plain"])
 def test_a_hundred_simulate_ssp_runs_exit_0(packages, flavour):
     _assert_clean(_runs(SSP_RUN, packages[flavour], 100))
 
 
+@pytest.mark.soak
 @pytest.mark.slow
 def test_a_hundred_user_loops_exit_0(packages):
     _assert_clean(_runs(USER_LOOP, packages["plain"], 50) + _runs(USER_LOOP, packages["front"], 50))

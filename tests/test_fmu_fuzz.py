@@ -151,6 +151,7 @@ def test_fuzzed_states_never_crash_or_hang_the_host(fmu_fixture, request, tmp_pa
     _assert_exercised(counts, fmu_fixture)
 
 
+@pytest.mark.soak
 @pytest.mark.slow
 @pytest.mark.parametrize("fmu_fixture", ALL_FMUS)
 def test_ten_thousand_fuzzed_states_never_crash_or_hang_over_a_second(fmu_fixture, request, tmp_path):

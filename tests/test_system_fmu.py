@@ -279,6 +279,7 @@ def test_cli_refuses_bad_tolerance():
     assert r.returncode == 2 and "--tolerance 5.0 is out of range" in r.stderr and "Traceback" not in r.stderr
 
 
+@pytest.mark.soak
 @pytest.mark.slow
 @pytest.mark.parametrize("string_name,top,drills", [("field-2200m", "auto-driller", True),
                                                     ("field-2200m", "fixed", True), ("lab", "fixed", False)])
