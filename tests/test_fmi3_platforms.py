@@ -121,6 +121,6 @@ def test_linux_binaries_need_no_newer_glibc_than_2_17(fmu3_dir):
             continue
         out = subprocess.run([reader, "-T", str(so)], capture_output=True, text=True).stdout
         vers = {tuple(int(p) for p in v.split("_")[1].split(".")) for v in
-                (w for w in out.split() if w.startswith("GLIBC_") and w[6:7].isdigit())}
+                (w.strip("()") for w in out.split()) if v.startswith("GLIBC_") and v[6:7].isdigit()}
         newest[plat] = max(vers)
     assert newest and all(v <= (2, 17) for v in newest.values()), newest

@@ -45,7 +45,7 @@ ATOL_PER_RTOL = 1e-2
 def _sources():
     from hammerbit.fmu.native import FRONT_SOURCES, SOURCE_DIR
     return tuple(SOURCE_DIR / f for f in (*FRONT_SOURCES, "model_backend.c", "model_common.c", "model_system.c",
-                                          "model_system_access.c", "real_repr.c", "nrt_shim.c"))
+                                          "model_system_access.c", "real_repr.c", "nrt_shim.c", "glibc_compat.c"))
 
 
 #: C sources of the FMU (front, resource URIs, the system model, repr, runtime shim)

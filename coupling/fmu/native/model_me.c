@@ -87,6 +87,8 @@ static fmi2Status me_set_time(fmi2Component c, fmi2Real t) {
     model *m = c;
     if (!isfinite(t)) return hb_fail(m, fmi2Error, "fmi2SetTime: time = %g is not finite", t);
     m->s.t = t;
+    /* the kernel's clock follows the host's, so that a state saved now is consistent (tau = omega (t - t_start)) */
+    m->s.fst[HBK_F_T] = (t - m->s.t_start) * m->s.omega;
     return fmi2OK;
 }
 
