@@ -288,18 +288,7 @@ static fmi2Status s_exit_init(fmi2Component c) {
     return fmi2OK;
 }
 
-static fmi2Status s_terminate(fmi2Component c) {
-    sstate *s = ((model *)c)->s;
-    s->ready = 0;
-    s->terminated = 1;
-    snprintf(s->error, sizeof s->error, "terminated (fmi2Terminate)");
-    return fmi2OK;
-}
-
-static fmi2Status s_reset(fmi2Component c) {
-    set_start_values(c);
-    return fmi2OK;
-}
+HB_MODEL_TERMINATE_RESET(((model *)c)->s)
 
 /* ------------------------------------------------------------------------------------------ */
 /* fmi2DoStep                                                                                   */
@@ -308,19 +297,9 @@ static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
     (void)no_prior;
     model *m = c;
     sstate *s = m->s;
-    char a[40], b2[40];
-    if (!s->ready) return FAIL(m, "fmi2DoStep refused: %s", s->error);
-    if (!(0.0 < h && h < INFINITY)) {
-        hb_repr(h, a, sizeof a);
-        return FAIL(m, "communication step size h = %s s is invalid: it must be > 0 and finite; step "
-                    "refused, state unchanged", a);
-    }
-    if (t != s->t && !(fabs(t - s->t) <= HS_TIME_TOLERANCE * fmax(fabs(s->t), h))) {
-        hb_repr(t, a, sizeof a);
-        hb_repr(s->t, b2, sizeof b2);
-        return FAIL(m, "currentCommunicationPoint = %s s is not the current time of the FMU, %s s; step "
-                    "refused, state unchanged", a, b2);
-    }
+    char a[40];
+    if (hb_model_step_check(m, s->ready ? NULL : s->error, s->t, t, h, HS_TIME_TOLERANCE) != fmi2OK)
+        return fmi2Error;
     char why[256];
     const block *b = find_block(m, s->form, h, why, sizeof why);
     if (!b) {
@@ -361,12 +340,7 @@ static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
 /* The model's functions for the backend table (model.h)                                        */
 /* ------------------------------------------------------------------------------------------ */
 void hb_model_fill(hb_wrapper *w) {
-    w->FreeInstance = s_free_instance;
-    w->SetupExperiment = s_setup_experiment;
-    w->EnterInitializationMode = hb_model_no_op;
-    w->ExitInitializationMode = s_exit_init;
-    w->Terminate = s_terminate;
-    w->Reset = s_reset;
+    hb_model_fill_life_cycle(w, s_free_instance, s_setup_experiment, s_exit_init, s_terminate, s_reset);
     hs_access_fill(w);
     w->DoStep = s_do_step;
     w->Instantiate = s_instantiate;

@@ -35,7 +35,7 @@ static double *real_slot(sstate *s, fmi2ValueReference vr, int *settable) {
     }
 }
 
-static fmi2Status s_get_real(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[]) {
+HB_GET_REAL(s_get_real) {
     model *m = c;
     int settable;
     for (size_t i = 0; i < nvr; i++) {
@@ -54,8 +54,7 @@ static fmi2Status s_get_real(fmi2Component c, const fmi2ValueReference vr[], siz
     return fmi2OK;
 }
 
-static fmi2Status s_set_real(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                             const fmi2Real value[]) {
+HB_SET_REAL(s_set_real) {
     model *m = c;
     int settable;
     for (size_t i = 0; i < nvr; i++) {   /* the front checked settability: all or none */
@@ -66,22 +65,21 @@ static fmi2Status s_set_real(fmi2Component c, const fmi2ValueReference vr[], siz
     return fmi2OK;
 }
 
-static fmi2Status s_get_integer(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                                fmi2Integer value[]) {
-    model *m = c;
-    for (size_t i = 0; i < nvr; i++) {
-        switch (vr[i]) {
-        case HS_VR_extrapolation: value[i] = m->s->extrapolation; break;
-        case HS_VR_top_condition: value[i] = m->s->top_condition; break;
-        case HS_VR_string_states: value[i] = HS_STRING_STATES; break;
-        default: return FAIL(m, "fmi2GetInteger: unknown value reference %u", vr[i]);
-        }
+static int string_integer(const void *m, fmi2ValueReference vr, fmi2Integer *out) {
+    const sstate *s = ((const model *)m)->s;
+    switch (vr) {
+    case HS_VR_extrapolation: *out = s->extrapolation; return 1;
+    case HS_VR_top_condition: *out = s->top_condition; return 1;
+    case HS_VR_string_states: *out = HS_STRING_STATES; return 1;
+    default: return 0;
     }
-    return fmi2OK;
 }
 
-static fmi2Status s_set_integer(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                                const fmi2Integer value[]) {
+HB_GET_INTEGER(s_get_integer) {
+    return hb_model_get_integers(c, vr, nvr, value, string_integer);
+}
+
+HB_SET_INTEGER(s_set_integer) {
     model *m = c;
     for (size_t i = 0; i < nvr; i++)
         if (vr[i] != HS_VR_extrapolation && vr[i] != HS_VR_top_condition)
@@ -181,33 +179,16 @@ static fmi2Status s_serialize(fmi2Component c, fmi2FMUstate state, fmi2Byte out[
     return fmi2OK;
 }
 
+/* state_invalid for hb_model_deserialize */
+static const char *block_invalid(const void *m, const void *state) {
+    return state_invalid(m, state);
+}
+
 static fmi2Status s_deserialize(fmi2Component c, const fmi2Byte in[], size_t size, fmi2FMUstate *state) {
-    model *m = c;
-    if (size != m->size)
-        return FAIL(m, "fmi2DeSerializeFMUstate: %zu bytes, but a state of this build has %zu; state "
-                    "unchanged", size, m->size);
-    sstate *copy = malloc(m->size);
-    if (!copy) return FAIL(m, "fmi2DeSerializeFMUstate: out of memory");
-    memcpy(copy, in, m->size);
-    const char *why = state_invalid(m, copy);
-    if (why) {
-        free(copy);
-        return FAIL(m, "fmi2DeSerializeFMUstate: the bytes are corrupt (%s); state unchanged", why);
-    }
-    *state = copy;
-    return fmi2OK;
+    return hb_model_deserialize(c, in, size, ((model *)c)->size, block_invalid, state);
 }
 
 void hs_access_fill(hb_wrapper *w) {
-    w->GetReal = s_get_real;
-    w->SetReal = s_set_real;
-    w->GetInteger = s_get_integer;
-    w->SetInteger = s_set_integer;
-    hb_model_no_booleans_strings(w);
-    w->GetFMUstate = s_get_state;
-    w->SetFMUstate = s_set_state;
-    w->FreeFMUstate = hb_model_free_state;
-    w->SerializedFMUstateSize = s_state_size;
-    w->SerializeFMUstate = s_serialize;
-    w->DeSerializeFMUstate = s_deserialize;
+    hb_model_fill_values(w, s_get_real, s_set_real, s_get_integer, s_set_integer);
+    hb_model_fill_states(w, s_get_state, s_set_state, s_state_size, s_serialize, s_deserialize);
 }

@@ -106,6 +106,9 @@ static void s_free_instance(fmi2Component c) {
 
 /* the largest |time| a run may reach [s] (the kernels' time range, with margin) */
 #define SYS_TIME_LIMIT 1e9
+/* a communication point within this fraction of max(|t|, h) of the FMU's time t is t (a master's
+ * summed step sizes drift by rounding) */
+#define SYS_TIME_TOLERANCE 1e-9
 /* the shortest advance the solver is asked for [s]: a master's leftover sliver (1e-13 s to land on
  * an output point) moves the FMU's clock only, and the solver catches up at the next step, so that
  * slivers leave its steps and events as they would be without them */
@@ -161,18 +164,7 @@ static fmi2Status s_exit_init(fmi2Component c) {
     return fmi2OK;
 }
 
-static fmi2Status s_terminate(fmi2Component c) {
-    sysstate *s = &((model *)c)->s;
-    s->ready = 0;
-    s->terminated = 1;
-    snprintf(s->error, sizeof s->error, "terminated (fmi2Terminate)");
-    return fmi2OK;
-}
-
-static fmi2Status s_reset(fmi2Component c) {
-    set_start_values(c);
-    return fmi2OK;
-}
+HB_MODEL_TERMINATE_RESET(&((model *)c)->s)
 
 /* ------------------------------------------------------------------------------------------ */
 /* fmi2DoStep                                                                                   */
@@ -181,19 +173,9 @@ static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
     (void)no_prior;
     model *m = c;
     sysstate *s = &m->s;
-    char a[40], b[40];
-    if (!s->ready) return FAIL(m, "fmi2DoStep refused: %s", s->error);
-    if (!(0.0 < h && h < INFINITY)) {
-        hb_repr(h, a, sizeof a);
-        return FAIL(m, "communication step size h = %s s is invalid: it must be > 0 and finite; step "
-                    "refused, state unchanged", a);
-    }
-    if (t != s->t && !(fabs(t - s->t) <= 1e-9 * fmax(fabs(s->t), h))) {
-        hb_repr(t, a, sizeof a);
-        hb_repr(s->t, b, sizeof b);
-        return FAIL(m, "currentCommunicationPoint = %s s is not the current time of the FMU, %s s; step "
-                    "refused, state unchanged", a, b);
-    }
+    char a[40];
+    if (hb_model_step_check(m, s->ready ? NULL : s->error, s->t, t, h, SYS_TIME_TOLERANCE) != fmi2OK)
+        return fmi2Error;
     if (!(fabs(s->t + h) <= SYS_TIME_LIMIT)) {
         hb_repr(s->t + h, a, sizeof a);
         return FAIL(m, "the step would end at t = %s s, beyond the FMU's time range [-1e9, 1e9] s; step "
@@ -240,12 +222,7 @@ static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
 /* The model's functions for the backend table (model.h)                                        */
 /* ------------------------------------------------------------------------------------------ */
 void hb_model_fill(hb_wrapper *w) {
-    w->FreeInstance = s_free_instance;
-    w->SetupExperiment = s_setup_experiment;
-    w->EnterInitializationMode = hb_model_no_op;
-    w->ExitInitializationMode = s_exit_init;
-    w->Terminate = s_terminate;
-    w->Reset = s_reset;
+    hb_model_fill_life_cycle(w, s_free_instance, s_setup_experiment, s_exit_init, s_terminate, s_reset);
     sys_access_fill(w);
     w->DoStep = s_do_step;
     w->Instantiate = s_instantiate;

@@ -68,7 +68,7 @@ static const double *real_output(const sysstate *s, fmi2ValueReference vr) {
     }
 }
 
-static fmi2Status s_get_real(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[]) {
+HB_GET_REAL(s_get_real) {
     model *m = c;
     for (size_t i = 0; i < nvr; i++) {
         int k = input_index(vr[i]);
@@ -79,8 +79,7 @@ static fmi2Status s_get_real(fmi2Component c, const fmi2ValueReference vr[], siz
     return fmi2OK;
 }
 
-static fmi2Status s_set_real(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                             const fmi2Real value[]) {
+HB_SET_REAL(s_set_real) {
     model *m = c;
     char why[512];
     for (size_t i = 0; i < nvr; i++) {      /* all checked first: a refused call changes nothing */
@@ -98,24 +97,23 @@ static fmi2Status s_set_real(fmi2Component c, const fmi2ValueReference vr[], siz
     return fmi2OK;
 }
 
-static fmi2Status s_get_integer(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                                fmi2Integer value[]) {
-    model *m = c;
-    for (size_t i = 0; i < nvr; i++) {
-        switch (vr[i]) {
-        case HSYS_VR_stick_slip: value[i] = (fmi2Integer)m->s.stick_slip; break;
-        case HSYS_VR_impact_count: value[i] = (fmi2Integer)m->s.impact_count; break;
-        case HSYS_VR_slip_count: value[i] = (fmi2Integer)m->s.slip_count; break;
-        case HSYS_VR_regime: value[i] = (fmi2Integer)m->s.regime; break;
-        default: return FAIL(m, "fmi2GetInteger: unknown value reference %u", vr[i]);
-        }
+static int system_integer(const void *m, fmi2ValueReference vr, fmi2Integer *out) {
+    const sysstate *s = &((const model *)m)->s;
+    switch (vr) {
+    case HSYS_VR_stick_slip: *out = (fmi2Integer)s->stick_slip; return 1;
+    case HSYS_VR_impact_count: *out = (fmi2Integer)s->impact_count; return 1;
+    case HSYS_VR_slip_count: *out = (fmi2Integer)s->slip_count; return 1;
+    case HSYS_VR_regime: *out = (fmi2Integer)s->regime; return 1;
+    default: return 0;
     }
-    return fmi2OK;
 }
 
-static fmi2Status s_set_integer(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                                const fmi2Integer v[]) {
-    (void)vr, (void)v;
+HB_GET_INTEGER(s_get_integer) {
+    return hb_model_get_integers(c, vr, nvr, value, system_integer);
+}
+
+HB_SET_INTEGER(s_set_integer) {
+    (void)vr, (void)value;
     return nvr ? FAIL(c, "fmi2SetInteger: the model has no Integer input or parameter") : fmi2OK;
 }
 
@@ -219,33 +217,17 @@ static fmi2Status s_serialize(fmi2Component c, fmi2FMUstate state, fmi2Byte out[
     return fmi2OK;
 }
 
+/* state_invalid for hb_model_deserialize: the system's checks need no instance */
+static const char *checked(const void *m, const void *state) {
+    (void)m;
+    return state_invalid(state);
+}
+
 static fmi2Status s_deserialize(fmi2Component c, const fmi2Byte in[], size_t size, fmi2FMUstate *state) {
-    model *m = c;
-    if (size != sizeof(sysstate))
-        return FAIL(m, "fmi2DeSerializeFMUstate: %zu bytes, but a state of this build has %zu; state "
-                    "unchanged", size, sizeof(sysstate));
-    sysstate *copy = malloc(sizeof *copy);
-    if (!copy) return FAIL(m, "fmi2DeSerializeFMUstate: out of memory");
-    memcpy(copy, in, size);
-    const char *why = state_invalid(copy);
-    if (why) {
-        free(copy);
-        return FAIL(m, "fmi2DeSerializeFMUstate: the bytes are corrupt (%s); state unchanged", why);
-    }
-    *state = copy;
-    return fmi2OK;
+    return hb_model_deserialize(c, in, size, sizeof(sysstate), checked, state);
 }
 
 void sys_access_fill(hb_wrapper *w) {
-    w->GetReal = s_get_real;
-    w->SetReal = s_set_real;
-    w->GetInteger = s_get_integer;
-    w->SetInteger = s_set_integer;
-    hb_model_no_booleans_strings(w);
-    w->GetFMUstate = s_get_state;
-    w->SetFMUstate = s_set_state;
-    w->FreeFMUstate = hb_model_free_state;
-    w->SerializedFMUstateSize = s_state_size;
-    w->SerializeFMUstate = s_serialize;
-    w->DeSerializeFMUstate = s_deserialize;
+    hb_model_fill_values(w, s_get_real, s_set_real, s_get_integer, s_set_integer);
+    hb_model_fill_states(w, s_get_state, s_set_state, s_state_size, s_serialize, s_deserialize);
 }
