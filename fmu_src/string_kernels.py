@@ -40,10 +40,19 @@ N_COEFFS = 6
 HAMMER_ARG = 5
 #: the held force of a next step of the same length in the exchange's returned tuple
 EXCHANGE_HELD = 3
-#: a step shorter than this fraction of the history's newest spacing (a master's leftover step to
-#: land on an output point) replaces the newest point instead of shifting the history: divided
-#: differences over a tiny spacing would amplify the rounding of the hammer's motion
+#: in the FMI form (a user's master drives the string FMU), a step shorter than this fraction of
+#: the history's newest spacing (a master's leftover step to land on an output point) replaces
+#: the newest point instead of shifting the history: divided differences over a tiny spacing
+#: would amplify the rounding of the hammer's motion.  The library's own adaptive master never
+#: takes leftover steps, and its short steps after a rejection are real steps whose new input
+#: the extrapolation must go through, so the rule is the FMI form's only
 HISTORY_SPACING = 1e-2
+
+
+@njit(cache=True)
+def is_leftover(scheme, h, newest_spacing):
+    """Whether a step of length ``h`` is a master's leftover step (see :data:`HISTORY_SPACING`)."""
+    return scheme.fmi and h < HISTORY_SPACING * newest_spacing
 
 
 # ---------------------------------------------------------------------------
@@ -298,7 +307,7 @@ def exchange_begin(scheme, h, iface, hist, hammer):
     a2 = th[1] - th[2]
     V = iface.feed[0]
     u_top = V * (th[0] - iface.feed[1])
-    if not h < HISTORY_SPACING * a:
+    if not is_leftover(scheme, h, a):
         taylor_coefficients(scheme.gauss_seidel, scheme.order, a, a2, h, hist.wh, hammer.x_new, hammer.v_new,
                             c)
         c[0] -= u_top
@@ -325,7 +334,7 @@ def exchange_end(scheme, h, iface, hist, hammer, u_top, F_start, imp, f_xi):
     F = F_end if scheme.fmi else W + f_xi - ki * (x_new - (u_top + V * h)) - ci * (v_new - V)
     # a leftover step (shorter than HISTORY_SPACING of the newest spacing) moves the newest point
     # instead of adding one: the history keeps spacings that divided differences can take
-    shift = not h < HISTORY_SPACING * (th[0] - th[1])
+    shift = not is_leftover(scheme, h, th[0] - th[1])
     if shift:
         for j in (2, 1):
             th[j] = th[j - 1]

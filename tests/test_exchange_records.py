@@ -70,6 +70,33 @@ def test_exchange_returns_its_outputs_and_the_held_force_of_a_next_step(dense, o
         assert held == pytest.approx(mean_of_polynomial(order, th, Fh, h), rel=1e-12)
 
 
+@pytest.mark.parametrize("fmi", [False, True], ids=["library", "fmi-form"])
+def test_a_short_step_is_a_point_of_the_history_except_as_a_leftover_in_the_fmi_form(fmi):
+    """A step far shorter than the last (the adaptive master's step after a rejection) adds a
+    point to the history, so the next extrapolation goes through its new input; only the FMI
+    form (a user's master landing on an output point) takes it as a leftover that moves the
+    newest point instead."""
+    side = _small_side(False)
+    state = StringState(side, 1e-3)
+    th = np.array([0.0, -1e-3, -2e-3])
+    hist = ExchangeHistory(th, np.zeros((3, 2)), np.array([5.0e4, 5.2e4, 4.9e4]), np.zeros(4), np.zeros(6))
+    scheme = ExchangeScheme(False, 2, fmi)
+    iface = Interface(side.ki, side.ci, 5e4, np.zeros(2))
+    t = 0.0
+    for h in [1e-3, 1e-3, 2e-6, 1e-3]:
+        d = side.discretisation(h)
+        form = ModalForm(d.m_d, d.m_G, d.m_irow, d.m_icol, state.v, side.m_frow)
+        newest = th[0]
+        exchange_step(scheme, h, form, iface, hist, HammerStep(1e-6, 1e-4, 5e4))
+        t += h
+        assert th[0] == pytest.approx(t, abs=1e-15)           # the newest point is the step's end
+        leftover = fmi and h < 1e-5
+        if leftover:                                          # the newest point moved: spacings that a
+            assert th[1] < newest and th[0] - th[1] > 1e-3    # divided difference can take
+        else:
+            assert th[1] == newest                            # a point added
+
+
 class _Hammer:
     """A hammer side on a prescribed smooth trajectory, with a state (its time) to roll back."""
 

@@ -370,10 +370,6 @@ def test_cosim_runaway_from_a_drift_that_accelerates_and_not_from_a_steady_one()
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=False, reason="known regression of the merged master: the adaptive co-simulation of this "
-                   "runaway stops with 'coupling unstable' at t = 2.8 s (exit 3) since the exchange kernel's "
-                   "leftover-step rule (string_kernels.HISTORY_SPACING) met the adaptive master; with the rule "
-                   "off it runs and is flagged runaway")
 def test_the_cosim_above_the_sliding_capacity_is_warned_before_and_flagged_after(capsys):
     """The issue's run: warned before the run (with the capacity in N), flagged in the JSON and on
     stderr after it."""
