@@ -1,0 +1,239 @@
+"""Output derivatives of the native HammerBitRock.fmu (fmi2GetRealOutputDerivatives, FMI 3's
+fmi3GetOutputDerivatives) and the input derivatives of the native Drillstring.fmu.
+
+Oracle: finite differences of a fine-step run of the same FMU at a tight tolerance (a polynomial
+through the outputs at five points ``t + k eps`` inside one hybrid mode), in slip, stick and
+contact.  The derivatives come from the vector field and its closed-form derivative; the
+finite differences only from the outputs, so they share no formula.  Their own error is measured
+by the same fit over twice the spacing.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+fmpy = pytest.importorskip("fmpy")
+from fmpy.fmi1 import FMICallException  # noqa: E402
+
+from hammerbit.fmu.host import FMUInstance  # noqa: E402
+from hammerbit.model.presets import preset  # noqa: E402
+
+#: the Real outputs of HammerBitRock
+OUTPUTS = ("hammer_position", "hammer_velocity", "bit_position", "bit_velocity", "spring_force",
+           "contact_force", "rock_force", "friction_force", "rate_of_penetration")
+#: points of the finite-difference fit
+N_FIT = 5
+#: fine steps of the oracle per mode [s]: the contact's time scale is far shorter than the free flight's
+FD_STEP = {"slip": 1e-5, "stick": 1e-5, "contact": 2e-7}
+RIG_NAMES = ("hammer_mass", "bit_mass", "stiffness", "damping", "mu_static", "mu_kinetic", "friction_decay",
+             "normal_force", "contact_stiffness", "contact_exponent", "contact_damping", "amplitude",
+             "frequency", "phase", "preload")
+
+
+def impact_values() -> dict:
+    """FMU start values of paper Fig. 12 at a = 0.06 (impacts, stick and slip), tolerance 1e-12."""
+    rig = preset("paper-fig12").replace(a=0.06).to_rig()
+    sv = {n: getattr(rig, n) for n in RIG_NAMES}
+    sv.update(gap=rig.gap, tolerance=1e-12)
+    return sv
+
+
+def open_hammer(fmu) -> FMUInstance:
+    return FMUInstance(fmu, "hammer", reals=impact_values(), booleans={"impact_enabled": True})
+
+
+def mode_of(inst) -> tuple:
+    """(kind, everything discrete): the hybrid mode and the counters."""
+    stick_slip, impacts, slips, bounces = inst.get_int("stick_slip", "impact_count", "slip_count",
+                                                      "bounce_count")
+    contact = bool(inst.get_bool("in_contact")[0])
+    kind = "contact" if contact else ("slip" if stick_slip == 1 else "stick")
+    return kind, (stick_slip, impacts, slips, bounces, contact)
+
+
+def fd_derivatives(inst, eps: float):
+    """Orders 1 and 2 of the outputs at the instance's time from the outputs at t + k eps
+    (k < N_FIT), or None if a mode changes on the way; the instance is rolled back."""
+    f = inst.fmu
+    state, t0 = f.getFMUState(), inst.t
+    _, discrete = mode_of(inst)
+    rows, same = [inst.get(*OUTPUTS)], True
+    for _ in range(1, N_FIT):
+        inst.step(eps)
+        rows.append(inst.get(*OUTPUTS))
+        same = same and mode_of(inst)[1] == discrete
+    f.setFMUState(state)
+    f.freeFMUState(state)
+    inst.set_time(t0)
+    if not same:
+        return None
+    s = np.arange(N_FIT) * eps
+    taylor = np.array([[sk ** j / math.factorial(j) for j in range(N_FIT)] for sk in s])
+    c = np.linalg.solve(taylor, np.array(rows))
+    return c[1], c[2]
+
+
+def points_by_mode(inst, t_min=0.05, t_max=1.0, h=2e-4) -> dict:
+    """{mode: (t, fmu derivatives of orders 1 and 2, their finite differences, the finite
+    differences over twice the spacing)} at the first point of each mode whose fit stays in it."""
+    vrs = [inst.vr[n] for n in OUTPUTS]
+    found = {}
+    while inst.t < t_max and len(found) < 3:
+        inst.step(h)
+        kind, _ = mode_of(inst)
+        if kind in found or inst.t < t_min:
+            continue
+        eps = FD_STEP[kind]
+        fd, fd2 = fd_derivatives(inst, eps), fd_derivatives(inst, 2 * eps)
+        if fd is None or fd2 is None:
+            continue
+        got = [np.array(inst.fmu.getRealOutputDerivatives(vrs, [k] * len(vrs))) for k in (1, 2)]
+        found[kind] = (inst.t, got, fd, fd2)
+    return found
+
+
+@pytest.fixture(scope="module")
+def mode_points(built_native_fmu):
+    inst = open_hammer(built_native_fmu)
+    try:
+        return points_by_mode(inst)
+    finally:
+        inst.close()
+
+
+def test_description_declares_order_2(built_native_fmu, built_fmu):
+    from fmpy import read_model_description
+    assert read_model_description(str(built_native_fmu)).coSimulation.maxOutputDerivativeOrder == 2
+    # the pythonfmu flavour declares none
+    assert not read_model_description(str(built_fmu)).coSimulation.maxOutputDerivativeOrder
+
+
+@pytest.mark.parametrize("kind", ["slip", "stick", "contact"])
+@pytest.mark.parametrize("order", [1, 2])
+def test_derivatives_equal_finite_differences(mode_points, kind, order):
+    assert kind in mode_points, f"the run reached no {kind} point: {sorted(mode_points)}"
+    t, got, fd, fd2 = mode_points[kind]
+    g, d = got[order - 1], fd[order - 1]
+    # the finite differences' own error: their change from the spacing eps to 2 eps
+    fd_err = np.abs(fd[order - 1] - fd2[order - 1])
+    # and their rounding: the run's tolerance 1e-12 over eps^order
+    tol = (1e-8, 1e-6)[order - 1] * np.abs(d) + 4.0 * fd_err + 1e-12
+    bad = [f"{n}: {a!r} vs {b!r} (tolerance {e:.2g})" for n, a, b, e in zip(OUTPUTS, g, d, tol)
+           if not abs(a - b) <= e]
+    assert not bad, f"{kind} at t = {t} s, order {order}: " + "; ".join(bad)
+    # the oracle resolves the derivatives it checks: the kinematic ones to 1e-6 (order 1) and
+    # 1e-3 (order 2) or better
+    kin = np.abs(d[:4])
+    assert np.all(fd_err[:4] <= (1e-6, 1e-3)[order - 1] * kin + 1e-12), (kind, order, fd_err[:4], kin)
+
+
+def test_stick_has_no_bit_motion_and_friction_is_the_reaction(mode_points):
+    t, got, _, _ = mode_points["stick"]
+    i = {n: k for k, n in enumerate(OUTPUTS)}
+    for order in (0, 1):
+        assert got[order][i["bit_position"]] == 0.0 and got[order][i["bit_velocity"]] == 0.0
+        assert got[order][i["friction_force"]] == got[order][i["rock_force"]]
+
+
+def _refused(inst, vrs, orders, text):
+    with pytest.raises(FMICallException):
+        inst.fmu.getRealOutputDerivatives(vrs, orders)
+    assert any(text in m for m in inst.errors()), inst.errors()
+
+
+@pytest.mark.parametrize("case", ["order 3", "order 0", "parameter", "integer output"])
+def test_refusals_are_errors_with_a_message(built_native_fmu, case):
+    inst = open_hammer(built_native_fmu)
+    try:
+        inst.step(1e-3)
+        if case == "order 3":
+            _refused(inst, [inst.vr["hammer_position"]], [3], "order[0] = 3 is out of range: allowed 1, 2")
+        elif case == "order 0":
+            _refused(inst, [inst.vr["hammer_velocity"]], [0], "order[0] = 0 is out of range")
+        elif case == "parameter":
+            _refused(inst, [inst.vr["stiffness"]], [1], "is not a Real output")
+        else:
+            _refused(inst, [inst.vr["impact_count"]], [1], "not a Real")
+    finally:
+        inst.close()
+
+
+def test_asking_changes_nothing(built_native_fmu):
+    """Two runs, one asked for every derivative after every step, end bit-identical."""
+    a, b = open_hammer(built_native_fmu), open_hammer(built_native_fmu)
+    vrs = [a.vr[n] for n in OUTPUTS]
+    try:
+        for _ in range(300):
+            for inst in (a, b):
+                inst.step(1e-3)
+            a.fmu.getRealOutputDerivatives(vrs + vrs, [1] * len(vrs) + [2] * len(vrs))
+        assert a.get(*OUTPUTS) == b.get(*OUTPUTS)
+    finally:
+        a.close()
+        b.close()
+
+
+def test_pythonfmu_flavour_refuses(built_fmu):
+    inst = FMUInstance(built_fmu, "hammer")
+    try:
+        inst.step(1e-3)
+        _refused(inst, [inst.vr["hammer_position"]], [1], "maxOutputDerivativeOrder = 0")
+    finally:
+        inst.close()
+
+
+# ---------------------------------------------------------------------------------------------
+# FMI 3.0: fmi3GetOutputDerivatives
+# ---------------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def fmu3_dir(tmp_path_factory):
+    import zipfile
+
+    from hammerbit.fmu.build import build_fmu
+    from hammerbit.fmu.native import FrontBuildError, find_compiler
+    try:
+        find_compiler()
+    except FrontBuildError as e:
+        pytest.skip(str(e))
+    fmu = build_fmu(tmp_path_factory.mktemp("fmi3") / "HammerBitRock.fmu", runtime="native", fmi_version=3)
+    d = tmp_path_factory.mktemp("fmi3_unzipped")
+    with zipfile.ZipFile(fmu) as zf:
+        zf.extractall(d)
+    return d
+
+
+def test_fmi3_derivatives_are_fmi2s(fmu3_dir, built_native_fmu):
+    """The FMI 3.0 front gives the FMI 2.0 front's derivatives (one model layer), after a run
+    through impacts; it declares order 2 and refuses order 3 and a non-output."""
+    from fmpy import read_model_description
+    from fmpy.fmi3 import FMU3Slave
+    md = read_model_description(str(fmu3_dir / "modelDescription.xml"))
+    assert md.coSimulation.maxOutputDerivativeOrder == 2
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    s = FMU3Slave(guid=md.guid, unzipDirectory=str(fmu3_dir), modelIdentifier=md.coSimulation.modelIdentifier,
+                  instanceName="d3")
+    s.instantiate()
+    s.enterInitializationMode(startTime=0.0)
+    for name, v in impact_values().items():
+        s.setFloat64([vr[name]], [float(v)])
+    s.setBoolean([vr["impact_enabled"]], [True])
+    s.exitInitializationMode()
+    two = open_hammer(built_native_fmu)
+    vrs3, vrs2 = [vr[n] for n in OUTPUTS], [two.vr[n] for n in OUTPUTS]
+    try:
+        t = 0.0
+        for _ in range(240):
+            s.doStep(t, 1e-3)
+            two.step(1e-3)
+            t += 1e-3
+        for order in (1, 2):
+            got3 = s.getOutputDerivatives(vrs3, [order] * len(vrs3))
+            got2 = two.fmu.getRealOutputDerivatives(vrs2, [order] * len(vrs2))
+            assert got3 == got2
+        with pytest.raises(FMICallException):
+            s.getOutputDerivatives([vr["hammer_position"]], [3])
+    finally:
+        s.freeInstance()              # the refusal left it in the Error state: no fmi3Terminate
+        two.close()
