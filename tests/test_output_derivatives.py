@@ -237,3 +237,65 @@ def test_fmi3_derivatives_are_fmi2s(fmu3_dir, built_native_fmu):
     finally:
         s.freeInstance()              # the refusal left it in the Error state: no fmi3Terminate
         two.close()
+
+
+# ---------------------------------------------------------------------------------------------
+# Drillstring.fmu: fmi2SetRealInputDerivatives (canInterpolateInputs)
+# ---------------------------------------------------------------------------------------------
+STRING_OUTPUTS = ("interface_force", "hook_load", "top_position", "top_velocity")
+#: the hammer's acceleration of the polynomial motion [m/s^2]
+ACCEL = 0.3
+
+
+def string_run(fmu, h: float, stop: float, derivatives: bool) -> np.ndarray:
+    """The string's outputs every 1 ms to ``stop`` with the hammer moving as
+    x = x_rest + ACCEL t^2 / 2 from rest, stepped by ``h``; with ``derivatives`` its input derivatives
+    are set before every step (else the string's own extrapolation)."""
+    inst = FMUInstance(fmu, "string")
+    rows = []
+    try:
+        x_rest = inst.get("hammer_position_at_rest")[0]
+        vx, vv = inst.vr["hammer_position"], inst.vr["hammer_velocity"]
+        n_out, per = int(round(stop / 1e-3)), int(round(1e-3 / h))
+        for k in range(n_out * per):
+            t = k * h
+            inst.set(hammer_position=x_rest + 0.5 * ACCEL * t * t, hammer_velocity=ACCEL * t)
+            if derivatives:
+                inst.fmu.setRealInputDerivatives([vx, vv, vx, vv], [1, 1, 2, 2], [ACCEL * t, ACCEL, ACCEL, 0.0])
+            inst.step(h)
+            if (k + 1) % per == 0:
+                rows.append(inst.get(*STRING_OUTPUTS))
+    finally:
+        inst.close()
+    return np.array(rows)
+
+
+def test_string_declares_interpolation(built_native_string_fmu):
+    from fmpy import read_model_description
+    assert read_model_description(str(built_native_string_fmu)).coSimulation.canInterpolateInputs
+
+
+def test_string_is_exact_for_a_polynomial_motion(built_native_string_fmu):
+    """A hammer motion that is its own Taylor polynomial: with its input derivatives the string's
+    step is exact, so 1 ms and 0.1 ms steps give one answer; held inputs do not."""
+    stop = 0.05
+    coarse = string_run(built_native_string_fmu, 1e-3, stop, True)
+    fine = string_run(built_native_string_fmu, 1e-4, stop, True)
+    held = string_run(built_native_string_fmu, 1e-3, stop, False)
+    scale = np.max(np.abs(fine), axis=0) + 1e-300
+    assert np.max(np.abs(coarse - fine) / scale) < 1e-9
+    # the string's own extrapolation through the past inputs is not exact over the first steps
+    assert np.max(np.abs(held - fine) / scale) > 1e-6
+
+
+@pytest.mark.parametrize("case", ["order 3", "a parameter"])
+def test_string_refuses_bad_input_derivatives(built_native_string_fmu, case):
+    inst = FMUInstance(built_native_string_fmu, "string")
+    try:
+        vr = inst.vr["hammer_position"] if case == "order 3" else inst.vr["wob"]
+        with pytest.raises(FMICallException):
+            inst.fmu.setRealInputDerivatives([vr], [3 if case == "order 3" else 1], [1.0])
+        said = "order[0] = 3 is out of range: allowed 1, 2" if case == "order 3" else "wob"
+        assert any(said in m for m in inst.errors()), inst.errors()
+    finally:
+        inst.close()
