@@ -299,3 +299,51 @@ def test_string_refuses_bad_input_derivatives(built_native_string_fmu, case):
         assert any(said in m for m in inst.errors()), inst.errors()
     finally:
         inst.close()
+
+
+# ---------------------------------------------------------------------------------------------
+# the fixed-step Jacobi masters: the hammer's output derivatives into the string
+# ---------------------------------------------------------------------------------------------
+#: the runs of the masters [s] and their step
+MASTER_STOP, MASTER_STEP = 0.2, 1e-3
+
+
+@pytest.fixture(scope="module")
+def master_runs(built_native_ssp):
+    """Penetrations of the user loop (through both FMUs) and of ``cosim --ssp`` (the string side in
+    process), with and without output derivatives."""
+    from hammerbit.ssp.run import cosimulate_ssp
+    from hammerbit.ssp.runners import run_user_loop
+    out = {}
+    for given in (False, True):
+        out["loop", given] = run_user_loop(built_native_ssp, MASTER_STOP, MASTER_STEP,
+                                           output_derivatives=given).penetration_m
+        out["cosim", given] = cosimulate_ssp(built_native_ssp, stop=MASTER_STOP, step=MASTER_STEP, adaptive=False,
+                                             estimate=False, output_derivatives=given).penetration_m
+    return out
+
+
+def test_both_masters_pass_the_same_derivatives(master_runs):
+    """The Drillstring FMU's input derivatives and the in-process string side's given polynomial are
+    two implementations of one exchange: the same run to rounding; without derivatives another."""
+    on_loop, on_cosim = master_runs["loop", True], master_runs["cosim", True]
+    off = master_runs["loop", False]
+    assert off > 1e-4                                     # the bit moved
+    assert abs(on_loop - on_cosim) <= 1e-9 * on_cosim, (on_loop, on_cosim)
+    assert abs(on_loop - off) > 1e-6 * off, (on_loop, off)
+
+
+def test_cli_output_derivatives(built_native_ssp, built_ssp, capsys):
+    from cli_run import run_cli
+    base = ["cosim", "--ssp", str(built_native_ssp), "--step", "1e-3", "--stop", "0.05", "--json"]
+    code, out, err = run_cli(base + ["--output-derivatives"], capsys)
+    assert code in (0, 5), err
+    assert '"output_derivatives": true' in out
+    # the pythonfmu package has none: refused before the run, naming the option
+    code, out, err = run_cli(["cosim", "--ssp", str(built_ssp), "--step", "1e-3", "--stop", "0.05",
+                              "--output-derivatives"], capsys)
+    assert code == 2 and "--output-derivatives" in err and "maxOutputDerivativeOrder = 0" in err
+    assert "Traceback" not in err
+    # without --step (the adaptive run) it is refused
+    code, out, err = run_cli(["cosim", "--ssp", str(built_native_ssp), "--output-derivatives"], capsys)
+    assert code == 2 and "--output-derivatives" in err and "Traceback" not in err
