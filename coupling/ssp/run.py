@@ -133,7 +133,7 @@ def cosimulate_ssp(path, **config):
     system = load_ssp(path, **config)
     try:
         if system.config.output_derivatives and (order := hammer_output_derivative_order(system)) < 2:
-            raise ValueError(f"--output-derivatives: the package's {HAMMER}.fmu declares "
+            raise ValueError(f"--output-derivatives: the package's {HAMMER} ({system.hammer_fmu.name}) declares "
                              f"maxOutputDerivativeOrder = {order} (the pythonfmu flavour has none); build the "
                              f"package with `hammerbit ssp build --runtime native`")
         return cosimulate(None, system.config, fmu=str(system.hammer_fmu), side=_side(system))
