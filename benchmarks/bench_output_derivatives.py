@@ -48,7 +48,7 @@ def table(result: dict) -> str:
     return ("\n".join(lines) + f"\n\nCase: {c['string']}, field hammer at {c['frequency_hz']:g} Hz, "
             f"{c['stop_s']:g} s; the native `drilling.ssp` (`hammerbit ssp build --runtime native`); `user "
             f"loop`: `hammerbit.ssp.runners.run_user_loop` over its two FMUs through fmpy; `cosim --ssp`: "
-            f"`hammerbit cosim --ssp --step` without its estimate.  Load "
+            f"`hammerbit cosim --ssp --step` without its estimate (after a short run of each that loads its kernels).  Load "
             f"{result['machine'].get('load_average', '?')}.\n")
 
 
@@ -67,6 +67,9 @@ def _rows(path: str, stop: float, ref, t_from: float) -> list:
             r = run_user_loop(path, stop, step, output_derivatives=given)
             row = _row(r.runner, r.penetration_m, r.wob_amplitude(t_from, FREQUENCY_HZ), r.wall_time_s, ref)
             rows.append({**row, "master": "user loop", "step_s": step, "output_derivatives": given})
+    for given in (False, True):   # a short run of each first: the in-process kernels loaded, not timed
+        cosimulate_ssp(path, stop=10 * STEPS_S[0], step=STEPS_S[0], adaptive=False, estimate=False,
+                       output_derivatives=given)
     for given in (False, True):
         t0 = time.perf_counter()
         res = cosimulate_ssp(path, stop=stop, step=STEPS_S[0], adaptive=False, estimate=False,
