@@ -175,6 +175,27 @@ def test_asking_changes_nothing(built_native_fmu):
         b.close()
 
 
+def test_a_refused_call_loses_no_state(built_native_fmu):
+    """After a refused derivative call (fmi2Error), the saved state recovers the instance, which then
+    goes on bit-identical to one never refused."""
+    a, b = open_hammer(built_native_fmu), open_hammer(built_native_fmu)
+    try:
+        for inst in (a, b):
+            inst.step(2e-3)
+        saved = a.fmu.getFMUState()
+        with pytest.raises(FMICallException):
+            a.fmu.getRealOutputDerivatives([a.vr["bit_velocity"], a.vr["stiffness"]], [1, 1])
+        a.fmu.setFMUState(saved)
+        a.fmu.freeFMUState(saved)
+        for _ in range(100):
+            for inst in (a, b):
+                inst.step(1e-3)
+        assert a.get(*OUTPUTS) == b.get(*OUTPUTS)
+    finally:
+        a.close()
+        b.close()
+
+
 def test_pythonfmu_flavour_refuses(built_fmu):
     inst = FMUInstance(built_fmu, "hammer")
     try:
