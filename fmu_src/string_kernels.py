@@ -133,6 +133,9 @@ class ExchangeScheme(NamedTuple):
     order: int
     #: True: the force at the step's end takes the step's own polynomial (what a string FMU outputs)
     fmi: bool
+    #: True: the hammer motion's derivatives at t_n (``coeffs[2:]``: x', v', x'', v'') are given by
+    #: the caller (the hammer's output derivatives, FMI input derivatives), not extrapolated
+    given: bool = False
 
 
 class Interface(NamedTuple):
@@ -301,15 +304,20 @@ def exchange_begin(scheme, h, iface, hist, hammer):
     position at t_n and the interface force at t_n.  A leftover step (shorter than
     :data:`HISTORY_SPACING` of the newest spacing) takes the last step's polynomial on (the
     coefficients :func:`exchange_end` left at t_n): its new input is no point to extrapolate
-    through."""
+    through.  With ``scheme.given`` the derivatives in ``hist.coeffs[2:]`` (absolute, as the hammer
+    gives them) are the polynomial's, set by the caller before each step."""
     th, c = hist.th, hist.coeffs
     a = th[0] - th[1]
     a2 = th[1] - th[2]
     V = iface.feed[0]
     u_top = V * (th[0] - iface.feed[1])
     if not is_leftover(scheme, h, a):
-        taylor_coefficients(scheme.gauss_seidel, scheme.order, a, a2, h, hist.wh, hammer.x_new, hammer.v_new,
-                            c)
+        if scheme.given:                   # the motion's value at t_n; its derivatives as given
+            c[0] = hist.wh[0, 0]
+            c[1] = hist.wh[0, 1]
+        else:
+            taylor_coefficients(scheme.gauss_seidel, scheme.order, a, a2, h, hist.wh, hammer.x_new,
+                                hammer.v_new, c)
         c[0] -= u_top
         c[1] -= V
         c[2] -= V

@@ -39,6 +39,21 @@ def built_ssp(tmp_path_factory):
                      SSPOptions(stop=2.0, step=1e-3, rig=field_hammer().replace(frequency=22.5)))
 
 @pytest.fixture(scope="session")
+def built_native_ssp(tmp_path_factory):
+    """The package of :func:`built_ssp` (field-2200m, 22.5 Hz, H = 1 ms), native flavour, built once
+    per session."""
+    from hammerbit.cosim.config import field_hammer
+    from hammerbit.fmu.native import FrontBuildError, find_compiler
+    from hammerbit.ssp.package import SSPOptions, build_ssp
+    try:
+        find_compiler()
+    except FrontBuildError as e:
+        pytest.skip(str(e))
+    return build_ssp("field-2200m", tmp_path_factory.mktemp("ssp_native") / "drilling.ssp",
+                     SSPOptions(stop=2.0, step=1e-3, rig=field_hammer().replace(frequency=22.5), runtime="native"))
+
+
+@pytest.fixture(scope="session")
 def built_native_fmu(tmp_path_factory):
     """The native flavour (``hammerbit fmu build --runtime native``), built once per session."""
     from hammerbit.fmu.build import build_fmu

@@ -239,7 +239,7 @@ MANY_PARAMS: dict = {
     # the native Drillstring FMU's C entry point: its parameters are the C ABI that
     # native/model_string.c calls (pointers and sizes); its body groups them into the
     # exchange's records before it calls a kernel
-    "hammerbit.fmu.native_string_kernels.hs_exchange": 23,
+    "hammerbit.fmu.native_string_kernels.hs_exchange": 24,
 }
 _COMPILERS = {"njit", "jit", "cfunc"}
 

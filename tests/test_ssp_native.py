@@ -14,17 +14,9 @@ SAME_RUN_REL = 1e-9
 
 
 @pytest.fixture(scope="module")
-def native_ssp(tmp_path_factory):
+def native_ssp(built_native_ssp):
     """The package of ``conftest.built_ssp`` (field-2200m, 22.5 Hz, H = 1 ms), native flavour."""
-    from hammerbit.cosim.config import field_hammer
-    from hammerbit.fmu.native import FrontBuildError, find_compiler
-    from hammerbit.ssp.package import SSPOptions, build_ssp
-    try:
-        find_compiler()
-    except FrontBuildError as e:
-        pytest.skip(str(e))
-    return build_ssp("field-2200m", tmp_path_factory.mktemp("ssp_native") / "drilling.ssp",
-                     SSPOptions(stop=2.0, step=H, rig=field_hammer().replace(frequency=22.5), runtime="native"))
+    return built_native_ssp
 
 
 def test_both_fmus_of_the_package_are_native(native_ssp, tmp_path):

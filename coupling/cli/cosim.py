@@ -235,6 +235,12 @@ def refuse_idle_options(args) -> None:
                       "--monolithic runs the reference (string, interface and hammer as one system, in "
                       "process): it has no coupling scheme, extrapolation, harmonic source, macro-step "
                       "control or FMU, and no coupling-error estimate to hold against --tol")
+    refuse_unless(args, "output_derivatives",
+                  args.ssp is not None and args.step is not None and not args.adaptive and not args.monolithic
+                  and args.scheme == "jacobi",
+                  "the hammer's output derivatives feed the string in the fixed-step Jacobi run of an SSP "
+                  "package: allowed only with --ssp and --step (no --adaptive, --monolithic or "
+                  "--scheme gauss-seidel)")
     refuse_unless(args, "adaptive", args.step is not None,
                   "without --step the macro step is adaptive already; --adaptive makes --step the first "
                   "step of an adaptive run")
@@ -330,6 +336,11 @@ def register(subparsers) -> None:
                    help="run the monolithic reference (string, interface and hammer as one hybrid "
                         "system) instead; samples every --step (default 1 ms); its --out has no hook_load "
                         "column (the reference does not compute the hook load)")
+    p.add_argument("--output-derivatives", action="store_true",
+                   help="with --ssp and --step: the hammer FMU's output derivatives (orders 1 and 2 of its "
+                        "position and velocity) are the string's input derivatives, so the string takes the "
+                        "hammer motion over a step as their polynomial instead of extrapolating it (needs "
+                        "the native flavour: `hammerbit ssp build --runtime native`)")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     p.add_argument("--out", default=None, help="CSV of the recorded variables")
     p.set_defaults(func=cmd_cosim)

@@ -130,6 +130,8 @@ def cosim_ssp(args) -> int:
     if args.step is not None:
         overrides["step"] = args.step
     overrides["adaptive"] = (args.step is None or args.adaptive) and not args.monolithic
+    if getattr(args, "output_derivatives", False):
+        overrides["output_derivatives"] = True
     t0 = time.perf_counter()
     try:
         _warn_capacity_before(args.ssp, overrides)

@@ -237,6 +237,10 @@ class CosimConfig:
     """Where the FMU hammer gets the held interface force: ``preload``, or ``harmonic_force``
     (its change from the WOB, with ``preload`` held at the WOB: the SSP package's wiring)."""
     top: TopCondition = field(default_factory=TopCondition)
+    output_derivatives: bool = False
+    """Jacobi with an FMU hammer that gives output derivatives (the native flavour): the string
+    takes the hammer motion over a step as the Taylor polynomial of its first and second
+    derivatives at the step's start (after its new input is set) instead of extrapolating it."""
     harmonic_source: str = "fmu"
     """``fmu``: the FMU's internal harmonic source (continuous in time);
     ``master``: the master computes the harmonic force and feeds its mean over
@@ -248,6 +252,8 @@ class CosimConfig:
             raise ValueError(f"scheme = {self.scheme!r}: allowed {', '.join(SCHEMES)}")
         if self.extrapolation not in (0, 1, 2):
             raise ValueError(f"extrapolation = {self.extrapolation!r}: allowed 0, 1, 2")
+        if self.output_derivatives and self.scheme != "jacobi":
+            raise ValueError(f"output_derivatives with scheme = {self.scheme!r}: allowed only with 'jacobi'")
         if self.string_step not in ("auto", "dense"):
             raise ValueError(f"string_step = {self.string_step!r}: allowed 'auto', 'dense'")
         if self.exchange not in EXCHANGES:
@@ -412,6 +418,7 @@ class CosimResult:
         """JSON-ready figures."""
         out = {"method": self.method, "scheme": self.config.scheme,
                "extrapolation": self.config.extrapolation, "step_s": self.config.step,
+               "output_derivatives": self.config.output_derivatives,
                "stop_s": self.stop_s, "macro_steps": self.macro_steps,
                "wall_time_s": self.wall_time_s, "setup_time_s": self.setup_time_s,
                "penetration_m": self.penetration_m, "ramp_s": self.config.ramp,

@@ -118,6 +118,8 @@ class FMUHammer:
         self.x_eq = wob / rig.stiffness if self.equilibrium_start else 0.0
         self._K, self._C = rig.stiffness, rig.damping
         self._flag_vrs = (self.vr.get("stick_slip"), self.vr.get("in_contact"))
+        #: maxOutputDerivativeOrder of the FMU (0: none)
+        self.output_derivative_order = int(md.coSimulation.maxOutputDerivativeOrder or 0)
 
     def _find(self, key: str, *, required: bool = True):
         for nm in FMU_NAMES[key]:
@@ -130,7 +132,7 @@ class FMUHammer:
 
     master_harmonic = None
 
-    def step(self, t: float, H: float, force: float) -> None:
+    def _set_input(self, t: float, H: float, force: float) -> None:
         if self.master_harmonic is not None:
             self.fmu.setReal([self.vr_in, self.vr["harmonic_force"]],
                              [force, self.master_harmonic.mean(t, H)])
@@ -138,12 +140,25 @@ class FMUHammer:
             self.fmu.setReal(self._vr_preload, [force])
         else:
             self.fmu.setReal([self.vr_force], [force - self.wob])
+
+    def step(self, t: float, H: float, force: float) -> None:
+        self._set_input(t, H, force)
         try:
             self.fmu.doStep(t, H)
         except self._call_error as e:        # the run stops here: say what the FMU said
             said = self._host.errors()
             raise FMUStepError(f"FMU {self.path}: the step from t = {t:.9g} s (h = {H:.6g} s) failed: "
                                f"{said[-1] if said else e}") from None
+
+    def motion_derivatives(self, t: float, H: float, force: float) -> list:
+        """``[x', v', x'', v'']`` of the hammer at ``t`` [m/s, m/s^2, m/s^2, m/s^3] with the input of
+        the step ``[t, t + H]`` set (``fmi2GetRealOutputDerivatives``; the native flavour)."""
+        if self.output_derivative_order < 2:
+            raise ValueError(f"FMU {self.path}: no output derivatives of order 2 (maxOutputDerivativeOrder = "
+                             f"{self.output_derivative_order}; the native flavour has them)")
+        self._set_input(t, H, force)
+        x, v = self.vr_out[OUT_HAMMER_POSITION], self.vr_out[OUT_HAMMER_VELOCITY]
+        return self.fmu.getRealOutputDerivatives([x, v, x, v], [1, 1, 2, 2])
 
     def get_state(self):
         """fmi2GetFMUstate (the FMU saves its whole hidden state)."""

@@ -57,7 +57,13 @@ class Lane:
         self._next_held, self._next_h = F, None
         self.w = np.zeros(3)
         self.frow = side.m_frow if self.string.modal else side.frow.astype(np.float64)
-        self.scheme = ExchangeScheme(self.gs, self.order, self.fmi)
+        # the hammer's output derivatives as the string's input derivatives (CosimConfig.output_derivatives)
+        self.given = c.output_derivatives
+        if self.given and getattr(hammer, "output_derivative_order", 0) < 2:
+            raise ValueError("output_derivatives: the hammer side gives no output derivatives of order 2 (the "
+                             "native HammerBitRock.fmu has them; maxOutputDerivativeOrder = "
+                             f"{getattr(hammer, 'output_derivative_order', 0)})")
+        self.scheme = ExchangeScheme(self.gs, self.order, self.fmi, self.given)
         self.iface = Interface(side.ki, side.ci, side.wob, side.feed)
         self.exchange_hist = ExchangeHistory(self.th, self.wh, self.Fh, self.sc, np.zeros(6))
         self._h = None                           # the last step length
@@ -85,6 +91,8 @@ class Lane:
         Jacobi's string input does not use the new hammer value)."""
         F_held = self._next_held if h == self._next_h else self._held(self.order, self.th, self.Fh, h, self.w)
         self.F_held = F_held
+        if self.given:   # x', v', x'', v'' of the hammer at t with its new input: the string's polynomial
+            self.exchange_hist.coeffs[2:] = self.hammer.motion_derivatives(t, h, F_held)
         self.hammer.step(t, h, F_held)
         out = self.out = self.hammer.read()
         self.steps.add(t, h, F_held, out)

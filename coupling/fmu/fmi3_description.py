@@ -97,7 +97,10 @@ def fmi3_model_description(xml2: bytes, event_names) -> bytes:
         "modelIdentifier": cs2.get("modelIdentifier"), **flags,
         "canHandleVariableCommunicationStepSize": cs2.get("canHandleVariableCommunicationStepSize", "false"),
         "hasEventMode": events, "mightReturnEarlyFromDoStep": events,
-        "canReturnEarlyAfterIntermediateUpdate": "false"})
+        "canReturnEarlyAfterIntermediateUpdate": "false",
+        # the output derivatives of the FMI 2.0 description (fmi3GetOutputDerivatives)
+        **({"maxOutputDerivativeOrder": cs2.get("maxOutputDerivativeOrder")}
+           if cs2.get("maxOutputDerivativeOrder") else {})})
     units = md2.find("UnitDefinitions")
     if units is None:
         units = ET.Element("UnitDefinitions")

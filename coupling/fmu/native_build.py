@@ -34,7 +34,7 @@ from hammerbit.fmu.native import FRONT_SOURCES, SOURCE_DIR, FrontBuildError, c_s
 from hammerbit.fmu.c_description import write_description_header
 from hammerbit.fmu.native_kernels import TARGETS, ALLOWED_UNDEFINED, build_objects, undefined_symbols
 
-__all__ = ["NATIVE_GENERATION_TOOL", "MINGW_CC", "C_FLAGS", "NATIVE_SOURCES", "GLIBC_COMPAT_SOURCE", "GLIBC_WRAPPED", "STATES", "NativeBuildError", "native_header",
+__all__ = ["NATIVE_GENERATION_TOOL", "MINGW_CC", "MAX_OUTPUT_DERIVATIVE_ORDER", "C_FLAGS", "NATIVE_SOURCES", "GLIBC_COMPAT_SOURCE", "GLIBC_WRAPPED", "STATES", "NativeBuildError", "native_header",
            "select_platforms", "build_binaries", "link_binary", "nm_for",
            "native_model_description", "assemble_native_fmu"]
 
@@ -42,10 +42,13 @@ __all__ = ["NATIVE_GENERATION_TOOL", "MINGW_CC", "C_FLAGS", "NATIVE_SOURCES", "G
 NATIVE_GENERATION_TOOL = "hammerbit fmu build --runtime native"
 #: the cross-compiler of the win64 binary (Debian package gcc-mingw-w64-x86-64)
 MINGW_CC = "x86_64-w64-mingw32-gcc"
+#: the highest order of the output derivatives of the native HammerBitRock (model_derivatives.c)
+MAX_OUTPUT_DERIVATIVE_ORDER = 2
 #: C sources of the native flavour (front, resource URIs, model backend, runtime shim)
 NATIVE_SOURCES = tuple(SOURCE_DIR / f for f in (*FRONT_SOURCES, "model_backend.c", "model_common.c",
                                                 "model_native.c", "model_params.c", "model_checks.c",
-                                                "model_values.c", "model_me.c", "model_state.c",
+                                                "model_values.c", "model_me.c", "model_derivatives.c",
+                                                "model_state.c",
                                                 "real_repr.c", "nrt_shim.c", "glibc_compat.c"))
 #: the linux64 binaries' shim to glibc 2.17 (manylinux2014): the math functions glibc 2.27/2.29
 #: re-versioned, bound to their oldest version (the link wraps every reference to them)
@@ -287,6 +290,9 @@ def native_model_description(xml: bytes) -> bytes:
     if cs is None:
         raise NativeBuildError("the model description has no <CoSimulation>")
     cs.attrib.pop("needsExecutionTool", None)
+    # fmi2GetRealOutputDerivatives: the first and second derivatives of the Real outputs
+    # (model_derivatives.c)
+    cs.set("maxOutputDerivativeOrder", str(MAX_OUTPUT_DERIVATIVE_ORDER))
     me = ET.Element("ModelExchange", {
         "modelIdentifier": cs.get("modelIdentifier"), "completedIntegratorStepNotNeeded": "true",
         "canGetAndSetFMUstate": cs.get("canGetAndSetFMUstate", "true"),

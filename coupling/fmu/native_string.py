@@ -225,6 +225,8 @@ def native_string_description(xml: bytes) -> bytes:
     cs.set("canGetAndSetFMUstate", "true")
     cs.set("canSerializeFMUstate", "true")
     cs.set("canHandleVariableCommunicationStepSize", "true")
+    # fmi2SetRealInputDerivatives: the hammer's motion over a step as their polynomial
+    cs.set("canInterpolateInputs", "true")
     ET.indent(root, space="  ")
     return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8") + b"\n"
 

@@ -16,7 +16,7 @@ __all__ = ["STRING_ENTRY_POINTS", "compile_string_entry_points"]
 
 #: C names of the entry points and their C prototypes (string_api.h in native/ declares the same)
 STRING_ENTRY_POINTS = {
-    "hs_exchange": "double hs_exchange(int64_t order, double h, int64_t modal, int64_t n, double *P, "
+    "hs_exchange": "double hs_exchange(int64_t order, int64_t given, double h, int64_t modal, int64_t n, double *P, "
                    "double *xi, double *buf, double *tmp, double *frow_real, double _Complex *d, "
                    "double _Complex *G, double _Complex *irow, double *icol, double _Complex *eta, "
                    "double _Complex *frow, double *k3, double *th, double *wh, double *Fh, double *out, "
@@ -43,16 +43,16 @@ def compile_string_entry_points() -> dict:
     NC = N_COEFFS
 
     # the C ABI (string_api.h) is flat; the body groups it into the exchange's records
-    @cfunc(float64(int64, float64, int64, int64, f64p, f64p, f64p, f64p, f64p, c128p, c128p, c128p, f64p,
+    @cfunc(float64(int64, int64, float64, int64, int64, f64p, f64p, f64p, f64p, f64p, c128p, c128p, c128p, f64p,
                    c128p, c128p, f64p, f64p, f64p, f64p, f64p, float64, f64p, f64p))
-    def hs_exchange(order, h, modal, n, Pp, xip, bufp, tmpp, frp, dp, Gp, irp, icp, etap, fcp, k3p, thp,
+    def hs_exchange(order, given, h, modal, n, Pp, xip, bufp, tmpp, frp, dp, Gp, irp, icp, etap, fcp, k3p, thp,
                     whp, Fhp, outp, F_held, cp, feedp):
         # n: states of the dense form, or kept modes of the modal form; k3 = (ki, ci, W);
         # th (3), wh (3 x 2), Fh (3), out (4), c (6) the ExchangeHistory; returns the force the
         # hammer holds over a next step of length h (the exchange computes it: no second call)
         out = carray(outp, (4,))
         k3 = carray(k3p, (3,))
-        scheme = ExchangeScheme(False, order, True)
+        scheme = ExchangeScheme(False, order, True, given != 0)
         iface = Interface(k3[0], k3[1], k3[2], carray(feedp, (2,)))
         hist = ExchangeHistory(carray(thp, (3,)), carray(whp, (3, 2)), carray(Fhp, (3,)), out, carray(cp, (NC,)))
         hammer = HammerStep(0.0, 0.0, F_held)

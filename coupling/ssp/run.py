@@ -20,7 +20,7 @@ from pathlib import Path
 from hammerbit.ssp.document import SSD_NAME, read_ssd
 from hammerbit.ssp.package import HAMMER, STRING
 
-__all__ = ["SSPSystem", "load_ssp", "cosimulate_ssp", "monolithic_ssp"]
+__all__ = ["SSPSystem", "load_ssp", "cosimulate_ssp", "monolithic_ssp", "hammer_output_derivative_order"]
 
 
 @dataclass
@@ -119,11 +119,23 @@ def _side(system: SSPSystem):
     return StringSide.from_arrays(system.arrays, system.info, values, system.config)
 
 
+def hammer_output_derivative_order(system: SSPSystem) -> int:
+    """``maxOutputDerivativeOrder`` of the package's HammerBitRock.fmu (0: none, the pythonfmu flavour)."""
+    from fmpy import read_model_description
+    return int(read_model_description(str(system.hammer_fmu)).coSimulation.maxOutputDerivativeOrder or 0)
+
+
 def cosimulate_ssp(path, **config):
-    """Run the system of ``path`` with the master (a :class:`~hammerbit.cosim.config.CosimResult`)."""
+    """Run the system of ``path`` with the master (a :class:`~hammerbit.cosim.config.CosimResult`).
+    ``output_derivatives=True`` needs a hammer FMU with output derivatives of order 2 (the native
+    flavour): else a ValueError before the run."""
     from hammerbit.cosim.master import cosimulate
     system = load_ssp(path, **config)
     try:
+        if system.config.output_derivatives and (order := hammer_output_derivative_order(system)) < 2:
+            raise ValueError(f"--output-derivatives: the package's {HAMMER} ({system.hammer_fmu.name}) declares "
+                             f"maxOutputDerivativeOrder = {order} (the pythonfmu flavour has none); build the "
+                             f"package with `hammerbit ssp build --runtime native`")
         return cosimulate(None, system.config, fmu=str(system.hammer_fmu), side=_side(system))
     finally:
         system.close()

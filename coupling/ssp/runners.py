@@ -168,10 +168,28 @@ def run_fmpy(path, stop: float, step: float) -> RunnerResult:
 WIRINGS = ("held_force_change", "interface_force - wob")
 
 
-def run_user_loop(path, stop: float, step: float, wiring: str = "held_force_change") -> RunnerResult:
+#: the derivative orders of (position, velocity, position, velocity) passed from hammer to string
+_ORDERS = [1, 1, 2, 2]
+
+
+def _check_derivatives(string, hammer) -> None:
+    """The hammer gives output derivatives of order 2 and the string takes input derivatives."""
+    order = int(hammer.md.coSimulation.maxOutputDerivativeOrder or 0)
+    if order < 2 or not string.md.coSimulation.canInterpolateInputs:
+        raise ValueError(f"output_derivatives: the package's FMUs do not pass derivatives (HammerBitRock "
+                         f"maxOutputDerivativeOrder = {order}, Drillstring canInterpolateInputs = "
+                         f"{bool(string.md.coSimulation.canInterpolateInputs)}); build it with --runtime native")
+
+
+def run_user_loop(path, stop: float, step: float, wiring: str = "held_force_change", *,
+                  output_derivatives: bool = False) -> RunnerResult:
     """A user's own fixed-step Jacobi loop over the package's two FMUs (fmpy ``FMU2Slave``, the
     FMUs' own start values, which are the system's): at each communication point both FMUs take
-    the other's outputs, then both step ``step`` [s], to ``stop``; ``wiring`` (:data:`WIRINGS`)."""
+    the other's outputs, then both step ``step`` [s], to ``stop``; ``wiring`` (:data:`WIRINGS`).
+    ``output_derivatives``: the hammer's output derivatives of orders 1 and 2 (its position and
+    velocity, after its new input is set) go to the string's input derivatives every step (the
+    native flavour: ``maxOutputDerivativeOrder`` and ``canInterpolateInputs``; else a ValueError
+    before the run)."""
     import zipfile
 
     from hammerbit.fmu.host import FMUInstance
@@ -187,6 +205,10 @@ def run_user_loop(path, stop: float, step: float, wiring: str = "held_force_chan
         string = FMUInstance(os.path.join(tmp, "Drillstring.fmu"), STRING)
         hammer = FMUInstance(os.path.join(tmp, "HammerBitRock.fmu"), HAMMER)
         try:
+            if output_derivatives:
+                _check_derivatives(string, hammer)
+            motion = [hammer.vr["hammer_position"], hammer.vr["hammer_velocity"]] * 2
+            motion_in = [string.vr["hammer_position"], string.vr["hammer_velocity"]] * 2
             wob = string.get("wob")[0]
             n = int(round(stop / step))
             out = np.zeros(n + 1, dtype=RUNNER_DTYPE)
@@ -196,6 +218,9 @@ def run_user_loop(path, stop: float, step: float, wiring: str = "held_force_chan
                 held, force = string.get("held_force_change", "interface_force")
                 string.set(hammer_position=x, hammer_velocity=v)
                 hammer.set(harmonic_force=held if wiring == WIRINGS[0] else force - wob)
+                if output_derivatives:   # x', v', x'', v'' of the hammer with its new input, into the string
+                    string.fmu.setRealInputDerivatives(motion_in, _ORDERS,
+                                                       hammer.fmu.getRealOutputDerivatives(motion, _ORDERS))
                 string.step(step)
                 hammer.step(step)
                 x, v, pos, rock = hammer.get("hammer_position", "hammer_velocity", "bit_position", "rock_force")
@@ -203,4 +228,5 @@ def run_user_loop(path, stop: float, step: float, wiring: str = "held_force_chan
         finally:
             string.close()
             hammer.close()
-    return RunnerResult(f"user loop ({wiring})", out, _time.perf_counter() - t0)
+    name = f"user loop ({wiring}{', output derivatives' if output_derivatives else ''})"
+    return RunnerResult(name, out, _time.perf_counter() - t0)

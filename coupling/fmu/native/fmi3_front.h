@@ -76,6 +76,8 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component);
 fmi2Status fmi2Terminate(fmi2Component);
 fmi2Status fmi2Reset(fmi2Component);
 fmi2Status fmi2GetReal(fmi2Component, const fmi2ValueReference[], size_t, fmi2Real[]);
+fmi2Status fmi2GetRealOutputDerivatives(fmi2Component, const fmi2ValueReference[], size_t,
+                                        const fmi2Integer[], fmi2Real[]);
 fmi2Status fmi2GetInteger(fmi2Component, const fmi2ValueReference[], size_t, fmi2Integer[]);
 fmi2Status fmi2GetBoolean(fmi2Component, const fmi2ValueReference[], size_t, fmi2Boolean[]);
 fmi2Status fmi2GetString(fmi2Component, const fmi2ValueReference[], size_t, fmi2String[]);

@@ -363,11 +363,17 @@ FMI3_Export fmi3Status fmi3SetShiftFraction(fmi3Instance instance, const fmi3Val
 FMI3_Export fmi3Status fmi3EvaluateDiscreteStates(fmi3Instance instance) {
     NOT_PROVIDED(fmi3EvaluateDiscreteStates);
 }
+/* the FMI 2.0 front's fmi2GetRealOutputDerivatives: the model's own where it declares them
+ * (maxOutputDerivativeOrder), else refused with its message */
 FMI3_Export fmi3Status fmi3GetOutputDerivatives(fmi3Instance instance, const fmi3ValueReference vr[],
                                                 size_t n, const fmi3Int32 orders[], fmi3Float64 values[],
                                                 size_t nValues) {
-    (void)vr, (void)n, (void)orders, (void)values, (void)nValues;
-    NOT_PROVIDED(fmi3GetOutputDerivatives);
+    BEGIN3_VALUES("fmi3GetOutputDerivatives");
+    if (!check(I, "fmi3GetOutputDerivatives", HB3_FLOAT64, vr, n, values, nValues, 0)) {
+        I->state = F3_ERROR;
+        return fmi3Error;
+    }
+    return hb3_status(I, fmi2GetRealOutputDerivatives(I->c2, vr, n, (const fmi2Integer *)orders, values));
 }
 FMI3_Export fmi3Status fmi3ActivateModelPartition(fmi3Instance instance, fmi3ValueReference clock,
                                                   fmi3Float64 activationTime) {

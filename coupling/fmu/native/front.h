@@ -80,6 +80,12 @@ typedef struct {
      * reset applied); *reached: the event time, or t + h (NULL in the Python flavour) */
     fmi2Status (*StepToEvent)(fmi2Component, fmi2Real t, fmi2Real h, fmi2Real *reached);
     void (*finalize)(void);
+    /* fmi2GetRealOutputDerivatives and fmi2SetRealInputDerivatives of a model that declares them
+     * (maxOutputDerivativeOrder > 0, canInterpolateInputs); NULL: the front refuses the call */
+    fmi2Status (*GetRealOutputDerivatives)(fmi2Component, const fmi2ValueReference[], size_t,
+                                           const fmi2Integer[], fmi2Real[]);
+    fmi2Status (*SetRealInputDerivatives)(fmi2Component, const fmi2ValueReference[], size_t,
+                                          const fmi2Integer[], const fmi2Real[]);
     /* Model Exchange (NULL in the Python flavour) */
     fmi2ComponentFn EnterEventMode, EnterContinuousTimeMode;
     fmi2NewDiscreteStatesFn NewDiscreteStates;

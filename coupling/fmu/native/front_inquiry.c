@@ -13,23 +13,39 @@ EXPORT fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueR
     return settle(I, fmi2Error);
 }
 
+/* Input and output derivatives: the model's own where it declares them (canInterpolateInputs,
+ * maxOutputDerivativeOrder), after the front's checks of the value references */
 EXPORT fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[],
                                               size_t nvr, const fmi2Integer order[],
                                               const fmi2Real value[]) {
-    (void)vr, (void)nvr, (void)order, (void)value;
     BEGIN("fmi2SetRealInputDerivatives", M_SET);
-    LOG(I, fmi2Error, "fmi2SetRealInputDerivatives is not supported (canInterpolateInputs = false)");
-    return settle(I, fmi2Error);
+    if (!hb_W.SetRealInputDerivatives) {
+        LOG(I, fmi2Error, "fmi2SetRealInputDerivatives is not supported (canInterpolateInputs = false)");
+        return settle(I, fmi2Error);
+    }
+    if (nvr == 0) return fmi2OK;
+    if (!check_vrs(I, "fmi2SetRealInputDerivatives", HB_REAL, vr, nvr, value, 1) || !order) {
+        if (!order) LOG(I, fmi2Error, "fmi2SetRealInputDerivatives: order is NULL");
+        return settle(I, fmi2Error);
+    }
+    return record(I, hb_W.SetRealInputDerivatives(I->w, vr, nvr, order, value));
 }
 
 EXPORT fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[],
                                                size_t nvr, const fmi2Integer order[],
                                                fmi2Real value[]) {
-    (void)vr, (void)nvr, (void)order, (void)value;
     BEGIN("fmi2GetRealOutputDerivatives", ST_STEP_COMPLETE | ST_TERMINATED | ST_ERROR);
-    LOG(I, fmi2Error, "fmi2GetRealOutputDerivatives is not supported "
-                      "(maxOutputDerivativeOrder = 0)");
-    return settle(I, fmi2Error);
+    if (!hb_W.GetRealOutputDerivatives) {
+        LOG(I, fmi2Error, "fmi2GetRealOutputDerivatives is not supported "
+                          "(maxOutputDerivativeOrder = 0)");
+        return settle(I, fmi2Error);
+    }
+    if (nvr == 0) return fmi2OK;
+    if (!check_vrs(I, "fmi2GetRealOutputDerivatives", HB_REAL, vr, nvr, value, 0) || !order) {
+        if (!order) LOG(I, fmi2Error, "fmi2GetRealOutputDerivatives: order is NULL");
+        return settle(I, fmi2Error);
+    }
+    return record(I, hb_W.GetRealOutputDerivatives(I->w, vr, nvr, order, value));
 }
 
 /* -- status inquiries ------------------------------------------------------------------------- */

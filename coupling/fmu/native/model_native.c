@@ -287,5 +287,6 @@ void hb_model_fill(hb_wrapper *w) {
     w->DoStep = n_do_step;
     w->StepToEvent = n_step_to_event;
     hb_me_fill(w);
+    hb_derivatives_fill(w);
     w->Instantiate = n_instantiate;
 }

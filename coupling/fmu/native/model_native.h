@@ -5,7 +5,8 @@
  *   model_checks.c  messages, ranges, the inputs' limits
  *   model_values.c  fmi2Get*, fmi2Set*
  *   model_state.c   FMU states
- *   model_me.c      Model Exchange */
+ *   model_me.c      Model Exchange
+ *   model_derivatives.c  output derivatives */
 #ifndef HAMMERBIT_MODEL_NATIVE_H
 #define HAMMERBIT_MODEL_NATIVE_H
 
@@ -102,5 +103,8 @@ void hb_state_fill(hb_wrapper *w);
 void hb_me_fill(hb_wrapper *w);
 /* d(state i)/dt [SI] in the current hybrid mode at the model's time */
 double hb_derivative(model *m, int i);
+
+/* model_derivatives.c: fmi2GetRealOutputDerivatives of the backend table */
+void hb_derivatives_fill(hb_wrapper *w);
 
 #endif

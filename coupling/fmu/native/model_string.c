@@ -325,13 +325,18 @@ static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
         s->started = 1;
     }
     s->wh[0] = x, s->wh[1] = v;
+    /* input derivatives: the hammer's motion over the step is their Taylor polynomial */
+    int64_t given = s->der_given;
+    if (given) memcpy(s->c + 2, s->der_in, sizeof s->der_in);
     double *xi = s->modal ? m->buf : s->v;
     double _Complex *eta = s->modal ? (double _Complex *)s->v : NULL;
     hb_kernel_raised();
-    s->F_held = hs_exchange(s->order, h, s->modal, s->n, b->P ? b->P : m->tmp, xi, m->buf, m->tmp,
+    s->F_held = hs_exchange(s->order, given, h, s->modal, s->n, b->P ? b->P : m->tmp, xi, m->buf, m->tmp,
                             b->frow_r ? b->frow_r : m->tmp, b->d, b->G, b->irow, (double *)b->icol, eta,
                             b->frow_c, s->k3, s->th, s->wh, s->Fh, s->out, s->F_held, s->c, s->feed);
     if (hb_kernel_raised()) return FAIL(m, "fmi2DoStep failed: a kernel raised an exception");
+    s->der_given = 0;             /* input derivatives hold for one step */
+    memset(s->der_in, 0, sizeof s->der_in);
     s->t = t + h;
     set_outputs(m);
     return fmi2OK;

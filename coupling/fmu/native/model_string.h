@@ -21,7 +21,7 @@
 #define ROW_HOOK HS_ROW_HOOK_TENSION
 #define ROW_TOP_U HS_ROW_TOP_POSITION
 #define ROW_TOP_V HS_ROW_TOP_VELOCITY
-#define STATE_MAGIC 0x48425331u  /* "HBS1": layout version of the string model state */
+#define STATE_MAGIC 0x48425332u  /* "HBS2": layout version of the string model state */
 #define DATA_MAGIC HS_DATA_MAGIC
 #define GENERATOR_KIND 2         /* a block of a form's generator (step blocks: 0 dense, 1 modal) */
 
@@ -72,6 +72,10 @@ typedef struct {
     int64_t form, order, n, modal;
     double W, hook_eq, t, t_start, F_held;
     double feed[2], k3[3], th[3], wh[6], Fh[3], out[4], c[N_COEFFS];
+    /* the input derivatives for the next fmi2DoStep (fmi2SetRealInputDerivatives): x', v', x'',
+     * v'' of the hammer at its start; given: any was set since the last step */
+    double der_in[4];
+    int32_t der_given;
     char error[512];
     double v[];                  /* the string's state: 2 n doubles (modal eta) or n (dense xi) */
 } sstate;

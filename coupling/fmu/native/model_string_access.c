@@ -188,7 +188,34 @@ static fmi2Status s_deserialize(fmi2Component c, const fmi2Byte in[], size_t siz
     return hb_model_deserialize(c, in, size, ((model *)c)->size, block_invalid, state);
 }
 
+/* fmi2SetRealInputDerivatives (canInterpolateInputs): the first and second time derivatives of the
+ * inputs hammer_position and hammer_velocity at the current time, for the next fmi2DoStep only
+ * (one without them extrapolates through the history); one not given is 0.  All or none applied. */
+static fmi2Status s_set_input_derivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                                          const fmi2Integer order[], const fmi2Real value[]) {
+    model *m = c;
+    sstate *s = m->s;
+    for (size_t i = 0; i < nvr; i++) {
+        if (vr[i] != HS_VR_hammer_position && vr[i] != HS_VR_hammer_velocity)
+            return FAIL(m, "fmi2SetRealInputDerivatives: value reference %u is not an input (hammer_position "
+                        "%u, hammer_velocity %u); nothing changed", vr[i], HS_VR_hammer_position,
+                        HS_VR_hammer_velocity);
+        if (order[i] < 1 || order[i] > 2)
+            return FAIL(m, "fmi2SetRealInputDerivatives: order[%zu] = %d is out of range: allowed 1, 2; "
+                        "nothing changed", i, (int)order[i]);
+        if (!isfinite(value[i]))
+            return FAIL(m, "fmi2SetRealInputDerivatives: value[%zu] = %g is not finite; nothing changed", i,
+                        value[i]);
+    }
+    /* der_in = (x', v', x'', v''): the Taylor coefficients c[2..5] of the exchange */
+    for (size_t i = 0; i < nvr; i++)
+        s->der_in[2 * (order[i] - 1) + (vr[i] == HS_VR_hammer_velocity)] = value[i];
+    s->der_given = 1;
+    return fmi2OK;
+}
+
 void hs_access_fill(hb_wrapper *w) {
     hb_model_fill_values(w, s_get_real, s_set_real, s_get_integer, s_set_integer);
+    w->SetRealInputDerivatives = s_set_input_derivatives;
     hb_model_fill_states(w, s_get_state, s_set_state, s_state_size, s_serialize, s_deserialize);
 }

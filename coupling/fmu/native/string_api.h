@@ -12,9 +12,10 @@
 /* One exchange (the master's Jacobi step in its FMU form) over h: the string state advanced in
  * place (modal eta, or dense xi with the scratch buf, tmp), the histories th, wh, Fh shifted,
  * out = [F(t+h), energy residual, frow.xi, force defect]; returns the force the hammer holds
- * over a next step of length h. k3 = (ki, ci, W). */
-double hs_exchange(int64_t order, double h, int64_t modal, int64_t n, double *P, double *xi, double *buf,
-                   double *tmp, double *frow_real, double _Complex *d, double _Complex *G,
+ * over a next step of length h. k3 = (ki, ci, W).  given: c[2..5] holds the hammer motion's
+ * derivatives at t (x', v', x'', v''; the input derivatives), taken instead of the extrapolation. */
+double hs_exchange(int64_t order, int64_t given, double h, int64_t modal, int64_t n, double *P, double *xi,
+                   double *buf, double *tmp, double *frow_real, double _Complex *d, double _Complex *G,
                    double _Complex *irow, double *icol, double _Complex *eta, double _Complex *frow,
                    double *k3, double *th, double *wh, double *Fh, double *out, double F_held, double *c,
                    double *feed);
