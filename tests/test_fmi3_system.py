@@ -107,3 +107,15 @@ def test_system_fmi3_linux_binaries_need_no_newer_glibc_than_2_17(system_fmus, t
                     (w.strip("()") for w in out.split()) if v.startswith("GLIBC_") and v[6:7].isdigit()}
             newest[plat] = max(vers)
     assert "x86_64-linux" in newest and all(v <= (2, 17) for v in newest.values()), newest
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_system_reference_results_equal_its_run_in_fmpy(system_fmus, version):
+    """The FMI-LS-REF results the build ships (the library's Stepper on the subsystem) against
+    the FMU's default experiment in fmpy (tests/reference_check.py says how close and why)."""
+    from reference_check import compare_with_fmpy, shipped
+    fmu = system_fmus[version - 2]
+    _, header, rows = shipped(fmu)
+    assert header == ["time", "bit_position", "hammer_position", "hammer_velocity"]
+    assert float(rows[-1][1]) > 0.0                                  # the reference drills
+    compare_with_fmpy(fmu)

@@ -122,7 +122,7 @@ def system_data(string, config, *, tolerance: float = 1e-3) -> dict:
             "buoyed": float(side.ss.hook_load) + side.wob, "wob": float(side.wob), "feed": V0,
             "F0": F0, "x0": x0, "Om": Om, "amplitude": float(config.rig.amplitude),
             "frequency": float(config.rig.frequency), "top": top, "tolerance": float(tolerance),
-            "max_feed": float(MAX_FEED), "string": string.name, "string_states": int(side.n),
+            "max_feed": float(MAX_FEED), "string": string.name, "string_states": int(side.n), "stepper": st,
             "layout": {k: int(getattr(KL, k)) for k in _LAYOUT}}
 
 
@@ -246,6 +246,7 @@ def build_system_fmu(string, config, out=None, *, tolerance: float = 1e-3, log=p
     from hammerbit.fmu.native_build import AARCH64_CC, FMI3_DEFINES, FMI3_SOURCES, MINGW_CC, TARGETS, \
         find_compiler, link_binary, select_platforms
     from hammerbit.fmu.native_kernels import build_objects
+    from hammerbit.fmu.reference_results import system_results
     if fmi_version not in (2, 3):
         raise ValueError(f"fmi_version = {fmi_version!r} is out of range: allowed 2 or 3")
     out = Path("dist") / f"{MODEL_NAME}.fmu" if out is None else Path(out)
@@ -282,5 +283,7 @@ def build_system_fmu(string, config, out=None, *, tolerance: float = 1e-3, log=p
             zf.writestr(zipfile.ZipInfo("resources/"), "")
             for plat, path in sorted(built.items()):
                 zf.write(path, f"binaries/{plat if md3 is None else FMI3_PLATFORMS[plat]}/{path.name}")
+            for name, blob in system_results(MODEL_NAME, data, md).files().items():
+                zf.writestr(name, blob)
         tmp_out.replace(out)
     return out
