@@ -172,7 +172,7 @@ def test_rollback_over_an_early_return_is_bit_identical(fmu3_dir, event_mode):
                     s.enterStepMode()
             s.freeFMUState(saved)
             t = reached
-        assert redone >= 5
+        assert redone >= 2                       # the scene has events in 0.5 s
     finally:
         s.terminate()
         s.freeInstance()
