@@ -119,3 +119,18 @@ def test_system_reference_results_equal_its_run_in_fmpy(system_fmus, version):
     assert header == ["time", "bit_position", "hammer_position", "hammer_velocity"]
     assert float(rows[-1][1]) > 0.0                                  # the reference drills
     compare_with_fmpy(fmu)
+
+
+def test_build_system_refuses_an_unknown_fmi_version(capsys, tmp_path):
+    from cli_run import run_cli
+    code, _, err = run_cli(["fmu", "build-system", "--string", "lab", "--fmi-version", "4",
+                            "--out", str(tmp_path / "x.fmu")], capsys)
+    assert code == 2 and "Traceback" not in err and "--fmi-version" in err
+    assert not (tmp_path / "x.fmu").exists()
+
+
+def test_build_system_fmu_refuses_an_unknown_fmi_version_before_any_work(tmp_path):
+    from hammerbit.fmu.build_system import build_system_fmu
+    with pytest.raises(ValueError, match="fmi_version = 4 is out of range: allowed 2 or 3"):
+        build_system_fmu(None, None, tmp_path / "x.fmu", fmi_version=4)
+    assert not (tmp_path / "x.fmu").exists()
