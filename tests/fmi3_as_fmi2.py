@@ -12,10 +12,7 @@ for Real; Int32 or UInt64 for Integer), so that the same test runs against both 
 """
 from __future__ import annotations
 
-from fmpy.fmi1 import FMICallException
 from fmpy.fmi3 import FMU3Slave
-
-FMI_ERROR = 3
 
 
 class Fmi3AsFmi2:
@@ -94,4 +91,4 @@ def fmi3_logger(messages: list):
     return log
 
 
-__all__ = ["Fmi3AsFmi2", "fmi3_logger", "FMICallException", "FMI_ERROR"]
+__all__ = ["Fmi3AsFmi2", "fmi3_logger"]
