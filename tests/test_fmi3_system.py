@@ -134,3 +134,31 @@ def test_build_system_fmu_refuses_an_unknown_fmi_version_before_any_work(tmp_pat
     with pytest.raises(ValueError, match="fmi_version = 4 is out of range: allowed 2 or 3"):
         build_system_fmu(None, None, tmp_path / "x.fmu", fmi_version=4)
     assert not (tmp_path / "x.fmu").exists()
+
+
+@pytest.mark.slow
+def test_system_aarch64_under_qemu_equals_x86_64(system_fmus, tmp_path):
+    """The aarch64-linux binary (cross-built, run by the plain C host under qemu-aarch64) against
+    the x86_64-linux one: 1 s at 10 ms, the outputs to 1e-13 of their magnitude (the same
+    C code and kernels, no fused multiply-add; only libm may round differently)."""
+    from test_fmi3_platforms import QEMU_SYSROOT, _host, _run, _values
+    from hammerbit.fmu.native import find_compiler
+    from hammerbit.fmu.native_build import AARCH64_CC
+    qemu = shutil.which("qemu-aarch64")
+    d = tmp_path / "fmu"
+    with zipfile.ZipFile(system_fmus[1]) as zf:
+        zf.extractall(d)
+    so = d / "binaries/aarch64-linux/DrillingSystem.so"
+    if not (qemu and shutil.which(AARCH64_CC) and so.exists() and Path(QEMU_SYSROOT).is_dir()):
+        pytest.skip(f"needs {AARCH64_CC}, qemu-aarch64 (Debian: qemu-user) and {QEMU_SYSROOT}")
+    md = read_model_description(str(d / "modelDescription.xml"))
+    names = ("bit_position", "hammer_position", "hammer_velocity", "mean_wob", "hook_load")
+    vrs = ",".join(str(v.valueReference) for n in names for v in md.modelVariables if v.name == n)
+    args = [str(d / "resources") + "/", md.guid, "100", "0.01", vrs, "early=1"]
+    arm = _values(_run([qemu, "-L", QEMU_SYSROOT, str(_host(shutil.which(AARCH64_CC), tmp_path / "h_arm", "-ldl")),
+                        str(so), *args]))
+    x86 = _values(_run([str(_host(find_compiler(), tmp_path / "h_x86", "-ldl")),
+                        str(d / "binaries/x86_64-linux/DrillingSystem.so"), *args]))
+    assert len(arm) == len(x86) == len(names) and x86[0] > 0.0
+    for name, a, b in zip(names, arm, x86):
+        assert abs(a - b) <= 1e-13 * abs(b), (name, a, b)
