@@ -65,6 +65,18 @@ def built_native_fmu(tmp_path_factory):
     return build_fmu(tmp_path_factory.mktemp("native") / "HammerBitRock.fmu", runtime="native")
 
 
+@pytest.fixture(scope="session")
+def built_native_fmu3(tmp_path_factory):
+    """The native flavour in FMI 3.0 (``--runtime native --fmi-version 3``), built once per session."""
+    from hammerbit.fmu.build import build_fmu
+    from hammerbit.fmu.native import FrontBuildError, find_compiler
+    try:
+        find_compiler()
+    except FrontBuildError as e:
+        pytest.skip(str(e))
+    return build_fmu(tmp_path_factory.mktemp("native3") / "HammerBitRock.fmu", runtime="native", fmi_version=3)
+
+
 @pytest.fixture(params=["pythonfmu", "native"])
 def any_fmu(request):
     """Each runtime flavour of HammerBitRock.fmu in turn (built once per session each)."""
@@ -125,3 +137,16 @@ def built_native_string_fmu(tmp_path_factory):
         pytest.skip(str(e))
     return build_native_string_fmu("lab", tmp_path_factory.mktemp("string_native") / "Drillstring.fmu",
                                    log=lambda msg: None)
+
+
+@pytest.fixture(scope="session")
+def built_native_string_fmu3(tmp_path_factory):
+    """``Drillstring.fmu`` of the lab string, native flavour in FMI 3.0, built once per session."""
+    from hammerbit.fmu.native import FrontBuildError, find_compiler
+    from hammerbit.fmu.native_string import build_native_string_fmu
+    try:
+        find_compiler()
+    except FrontBuildError as e:
+        pytest.skip(str(e))
+    return build_native_string_fmu("lab", tmp_path_factory.mktemp("string_native3") / "Drillstring.fmu",
+                                   log=lambda msg: None, fmi_version=3)

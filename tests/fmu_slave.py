@@ -1,5 +1,6 @@
 """One co-simulation instance of an extracted FMU through fmpy's low-level ``FMU2Slave``, its log
-messages captured: the instance the FMU front and runtime tests drive call by call."""
+messages captured: the instance the FMU front and runtime tests drive call by call (an FMI 3.0
+FMU behind the same calls: tests/fmi3_as_fmi2.py)."""
 from __future__ import annotations
 
 import ctypes
@@ -34,10 +35,15 @@ class Slave:
         cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(fmpy.calloc)
         cb.freeMemory = fmi2CallbackFreeMemoryTYPE(fmpy.free)
         self.cb = cb
-        self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=str(fmu_dir),
-                             modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName="s")
         self.t = start_time
-        self.fmu.instantiate(callbacks=cb, loggingOn=logging)
+        if self.md.fmiVersion.startswith("3"):     # an FMI 3.0 FMU behind the same FMI 2.0 calls
+            from fmi3_as_fmi2 import Fmi3AsFmi2, fmi3_logger
+            self.fmu = Fmi3AsFmi2(self.md, fmu_dir, "s")
+            self.fmu.instantiate(logMessage=fmi3_logger(self.messages), loggingOn=logging)
+        else:
+            self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=str(fmu_dir),
+                                 modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName="s")
+            self.fmu.instantiate(callbacks=cb, loggingOn=logging)
         if not setup:
             return
         self.fmu.setupExperiment(startTime=start_time)

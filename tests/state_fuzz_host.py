@@ -126,11 +126,11 @@ class Checker:
         for v in s.md.modelVariables:
             if v.causality != "output":
                 continue
-            if v.type == "Real":
+            if v.type in ("Real", "Float64"):
                 lo = float(v.min) if v.min is not None else -math.inf
                 hi = float(v.max) if v.max is not None else math.inf
                 self.reals.append((v.name, v.valueReference, lo, hi))
-            elif v.type == "Integer":
+            elif v.type in ("Integer", "Int32", "UInt64"):
                 allowed = {0, 1} if v.name == "stick_slip" else None
                 self.ints.append((v.name, v.valueReference, allowed))
 

@@ -31,14 +31,8 @@ H = 1e-3
 
 
 @pytest.fixture(scope="module")
-def fmu3(tmp_path_factory):
-    from hammerbit.fmu.build import build_fmu
-    from hammerbit.fmu.native import FrontBuildError, find_compiler
-    try:
-        find_compiler()
-    except FrontBuildError as e:
-        pytest.skip(str(e))
-    return build_fmu(tmp_path_factory.mktemp("fmi3") / "HammerBitRock.fmu", runtime="native", fmi_version=3)
+def fmu3(built_native_fmu3):
+    return built_native_fmu3
 
 
 @pytest.fixture(scope="module")
@@ -329,3 +323,10 @@ def test_model_exchange_time_and_states_round_trip(fmu3_dir):
     m.freeFMUState(state)
     m.terminate()
     m.freeInstance()
+
+
+def test_fmi3_reference_results_equal_its_run_in_fmpy(fmu3):
+    """The FMI-LS-REF results the FMI 3.0 build ships (the library's slave) against fmpy's run
+    of its default experiment (tests/reference_check.py says how close and why)."""
+    from reference_check import compare_with_fmpy
+    compare_with_fmpy(fmu3)

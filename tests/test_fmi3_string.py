@@ -94,3 +94,9 @@ def test_fmi3_string_equals_fmi2_step_for_step(fmus, tmp_path):
     want, got = run2(fmus[0]), run3(fmus[1], tmp_path)
     assert np.ptp(want[:, 0]) > 10.0             # the hammer drives the string: tens of N
     assert np.array_equal(got, want)
+
+
+def test_fmi3_string_reference_results_equal_its_run_in_fmpy(fmus):
+    """The FMI-LS-REF results of the FMI 3.0 build (the library's slave) against fmpy's run."""
+    from reference_check import compare_with_fmpy
+    compare_with_fmpy(fmus[1])

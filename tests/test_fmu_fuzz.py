@@ -101,8 +101,10 @@ def test_state_from_another_instance_and_terminate_twice(any_fmu):
 # fuzzed FMU states, in a host process of their own (tests/state_fuzz_host.py)
 # ---------------------------------------------------------------------------
 STATE_FUZZ_HOST = Path(__file__).resolve().parent / "state_fuzz_host.py"
-#: every FMU the project builds, both flavours (session fixtures of conftest.py)
-ALL_FMUS = ["built_fmu", "built_native_fmu", "built_string_fmu", "built_native_string_fmu"]
+#: every FMU the project builds, both flavours, the native ones in FMI 2.0 and 3.0 too (session
+#: fixtures of conftest.py; an FMI 3.0 FMU behind the host's FMI 2.0 calls: tests/fmi3_as_fmi2.py)
+ALL_FMUS = ["built_fmu", "built_native_fmu", "built_string_fmu", "built_native_string_fmu",
+            "built_native_fmu3", "built_native_string_fmu3"]
 
 
 def fuzz_states(fmu: Path, tmp: Path, *, seed: int, count: int, watchdog: float, timeout: float) -> dict:

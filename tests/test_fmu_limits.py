@@ -1,7 +1,8 @@
 """The FMUs' declared limits, refused at once in both flavours: the time range of
 fmi2SetupExperiment and fmi2DoStep (±1e9 s), HammerBitRock's longest step (MAX_PERIODS_PER_STEP
 forcing periods), Model Exchange functions on a Co-Simulation instance, and FMU-state calls on
-an FMU that declares no states."""
+an FMU that declares no states.  The native FMUs in FMI 3.0 too (fmi3EnterInitializationMode
+takes the experiment's times there)."""
 from __future__ import annotations
 
 import ctypes
@@ -16,7 +17,11 @@ from hammerbit.model.validation import RANGES
 
 pytest.importorskip("fmpy")
 
-ALL_FMUS = ["built_fmu", "built_native_fmu", "built_string_fmu", "built_native_string_fmu"]
+#: the native FMUs in FMI 3.0 too, behind the same FMI 2.0 calls (tests/fmi3_as_fmi2.py)
+ALL_FMUS = ["built_fmu", "built_native_fmu", "built_string_fmu", "built_native_string_fmu",
+            "built_native_fmu3", "built_native_string_fmu3"]
+#: the HammerBitRock FMUs: both flavours, the native one in FMI 2.0 and 3.0
+HAMMER_FMUS = ["built_fmu", "built_native_fmu", "built_native_fmu3"]
 TIME_LIMIT = RANGES["fmu.time"].hi
 
 
@@ -47,8 +52,9 @@ def test_setup_experiment_refuses_times_outside_the_declared_range(fmu_fixture, 
         s.fmu.freeInstance()
 
 
-def test_a_step_beyond_max_periods_is_refused_at_once_naming_the_limit(any_fmu, tmp_path):
-    s = Slave(_extract(any_fmu, tmp_path), logging=True)
+@pytest.mark.parametrize("fmu_fixture", HAMMER_FMUS)
+def test_a_step_beyond_max_periods_is_refused_at_once_naming_the_limit(fmu_fixture, request, tmp_path):
+    s = Slave(_extract(request.getfixturevalue(fmu_fixture), tmp_path), logging=True)
     try:
         f = s.get("frequency")[0]
         before = s.get("bit_position", "hammer_position")
@@ -60,9 +66,11 @@ def test_a_step_beyond_max_periods_is_refused_at_once_naming_the_limit(any_fmu, 
         s.fmu.freeInstance()
 
 
-def test_a_step_over_the_whole_default_run_is_legal(any_fmu, tmp_path):
+@pytest.mark.parametrize("fmu_fixture", HAMMER_FMUS)
+def test_a_step_over_the_whole_default_run_is_legal(fmu_fixture, request, tmp_path):
     """20 s (the default experiment) in one step, and in 1000 steps: the same state to the tolerance."""
-    one, many = (Slave(_extract(any_fmu, tmp_path / k), reals={"tolerance": 1e-10}) for k in ("a", "b"))
+    fmu = request.getfixturevalue(fmu_fixture)
+    one, many = (Slave(_extract(fmu, tmp_path / k), reals={"tolerance": 1e-10}) for k in ("a", "b"))
     try:
         assert one.status_of(one.fmu.doStep, 0.0, 20.0) == FMI_OK
         for i in range(1000):

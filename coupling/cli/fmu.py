@@ -125,7 +125,7 @@ def cmd_fmu_build_system(args) -> int:
     print("hammerbit fmu build-system: building DrillingSystem.fmu (native runtime; compiling the "
           "solver's kernels) ...", file=sys.stderr, flush=True)
     t0 = time.perf_counter()
-    path = build_system_fmu(string, cfg, args.out, tolerance=args.tolerance,
+    path = build_system_fmu(string, cfg, args.out, tolerance=args.tolerance, fmi_version=args.fmi_version,
                             log=lambda m: print(m, file=sys.stderr))
     print(f"hammerbit fmu build-system: done in {time.perf_counter() - t0:.0f} s", file=sys.stderr)
     print(path)
@@ -137,7 +137,7 @@ def add_build_system(fsub) -> None:
     from hammerbit.cli.cosim import add_hammer_options
     b = fsub.add_parser("build-system", help="build DrillingSystem.fmu: hammer, bit, string and top condition "
                                              "integrated as one system (native)",
-                        description="Build DrillingSystem.fmu (FMI 2.0 co-simulation, native binaries): the "
+                        description="Build DrillingSystem.fmu (FMI 2.0 or 3.0 co-simulation, native binaries): the "
                                     "hammer-bit-rock model, the string and its top condition integrated as one "
                                     "hybrid system by the library's adaptive event-located solver; the master's "
                                     "step is only where it reads and writes.")
@@ -150,6 +150,10 @@ def add_build_system(fsub) -> None:
                    help="start value of the FMU's tolerance parameter (default 1e-3)")
     b.add_argument("--out", default=None, metavar="PATH",
                    help="the .fmu file to write, or a directory (default dist/DrillingSystem.fmu)")
+    b.add_argument("--fmi-version", type=int, choices=(2, 3), default=2,
+                   help="2 (default): FMI 2.0; 3: FMI 3.0 Co-Simulation (binaries x86_64-linux, "
+                        "x86_64-windows and aarch64-linux; no early return or Event Mode: the solver's "
+                        "events stay inside the step)")
     add_hammer_options(b)
     b.set_defaults(func=cmd_fmu_build_system)
 

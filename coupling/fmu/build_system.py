@@ -122,7 +122,7 @@ def system_data(string, config, *, tolerance: float = 1e-3) -> dict:
             "buoyed": float(side.ss.hook_load) + side.wob, "wob": float(side.wob), "feed": V0,
             "F0": F0, "x0": x0, "Om": Om, "amplitude": float(config.rig.amplitude),
             "frequency": float(config.rig.frequency), "top": top, "tolerance": float(tolerance),
-            "max_feed": float(MAX_FEED), "string": string.name, "string_states": int(side.n),
+            "max_feed": float(MAX_FEED), "string": string.name, "string_states": int(side.n), "stepper": st,
             "layout": {k: int(getattr(KL, k)) for k in _LAYOUT}}
 
 
@@ -233,13 +233,22 @@ def system_header(data: dict) -> str:
     return "\n".join(lines)
 
 
-def build_system_fmu(string, config, out=None, *, tolerance: float = 1e-3, log=print) -> Path:
+def build_system_fmu(string, config, out=None, *, tolerance: float = 1e-3, log=print,
+                     fmi_version: int = 2) -> Path:
     """Build ``DrillingSystem.fmu`` for ``string`` (a DrillString) and ``config`` (CosimConfig);
-    its path (``out``: a .fmu path or a directory, default ``dist/DrillingSystem.fmu``)."""
+    its path (``out``: a .fmu path or a directory, default ``dist/DrillingSystem.fmu``).
+
+    ``fmi_version``: 2, or 3 for FMI 3.0 (:mod:`hammerbit.fmu.fmi3_description`; Co-Simulation
+    only, without early return or Event Mode: the solver's events stay inside the step)."""
     from hammerbit.fmu.c_description import write_description_header
+    from hammerbit.fmu.fmi3_description import FMI3_PLATFORMS, fmi3_header, fmi3_model_description
     from hammerbit.fmu.native import generate_header, read_model_description
-    from hammerbit.fmu.native_build import MINGW_CC, TARGETS, find_compiler, link_binary, select_platforms
+    from hammerbit.fmu.native_build import AARCH64_CC, FMI3_DEFINES, FMI3_SOURCES, MINGW_CC, TARGETS, \
+        find_compiler, link_binary, select_platforms
     from hammerbit.fmu.native_kernels import build_objects
+    from hammerbit.fmu.reference_results import system_results
+    if fmi_version not in (2, 3):
+        raise ValueError(f"fmi_version = {fmi_version!r} is out of range: allowed 2 or 3")
     out = Path("dist") / f"{MODEL_NAME}.fmu" if out is None else Path(out)
     if out.is_dir():
         out = out / f"{MODEL_NAME}.fmu"
@@ -252,21 +261,29 @@ def build_system_fmu(string, config, out=None, *, tolerance: float = 1e-3, log=p
         (tmp / "hb_model.h").write_text(generate_header(spec, wrapper_file="", python_modules=()))
         write_description_header(tmp)
         (tmp / "hsys_data.h").write_text(system_header(data))
-        platforms = select_platforms(log)
+        md3, sources, defines = None, SYSTEM_SOURCES, ()
+        if fmi_version == 3:
+            md3 = fmi3_model_description(md, ())
+            (tmp / "hb_fmi3.h").write_text(fmi3_header(md3, 0))
+            sources, defines = SYSTEM_SOURCES + FMI3_SOURCES, FMI3_DEFINES
+        platforms = select_platforms(log, fmi_version)
         build_objects(tmp, platforms, kernels="system")
         built = {}
         for plat in platforms:
-            cc = find_compiler() if plat == "linux64" else shutil.which(MINGW_CC)
+            cc = {"linux64": find_compiler, "win64": lambda: shutil.which(MINGW_CC),
+                  "aarch64-linux": lambda: shutil.which(AARCH64_CC)}[plat]()
             dest = tmp / "bin" / plat / f"{MODEL_NAME}{TARGETS[plat].suffix}"
             dest.parent.mkdir(parents=True, exist_ok=True)
-            link_binary(plat, cc, tmp / f"kernels_{plat}.o", tmp, dest, sources=SYSTEM_SOURCES)
+            link_binary(plat, cc, tmp / f"kernels_{plat}.o", tmp, dest, sources, defines)
             built[plat] = dest
         tmp_out = out.with_name(out.name + ".tmp")
         with zipfile.ZipFile(tmp_out, "w", zipfile.ZIP_DEFLATED) as zf:
-            zf.writestr("modelDescription.xml", md)
+            zf.writestr("modelDescription.xml", md if md3 is None else md3)
             # the front requires the resources directory; the model reads nothing from it
             zf.writestr(zipfile.ZipInfo("resources/"), "")
             for plat, path in sorted(built.items()):
-                zf.write(path, f"binaries/{plat}/{path.name}")
+                zf.write(path, f"binaries/{plat if md3 is None else FMI3_PLATFORMS[plat]}/{path.name}")
+            for name, blob in system_results(MODEL_NAME, data, md).files().items():
+                zf.writestr(name, blob)
         tmp_out.replace(out)
     return out

@@ -337,12 +337,19 @@ def assemble_native_fmu(python_fmu: Path, out: Path, start_values: dict, *, log=
     """Write the native FMU ``out`` from the model description of the Python flavour's ``python_fmu``
     (an FMI 2.0 FMU, or with ``fmi_version=3`` an FMI 3.0 one)."""
     from hammerbit.fmu.fmi3_description import FMI3_PLATFORMS, fmi3_model_description
+    from hammerbit.fmu.reference_results import slave_results
     from hammerbit.model.kernel_layouts import EVENT_NAMES
+    from hammerbit.model.slave import HammerBitRock
     with zipfile.ZipFile(python_fmu) as zf:
         md = native_model_description(zf.read("modelDescription.xml"))
     md3 = fmi3_model_description(md, EVENT_NAMES) if fmi_version == 3 else None
     with tempfile.TemporaryDirectory(prefix="hammerbit_native_fmu_") as tmp:
         built = build_binaries(md, Path(tmp), start_values=start_values, log=log, fmi3_xml=md3)
+        # the reference results (FMI-LS-REF) from the library's slave with the build's start values
+        res = Path(tmp) / "reference_resources"
+        res.mkdir()
+        (res / "start_values.json").write_text(json.dumps(start_values))
+        reference = slave_results(HammerBitRock, "HammerBitRock", md, res)
         tmp_out = out.with_name(out.name + ".tmp")
         with zipfile.ZipFile(tmp_out, "w", zipfile.ZIP_DEFLATED) as zf:
             zf.writestr("modelDescription.xml", md3 if md3 is not None else md)
@@ -352,6 +359,8 @@ def assemble_native_fmu(python_fmu: Path, out: Path, start_values: dict, *, log=
             # the resource directory every host passes to fmi2Instantiate: the build's start values
             zf.writestr("resources/start_values.json",
                         json.dumps(start_values, indent=1, sort_keys=True) + "\n")
+            for name, blob in reference.files().items():
+                zf.writestr(name, blob)
         os.replace(tmp_out, out)
     return out
 

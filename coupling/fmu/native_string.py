@@ -248,7 +248,9 @@ def build_native_string_fmu(string_arg, out=None, *, steps=None, build=None, log
     from hammerbit.fmu.native_build import TARGETS, link_binary, select_platforms
     from hammerbit.fmu.native_build import find_compiler, MINGW_CC
     from hammerbit.fmu.native_kernels import build_objects
+    from hammerbit.fmu.reference_results import slave_results
     from hammerbit.model.string_model import INFO_FILE
+    from hammerbit.model.string_slave import Drillstring
     steps = tuple(float(h) for h in (DEFAULT_STEPS if steps is None else steps))
     for h in steps:
         if not (0.0 < h < float("inf")):
@@ -261,6 +263,9 @@ def build_native_string_fmu(string_arg, out=None, *, steps=None, build=None, log
         with zipfile.ZipFile(py_fmu) as zf:
             md = native_string_description(zf.read("modelDescription.xml"))
             info = json.loads(zf.read(f"resources/{INFO_FILE}"))
+            zf.extractall(tmp / "python" / "unzipped", [n for n in zf.namelist() if n.startswith("resources/")])
+        # the reference results (FMI-LS-REF) from the library's slave on the Python flavour's resources
+        reference = slave_results(Drillstring, MODEL_NAME, md, tmp / "python" / "unzipped" / "resources")
         info["steps"] = list(steps)
         write_tables(tmp / DATA_FILE, string_tables(build, steps))
         spec = read_model_description(md)
@@ -291,5 +296,7 @@ def build_native_string_fmu(string_arg, out=None, *, steps=None, build=None, log
             zf.write(tmp / DATA_FILE, f"resources/{DATA_FILE}")
             # the description (hammerbit cosim --ssp reads it, and the side from DATA_FILE)
             zf.writestr(f"resources/{INFO_FILE}", json.dumps(info, indent=1))
+            for name, blob in reference.files().items():
+                zf.writestr(name, blob)
         tmp_out.replace(out)
     return out

@@ -23,8 +23,10 @@ enum { HB3_FLOAT64, HB3_INT32, HB3_UINT64, HB3_BOOLEAN, HB3_STRING, HB3_NTYPES }
 
 #include "hb_fmi3.h"
 
-/* states of an FMI 3.0 instance (FMI 3.0, section 4.2 and 5.2) */
-enum { F3_INSTANTIATED, F3_INIT, F3_STEP, F3_EVENT, F3_CONT, F3_TERMINATED, F3_ERROR };
+/* states of an FMI 3.0 instance (FMI 3.0, section 4.2 and 5.2), in the order of HB_FRONT_* (front.h) */
+enum { F3_INSTANTIATED = HB_FRONT_INSTANTIATED, F3_INIT = HB_FRONT_INIT, F3_STEP = HB_FRONT_STEP,
+       F3_EVENT = HB_FRONT_EVENT, F3_CONT = HB_FRONT_CONT, F3_TERMINATED = HB_FRONT_TERMINATED,
+       F3_ERROR = HB_FRONT_ERROR };
 
 typedef struct {
     fmi2Component c2;                 /* the FMI 2.0 front's instance */

@@ -247,7 +247,10 @@ FMI3_Export fmi3Status fmi3GetFMUState(fmi3Instance instance, fmi3FMUState *FMUS
 
 FMI3_Export fmi3Status fmi3SetFMUState(fmi3Instance instance, fmi3FMUState FMUState) {
     BEGIN3_VALUES("fmi3SetFMUState");
-    return hb3_status(I, fmi2SetFMUstate(I->c2, FMUState));
+    fmi3Status st = hb3_status(I, fmi2SetFMUstate(I->c2, FMUState));
+    /* the recovery from fmi3Error: the restored state's mode (the FMI 2.0 front's, the same order) */
+    if (st <= fmi3Warning && I->state == F3_ERROR) I->state = hb_front_mode(I->c2);
+    return st;
 }
 
 FMI3_Export fmi3Status fmi3FreeFMUState(fmi3Instance instance, fmi3FMUState *FMUState) {

@@ -301,6 +301,18 @@ fmi2Real hb_front_time(fmi2Component c) {
     return c ? ((hb_inst *)c)->time : NAN;
 }
 
+int hb_front_mode(fmi2Component c) {
+    switch (c ? ((hb_inst *)c)->state : ST_ERROR) {
+    case ST_INSTANTIATED: return HB_FRONT_INSTANTIATED;
+    case ST_INIT: return HB_FRONT_INIT;
+    case ST_STEP_COMPLETE: return HB_FRONT_STEP;
+    case ST_EVENT: return HB_FRONT_EVENT;
+    case ST_CONT: return HB_FRONT_CONT;
+    case ST_TERMINATED: return HB_FRONT_TERMINATED;
+    default: return HB_FRONT_ERROR;
+    }
+}
+
 EXPORT fmi2Status fmi2CancelStep(fmi2Component c) {
     BEGIN("fmi2CancelStep", 0);   /* fmi2DoStep never returns fmi2Pending */
     return fmi2Error;

@@ -105,6 +105,10 @@ fmi2Status hb_front_step(fmi2Component c, fmi2Real currentCommunicationPoint,
 /* the current time of an instance [s]: its communication point, or in Model Exchange the time of
  * fmi2SetTime (NaN for NULL) */
 fmi2Real hb_front_time(fmi2Component c);
+/* the FMI 2.0 front's state of an instance (HB_FRONT_ERROR for NULL or Fatal) */
+enum { HB_FRONT_INSTANTIATED, HB_FRONT_INIT, HB_FRONT_STEP, HB_FRONT_EVENT, HB_FRONT_CONT, HB_FRONT_TERMINATED,
+       HB_FRONT_ERROR };
+int hb_front_mode(fmi2Component c);
 
 /* the loaded library (all NULL before hb_load_wrapper succeeded) */
 extern hb_wrapper hb_W;

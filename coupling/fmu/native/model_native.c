@@ -183,6 +183,9 @@ static int64_t advance(model_state *s, double tau_end, int to_event, int *stoppe
         s->ist[HBK_I_NLOG] = 0;
         status = hb_advance_to_event(s->y, s->ist, s->fst, tau_end, s->p, s->opts, log);
     } while (status == HBK_ST_LOG_FULL && !(s->fst[HBK_F_T] > tau0));
+    /* the row is read (the event's time is the state's): no record is kept between steps, as
+     * every FMU state must have (model_state.c checks it), so a state saved now can be restored */
+    s->ist[HBK_I_NLOG] = 0;
     *stopped = status == HBK_ST_LOG_FULL;
     return *stopped ? HBK_ST_DONE : status;
 }
