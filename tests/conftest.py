@@ -11,6 +11,8 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import pytest  # noqa: E402
 
+from shared_builds import shared_build  # noqa: E402
+
 try:
     from hypothesis import settings as _hypothesis_settings
 except ImportError:  # pragma: no cover -- the property tests are skipped without hypothesis
@@ -26,7 +28,7 @@ if _hypothesis_settings is not None:
 def built_fmu(tmp_path_factory):
     """``HammerBitRock.fmu`` built once per session (``hammerbit fmu build``) into a temporary directory."""
     from hammerbit.fmu.build import build_fmu
-    return build_fmu(tmp_path_factory.mktemp("fmu") / "HammerBitRock.fmu")
+    return shared_build(tmp_path_factory, "fmu", "HammerBitRock.fmu", build_fmu)
 
 
 @pytest.fixture(scope="session")
@@ -35,8 +37,8 @@ def built_ssp(tmp_path_factory):
     ``hammerbit ssp build --string field-2200m --set frequency=22.5`` (2 s, H = 1 ms)."""
     from hammerbit.cosim.config import field_hammer
     from hammerbit.ssp.package import SSPOptions, build_ssp
-    return build_ssp("field-2200m", tmp_path_factory.mktemp("ssp") / "drilling.ssp",
-                     SSPOptions(stop=2.0, step=1e-3, rig=field_hammer().replace(frequency=22.5)))
+    return shared_build(tmp_path_factory, "ssp", "drilling.ssp", lambda path: build_ssp(
+        "field-2200m", path, SSPOptions(stop=2.0, step=1e-3, rig=field_hammer().replace(frequency=22.5))))
 
 @pytest.fixture(scope="session")
 def built_native_ssp(tmp_path_factory):
@@ -49,8 +51,9 @@ def built_native_ssp(tmp_path_factory):
         find_compiler()
     except FrontBuildError as e:
         pytest.skip(str(e))
-    return build_ssp("field-2200m", tmp_path_factory.mktemp("ssp_native") / "drilling.ssp",
-                     SSPOptions(stop=2.0, step=1e-3, rig=field_hammer().replace(frequency=22.5), runtime="native"))
+    return shared_build(tmp_path_factory, "ssp_native", "drilling.ssp", lambda path: build_ssp(
+        "field-2200m", path, SSPOptions(stop=2.0, step=1e-3, rig=field_hammer().replace(frequency=22.5),
+                                        runtime="native")))
 
 
 @pytest.fixture(scope="session")
@@ -62,7 +65,8 @@ def built_native_fmu(tmp_path_factory):
         find_compiler()
     except FrontBuildError as e:
         pytest.skip(str(e))
-    return build_fmu(tmp_path_factory.mktemp("native") / "HammerBitRock.fmu", runtime="native")
+    return shared_build(tmp_path_factory, "native", "HammerBitRock.fmu",
+                        lambda path: build_fmu(path, runtime="native"))
 
 
 @pytest.fixture(scope="session")
@@ -74,7 +78,8 @@ def built_native_fmu3(tmp_path_factory):
         find_compiler()
     except FrontBuildError as e:
         pytest.skip(str(e))
-    return build_fmu(tmp_path_factory.mktemp("native3") / "HammerBitRock.fmu", runtime="native", fmi_version=3)
+    return shared_build(tmp_path_factory, "native3", "HammerBitRock.fmu",
+                        lambda path: build_fmu(path, runtime="native", fmi_version=3))
 
 
 @pytest.fixture(params=["pythonfmu", "native"])
@@ -108,6 +113,30 @@ SLOW_TESTS = {
         "tests/test_studies.py::test_map_identical_on_every_executor",
     "tests/test_studies.py::test_map_identical_on_a_one_worker_dask_cluster":
         "tests/test_studies.py::test_map_identical_on_every_executor",
+    "tests/test_fmu_exit.py::test_a_few_process_runs_exit_0[simulate_ssp-plain]":
+        "tests/test_fmu_exit.py::test_a_few_process_runs_exit_0[simulate_ssp-front]",
+    "tests/test_fmu_exit.py::test_a_few_process_runs_exit_0[user_loop-plain]":
+        "tests/test_fmu_exit.py::test_a_few_process_runs_exit_0[user_loop-front]",
+    "tests/test_fmu.py::test_repeated_instantiation_and_exit_in_a_fresh_process":
+        "tests/test_fmu_exit.py::test_a_few_process_runs_exit_0[user_loop-front]",
+    "tests/test_optimize_constrained.py::test_contact_force_limit_binding_on_the_lab_rig_with_a_gap":
+        "tests/test_optimize_constrained.py::test_static_threshold_binding_over_amplitude_and_preload",
+    "tests/test_docs.py::test_python_blocks_run[docs/continuation.md]":
+        "tests/test_continuation.py::test_the_branch_reaches_the_end_of_its_range_through_points_that_are_orbits",
+    "tests/test_docs.py::test_python_blocks_run[docs/fmu.md]":
+        "tests/test_docs_commands.py::test_documented_command_runs",
+    "tests/test_cpu_target.py::test_cosim_through_the_fmu_loads_the_kernels_it_ships":
+        "tests/test_cpu_target.py::test_a_study_worker_of_an_fmu_master_compiles_nothing_at_start",
+    "tests/test_fmu_build.py::test_two_builds_with_different_start_values_in_one_process":
+        "tests/test_fmu_native_runtime.py::test_start_values_of_the_build_are_the_binaries_own",
+    "tests/test_cosim_defects.py::test_default_run_with_a_ramp_reaches_the_tolerance":
+        "tests/test_cosim_defects.py::test_a_claimed_tolerance_holds_against_the_reference",
+    "tests/test_cosim_adaptive.py::test_tighter_tolerance_smaller_steps_smaller_error":
+        "tests/test_cosim_adaptive.py::test_adaptive_meets_its_tolerance_on_a_drilling_case",
+    "tests/test_figure_worker.py::test_simulate_plot_is_the_same_with_and_without_the_worker":
+        "tests/test_figure_worker.py::test_worker_saves_what_this_process_saves_and_raises_what_it_raises",
+    "tests/test_reference.py::test_penetration_matches_independent_reference[rtol-1e-10-no_impact]":
+        "tests/test_reference.py::test_penetration_matches_independent_reference[rtol-1e-10-impact]",
 }
 
 
@@ -123,7 +152,7 @@ def pytest_collection_modifyitems(config, items):
 def built_string_fmu(tmp_path_factory):
     """``Drillstring.fmu`` of the lab string, pythonfmu flavour, built once per session."""
     from hammerbit.fmu.build_string import build_string_fmu
-    return build_string_fmu("lab", tmp_path_factory.mktemp("string_py") / "Drillstring.fmu")
+    return shared_build(tmp_path_factory, "string_py", "Drillstring.fmu", lambda path: build_string_fmu("lab", path))
 
 
 @pytest.fixture(scope="session")
@@ -135,8 +164,8 @@ def built_native_string_fmu(tmp_path_factory):
         find_compiler()
     except FrontBuildError as e:
         pytest.skip(str(e))
-    return build_native_string_fmu("lab", tmp_path_factory.mktemp("string_native") / "Drillstring.fmu",
-                                   log=lambda msg: None)
+    return shared_build(tmp_path_factory, "string_native", "Drillstring.fmu",
+                        lambda path: build_native_string_fmu("lab", path, log=lambda msg: None))
 
 
 @pytest.fixture(scope="session")
@@ -148,5 +177,5 @@ def built_native_string_fmu3(tmp_path_factory):
         find_compiler()
     except FrontBuildError as e:
         pytest.skip(str(e))
-    return build_native_string_fmu("lab", tmp_path_factory.mktemp("string_native3") / "Drillstring.fmu",
-                                   log=lambda msg: None, fmi_version=3)
+    return shared_build(tmp_path_factory, "string_native3", "Drillstring.fmu",
+                        lambda path: build_native_string_fmu("lab", path, log=lambda msg: None, fmi_version=3))
