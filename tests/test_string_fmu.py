@@ -208,3 +208,21 @@ def test_auto_driller_gain_parameter_equals_a_side_built_with_it(string_fmu, gai
     tol = 1e-11 * W
     assert np.max(np.abs(d["hook_load"] - d0["hook_load"])) > 100 * tol     # the gain matters
     assert worst <= tol
+
+
+def test_a_build_after_running_a_pythonfmu_fmu_in_this_process_carries_its_binaries(built_string_fmu, tmp_path):
+    """A pythonfmu FMU run in a Python host imports the pythonfmu copy packed in its resources,
+    which stays in ``sys.modules`` after the FMU is gone; a build afterwards in the same process
+    still writes pythonfmu's binaries (it would otherwise write an FMU without any)."""
+    import subprocess
+    import sys
+    import zipfile
+    code = ("import sys, fmpy\n"
+            f"fmpy.simulate_fmu({str(built_string_fmu)!r}, stop_time=0.01)\n"
+            "assert 'resources' in sys.modules['pythonfmu'].__file__, 'the FMU did not shadow pythonfmu'\n"
+            "from hammerbit.fmu.build_string import build_string_fmu\n"
+            f"print(build_string_fmu('lab', {str(tmp_path / 'Drillstring.fmu')!r}))\n")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stderr[-2000:]
+    with zipfile.ZipFile(tmp_path / "Drillstring.fmu") as zf:
+        assert any(n.startswith("binaries/linux64/") and n.endswith(".so") for n in zf.namelist())

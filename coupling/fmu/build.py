@@ -285,6 +285,23 @@ def _edit_model_description(xml: bytes) -> bytes:
     return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8") + b"\n"
 
 
+def pythonfmu_builder():
+    """pythonfmu's ``FmuBuilder``, from a pythonfmu package that carries its binaries.
+
+    A pythonfmu FMU run in this process (fmpy in a Python host) imports the copy of pythonfmu
+    that pythonfmu's builder packs into the FMU's resources, and leaves it in ``sys.modules``
+    once the FMU is freed and its directory deleted: that copy has no binaries, so a build
+    through it would write an FMU without any.  Such a copy is forgotten first, so that the
+    import finds the installed package."""
+    import sys
+    loaded = sys.modules.get("pythonfmu")
+    if loaded is not None and not (Path(loaded.__file__).parent / "resources" / "binaries").is_dir():
+        for name in [n for n in sys.modules if n == "pythonfmu" or n.startswith("pythonfmu.")]:
+            del sys.modules[name]
+    from pythonfmu import FmuBuilder
+    return FmuBuilder
+
+
 def _native_front():
     """``hammerbit.fmu.native.build_front``, or None if that package is not installed."""
     try:
@@ -350,7 +367,7 @@ def build_fmu(out=None, *, options: BuildOptions = BuildOptions(), **kw) -> Path
         A build step failed (no C compiler for the native front, kernels that
         do not compile, ...).
     """
-    from pythonfmu import FmuBuilder
+    FmuBuilder = pythonfmu_builder()
 
     if kw:
         from dataclasses import replace

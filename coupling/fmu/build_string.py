@@ -31,7 +31,8 @@ from xml.etree import ElementTree as ET
 
 import numpy as np
 
-from hammerbit.fmu.build import add_native_front, build_hash, forget_staged_modules, runtime_files
+from hammerbit.fmu.build import (add_native_front, build_hash, forget_staged_modules, pythonfmu_builder,
+                                  runtime_files)
 
 __all__ = ["MODEL_NAME", "StringBuild", "build_string_fmu", "string_build",
            "default_string_output", "string_fmu_path"]
@@ -211,7 +212,7 @@ def build_string_fmu(string_arg, out=None, *, build: Optional[StringBuild] = Non
 
     ``out``: the ``.fmu`` file or a directory (default ``dist/Drillstring.fmu``); ``kw`` go to
     :func:`string_build` (``wob``, ``rig``, ``top``, ``interface_stiffness``, ``interface_damping``)."""
-    from pythonfmu import FmuBuilder
+    FmuBuilder = pythonfmu_builder()
     from hammerbit.model.string_model import INFO_FILE, MODEL_FILE, save_model
     build = string_build(string_arg, **kw) if build is None else build
     out = string_fmu_path(out)
