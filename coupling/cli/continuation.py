@@ -181,7 +181,10 @@ def _print_text(d) -> None:
     for c in d.coexistence:
         sw = c["from_rest_switch"]
         text = (f"; runs from rest switch from {_which(sw['below'])} to {_which(sw['above'])} at {name} = "
-                f"{sw['value']:.6g}" if sw else "")
+                f"{sw['value']:.9g}" + (f" (the state at rest crosses the stable manifold of the unstable orbit "
+                                        f"of branch {sw['saddle']})" if sw["located_by"] == "stable manifold"
+                                        else f" (bisection of runs from rest, +- {sw['uncertainty']:.2g})")
+                if sw else "")
         print(f"stable branches {c['branches']} coexist for {name} in [{c['from']:.6g}, {c['to']:.6g}]; "
               f"a run from rest reaches {_which(c['from_rest'])} at the middle{text}")
 
