@@ -35,8 +35,8 @@ def register(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--range", required=True, nargs=2, type=float, metavar=("START", "END"),
                    help="the parameter's range, in its units (SI names: SI units)")
     p.add_argument("--param2", default=None, metavar="NAME",
-                   help="a second parameter: every period-doubling, fold and Neimark-Sacker point found "
-                        "along --param is followed over --range2 as a curve (JSON 'curves')")
+                   help="a second parameter: every period-doubling, fold, Neimark-Sacker and grazing point "
+                        "found along --param is followed over --range2 as a curve (JSON 'curves')")
     p.add_argument("--range2", default=None, nargs=2, type=float, metavar=("START", "END"),
                    help="the range of --param2, in its units")
     p.add_argument("--curve-points", type=int, default=21, metavar="N",
@@ -140,8 +140,9 @@ def cmd_continue(args) -> int:
     else:
         _print_text(d)
         for _, c in curves:
-            print(f"{c.kind} curve: {len(c.points)} points over {c.param2} in "
-                  f"[{min(w for _, w in c.points):.6g}, {max(w for _, w in c.points):.6g}]"
+            span = (f" in [{min(w for _, w in c.points):.6g}, {max(w for _, w in c.points):.6g}]"
+                    if c.points else "")
+            print(f"{c.kind} curve: {len(c.points)} points over {c.param2}{span}"
                   + (f"; {c.stopped}" if c.stopped else ""))
     if d.stops:
         raise RunFailure(f"continuation could not go on: {d.stops[0]}"
@@ -151,15 +152,19 @@ def cmd_continue(args) -> int:
 
 
 def _curves(base, d, args) -> list:
-    """Each smooth bifurcation of the diagram followed over --range2: [(branch index, Curve)]."""
+    """Each smooth bifurcation and grazing point of the diagram followed over --range2: [(branch index, Curve)]."""
     from hammerbit.continuation.bifurcation import SMOOTH_KINDS
     from hammerbit.continuation.boundary import follow_boundary
+    from hammerbit.continuation.grazing import follow_grazing
     out = []
     for b in d.bifurcations:
-        if b.kind not in SMOOTH_KINDS:
+        if b.kind in SMOOTH_KINDS:
+            follow = follow_boundary
+        elif b.kind == "grazing":
+            follow = follow_grazing
+        else:
             continue
-        c = follow_boundary(base, b, args.param, args.param2, args.range2[0], args.range2[1],
-                            points=args.curve_points)
+        c = follow(base, b, args.param, args.param2, args.range2[0], args.range2[1], points=args.curve_points)
         if c.stopped:
             d.stops.append(f"{b.kind} curve from {args.param} = {b.value:.9g}: {c.stopped}")
         out.append((b.branch, c))
