@@ -35,13 +35,15 @@ from .monodromy import ORBIT_SOLVER, ContinuationError, period_map, relative_sta
 from .orbit import PeriodicOrbit, correct_orbit, orbit_from_simulation
 from .parameter import Parameter
 
-__all__ = ["RestRun", "rest_run", "branch_of", "rop_at", "rest_switch", "SWITCH_TOL", "SADDLE_REACH",
+__all__ = ["RestRun", "rest_run", "branch_of", "on_branch", "rop_at", "rest_switch", "SWITCH_TOL", "SADDLE_REACH",
            "MANIFOLD_TOL"]
 
 #: a run from rest is on a branch of its period when its rate of penetration matches the branch's within this
 ROP_MATCH_TOL = 2e-3
 #: ... plus this (x0 per period): a branch of no progression has ROP 0
 ROP_MATCH_FLOOR = 1e-9
+#: two corrected orbits closer than this (max norm, map coordinates) are the same
+SAME_ORBIT_TOL = 1e-6
 #: bracket (scaled parameter) of the bisection of runs from rest inside a coexistence interval
 SWITCH_TOL = 1e-4
 #: a run from rest that comes this close (max norm, map coordinates) to an unstable orbit passes its saddle
@@ -86,6 +88,31 @@ def branch_of(branches: list, value: float, period: int, rop: float) -> Optional
     return None
 
 
+def on_branch(branches: list, value: float, orbit: PeriodicOrbit) -> Optional[int]:
+    """The index of a branch that passes through ``orbit`` at ``value`` (any of its phase points), or None.
+
+    For where the ROP interpolated between a branch's points is too coarse to tell (next to a corner): the
+    branch's orbit at ``value``, corrected from the interpolation of its two points there, is compared with
+    the orbit's phase points.
+    """
+    phases = _phase_points(orbit)
+    for i, br in enumerate(branches):
+        if br.period != orbit.period:
+            continue
+        for a, b in zip(br.points[:-1], br.points[1:]):
+            lo, hi = sorted((a.value, b.value))
+            if not (lo <= value <= hi and hi > lo) or a.orbit.s.shape != b.orbit.s.shape:
+                continue
+            w = (value - a.value) / (b.value - a.value)
+            try:
+                s = correct_orbit(orbit.groups, (1 - w) * a.orbit.s + w * b.orbit.s, br.period).s
+            except ContinuationError:
+                continue
+            if any(p.shape == s.shape and np.max(np.abs(p - s)) < SAME_ORBIT_TOL for p in phases):
+                return i
+    return None
+
+
 def rest_run(param: Parameter, base: Groups, value: float, branches: list) -> RestRun:
     """The period and branch a run from rest reaches at ``value``."""
     g = param.at(base, value)
@@ -97,7 +124,10 @@ def rest_run(param: Parameter, base: Groups, value: float, branches: list) -> Re
         orb = correct_orbit(g, s, n)
     except ContinuationError:
         return RestRun(value, n, None)
-    return RestRun(value, n, branch_of(branches, value, n, orb.rop_x0_per_period), orb.rop_x0_per_period)
+    branch = branch_of(branches, value, n, orb.rop_x0_per_period)
+    if branch is None:
+        branch = on_branch(branches, value, orb)
+    return RestRun(value, n, branch, orb.rop_x0_per_period)
 
 
 def _rest_rows(g: Groups, periods: int) -> np.ndarray:

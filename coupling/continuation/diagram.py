@@ -19,7 +19,7 @@ import numpy as np
 
 from hammerbit.model.params import Groups
 
-from .basin import RestRun, branch_of, rest_run, rest_switch
+from .basin import RestRun, branch_of, on_branch, rest_run, rest_switch
 from .bifurcation import Bifurcation, detect, switch_period_doubling
 from .continuation import Branch, BranchPoint, ContinuationOptions, follow_branch
 from .monodromy import ContinuationError
@@ -156,6 +156,8 @@ def continue_orbits(base: Groups, name: str, start: float, end: float, *, seeds:
         _add_branch(diagram, param, param_base,
                     _follow_both_ways(param, param_base, orbit, start, end, options, on_point), options, on_point)
         run.branch = branch_of(diagram.branches, float(value), n, orbit.rop_x0_per_period)
+        if run.branch is None:
+            run.branch = on_branch(diagram.branches, float(value), orbit)
     diagram.coexistence = _coexistence(diagram, param, param_base)
     return diagram
 
