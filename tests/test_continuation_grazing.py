@@ -1,11 +1,11 @@
-"""The grazing boundary in two parameters (hammerbit.continuation.grazing): the orbit's largest contact
+"""The grazing boundary in two parameters (hammerbit.continuation.touch): the orbit's largest contact
 overlap, and its zero followed as a curve, against a regime map's impact count."""
 import numpy as np
 import pytest
 
 from hammerbit.continuation import correct_orbit, orbit_from_simulation
 from hammerbit.continuation.bifurcation import Bifurcation
-from hammerbit.continuation.grazing import follow_grazing, max_overlap
+from hammerbit.continuation.touch import follow_touch, max_overlap
 from hammerbit.continuation.monodromy import ORBIT_SOLVER
 from hammerbit.model import kernel_layouts as KL
 from hammerbit.model.presets import preset
@@ -23,9 +23,9 @@ def grazing_curve():
     base = preset("paper-fig9").replace(a=0.2, r=1.1)
     n, s = orbit_from_simulation(base)
     orbit = correct_orbit(base, s, n)
-    # a rough guess: follow_grazing refines it at a = 0.2 before going on
+    # a rough guess: follow_touch refines it at a = 0.2 before going on
     guess = Bifurcation(kind="grazing", value=1.0, branch=0, orbit=orbit)
-    return base, follow_grazing(base, guess, "r", "a", *A_RANGE, points=8)
+    return base, follow_touch(base, guess, "r", "a", *A_RANGE, points=8)
 
 
 def test_the_largest_overlap_is_that_of_a_dense_sampling():

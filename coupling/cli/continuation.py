@@ -35,8 +35,8 @@ def register(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--range", required=True, nargs=2, type=float, metavar=("START", "END"),
                    help="the parameter's range, in its units (SI names: SI units)")
     p.add_argument("--param2", default=None, metavar="NAME",
-                   help="a second parameter: every period-doubling, fold, Neimark-Sacker and grazing point "
-                        "found along --param is followed over --range2 as a curve (JSON 'curves')")
+                   help="a second parameter: every period-doubling, fold, Neimark-Sacker, grazing and tension "
+                        "point found along --param is followed over --range2 as a curve (JSON 'curves')")
     p.add_argument("--range2", default=None, nargs=2, type=float, metavar=("START", "END"),
                    help="the range of --param2, in its units")
     p.add_argument("--curve-points", type=int, default=21, metavar="N",
@@ -152,16 +152,17 @@ def cmd_continue(args) -> int:
 
 
 def _curves(base, d, args) -> list:
-    """Each smooth bifurcation and grazing point of the diagram followed over --range2: [(branch index, Curve)]."""
+    """Each smooth bifurcation, grazing and tension point of the diagram followed over --range2:
+    [(branch index, Curve)]."""
     from hammerbit.continuation.bifurcation import SMOOTH_KINDS
     from hammerbit.continuation.boundary import follow_boundary
-    from hammerbit.continuation.grazing import follow_grazing
+    from hammerbit.continuation.touch import INDICATORS, follow_touch
     out = []
     for b in d.bifurcations:
         if b.kind in SMOOTH_KINDS:
             follow = follow_boundary
-        elif b.kind == "grazing":
-            follow = follow_grazing
+        elif b.kind in INDICATORS:
+            follow = follow_touch
         else:
             continue
         c = follow(base, b, args.param, args.param2, args.range2[0], args.range2[1], points=args.curve_points)

@@ -25,6 +25,7 @@ from .continuation import Branch, BranchPoint, ContinuationOptions, follow_branc
 from .monodromy import ContinuationError
 from .orbit import MAX_PERIOD, correct_orbit, orbit_from_simulation
 from .parameter import Parameter
+from .touch import detect_touches
 
 __all__ = ["Diagram", "RestRun", "continue_orbits", "stable_intervals", "SEEDS", "MAX_BRANCHES"]
 
@@ -166,7 +167,7 @@ def _add_branch(diagram: Diagram, param, base, branch: Branch, options, on_point
     """Add a branch and its bifurcations; follow the period-doubled branch of each period-doubling."""
     index = len(diagram.branches)
     diagram.branches.append(branch)
-    bifs = detect(param, base, branch.points, index)
+    bifs = detect(param, base, branch.points, index) + detect_touches(param, base, branch.points, index)
     diagram.bifurcations.extend(bifs)
     failed = []
     for point, why in branch.stop_points:

@@ -1,23 +1,30 @@
-"""The grazing boundary in two parameters: where the contact overlap's maximum along the periodic orbit touches zero, followed as a curve.
+"""Boundaries where an indicator's extremum along the periodic orbit touches zero (grazing, tension onset): located along a branch and followed in two parameters.
 
-An impact appears or disappears where the largest contact overlap of the
-orbit, ``max_t d(t)`` with ``d = x1 - x3 - r``, crosses zero (negative: the
-gap stays open; positive: the peak overlap of an impact).  It is a continuous
-function of the parameters on both sides, though not a smooth one of the
-orbit's multipliers, so the boundary is not a zero of a test function of the
-monodromy (:mod:`.boundary`) but of this indicator.  The periodic-orbit
-system is augmented with it,
+Two boundaries are not zeros of a test function of the multipliers
+(:mod:`.boundary`) but of an extremum along the orbit, a continuous function
+of the parameters on both sides though not a smooth one of the orbit:
 
-    P^n(s, q; w) - s = 0,      max_t d(t; s, q, w) = 0,
+``grazing``
+    an impact appears or disappears: the largest contact overlap
+    ``max_t (x1 - x3 - r)`` crosses zero (negative: the gap stays open;
+    positive: the peak overlap of an impact);
+``tension``
+    the spring starts to pull the bit: the smallest drive on the bit
+    ``min_t (f_k + f_c)`` crosses zero (the library's Stepper tracks it,
+    locating each dip between its steps).
+
+The periodic-orbit system is augmented with the indicator,
+
+    P^n(s, q; w) - s = 0,      indicator(s, q, w) = 0,
 
 and solved at each value ``w`` of the second parameter by elimination: the
 orbit by Newton's method on the map at fixed ``(q, w)`` (:func:`.correct_orbit`),
 the first parameter ``q`` by Brent's method on the indicator, in a bracket
 around the secant through the curve's last two points.
 
-The maximum is read off the orbit sampled :data:`SAMPLES_PER_PERIOD` times a
-period, sampled again :data:`FINE_SAMPLES` times around the largest sample,
-and refined there by the cubic Hermite interpolant of ``d`` and
+The largest overlap is read off the orbit sampled :data:`SAMPLES_PER_PERIOD`
+times a period, sampled again :data:`FINE_SAMPLES` times around the largest
+sample, and refined there by the cubic Hermite interpolant of ``d`` and
 ``d' = x2 - x4`` (error ~ h^4: below 1e-12 even inside a stiff contact).
 """
 from __future__ import annotations
@@ -39,7 +46,8 @@ from .monodromy import ORBIT_SOLVER, ContinuationError
 from .orbit import PeriodicOrbit, correct_orbit
 from .parameter import Parameter
 
-__all__ = ["max_overlap", "follow_grazing", "SAMPLES_PER_PERIOD", "BRACKET_STEP", "ROOT_TOL"]
+__all__ = ["max_overlap", "min_drive", "INDICATORS", "detect_touches", "follow_touch", "SAMPLES_PER_PERIOD",
+           "BRACKET_STEP", "ROOT_TOL"]
 
 #: samples of the orbit per forcing period when looking for the largest overlap
 SAMPLES_PER_PERIOD = 2000
@@ -112,16 +120,71 @@ def _overlap_samples(orbit: PeriodicOrbit, times: np.ndarray) -> tuple[np.ndarra
     return samples[:, 0] - samples[:, 2] - g.r, samples[:, 1] - samples[:, 3]
 
 
-def _point(param: Parameter, param2: Parameter, base: Groups, n: int, w: float, q_guess: float,
+def min_drive(orbit: PeriodicOrbit) -> float:
+    """The smallest drive on the bit ``f_k + f_c`` along the orbit over its period [F_s]."""
+    st = Stepper(orbit.groups, solver=ORBIT_SOLVER, y0=orbit.state, compile_helper=False)
+    try:
+        st.advance(orbit.period * orbit.groups.period)
+    except SolverError as e:
+        raise ContinuationError(f"the orbit could not be integrated: {e}") from None
+    return float(st.fstate[KL.F_DRIVE_MIN])
+
+
+#: the indicators by boundary kind, and what their zero means
+INDICATORS = {"grazing": (max_overlap, "the contact overlap's maximum touches zero (an impact appears)"),
+              "tension": (min_drive, "the drive's minimum on the bit touches zero (the spring starts to pull it)")}
+
+
+def _indicator_at(kind: str, g: Groups, s_guess: np.ndarray, n: int) -> tuple[float, PeriodicOrbit]:
+    orb = correct_orbit(g, s_guess, n)
+    return INDICATORS[kind][0](orb), orb
+
+
+def detect_touches(param: Parameter, base: Groups, points: list, branch_index: int,
+                   kinds: tuple = ("tension",)) -> list[Bifurcation]:
+    """The zeros of the ``kinds`` indicators between consecutive points of a branch, located by Brent's method
+    in the parameter (each trial the branch's orbit corrected from the two points' interpolation).
+
+    Grazing is located by :func:`.bifurcation.detect` (an impact event appears); tension has no event.
+    """
+    found = []
+    for kind in kinds:
+        fn = INDICATORS[kind][0]
+        try:
+            vals = [fn(p.orbit) for p in points]
+        except (ContinuationError, ValueError):
+            continue
+        for (a, b), fa, fb in zip(zip(points[:-1], points[1:]), vals[:-1], vals[1:]):
+            if fa * fb >= 0 or a.orbit.s.shape != b.orbit.s.shape or a.value == b.value:
+                continue
+            state = {}
+
+            def f(v, a=a, b=b):
+                w = (v - a.value) / (b.value - a.value)
+                val, state["orbit"] = _indicator_at(kind, param.at(base, v), (1 - w) * a.orbit.s + w * b.orbit.s,
+                                                    a.orbit.period)
+                return val
+            lo, hi = sorted((a.value, b.value))
+            try:
+                v = brentq(f, lo, hi, xtol=ROOT_TOL * param.scale)
+                f(v)
+            except (ContinuationError, ValueError):
+                continue
+            found.append(Bifurcation(kind=kind, value=float(v), branch=branch_index, orbit=state["orbit"],
+                                     detail=INDICATORS[kind][1]))
+    return found
+
+
+def _point(kind: str, param: Parameter, param2: Parameter, base: Groups, n: int, w: float, q_guess: float,
            s_guess: np.ndarray) -> tuple[float, PeriodicOrbit]:
-    """The grazing point (q, orbit) at the scaled second parameter ``w``, near ``q_guess``."""
+    """The boundary's point (q, orbit) at the scaled second parameter ``w``, near ``q_guess``."""
     state = {"s": s_guess}
 
     def indicator(q):
         g = param2.at(param.at(base, q * param.scale), w * param2.scale)
-        orb = correct_orbit(g, state["s"], n)
+        val, orb = _indicator_at(kind, g, state["s"], n)
         state["s"], state["orbit"] = orb.s, orb
-        return max_overlap(orb)
+        return val
 
     f0 = indicator(q_guess)
     if f0 == 0.0:
@@ -138,28 +201,28 @@ def _point(param: Parameter, param2: Parameter, base: Groups, n: int, w: float, 
                 indicator(q_root)
                 return q_root, state["orbit"]
         step *= 2
-    raise ContinuationError(f"no grazing point within {step / 2:.3g} of the predicted {param.name}")
+    raise ContinuationError(f"no {kind} point within {step / 2:.3g} of the predicted {param.name}")
 
 
-def follow_grazing(base: Groups, bif: Bifurcation, name: str, name2: str, start2: float, end2: float, *,
-                   points: int = 21, on_point: Optional[Callable[[float, float], None]] = None) -> Curve:
-    """The grazing boundary of ``bif`` (a ``grazing`` point located along ``name``) over ``name2``.
+def follow_touch(base: Groups, bif: Bifurcation, name: str, name2: str, start2: float, end2: float, *,
+                 points: int = 21, on_point: Optional[Callable[[float, float], None]] = None) -> Curve:
+    """The boundary of ``bif`` (a ``grazing`` or ``tension`` point located along ``name``) over ``name2``.
 
     The curve starts at the bifurcation's own value of ``name2`` and goes to both ends of
-    ``[start2, end2]``; ``stopped`` says where and why a side ended early (no points: the grazing point
+    ``[start2, end2]``; ``stopped`` says where and why a side ended early (no points: the boundary's point
     itself could not be refined).
     """
-    if bif.kind != "grazing":
-        raise ValueError(f"follow_grazing follows grazing points, not {bif.kind!r}")
+    if bif.kind not in INDICATORS:
+        raise ValueError(f"follow_touch follows {' and '.join(INDICATORS)} points, not {bif.kind!r}")
     param = Parameter.on(name, base)
     param2 = Parameter.on(name2, base)
     n = bif.orbit.period
     w0 = param2.value(bif.orbit.groups) / param2.scale
-    curve = Curve(kind="grazing", param=name, param2=name2)
+    curve = Curve(kind=bif.kind, param=name, param2=name2)
     try:
-        q0, orb0 = _point(param, param2, base, n, w0, bif.value / param.scale, bif.orbit.s)
+        q0, orb0 = _point(bif.kind, param, param2, base, n, w0, bif.value / param.scale, bif.orbit.s)
     except (ContinuationError, ValueError) as e:
-        curve.stopped = f"at {name2} = {w0 * param2.scale:.9g}: the grazing point is not refined: {e}"
+        curve.stopped = f"at {name2} = {w0 * param2.scale:.9g}: the {bif.kind} point is not refined: {e}"
         return curve
     sides = []
     span = max(abs(end2 - start2) / param2.scale, 1e-300)
@@ -171,7 +234,7 @@ def follow_grazing(base: Groups, bif: Bifurcation, name: str, name2: str, start2
             (w1, q1), (w2, q2) = (prev[-2] if len(prev) > 1 else prev[-1]), prev[-1]
             guess = q2 + (q2 - q1) * (w - w2) / (w2 - w1) if w2 != w1 else q2
             try:
-                q, orb = _point(param, param2, base, n, w, guess, s)
+                q, orb = _point(bif.kind, param, param2, base, n, w, guess, s)
             except (ContinuationError, ValueError) as e:
                 curve.stopped = "; ".join(x for x in (curve.stopped, f"at {name2} = {w * param2.scale:.9g}: {e}")
                                           if x)
