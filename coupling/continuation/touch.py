@@ -57,6 +57,8 @@ FINE_SAMPLES = 400
 BRACKET_STEP = 1e-3
 #: doublings of the bracket's half-width before the point counts as lost
 BRACKET_DOUBLINGS = 8
+#: halvings of a step in the second parameter before the curve stops
+MAX_HALVINGS = 5
 #: Brent's tolerance on the scaled first parameter
 ROOT_TOL = 1e-10
 
@@ -204,6 +206,22 @@ def _point(kind: str, param: Parameter, param2: Parameter, base: Groups, n: int,
     raise ContinuationError(f"no {kind} point within {step / 2:.3g} of the predicted {param.name}")
 
 
+def _reach(kind: str, scene: tuple, prev: list, w_to: float, depth: int = 0) -> list:
+    """The curve's points ``prev`` [(w, q, s)] extended to ``w_to``, halving the step in the second parameter
+    (at most :data:`MAX_HALVINGS` times) where the point is not found from the secant's guess."""
+    param, param2, base, n = scene
+    (w1, q1, _), (w2, q2, s2) = (prev[-2] if len(prev) > 1 else prev[-1]), prev[-1]
+    guess = q2 + (q2 - q1) * (w_to - w2) / (w2 - w1) if w2 != w1 else q2
+    try:
+        q, orb = _point(kind, param, param2, base, n, w_to, guess, s2)
+        return prev + [(w_to, q, orb.s)]
+    except (ContinuationError, ValueError):
+        if depth >= MAX_HALVINGS:
+            raise
+    prev = _reach(kind, scene, prev, 0.5 * (w2 + w_to), depth + 1)
+    return _reach(kind, scene, prev, w_to, depth + 1)
+
+
 def follow_touch(base: Groups, bif: Bifurcation, name: str, name2: str, start2: float, end2: float, *,
                  points: int = 21, on_point: Optional[Callable[[float, float], None]] = None) -> Curve:
     """The boundary of ``bif`` (a ``grazing`` or ``tension`` point located along ``name``) over ``name2``.
@@ -228,20 +246,15 @@ def follow_touch(base: Groups, bif: Bifurcation, name: str, name2: str, start2: 
     span = max(abs(end2 - start2) / param2.scale, 1e-300)
     for w_end in (start2 / param2.scale, end2 / param2.scale):
         ws = np.linspace(w0, w_end, max(2, int(round(points * abs(w_end - w0) / span)) + 1))
-        side, prev = [], [(w0, q0)]
-        s = orb0.s
+        side, prev = [], [(w0, q0, orb0.s)]
         for w in ws[1:]:
-            (w1, q1), (w2, q2) = (prev[-2] if len(prev) > 1 else prev[-1]), prev[-1]
-            guess = q2 + (q2 - q1) * (w - w2) / (w2 - w1) if w2 != w1 else q2
             try:
-                q, orb = _point(bif.kind, param, param2, base, n, w, guess, s)
+                prev = _reach(bif.kind, (param, param2, base, n), prev, w)
             except (ContinuationError, ValueError) as e:
                 curve.stopped = "; ".join(x for x in (curve.stopped, f"at {name2} = {w * param2.scale:.9g}: {e}")
                                           if x)
                 break
-            s = orb.s
-            prev.append((w, q))
-            side.append((q * param.scale, w * param2.scale))
+            side.append((prev[-1][1] * param.scale, w * param2.scale))
             if on_point:
                 on_point(*side[-1])
         sides.append(side)
