@@ -42,7 +42,8 @@ from hammerbit.model.stepping import Stepper
 
 from .bifurcation import Bifurcation
 from .boundary import Curve
-from .monodromy import ORBIT_SOLVER, ContinuationError
+from .continuation import JOIN_TOL
+from .monodromy import ORBIT_SOLVER, ContinuationError, period_map
 from .orbit import PeriodicOrbit, correct_orbit
 from .parameter import Parameter
 
@@ -139,6 +140,12 @@ INDICATORS = {"grazing": (max_overlap, "the contact overlap's maximum touches ze
 
 def _indicator_at(kind: str, g: Groups, s_guess: np.ndarray, n: int) -> tuple[float, PeriodicOrbit]:
     orb = correct_orbit(g, s_guess, n)
+    for m in range(1, n):
+        # Newton's method on the period-n map may land on an orbit of a period dividing n: another family
+        if n % m == 0:
+            back = period_map(g, orb.s, m, jacobian=False).s_end
+            if back.shape == orb.s.shape and np.max(np.abs(back - orb.s)) < JOIN_TOL:
+                raise ContinuationError(f"the period-{n} orbit has joined the period-{m} orbit")
     return INDICATORS[kind][0](orb), orb
 
 
