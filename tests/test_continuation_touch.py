@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from hammerbit.continuation import correct_orbit, orbit_from_simulation
+from hammerbit.continuation.bifurcation import detect
 from hammerbit.continuation.continuation import follow_branch
 from hammerbit.continuation.monodromy import ORBIT_SOLVER
 from hammerbit.continuation.parameter import Parameter
@@ -73,3 +74,39 @@ def test_the_tension_curve_separates_settled_runs_from_rest(tension_onset):
             if pulls != (b < b_star) and abs(b - b_star) > b_cell:
                 wrong.append((a, b, pulls, b_star))
     assert not wrong
+
+
+@pytest.fixture(scope="module")
+def sliding_point():
+    """paper-fig9's stable period-2 orbit (one stick phase per two periods) followed in a from 0.16 up to where a
+    second stick phase appears (a stick phase splits by a short slip), located."""
+    base = preset("paper-fig9").replace(a=0.16)
+    n, s = orbit_from_simulation(base)
+    param = Parameter.on("a", base)
+    branch = follow_branch(param, base, correct_orbit(base, s, n), 0.27)
+    sliding = [b for b in detect(param, base, branch.points, 0) if b.kind == "sliding"]
+    assert n == 2 and len(sliding) == 1
+    return base, sliding[0]
+
+
+def _sticks_per_period(g, state, periods=60):
+    """Stick phases per forcing period of a long run of the library's Stepper from ``state`` (its second half)."""
+    st = Stepper(g, solver=ORBIT_SOLVER, y0=state, compile_helper=False)
+    st.advance(periods // 2 * g.period)
+    before = st.istate[KL.I_COUNT0 + KL.EV_STICK]
+    st.advance(periods * g.period)
+    return (st.istate[KL.I_COUNT0 + KL.EV_STICK] - before) / (periods - periods // 2)
+
+
+def test_the_sliding_curve_separates_one_stick_phase_from_two(sliding_point):
+    base, bif = sliding_point
+    curve = follow_touch(base, bif, "a", "eta", 1.0, 1.04, points=3)
+    assert not curve.stopped and len(curve.points) == 4
+    for (a, eta), orbit in zip(curve.points, curve.orbits):
+        g = base.replace(eta=eta)
+        below = correct_orbit(g.replace(a=a - 1e-5), orbit.s, 2)
+        assert _sticks_per_period(g.replace(a=a - 1e-5), below.state) == pytest.approx(0.5)
+        # just past the curve the same family (a few 1e-5 away) has a second stick phase
+        above = correct_orbit(g.replace(a=a + 1e-5), orbit.s, 2)
+        assert np.max(np.abs(above.s - below.s)) < 1e-3
+        assert _sticks_per_period(g.replace(a=a + 1e-5), above.state) == pytest.approx(1.0)

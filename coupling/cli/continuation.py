@@ -35,8 +35,9 @@ def register(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--range", required=True, nargs=2, type=float, metavar=("START", "END"),
                    help="the parameter's range, in its units (SI names: SI units)")
     p.add_argument("--param2", default=None, metavar="NAME",
-                   help="a second parameter: every period-doubling, fold, Neimark-Sacker, grazing and tension "
-                        "point found along --param is followed over --range2 as a curve (JSON 'curves')")
+                   help="a second parameter: every period-doubling, fold, Neimark-Sacker, grazing, sliding and "
+                        "tension point found along --param is followed over --range2 as a curve (JSON "
+                        "'curves')")
     p.add_argument("--range2", default=None, nargs=2, type=float, metavar=("START", "END"),
                    help="the range of --param2, in its units")
     p.add_argument("--curve-points", type=int, default=21, metavar="N",
@@ -152,7 +153,7 @@ def cmd_continue(args) -> int:
 
 
 def _curves(base, d, args) -> list:
-    """Each smooth bifurcation, grazing and tension point of the diagram followed over --range2:
+    """Each smooth bifurcation, grazing, sliding and tension point of the diagram followed over --range2:
     [(branch index, Curve)]."""
     from hammerbit.continuation.bifurcation import SMOOTH_KINDS
     from hammerbit.continuation.boundary import follow_boundary
@@ -161,7 +162,7 @@ def _curves(base, d, args) -> list:
     for b in d.bifurcations:
         if b.kind in SMOOTH_KINDS:
             follow = follow_boundary
-        elif b.kind in INDICATORS:
+        elif b.kind in INDICATORS or b.kind == "sliding":
             follow = follow_touch
         else:
             continue

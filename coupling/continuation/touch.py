@@ -1,13 +1,18 @@
-"""Boundaries where an indicator's extremum along the periodic orbit touches zero (grazing, tension onset): located along a branch and followed in two parameters.
+"""Boundaries where an indicator's extremum along the periodic orbit touches zero (grazing, sliding, tension onset): located along a branch and followed in two parameters.
 
-Two boundaries are not zeros of a test function of the multipliers
-(:mod:`.boundary`) but of an extremum along the orbit, a continuous function
+These boundaries are not zeros of a test function of the multipliers
+(:mod:`.boundary`) but of an indicator along the orbit, a continuous function
 of the parameters on both sides though not a smooth one of the orbit:
 
 ``grazing``
     an impact appears or disappears: the largest contact overlap
     ``max_t (x1 - x3 - r)`` crosses zero (negative: the gap stays open;
     positive: the peak overlap of an impact);
+``sliding``
+    a stick phase appears (or one splits by a short slip): on the side
+    without it, the margin to it, the smallest interior minimum of the bit
+    velocity in slip or of ``1 - drive`` in stick; on the side with it, minus
+    the new phase's duration (:func:`sliding_indicator`);
 ``tension``
     the spring starts to pull the bit: the smallest drive on the bit
     ``min_t (f_k + f_c)`` crosses zero (the library's Stepper tracks it,
@@ -55,9 +60,14 @@ SAMPLES_PER_PERIOD = 2000
 #: samples over the two sample intervals around the coarse maximum
 FINE_SAMPLES = 400
 #: first half-width (scaled first parameter) of the bracket searched around the predicted point
-BRACKET_STEP = 1e-3
+BRACKET_STEP = 1e-5
 #: doublings of the bracket's half-width before the point counts as lost
-BRACKET_DOUBLINGS = 8
+BRACKET_DOUBLINGS = 14
+#: a stick or slip phase shorter than this fraction of a forcing period at a located sliding point is the one
+#: being born
+NEW_PHASE = 1e-2
+#: the indicator's value (sign of the far side) where a family that ends at its boundary has no orbit
+ENDED = 1e-12
 #: halvings of a step in the second parameter before the curve stops
 MAX_HALVINGS = 5
 #: Brent's tolerance on the scaled first parameter
@@ -138,7 +148,61 @@ INDICATORS = {"grazing": (max_overlap, "the contact overlap's maximum touches ze
               "tension": (min_drive, "the drive's minimum on the bit touches zero (the spring starts to pull it)")}
 
 
-def _indicator_at(kind: str, g: Groups, s_guess: np.ndarray, n: int) -> tuple[float, PeriodicOrbit]:
+def _phase_durations(orbit: PeriodicOrbit) -> np.ndarray:
+    """The durations of the orbit's stick and slip phases over its period (cyclic)."""
+    kinds = orbit.events[:, KL.L_KIND].astype(int)
+    starts = orbit.events[(kinds == KL.EV_STICK) | (kinds == KL.EV_SLIP_START), KL.L_T]
+    if starts.size == 0:
+        return np.array([np.inf])
+    t_n = orbit.period * orbit.groups.period
+    return np.diff(np.concatenate([starts, [starts[0] + t_n]]))
+
+
+def _stick_margin(orbit: PeriodicOrbit) -> float:
+    """How far the orbit is from a new stick or slip phase: the smallest interior minimum of the bit velocity
+    in slip, or of ``1 - drive`` in stick (the drive's interior maxima below the static threshold 1)."""
+    g = orbit.groups
+    times = np.linspace(0.0, orbit.period * g.period, SAMPLES_PER_PERIOD * orbit.period + 1)
+    samples = np.zeros((times.size, KL.N_SAMPLE_COLS))
+    st = Stepper(g, solver=ORBIT_SOLVER, y0=orbit.state, compile_helper=False)
+    try:
+        st.advance(times[-1], sample_times=times, samples=samples)
+    except SolverError as e:
+        raise ContinuationError(f"the orbit could not be sampled: {e}") from None
+    slip = samples[:, 6] == KL.SLIP
+    drive = samples[:, 0] - samples[:, 2] + 2 * g.xi * (samples[:, 1] - samples[:, 3]) + samples[:, 4]
+    margin = np.where(slip, samples[:, 3], 1.0 - drive)
+    inner = (slip[1:-1] == slip[:-2]) & (slip[1:-1] == slip[2:])  # both neighbours in the same mode
+    m = margin[1:-1]
+    local = inner & (m <= margin[:-2]) & (m <= margin[2:])
+    return float(np.min(m[local])) if np.any(local) else np.inf
+
+
+def sliding_indicator(orbit: PeriodicOrbit) -> Callable[[PeriodicOrbit], float]:
+    """The signed indicator of the stick/slip phase count change at ``orbit`` (a located ``sliding`` point).
+
+    With ``k`` the lower count of stick phases: positive on the side with ``k`` (the margin to a new phase,
+    :func:`_stick_margin`), minus the shortest phase's duration on the side with ``k + 1``; both tend to
+    zero where the new phase is born.
+    """
+    count = int(np.sum(orbit.events[:, KL.L_KIND].astype(int) == KL.EV_STICK))
+    # at a located point the phase being born is far shorter than the others
+    k = count - 1 if np.min(_phase_durations(orbit)) < NEW_PHASE * orbit.groups.period else count
+
+    def indicator(orb: PeriodicOrbit) -> float:
+        c = int(np.sum(orb.events[:, KL.L_KIND].astype(int) == KL.EV_STICK))
+        if c == k:
+            return _stick_margin(orb)
+        if c == k + 1 and np.min(_phase_durations(orb)) < NEW_PHASE * orb.groups.period:
+            return -float(np.min(_phase_durations(orb)))
+        raise ContinuationError(f"the orbit has {c} stick phases, not {k} or {k + 1} with a new short phase")
+    # the orbits with the new phase often exist only in a narrow window past the boundary (the family
+    # ends at a non-smooth fold there): where none converges counts as past the boundary
+    indicator.ends_at_boundary = True
+    return indicator
+
+
+def _indicator_at(fn: Callable, g: Groups, s_guess: np.ndarray, n: int) -> tuple[float, PeriodicOrbit]:
     orb = correct_orbit(g, s_guess, n)
     for m in range(1, n):
         # Newton's method on the period-n map may land on an orbit of a period dividing n: another family
@@ -146,7 +210,7 @@ def _indicator_at(kind: str, g: Groups, s_guess: np.ndarray, n: int) -> tuple[fl
             back = period_map(g, orb.s, m, jacobian=False).s_end
             if back.shape == orb.s.shape and np.max(np.abs(back - orb.s)) < JOIN_TOL:
                 raise ContinuationError(f"the period-{n} orbit has joined the period-{m} orbit")
-    return INDICATORS[kind][0](orb), orb
+    return fn(orb), orb
 
 
 def detect_touches(param: Parameter, base: Groups, points: list, branch_index: int,
@@ -170,7 +234,7 @@ def detect_touches(param: Parameter, base: Groups, points: list, branch_index: i
 
             def f(v, a=a, b=b):
                 w = (v - a.value) / (b.value - a.value)
-                val, state["orbit"] = _indicator_at(kind, param.at(base, v), (1 - w) * a.orbit.s + w * b.orbit.s,
+                val, state["orbit"] = _indicator_at(fn, param.at(base, v), (1 - w) * a.orbit.s + w * b.orbit.s,
                                                     a.orbit.period)
                 return val
             lo, hi = sorted((a.value, b.value))
@@ -184,49 +248,83 @@ def detect_touches(param: Parameter, base: Groups, points: list, branch_index: i
     return found
 
 
-def _point(kind: str, param: Parameter, param2: Parameter, base: Groups, n: int, w: float, q_guess: float,
+def _first_value(indicator: Callable, q_guess: float, ends_at_boundary: bool) -> tuple[float, float]:
+    """(q, indicator(q)) at the predicted ``q_guess``; for a family that ends at its boundary, the nearest
+    value on either side where its orbit exists when the prediction lies past the end."""
+    try:
+        return q_guess, indicator(q_guess)
+    except ContinuationError:
+        if not ends_at_boundary:
+            raise
+    step = BRACKET_STEP * max(1.0, abs(q_guess))
+    for _ in range(BRACKET_DOUBLINGS):
+        for q in (q_guess - step, q_guess + step):
+            try:
+                return q, indicator(q)
+            except ContinuationError:
+                pass
+        step *= 2
+    raise ContinuationError("no orbit of the family next to the predicted point")
+
+
+def _point(fn: Callable, param: Parameter, param2: Parameter, base: Groups, n: int, w: float, q_guess: float,
            s_guess: np.ndarray) -> tuple[float, PeriodicOrbit]:
     """The boundary's point (q, orbit) at the scaled second parameter ``w``, near ``q_guess``."""
-    state = {"s": s_guess}
+    state = {"s": s_guess, "sign": 0.0}
 
     def indicator(q):
         g = param2.at(param.at(base, q * param.scale), w * param2.scale)
-        val, orb = _indicator_at(kind, g, state["s"], n)
+        try:
+            val, orb = _indicator_at(fn, g, state["s"], n)
+        except ContinuationError:
+            if not getattr(fn, "ends_at_boundary", False) or not state["sign"]:
+                raise
+            # the family ends just past its boundary (a non-smooth fold): no orbit counts as the other side
+            return -state["sign"] * ENDED
         state["s"], state["orbit"] = orb.s, orb
         return val
 
-    f0 = indicator(q_guess)
+    q_guess, f0 = _first_value(indicator, q_guess, getattr(fn, "ends_at_boundary", False))
+    state["sign"] = math.copysign(1.0, f0)
     if f0 == 0.0:
         return q_guess, state["orbit"]
     s0 = state["s"]
     step = BRACKET_STEP * max(1.0, abs(q_guess))
+    # each side marches outward from its last orbit (Newton's method from far away may not converge)
+    last = {1.0: (q_guess, s0), -1.0: (q_guess, s0)}
     for _ in range(BRACKET_DOUBLINGS):
-        for q in (q_guess + step, q_guess - step):
-            state["s"] = s0
-            if indicator(q) * f0 < 0:
-                lo, hi = sorted((q_guess, q))
-                state["s"] = s0
+        for side in (1.0, -1.0):
+            q = q_guess + side * step
+            state["s"] = last[side][1]
+            try:
+                value = indicator(q)
+            except ContinuationError:
+                continue  # no orbit of the family here (it may end at a non-smooth fold): try further out
+            if value * f0 < 0:
+                lo, hi = sorted((last[side][0], q))
+                state["s"] = last[side][1]
                 q_root = brentq(indicator, lo, hi, xtol=ROOT_TOL * max(1.0, abs(q_guess)))
                 indicator(q_root)
                 return q_root, state["orbit"]
+            last[side] = (q, state["s"])
         step *= 2
-    raise ContinuationError(f"no {kind} point within {step / 2:.3g} of the predicted {param.name}")
+    raise ContinuationError(f"no boundary point within {step / 2:.3g} of the predicted {param.name}")
 
 
-def _reach(kind: str, scene: tuple, prev: list, w_to: float, depth: int = 0) -> list:
-    """The curve's points ``prev`` [(w, q, s)] extended to ``w_to``, halving the step in the second parameter
+def _reach(fn: Callable, scene: tuple, prev: list, w_to: float, depth: int = 0) -> list:
+    """The curve's points ``prev`` [(w, q, s, orbit)] extended to ``w_to``, halving the step in the second parameter
     (at most :data:`MAX_HALVINGS` times) where the point is not found from the secant's guess."""
     param, param2, base, n = scene
-    (w1, q1, _), (w2, q2, s2) = (prev[-2] if len(prev) > 1 else prev[-1]), prev[-1]
+    (w1, q1, _, _), (w2, q2, s2, _) = (prev[-2] if len(prev) > 1 else prev[-1]), prev[-1]
     guess = q2 + (q2 - q1) * (w_to - w2) / (w2 - w1) if w2 != w1 else q2
     try:
-        q, orb = _point(kind, param, param2, base, n, w_to, guess, s2)
-        return prev + [(w_to, q, orb.s)]
+        q, orb = _point(fn, param, param2, base, n, w_to, guess, s2)
+        return prev + [(w_to, q, orb.s, orb)]
     except (ContinuationError, ValueError):
         if depth >= MAX_HALVINGS:
             raise
-    prev = _reach(kind, scene, prev, 0.5 * (w2 + w_to), depth + 1)
-    return _reach(kind, scene, prev, w_to, depth + 1)
+    prev = _reach(fn, scene, prev, 0.5 * (w2 + w_to), depth + 1)
+    return _reach(fn, scene, prev, w_to, depth + 1)
 
 
 def follow_touch(base: Groups, bif: Bifurcation, name: str, name2: str, start2: float, end2: float, *,
@@ -237,33 +335,39 @@ def follow_touch(base: Groups, bif: Bifurcation, name: str, name2: str, start2: 
     ``[start2, end2]``; ``stopped`` says where and why a side ended early (no points: the boundary's point
     itself could not be refined).
     """
-    if bif.kind not in INDICATORS:
-        raise ValueError(f"follow_touch follows {' and '.join(INDICATORS)} points, not {bif.kind!r}")
+    if bif.kind not in INDICATORS and bif.kind != "sliding":
+        raise ValueError(f"follow_touch follows {', '.join(INDICATORS)} and sliding points, not {bif.kind!r}")
+    fn = sliding_indicator(bif.orbit) if bif.kind == "sliding" else INDICATORS[bif.kind][0]
     param = Parameter.on(name, base)
     param2 = Parameter.on(name2, base)
     n = bif.orbit.period
     w0 = param2.value(bif.orbit.groups) / param2.scale
     curve = Curve(kind=bif.kind, param=name, param2=name2)
     try:
-        q0, orb0 = _point(bif.kind, param, param2, base, n, w0, bif.value / param.scale, bif.orbit.s)
+        q0, orb0 = _point(fn, param, param2, base, n, w0, bif.value / param.scale, bif.orbit.s)
     except (ContinuationError, ValueError) as e:
         curve.stopped = f"at {name2} = {w0 * param2.scale:.9g}: the {bif.kind} point is not refined: {e}"
         return curve
     sides = []
     span = max(abs(end2 - start2) / param2.scale, 1e-300)
     for w_end in (start2 / param2.scale, end2 / param2.scale):
+        if w_end == w0:
+            sides.append([])
+            continue
         ws = np.linspace(w0, w_end, max(2, int(round(points * abs(w_end - w0) / span)) + 1))
-        side, prev = [], [(w0, q0, orb0.s)]
+        side, prev = [], [(w0, q0, orb0.s, orb0)]
         for w in ws[1:]:
             try:
-                prev = _reach(bif.kind, (param, param2, base, n), prev, w)
+                prev = _reach(fn, (param, param2, base, n), prev, w)
             except (ContinuationError, ValueError) as e:
                 curve.stopped = "; ".join(x for x in (curve.stopped, f"at {name2} = {w * param2.scale:.9g}: {e}")
                                           if x)
                 break
-            side.append((prev[-1][1] * param.scale, w * param2.scale))
+            side.append((prev[-1][1] * param.scale, w * param2.scale, prev[-1][3]))
             if on_point:
                 on_point(*side[-1])
         sides.append(side)
-    curve.points = list(reversed(sides[0])) + [(q0 * param.scale, w0 * param2.scale)] + sides[1]
+    rows = list(reversed(sides[0])) + [(q0 * param.scale, w0 * param2.scale, orb0)] + sides[1]
+    curve.points = [(v, v2) for v, v2, _ in rows]
+    curve.orbits = [orb for _, _, orb in rows]
     return curve
