@@ -115,6 +115,21 @@ def _register():
 
 _register()
 
+
+def register_locator(locator_class) -> None:
+    """Let numba try ``locator_class`` right after this package's own locator (once).
+
+    For another package's kernels that call these (the continuation's variational equations): a
+    subclass of :class:`ContentHashCacheLocator` that claims their files and keys their cache on
+    :func:`kernels_digest` too, so a change to a kernel they call misses their entry.
+    """
+    impl = getattr(_caching, "CacheImpl", None) or getattr(_caching, "_CacheImpl")
+    classes = impl._locator_classes
+    if locator_class in classes:
+        return
+    at = max((i + 1 for i, c in enumerate(classes) if c.__name__ == "ContentHashCacheLocator"), default=0)
+    classes.insert(at, locator_class)
+
 # numba's first context refresh would import scipy.linalg for a flag the kernels never read
 import_arraymath_lazily()
 

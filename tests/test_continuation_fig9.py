@@ -47,11 +47,18 @@ def test_every_change_of_period_from_rest_is_a_located_point_of_the_diagram():
     d = continue_orbits(base, "a", *RANGE)
     changes = _brute_force_changes(base)
     assert {(1, 2), (2, 3)} <= {(p, q) for p, q, _ in changes}
-    located = [b.value for b in d.bifurcations]
-    located += [c[k] for c in d.coexistence for k in ("from", "to")]
-    located += [c["from_rest_switch"]["value"] for c in d.coexistence if c["from_rest_switch"]]
+    # tension onset changes no period: not a match
+    located = [(b.value, b.kind) for b in d.bifurcations if b.kind != "tension"]
+    located += [(c[k], "coexistence end") for c in d.coexistence for k in ("from", "to")]
+    switches = [c["from_rest_switch"] for c in d.coexistence if c["from_rest_switch"]]
+    located += [(sw["value"], sw["located_by"]) for sw in switches]
     for p, q, a in changes:
-        assert min(abs(v - a) for v in located) <= MATCH, (p, q, a, located)
+        value, how = min(located, key=lambda v: abs(v[0] - a))
+        assert abs(value - a) <= MATCH, (p, q, a, located)
+        # a change of branch from rest is located on the stable manifold of a saddle of the diagram, not by
+        # bisecting runs from rest
+        assert how != "bisection", (p, q, a, located)
+    assert all(sw["saddle"] is not None for sw in switches)
     # the Fig. 9 sequence as stable branches: P1, P2 and P3
     stable_periods = {br.period for br in d.branches if any(pt.stable for pt in br.points)}
     assert {1, 2, 3} <= stable_periods

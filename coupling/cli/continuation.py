@@ -35,8 +35,9 @@ def register(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--range", required=True, nargs=2, type=float, metavar=("START", "END"),
                    help="the parameter's range, in its units (SI names: SI units)")
     p.add_argument("--param2", default=None, metavar="NAME",
-                   help="a second parameter: every period-doubling, fold and Neimark-Sacker point found "
-                        "along --param is followed over --range2 as a curve (JSON 'curves')")
+                   help="a second parameter: every period-doubling, fold, Neimark-Sacker, grazing, sliding and "
+                        "tension point found along --param is followed over --range2 as a curve (JSON "
+                        "'curves')")
     p.add_argument("--range2", default=None, nargs=2, type=float, metavar=("START", "END"),
                    help="the range of --param2, in its units")
     p.add_argument("--curve-points", type=int, default=21, metavar="N",
@@ -140,8 +141,9 @@ def cmd_continue(args) -> int:
     else:
         _print_text(d)
         for _, c in curves:
-            print(f"{c.kind} curve: {len(c.points)} points over {c.param2} in "
-                  f"[{min(w for _, w in c.points):.6g}, {max(w for _, w in c.points):.6g}]"
+            span = (f" in [{min(w for _, w in c.points):.6g}, {max(w for _, w in c.points):.6g}]"
+                    if c.points else "")
+            print(f"{c.kind} curve: {len(c.points)} points over {c.param2}{span}"
                   + (f"; {c.stopped}" if c.stopped else ""))
     if d.stops:
         raise RunFailure(f"continuation could not go on: {d.stops[0]}"
@@ -151,15 +153,20 @@ def cmd_continue(args) -> int:
 
 
 def _curves(base, d, args) -> list:
-    """Each smooth bifurcation of the diagram followed over --range2: [(branch index, Curve)]."""
+    """Each smooth bifurcation, grazing, sliding and tension point of the diagram followed over --range2:
+    [(branch index, Curve)]."""
     from hammerbit.continuation.bifurcation import SMOOTH_KINDS
     from hammerbit.continuation.boundary import follow_boundary
+    from hammerbit.continuation.touch import INDICATORS, follow_touch
     out = []
     for b in d.bifurcations:
-        if b.kind not in SMOOTH_KINDS:
+        if b.kind in SMOOTH_KINDS:
+            follow = follow_boundary
+        elif b.kind in INDICATORS or b.kind == "sliding":
+            follow = follow_touch
+        else:
             continue
-        c = follow_boundary(base, b, args.param, args.param2, args.range2[0], args.range2[1],
-                            points=args.curve_points)
+        c = follow(base, b, args.param, args.param2, args.range2[0], args.range2[1], points=args.curve_points)
         if c.stopped:
             d.stops.append(f"{b.kind} curve from {args.param} = {b.value:.9g}: {c.stopped}")
         out.append((b.branch, c))
@@ -181,7 +188,10 @@ def _print_text(d) -> None:
     for c in d.coexistence:
         sw = c["from_rest_switch"]
         text = (f"; runs from rest switch from {_which(sw['below'])} to {_which(sw['above'])} at {name} = "
-                f"{sw['value']:.6g}" if sw else "")
+                f"{sw['value']:.9g}" + (f" (the state at rest crosses the stable manifold of the unstable orbit "
+                                        f"of branch {sw['saddle']})" if sw["located_by"] == "stable manifold"
+                                        else f" (bisection of runs from rest, +- {sw['uncertainty']:.2g})")
+                if sw else "")
         print(f"stable branches {c['branches']} coexist for {name} in [{c['from']:.6g}, {c['to']:.6g}]; "
               f"a run from rest reaches {_which(c['from_rest'])} at the middle{text}")
 

@@ -48,6 +48,8 @@ class Curve:
     param2: str
     points: list = field(default_factory=list)
     stopped: str = ""
+    #: the orbit at each point, where the follower keeps them (the indicator boundaries of :mod:`.touch`)
+    orbits: list = field(default_factory=list)
 
 
 def _residual(param, param2, base, n, kind, x, w):

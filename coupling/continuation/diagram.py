@@ -7,7 +7,8 @@ branch (:mod:`.bifurcation`), switches to the period-doubled branch at each
 period-doubling, and reports where stable branches coexist and which of them
 a run from rest reaches there: inside such an interval, the value where runs
 from rest change from one branch to the other (a boundary of the basin of
-the state at rest, not a bifurcation) is bracketed by bisection of runs.
+the state at rest, not a bifurcation) is located on the stable manifold of
+the saddle orbit between them (:mod:`.basin`).
 """
 from __future__ import annotations
 
@@ -18,37 +19,23 @@ import numpy as np
 
 from hammerbit.model.params import Groups
 
+from .basin import RestRun, branch_of, on_branch, rest_run, rest_switch
 from .bifurcation import Bifurcation, detect, switch_period_doubling
 from .continuation import Branch, BranchPoint, ContinuationOptions, follow_branch
 from .monodromy import ContinuationError
 from .orbit import MAX_PERIOD, correct_orbit, orbit_from_simulation
 from .parameter import Parameter
+from .touch import detect_touches
 
-__all__ = ["Diagram", "RestRun", "continue_orbits", "SEEDS", "MAX_BRANCHES"]
+__all__ = ["Diagram", "RestRun", "continue_orbits", "stable_intervals", "SEEDS", "MAX_BRANCHES"]
 
 #: parameter values (evenly spread over the range, ends included) where a run from rest seeds branches
 SEEDS = 9
 #: branches followed at most (period-doubled ones included)
 MAX_BRANCHES = 16
-#: ... plus this (x0 per period): a branch of no progression has ROP 0
-ROP_MATCH_FLOOR = 1e-9
 #: a branch stopped at the step-size floor this close (scaled parameter) to a located bifurcation of its
 #: own has turned at a non-smooth point there (a corner), not failed
 CORNER_DISTANCE = 1e-4
-#: bracket (scaled parameter) of the bisection of runs from rest inside a coexistence interval
-SWITCH_TOL = 1e-4
-#: a run from rest is on a branch of its period when its rate of penetration matches the branch's within this
-ROP_MATCH_TOL = 2e-3
-
-
-@dataclass
-class RestRun:
-    """Where a run from rest settles at one parameter value: its period (None: none <= MAX_PERIOD) and branch."""
-
-    value: float
-    period: Optional[int]
-    branch: Optional[int]
-    rop_x0_per_period: Optional[float] = None
 
 
 @dataclass
@@ -64,29 +51,6 @@ class Diagram:
     coexistence: list = field(default_factory=list)
     #: why a branch stopped inside the range, in words with the parameter value ("" if none did)
     stops: list = field(default_factory=list)
-
-
-def _rop_at(branch: Branch, value: float) -> list[float]:
-    """The branch's ROP per period at ``value`` (one per crossing of the value: a folded branch has more)."""
-    out = []
-    pts = branch.points
-    for a, b in zip(pts[:-1], pts[1:]):
-        lo, hi = sorted((a.value, b.value))
-        if lo <= value <= hi and hi > lo:
-            w = (value - a.value) / (b.value - a.value)
-            out.append((1 - w) * a.orbit.rop_x0_per_period + w * b.orbit.rop_x0_per_period)
-    return out
-
-
-def _branch_of(branches: list, value: float, period: int, rop: float) -> Optional[int]:
-    for i, br in enumerate(branches):
-        if br.period != period:
-            continue
-        for r in _rop_at(br, value):
-            # relative: the branch's ROP is interpolated linearly between its points
-            if abs(r - rop) <= ROP_MATCH_TOL * abs(rop) + ROP_MATCH_FLOOR:
-                return i
-    return None
 
 
 def _follow_both_ways(param, base, orbit, start, end, options, on_point) -> Branch:
@@ -141,22 +105,6 @@ def _snap(diagram: Diagram, i: int, value: float, outer: Optional[float]) -> flo
     return min(near, key=lambda v: abs(v - value)) if near else value
 
 
-def _rest_switch(param: Parameter, base: Groups, diagram: Diagram, lo: float, hi: float) -> Optional[dict]:
-    """Where, inside a coexistence interval, runs from rest change the branch they reach (bisection), or None."""
-    eps = 1e-3 * (hi - lo)
-    a, b = _rest_run(param, base, lo + eps, diagram), _rest_run(param, base, hi - eps, diagram)
-    if a.branch == b.branch:
-        return None
-    x, y = lo + eps, hi - eps
-    while abs(y - x) > SWITCH_TOL * param.scale:
-        m = 0.5 * (x + y)
-        if _rest_run(param, base, m, diagram).branch == a.branch:
-            x = m
-        else:
-            y = m
-    return {"value": 0.5 * (x + y), "below": a.branch, "above": b.branch, "uncertainty": abs(y - x)}
-
-
 def _coexistence(diagram: Diagram, param, base) -> list[dict]:
     spans = [(i, _snap(diagram, i, lo, lo_out), _snap(diagram, i, hi, hi_out))
              for i, br in enumerate(diagram.branches) for lo, hi, lo_out, hi_out in stable_intervals(br)]
@@ -169,22 +117,9 @@ def _coexistence(diagram: Diagram, param, base) -> list[dict]:
             if i != j and hi > lo:
                 mid = 0.5 * (lo + hi)
                 out.append({"from": lo, "to": hi, "branches": [i, j],
-                            "from_rest": _rest_run(param, base, mid, diagram).branch,
-                            "from_rest_switch": _rest_switch(param, base, diagram, lo, hi)})
+                            "from_rest": rest_run(param, base, mid, diagram.branches).branch,
+                            "from_rest_switch": rest_switch(param, base, diagram.branches, lo, hi)})
     return out
-
-
-def _rest_run(param: Parameter, base: Groups, value: float, diagram: Diagram) -> RestRun:
-    g = param.at(base, value)
-    guess = orbit_from_simulation(g)
-    if guess is None:
-        return RestRun(value, None, None)
-    n, s = guess
-    try:
-        orb = correct_orbit(g, s, n)
-    except ContinuationError:
-        return RestRun(value, n, None)
-    return RestRun(value, n, _branch_of(diagram.branches, value, n, orb.rop_x0_per_period), orb.rop_x0_per_period)
 
 
 def continue_orbits(base: Groups, name: str, start: float, end: float, *, seeds: int = SEEDS,
@@ -205,7 +140,7 @@ def continue_orbits(base: Groups, name: str, start: float, end: float, *, seeds:
     param_base = base
     diagram = Diagram(parameter=name, start=float(start), end=float(end))
     for value in np.linspace(start, end, seeds):
-        run = _rest_run(param, param_base, float(value), diagram)
+        run = rest_run(param, param_base, float(value), diagram.branches)
         diagram.rest_runs.append(run)
         if run.period is None:
             diagram.stops.append(f"{name} = {value:.9g}: a run from rest settles to no period up to "
@@ -221,7 +156,9 @@ def continue_orbits(base: Groups, name: str, start: float, end: float, *, seeds:
             continue
         _add_branch(diagram, param, param_base,
                     _follow_both_ways(param, param_base, orbit, start, end, options, on_point), options, on_point)
-        run.branch = _branch_of(diagram.branches, float(value), n, orbit.rop_x0_per_period)
+        run.branch = branch_of(diagram.branches, float(value), n, orbit.rop_x0_per_period)
+        if run.branch is None:
+            run.branch = on_branch(diagram.branches, float(value), orbit)
     diagram.coexistence = _coexistence(diagram, param, param_base)
     return diagram
 
@@ -230,7 +167,7 @@ def _add_branch(diagram: Diagram, param, base, branch: Branch, options, on_point
     """Add a branch and its bifurcations; follow the period-doubled branch of each period-doubling."""
     index = len(diagram.branches)
     diagram.branches.append(branch)
-    bifs = detect(param, base, branch.points, index)
+    bifs = detect(param, base, branch.points, index) + detect_touches(param, base, branch.points, index)
     diagram.bifurcations.extend(bifs)
     failed = []
     for point, why in branch.stop_points:

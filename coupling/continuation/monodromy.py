@@ -45,6 +45,7 @@ from hammerbit.model.solver_errors import SolverError
 from hammerbit.model.solver_options import SolverOptions
 from hammerbit.model.stepping import Stepper
 
+from . import kernel_cache  # noqa: F401  (registers the cache locator before the kernels are decorated)
 from .variational import DOP853, N_AUG, N_STATE, NO_SUBSYSTEM, SEG_OK, integrate_segment, segment_work
 
 __all__ = ["MapResult", "ContinuationError", "period_map", "relative_state", "full_state", "ORBIT_SOLVER",
@@ -63,7 +64,7 @@ class ContinuationError(RuntimeError):
     """An orbit could not be computed or followed; says at which parameter value and why."""
 
 
-@njit(_nrt=False)
+@njit(cache=True, _nrt=False)
 def saltation(kind, phi):
     """Apply the saltation matrix of an event of ``kind`` to the sensitivity ``phi`` (in place).
 
@@ -74,7 +75,7 @@ def saltation(kind, phi):
             phi[N_STATE + KL.V_BIT * N_STATE + j] = 0.0
 
 
-@njit(_nrt=False)
+@njit(cache=True, _nrt=False)
 def modes_after(kind, y, p, mode_s, mode_c):
     """The (stick/slip, contact) modes after an event of ``kind`` at ``y`` (as ``kernel_reset.apply_event``)."""
     if kind == KL.EV_SLIP_START:
@@ -92,7 +93,7 @@ def modes_after(kind, y, p, mode_s, mode_c):
     return mode_s, mode_c
 
 
-@njit(_nrt=False)
+@njit(cache=True, _nrt=False)
 def sensitivity_along(log, n_events, y0, t_end, p, modes0, work, w):
     """The sensitivity of the state at ``t_end`` to ``y0`` at time 0, along the logged events.
 

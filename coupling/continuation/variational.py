@@ -21,6 +21,8 @@ from hammerbit.model import kernel_layouts as KL
 from hammerbit.model.kernel_forces import harmonic, kinetic_friction, overlap, rhs_forced
 from hammerbit.model.tableaux import METHODS
 
+from . import kernel_cache  # noqa: F401  (registers the cache locator before the kernels are decorated)
+
 __all__ = ["N_STATE", "N_AUG", "NO_SUBSYSTEM", "DOP853", "jacobian", "integrate_segment", "segment_work",
            "SEG_OK", "SEG_MAX_STEPS", "SEG_NONFINITE", "SEG_STEP_TOO_SMALL"]
 
@@ -34,9 +36,8 @@ NO_SUBSYSTEM = (0, 0, np.zeros(1, dtype=np.int64), np.zeros(0, dtype=np.int64), 
 #: the library's DOP853 tableau: A, B, C, E, E3, W, stages, error kind, controller exponent
 DOP853 = METHODS["dop853"]
 
-# The kernels here are compiled once per process, not cached: numba's cache entry of a kernel holds
-# its callees' code but is invalidated by a change of the kernel's own file only, and the callees
-# (the model's vector field, the saltation of monodromy.py) change in other files.
+# The kernels are cached on disk by :mod:`.kernel_cache`, keyed on this file, monodromy.py and the model's
+# kernels they call (numba's own key, this file alone, would keep stale copies of the vector field).
 
 SEG_OK = 0
 SEG_MAX_STEPS = 1
@@ -47,7 +48,7 @@ SEG_STEP_TOO_SMALL = 3
 MAX_SEGMENT_STEPS = 200_000
 
 
-@njit(_nrt=False)
+@njit(cache=True, _nrt=False)
 def jacobian(y, p, mode_s, mode_c, jac):
     """Jacobian d f / d y of the vector field in one mode at ``y``, into ``jac`` (4 x 4).
 
@@ -91,7 +92,7 @@ def jacobian(y, p, mode_s, mode_c, jac):
         jac[3, 3] = (-dk_dr - dff) * inv_rho
 
 
-@njit(_nrt=False)
+@njit(cache=True, _nrt=False)
 def augmented_rhs(t, w, field, jac, out):
     """d/dt of (y, Phi): the vector field and ``J Phi``; ``field = (p, mode_s, mode_c, sub)``."""
     p, mode_s, mode_c = field[0], field[1], field[2]
@@ -105,7 +106,7 @@ def augmented_rhs(t, w, field, jac, out):
             out[N_STATE + i * N_STATE + j] = acc
 
 
-@njit(_nrt=False)
+@njit(cache=True, _nrt=False)
 def dop853_trial(t, w, h, field, work, method):
     """One DOP853 trial step of (y, Phi) from ``w``: the new value in ``work[2]``, its error norm returned."""
     stages, wtmp, wnew, jac, tols = work
@@ -142,7 +143,7 @@ def dop853_trial(t, w, h, field, work, method):
     return r if math.isfinite(r) else math.inf
 
 
-@njit(_nrt=False)
+@njit(cache=True, _nrt=False)
 def integrate_segment(t0, t1, w, field, work, method):
     """Integrate (y, Phi) in ``w`` (in place) from ``t0`` to exactly ``t1`` in one mode.
 
