@@ -69,16 +69,16 @@ def settable(v, state: str) -> bool:
 
 
 def near_value(v):
-    """A legal value of ``v`` other than its start: the next float toward the inside of its
-    declared range (Real), start +- 1 inside [min, max] (Integer), the other truth value (Boolean)."""
+    """A legal value of ``v`` other than its start where its declared range has one: the next float
+    inside [min, max] (Real), start +- 1 inside it (Integer), the other truth value (Boolean); the
+    start itself when min = max."""
     s = start_value(v)
-    if v.type == "Real":
-        hi = float(v.max) if v.max is not None else math.inf
-        up = math.nextafter(s, math.inf)
-        return up if up <= hi else math.nextafter(s, -math.inf)
-    if v.type == "Integer":
-        hi = int(v.max) if v.max is not None else 2 ** 31 - 1
-        return s + 1 if s + 1 <= hi else s - 1
+    if v.type in ("Real", "Integer"):
+        real = v.type == "Real"
+        lo = (float if real else int)(v.min) if v.min is not None else (-math.inf if real else -2 ** 31)
+        hi = (float if real else int)(v.max) if v.max is not None else (math.inf if real else 2 ** 31 - 1)
+        up, down = (math.nextafter(s, math.inf), math.nextafter(s, -math.inf)) if real else (s + 1, s - 1)
+        return up if up <= hi else down if down >= lo else s
     if v.type == "Boolean":
         return not s
     return s + "x"
