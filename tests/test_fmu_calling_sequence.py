@@ -52,6 +52,8 @@ TABLE = {
     "fmi2GetFMUstate": ALL,
     "fmi2SetFMUstate": ALL,
     "fmi2SerializedFMUstateSize": ALL,
+    "fmi2SerializeFMUstate": ALL,
+    "fmi2DeSerializeFMUstate": ALL,
     "fmi2GetStatus": {"stepComplete", "terminated"},
     "fmi2GetRealStatus": {"stepComplete", "terminated"},
     "fmi2GetIntegerStatus": {"stepComplete", "terminated"},
@@ -63,7 +65,8 @@ TABLE = {
     "fmi2GetRealOutputDerivatives": {"stepComplete", "terminated", "error"},
 }
 #: cells the standard leaves open (see the module docstring): any status, no crash
-OPEN = {("fmi2GetFMUstate", "error"), ("fmi2SerializedFMUstateSize", "error"), ("fmi2SetDebugLogging", "error")}
+OPEN = {("fmi2GetFMUstate", "error"), ("fmi2SerializedFMUstateSize", "error"), ("fmi2SerializeFMUstate", "error"),
+        ("fmi2DeSerializeFMUstate", "error"), ("fmi2SetDebugLogging", "error")}
 #: fmi2StatusKind
 DO_STEP_STATUS, PENDING_STATUS, LAST_SUCCESSFUL_TIME, TERMINATED = 0, 1, 2, 3
 
@@ -79,7 +82,7 @@ def _capable(md, function: str) -> bool:
         return bool(cs.maxOutputDerivativeOrder)
     if function in ("fmi2GetFMUstate", "fmi2SetFMUstate"):
         return bool(cs.canGetAndSetFMUstate)
-    if function == "fmi2SerializedFMUstateSize":
+    if function in ("fmi2SerializedFMUstateSize", "fmi2SerializeFMUstate", "fmi2DeSerializeFMUstate"):
         return bool(cs.canSerializeFMUstate)
     return True
 
@@ -95,7 +98,7 @@ def _variable(inst, kind: str, state: str):
     return vs[0] if vs else None
 
 
-def _call(inst: Instance, function: str, state: str, saved):
+def _call(inst: Instance, function: str, state: str, saved, serialized=b""):
     """``(status, footnote)``: the FMI status of ``function`` called with valid arguments, and
     whether the table's footnotes allow its variable in ``state`` (a setter; True otherwise);
     ``(None, True)`` when the FMU has no variable of the type."""
@@ -123,6 +126,8 @@ def _call(inst: Instance, function: str, state: str, saved):
         "fmi2SetFMUstate": lambda: fmu.setFMUstate(saved),
         "fmi2SerializedFMUstateSize": lambda: _raw(fmu.fmi2SerializedFMUstateSize, c, saved,
                                                    ctypes.byref(ctypes.c_size_t())),
+        "fmi2SerializeFMUstate": lambda: fmu.serializeFMUstate(saved),
+        "fmi2DeSerializeFMUstate": lambda: fmu.freeFMUstate(fmu.deSerializeFMUstate(serialized)),
         "fmi2GetStatus": lambda: _raw(fmu.fmi2GetStatus, c, DO_STEP_STATUS, ctypes.byref(ctypes.c_int())),
         "fmi2GetRealStatus": lambda: _raw(fmu.fmi2GetRealStatus, c, LAST_SUCCESSFUL_TIME,
                                           ctypes.byref(ctypes.c_double())),
@@ -178,15 +183,16 @@ def test_every_function_in_every_state_is_refused_exactly_where_the_table_forbid
     try:
         inst.to_step_complete()
         saved = inst.fmu.getFMUstate() if inst.states else None
+        serialized = inst.fmu.serializeFMUstate(saved) if saved is not None else b""
         for function, allowed in TABLE.items():
             capable = _capable(inst.md, function)
-            if function == "fmi2SetFMUstate" and saved is None:
+            if function in ("fmi2SetFMUstate", "fmi2SerializeFMUstate", "fmi2DeSerializeFMUstate") and saved is None:
                 capable = False
             for state in STATES:
                 inst.reset()
                 inst.reach(state)
                 n = len(inst.messages)
-                status, footnote = _call(inst, function, state, saved)
+                status, footnote = _call(inst, function, state, saved, serialized)
                 if status is None or (function, state) in OPEN:
                     continue
                 expect_error = not (capable and footnote and state in allowed)
