@@ -14,6 +14,10 @@ class RealVar(Real):
     def to_xml(self):
         node = super().to_xml()
         real = node.find("Real")
+        if self.start is not None:
+            # pythonfmu writes 16 significant digits, which do not always read back as the value
+            # (1.4739737117746359 -> 1.473973711774636): repr does
+            real.set("start", repr(float(self.start)))
         for key, value in self.extra.items():
             if value is not None:
                 real.set(key, value if isinstance(value, str) else repr(float(value)))

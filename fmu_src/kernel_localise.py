@@ -11,7 +11,7 @@ import math
 from numba import njit
 
 from . import numba_cache  # noqa: F401  (registers the content-hash cache locator first)
-from .kernel_events import watch_slope, watch_slope_drive, watch_value
+from .kernel_events import drive_rate, watch_slope, watch_slope_drive, watch_value
 from .kernel_forces import contact_force_at, force_on_bit, rhs
 from .kernel_layouts import (DRIVE_GATE, EPS, EV_BOUNCE, EV_IMPACT, F_PEAK, HOW_DENSE,
                              HOW_RESTEP, HOW_STICK)
@@ -243,6 +243,22 @@ def drive_inside(t1, step, field, ys, fs, d_min):
         dense_eval((tm - t0) / h, y0, interp, act, n_act, ys)
     d = force_on_bit(ys, p, mc)
     return d if d < d_min else d_min
+
+
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
+def drive_before_event(t_hit, step, field, drive_start, ys, fs, d_min):
+    """The lowest drive so far, ``d_min``, lowered by the drive's minimum inside ``[t0, t_hit]``,
+    the part of a step (dense output or exact stick solution, ``step``'s interpolant ready) that
+    ends on an event: a dip between two events would otherwise be seen at neither.
+    ``drive_start = (drive, its rate)`` at ``t0``."""
+    t0 = step[0]
+    p, _, mc, _ = field
+    state_rate_at(t_hit, step, p, ys, fs)
+    d1 = force_on_bit(ys, p, mc)
+    h = t_hit - t0
+    if drive_dips(drive_start[0], drive_start[1] * h, d1, drive_rate(ys, fs, p, mc) * h, min(d_min, d1)):
+        return drive_inside(t_hit, step, field, ys, fs, d_min)
+    return d_min
 
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)

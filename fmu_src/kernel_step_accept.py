@@ -14,7 +14,7 @@ from . import numba_cache  # noqa: F401  (registers the content-hash cache locat
 from .kernel_events import drive_rate, watch_value
 from .kernel_forces import force_on_bit
 from .kernel_layouts import CONTACT, EV_STICK, F_PEAK, F_V4_PEAK, I_RHS, V_BIT, V_HAMMER, X_BIT
-from .kernel_localise import drive_dips, drive_inside, peak_in_step, state_at
+from .kernel_localise import drive_before_event, drive_dips, drive_inside, peak_in_step, state_at
 from .kernel_recording import needs_record, record_until
 from .kernel_runge_kutta import dense_eval, interpolant, rk_step
 
@@ -78,13 +78,19 @@ def step_to_event(span, hit, dense_ok, refine, drive, n_act, field, ctx):
     t, _, h = span
     hit_kind, t_hit, wtol_hit = hit
     d_min, d_y, r_y, _ = drive
-    (tableau, _), sol, work, _, kit, _, _, rec = ctx
+    (tableau, method), sol, work, _, kit, _, _, rec = ctx
     y, istate, fstate, opts = sol
     stages, stages2, interp, ynew, ytmp, ys, fs, act = work
     fixed, how_rk, _, how_dense = kit[0], kit[1], kit[2], kit[3]
     p, _, mc, _ = field
     ns = tableau[3]
     n = y.shape[0]
+    if not fixed:
+        # a dip of the drive before the event (the fixed-step method tracks the step ends only)
+        dense_ok = interpolant(dense_ok, (t, y, h, how_rk, interp, act, n_act),
+                               ynew, tableau, method[5], stages, stages2, ytmp, istate, field)
+        d_min = drive_before_event(t_hit, (t, y, h, how_dense, interp, act, n_act), field,
+                                   (d_y, drive_rate(y, stages[0], p, mc)), ys, fs, d_min)
     for i in range(n):
         stages2[0, i] = stages[0, i]
     rk_step(t, y, t_hit - t, tableau, stages2, ys, ytmp, act, n_act, field)

@@ -19,7 +19,7 @@ from .kernel_events import drive_rate
 from .kernel_forces import force_on_bit
 from .kernel_layouts import (CHUNK_SLIVER, I_RHS, I_STEPS, ST_DONE, ST_NONFINITE, ST_STEP_STORM, V_HAMMER,
                              X_HAMMER)
-from .kernel_localise import drive_dips, drive_inside
+from .kernel_localise import drive_before_event, drive_dips, drive_inside
 from .kernel_recording import needs_record, record_until
 from .kernel_stick import stick_prepare, stick_prepare_phase, stick_rate, stick_state, stick_state_chunk
 from .kernel_step_control import count_step
@@ -89,6 +89,8 @@ def stick_advance(t, t_end, phase, drive, nw, n_act, field, ctx):
             y[i] = ynew[i]
             stages[0, i] = fs[i]
         return ST_DONE, -1, t1, (d_min, d1, r1, True), (t1, sn1, cs1) if full else no_phase
+    d_min = drive_before_event(t_hit, (t, y, h_chunk, how_stick, interp, act, n_act), field,
+                               (d_y, r_y if carried else drive_rate(y, stages[0], p, mc)), ys, fs, d_min)
     stick_state(t_hit, y, interp, p, ys)
     d_y = force_on_bit(ys, p, mc)
     if d_y < d_min:

@@ -163,6 +163,11 @@ class Drillstring(Fmi2Slave):
         from xml.etree.ElementTree import SubElement  # noqa: PLC0415
         root = super().to_xml(model_options)
         root.set("description", self.description)
+        for sv in root.find("ModelVariables"):
+            real = sv.find("Real")
+            if real is not None and real.get("start") is not None:
+                # pythonfmu writes 16 significant digits, which do not always read back as the value
+                real.set("start", repr(float(getattr(self, sv.get("name")))))
         structure = root.find("ModelStructure")
         outputs = structure.find("Outputs")
         if outputs is not None:

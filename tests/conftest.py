@@ -179,3 +179,21 @@ def built_native_string_fmu3(tmp_path_factory):
         pytest.skip(str(e))
     return shared_build(tmp_path_factory, "string_native3", "Drillstring.fmu",
                         lambda path: build_native_string_fmu("lab", path, log=lambda msg: None, fmi_version=3))
+
+
+@pytest.fixture(scope="session")
+def built_system_fmu(tmp_path_factory):
+    """``DrillingSystem.fmu`` (native) of the lab string under the auto-driller, built once per session."""
+    from hammerbit.cosim.config import CosimConfig, default_hammer
+    from hammerbit.drillstring import load_string
+    from hammerbit.drillstring.top import TopCondition
+    from hammerbit.fmu.build_system import build_system_fmu
+    from hammerbit.fmu.native import FrontBuildError, find_compiler
+    try:
+        find_compiler()
+    except FrontBuildError as e:
+        pytest.skip(str(e))
+    lab = load_string("lab")
+    config = CosimConfig(stop=1.0, step=1e-3, rig=default_hammer(lab), top=TopCondition.parse("auto-driller"))
+    return shared_build(tmp_path_factory, "system", "DrillingSystem.fmu",
+                        lambda path: build_system_fmu(lab, config, path, log=lambda msg: None))

@@ -123,8 +123,16 @@ class StepLog:
         """``(amplitude, mean)`` [N] of the WOB over the last whole forcing periods after ``t_from``
         [s] (:func:`steady_periods`), from the WOB within each step; without a whole period or a
         forcing frequency, half the peak-to-peak value and the mean of the step-end WOBs."""
+        amplitude, mean, _ = self.wob_phasor(t_from)
+        return amplitude, mean
+
+    def wob_phasor(self, t_from: float) -> tuple:
+        """``(amplitude, mean, phasor)``: :meth:`wob_harmonic` and the first harmonic itself, ``a + i b``
+        [N] (its modulus the amplitude, its argument the phase against the forcing; NaN without a
+        whole period or a forcing frequency)."""
+        nan = complex(math.nan, math.nan)
         if not self.rows:
-            return 0.0, math.nan
+            return 0.0, math.nan, nan
         R = np.asarray(self.rows, dtype=float)
         t_end = float(R[-1, LOG_T] + R[-1, LOG_H])
         t1 = R[:, LOG_T] + R[:, LOG_H]
@@ -132,8 +140,8 @@ class StepLog:
         if k == 0:
             ws = R[t1 >= t_from - 1e-12, LOG_W]
             if ws.size == 0:
-                return 0.0, math.nan
-            return 0.5 * float(ws.max() - ws.min()), float(ws.mean())
+                return 0.0, math.nan, nan
+            return 0.5 * float(ws.max() - ws.min()), float(ws.mean()), nan
         x0 = np.concatenate(([self.first[0]], R[:-1, LOG_X]))
         v0 = np.concatenate(([self.first[1]], R[:-1, LOG_V]))
         w0 = np.concatenate(([self.first[2]], R[:-1, LOG_W]))
@@ -167,4 +175,4 @@ class StepLog:
         span = t_end - t_start
         a = 2.0 / span * float(np.sum(wq * wob * np.cos(ph)))
         b = 2.0 / span * float(np.sum(wq * wob * np.sin(ph)))
-        return math.hypot(a, b), float(np.sum(wq * wob)) / span
+        return math.hypot(a, b), float(np.sum(wq * wob)) / span, complex(a, b)

@@ -129,6 +129,11 @@ class Lane:
         the last whole forcing periods after ``t_from`` [s], from the WOB within each step."""
         return self.steps.wob_harmonic(t_from)[0]
 
+    def wob_phasor(self, t_from: float) -> complex:
+        """The lane's first harmonic of the WOB at the forcing frequency, ``a + i b`` [N]
+        (:meth:`~hammerbit.cosim.amplitude.StepLog.wob_phasor`)."""
+        return self.steps.wob_phasor(t_from)[2]
+
     def snapshot(self):
         return (self.hammer.get_state(), self.string.copy_state(), self.hist.copy(), self.out.copy(),
                 len(self.steps))

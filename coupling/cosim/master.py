@@ -87,7 +87,8 @@ from typing import Optional
 import numpy as np
 
 from hammerbit.cosim.config import CosimConfig, CosimResult, CouplingInstabilityError, steady_start
-from hammerbit.cosim.error import check_step, measured_order, richardson, step_limits, unclaimed, SAFETY_FACTOR
+from hammerbit.cosim.error import (check_step, measured_order, phase_dominated, richardson, step_limits, unclaimed,
+                                   SAFETY_FACTOR)
 from hammerbit.cosim.hammer_interface import OUT_BIT_POSITION, OUT_WOB, counts_of
 from hammerbit.cosim.hammers import hammer_side
 from hammerbit.cosim.lane import Lane
@@ -173,7 +174,7 @@ def cosimulate(string, config: CosimConfig = CosimConfig(), *, fmu=None, hammer=
     if not c.adaptive:
         res = _run(side, c, fmu=fmu, hammer=hammer, defect_tol=None)
         res.setup_time_s += t_side
-        return res
+        return _claim(res)
     defect_tol = DEFECT_TOL_FACTOR * c.tol
     res = _run(side, c, fmu=fmu, hammer=hammer, defect_tol=defect_tol)
     setup = res.setup_time_s + t_side
@@ -193,6 +194,15 @@ def cosimulate(string, config: CosimConfig = CosimConfig(), *, fmu=None, hammer=
     res.stats.update(passes=passes, **total)
     res.wall_time_s = wall
     res.setup_time_s = setup
+    return _claim(res)
+
+
+def _claim(res: CosimResult) -> CosimResult:
+    """``res`` with its estimate unclaimed where step doubling cannot estimate the amplitude's error
+    (:func:`~hammerbit.cosim.error.phase_dominated`)."""
+    note = phase_dominated(res.estimate) if res.estimate is not None else ""
+    if note:
+        res.estimate = unclaimed(res.estimate, note)
     return res
 
 
@@ -413,11 +423,13 @@ def _estimate(c: CosimConfig, lanes, m: _Marched, pen: float, counts: dict, data
     (scales the recorded ``wob_error_estimate`` in ``data`` by the estimate's factor)."""
     main, fine = lanes
     # each lane's amplitude from the WOB within its own steps
-    amp, amp_f = main.wob_amplitude(steady_start(c)), fine.wob_amplitude(steady_start(c))
+    t0 = steady_start(c)
+    amp, amp_f = main.wob_amplitude(t0), fine.wob_amplitude(t0)
     p = measured_order(np.asarray(m.d_main), np.asarray(m.d_fine))
     est = richardson(amplitude=amp, amplitude_fine=amp_f, penetration=pen,
                      penetration_fine=float(fine.out[OUT_BIT_POSITION]), order=p, tol=c.tol,
-                     length_scale=c.rig.scales.length)
+                     length_scale=c.rig.scales.length, harmonic=main.wob_phasor(t0),
+                     harmonic_fine=fine.wob_phasor(t0))
     if counts.get("impacts", 0) > 0:
         est = unclaimed(est, f"{counts['impacts']} impacts: step doubling does not resolve the "
                              f"contact spikes, so no tolerance is claimed for this run")

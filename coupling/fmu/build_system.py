@@ -174,6 +174,9 @@ def system_model_description(data: dict, guid: str) -> bytes:
             t["max"] = repr(float(v.max))
         if v.causality != "output":
             t["start"] = repr(float(starts[v.name]))
+        if v.name in _UNUSED_INPUTS.get(data["top"], ()):
+            # the front accepts only the start value of an input the built top condition ignores
+            t["min"] = t["max"] = t["start"]
         ET.SubElement(sv, FMI2_TYPE[v.type], t)
     ms = ET.SubElement(root, "ModelStructure")
     out = ET.SubElement(ms, "Outputs")
@@ -184,6 +187,12 @@ def system_model_description(data: dict, guid: str) -> bytes:
         ET.SubElement(init, "Unknown", {"index": str(i), "dependencies": ""})
     ET.indent(root, space="  ")
     return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8") + b"\n"
+
+
+#: per top condition, the inputs it does not use (model_system_access.c refuses any other value
+#: than their start): declared with min = max = start
+_UNUSED_INPUTS = {"fixed": ("wob_set_point", "feed_velocity"), "feed": ("wob_set_point",),
+                  "auto-driller": ("feed_velocity",)}
 
 
 def _array(ctype: str, name: str, values) -> str:
