@@ -30,6 +30,15 @@ enum { IN_AMPLITUDE, IN_FREQUENCY, IN_WOB_SET_POINT, IN_FEED_VELOCITY, N_INPUTS 
 static const double SYS_START_IN[N_INPUTS] = {HSYS_START_amplitude, HSYS_START_frequency,
                                               HSYS_START_wob_set_point, HSYS_START_feed_velocity};
 
+/* one solution of the system: the solver's arrays (the main run, or the shadow run at a tighter
+ * tolerance that the error estimate compares it with) */
+typedef struct {
+    double y[SYS_NY];
+    int64_t ist[HSYS_N_ISTATE];
+    double fst[HSYS_N_FSTATE];
+    double opts[HSYS_N_OPTS];
+} syssolution;
+
 typedef struct {
     uint32_t magic, size;
     double tolerance;
@@ -41,11 +50,14 @@ typedef struct {
     double bit_position, rate_of_penetration, wob, mean_wob, hook_load, hammer_position,
         hammer_velocity, contact_force, coupling_error;
     int64_t stick_slip, impact_count, slip_count, regime;
-    /* the solver's arrays */
+    double penetration_scale;     /* the largest |bit position| of either run so far [x0] */
+    /* the solver's arrays: the main run (y, ist, fst, opts) and the shadow run */
     double y[SYS_NY];
     int64_t ist[HSYS_N_ISTATE];
     double fst[HSYS_N_FSTATE];
-    double p[HSYS_N_P], opts[HSYS_N_OPTS];
+    double opts[HSYS_N_OPTS];
+    syssolution shadow;
+    double p[HSYS_N_P];
     double lin[HSYS_NNZ + HSYS_NZ + 2];    /* A's values, G, g (the inputs change A's column IC) */
     char error[256];
 } sysstate;
@@ -58,6 +70,10 @@ typedef struct {
 } model;
 
 #define FAIL(m, ...) (hb_model_log((m), fmi2Error, __VA_ARGS__), fmi2Error)
+
+/* the shadow run's rtol is the main run's times this: its error, a small fraction of the main run's,
+ * makes their difference an estimate of the main run's error (coupling_error) */
+#define SYS_SHADOW_RTOL_FACTOR (1.0 / 32.0)
 
 /* model_system.c: the outputs of the state (after a step of nondimensional length dtau from the
  * hammer velocity x2a, bit position x3a; dtau = 0: at a communication point without a step) */
