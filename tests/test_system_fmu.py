@@ -41,16 +41,25 @@ def field_auto_fmu(field, tmp_path_factory):
 
 
 class Slave:
-    """The FMU in fmpy's FMU2Slave, started at t = 0."""
+    """The FMU in fmpy's FMU2Slave, started at t = 0 (``logger``: a list that collects its log
+    messages, else fmpy's default logger)."""
 
-    def __init__(self, path):
+    def __init__(self, path, logger=None):
         from fmpy import extract, read_model_description
-        from fmpy.fmi2 import FMU2Slave
+        from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
         md = read_model_description(str(path))
         self.vr = {v.name: v.valueReference for v in md.modelVariables}
         self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(path)),
                              modelIdentifier=md.coSimulation.modelIdentifier, instanceName="system")
-        self.fmu.instantiate()
+        callbacks = None
+        if logger is not None:
+            from fmpy.fmi2 import defaultCallbacks
+            callbacks = fmi2CallbackFunctions()
+            callbacks.logger = fmi2CallbackLoggerTYPE(lambda env, name, status, cat, msg: logger.append(msg.decode()))
+            callbacks.allocateMemory = defaultCallbacks.allocateMemory
+            callbacks.freeMemory = defaultCallbacks.freeMemory
+            self._callbacks = callbacks     # kept alive as long as the instance
+        self.fmu.instantiate(callbacks=callbacks, loggingOn=logger is not None)
         self.fmu.setupExperiment(startTime=0.0)
         self.fmu.enterInitializationMode()
         self.fmu.exitInitializationMode()

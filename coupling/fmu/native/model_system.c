@@ -34,6 +34,7 @@ static void set_start_values(model *m) {
     memcpy(s->shadow.ist, s->ist, sizeof s->ist);
     memcpy(s->shadow.fst, s->fst, sizeof s->fst);
     memcpy(s->shadow.opts, s->opts, sizeof s->opts);
+    sys_regime_start(s);
     sys_outputs(s, 0.0, 0.0, 0.0, 0.0);
     snprintf(s->error, sizeof s->error, "not initialised (fmi2ExitInitializationMode)");
 }
@@ -186,6 +187,7 @@ static fmi2Status s_exit_init(fmi2Component c) {
     memcpy(s->shadow.opts, s->opts, sizeof s->opts);
     s->shadow.opts[HSYS_O_RTOL] *= SYS_SHADOW_RTOL_FACTOR;
     s->shadow.opts[HSYS_O_ATOL] *= SYS_SHADOW_RTOL_FACTOR;
+    sys_regime_start(s);
     apply_inputs(s);
     s->ready = 1;
     s->error[0] = '\0';
@@ -257,6 +259,8 @@ static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
     s->regime = 0;
     if (s->ist[HSYS_I_COUNT0 + HSYS_EV_BOUNCE] > bounces || s->ist[HSYS_I_BOUNCE] == 1) s->regime |= HB_REGIME_BOUNCE;
     if (s->fst[HSYS_F_DRIVE_MIN] < 0.0) s->regime |= HB_REGIME_TENSION;
+    sys_regime_step(m, s->mean_wob / HSYS_F0 * dtau, dtau);
+    s->regime |= s->rg.verdict;
     return fmi2OK;
 }
 

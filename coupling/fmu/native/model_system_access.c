@@ -190,6 +190,8 @@ static const char *state_invalid(const sysstate *s) {
         if (i == HSYS_IC) want = HSYS_G_IC + dv * HSYS_DG_V + dw * HSYS_DG_W;
         if (memcmp(&s->lin[HSYS_NNZ + i], &want, sizeof want) != 0) return "its subsystem is not this build's";
     }
+    const char *why_regime = sys_regime_invalid(s);
+    if (why_regime) return why_regime;
     const char *why_run = solution_invalid(s, s->y, s->ist, s->fst, s->opts);
     return why_run ? why_run : solution_invalid(s, s->shadow.y, s->shadow.ist, s->shadow.fst, s->shadow.opts);
 }
