@@ -203,8 +203,8 @@ SYSTEM_VARIABLES = (
     SystemVariable("coupling_error", "Float64", "output", "", "error estimate of the last communication "
                    "step: the larger of the relative errors of the bit position (to the largest penetration "
                    "so far) and of the mean WOB, from a shadow run at a 32 times tighter tolerance"),
-    SystemVariable("regime", "Int32", "output", "", "regime bits seen in the last communication step "
-                   "(bounce, tension; runaway and stall are not computed: 0)"),
+    SystemVariable("regime", "Int32", "output", "", "regime bits: bounce and tension seen in the last "
+                   "communication step, runaway and stall the verdicts on the run so far"),
 )
 
 #: the inputs that only some top conditions use: input -> the top condition that uses it
