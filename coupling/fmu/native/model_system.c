@@ -239,7 +239,7 @@ static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
     if (!kept) return FAIL(m, "fmi2DoStep: out of memory; state unchanged");
     memcpy(kept, s, sizeof *kept);
     double tau_a = s->fst[HSYS_F_T], x2a = s->y[HSYS_V_HAMMER], x3a = s->y[HSYS_X_BIT];
-    double x2a_shadow = s->shadow.y[HSYS_V_HAMMER];
+    double x2a_shadow = s->shadow.y[HSYS_V_HAMMER], x3a_shadow = s->shadow.y[HSYS_X_BIT];
     int64_t bounces = s->ist[HSYS_I_COUNT0 + HSYS_EV_BOUNCE];
     int64_t st = advance_run(m, s->y, s->ist, s->fst, s->opts, tau_end);
     if (st == HSYS_ST_DONE) st = advance_run(m, s->shadow.y, s->shadow.ist, s->shadow.fst, s->shadow.opts, tau_end);
@@ -254,8 +254,17 @@ static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
     free(kept);
     s->t = t + h;
     double dtau = s->fst[HSYS_F_T] - tau_a;
-    sys_outputs(s, dtau, x2a, x3a, tau_a);
     s->coupling_error = error_estimate(s, dtau, x2a, x2a_shadow, tau_a);
+    if (s->coupling_error > s->tolerance) {
+        /* the main run left the tolerance in this step (an event its steps handled otherwise, such
+         * as a grazing stick): it goes on from the shadow's more accurate state, and the outputs are
+         * the shadow's; the estimate stays the main run's error, an over-estimate of theirs */
+        memcpy(s->y, s->shadow.y, sizeof s->y);
+        memcpy(s->ist, s->shadow.ist, sizeof s->ist);
+        memcpy(s->fst, s->shadow.fst, sizeof s->fst);
+        x2a = x2a_shadow, x3a = x3a_shadow;
+    }
+    sys_outputs(s, dtau, x2a, x3a, tau_a);
     s->regime = 0;
     if (s->ist[HSYS_I_COUNT0 + HSYS_EV_BOUNCE] > bounces || s->ist[HSYS_I_BOUNCE] == 1) s->regime |= HB_REGIME_BOUNCE;
     if (s->fst[HSYS_F_DRIVE_MIN] < 0.0) s->regime |= HB_REGIME_TENSION;
