@@ -137,3 +137,20 @@ def test_a_step_beyond_the_tolerance_goes_on_from_the_shadow(field, tmp_path):
             s.close()
     assert missed > 0, "no step left the tolerance: the test would be vacuous"
     assert worst <= 1e-3, f"penetration off by {worst:.3g} after the stick"
+
+
+def test_the_modal_form_is_the_strings_matrix_or_refused():
+    """The modal form rebuilds the string's matrix (T lam T^-1, checked here independently of the
+    build's own check) and is sparse; a defective matrix (a Jordan block: no eigenvector basis)
+    gets none."""
+    from hammerbit.cosim.reference import monolithic_subsystem
+    from hammerbit.cosim.string_side import StringSide
+    from hammerbit.fmu.build_system import modal_transform
+    field = load_string("field-2200m")
+    cfg = drilling_config(field, 1.0)
+    side = StringSide(field, cfg)
+    A = np.asarray(monolithic_subsystem(field, side, cfg)[0].A)[:side.n, :side.n]
+    T, lam = modal_transform(A, side.n, 1e-4)
+    assert np.abs(T @ lam @ np.linalg.inv(T) - A).max() <= 1e-9 * np.abs(A).max()
+    assert np.count_nonzero(lam) <= 2 * side.n < np.count_nonzero(A) / 50
+    assert modal_transform(np.array([[1.0, 1.0], [0.0, 1.0]]), 2, 1e-4) is None
