@@ -27,6 +27,8 @@ from hammerbit.drillstring.top import TopCondition  # noqa: E402
 #: the estimate's allowed factor from the truth, and the truth below which it is not judged
 FACTOR = 3.0
 FLOOR = 1e-6
+#: the FMU's tolerance (its start value)
+TOLERANCE = 1e-3
 REF_RTOL = 1e-8
 
 
@@ -89,15 +91,22 @@ def truth_and_estimate(path, ref, h):
             s.step(h)
             x, wob, est = s.real("bit_position", "mean_wob", "coupling_error")
             scale = max(scale, abs(x_ref))
-            out.append((max(abs(x - x_ref) / scale, abs(wob / wob_ref - 1.0)), est))
+            pen = abs(x - x_ref) / scale if scale > 0.0 else abs(x - x_ref)   # the bit not moved yet
+            out.append((max(pen, abs(wob / wob_ref - 1.0)), est))
     finally:
         s.close()
     return np.array(out)
 
 
 def assert_within_factor(pairs):
+    """Within FACTOR where the truth is above FLOOR; a step whose estimate exceeds the FMU's
+    tolerance was corrected (the main run went on from the shadow's state, its outputs the
+    shadow's): there the estimate is the main run's error before the correction, which must not be
+    below the truth (an over-estimate, documented in docs/fmu.md)."""
     truth, est = pairs[:, 0], pairs[:, 1]
-    judged = truth > FLOOR
+    corrected = est > TOLERANCE
+    assert np.all(est[corrected] >= truth[corrected])
+    judged = (truth > FLOOR) & ~corrected
     assert judged.sum() >= len(truth) // 2, "the truth is below the floor: the test would be vacuous"
     ratio = est[judged] / truth[judged]
     assert ratio.min() >= 1.0 / FACTOR and ratio.max() <= FACTOR, \
