@@ -200,11 +200,11 @@ SYSTEM_VARIABLES = (
     SystemVariable("stick_slip", "Int32", "output", "", "1 while the bit sticks, 0 while it slips"),
     SystemVariable("impact_count", "Int32", "output", "", "impacts of the hammer on the bit so far"),
     SystemVariable("slip_count", "Int32", "output", "", "slip phases of the bit started so far"),
-    SystemVariable("coupling_error", "Float64", "output", "", "error estimate of the integration: the "
-                   "relative local error of the last accepted solver step (no exchange: the system is "
-                   "integrated as one)"),
-    SystemVariable("regime", "Int32", "output", "", "regime bits seen in the last communication step "
-                   "(bounce, tension; runaway and stall are not computed: 0)"),
+    SystemVariable("coupling_error", "Float64", "output", "", "error estimate of the last communication "
+                   "step: the larger of the relative errors of the bit position (to the largest penetration "
+                   "so far) and of the mean WOB, from a shadow run at a 32 times tighter tolerance"),
+    SystemVariable("regime", "Int32", "output", "", "regime bits: bounce and tension seen in the last "
+                   "communication step, runaway and stall the verdicts on the run so far"),
 )
 
 #: the inputs that only some top conditions use: input -> the top condition that uses it

@@ -41,16 +41,25 @@ def field_auto_fmu(field, tmp_path_factory):
 
 
 class Slave:
-    """The FMU in fmpy's FMU2Slave, started at t = 0."""
+    """The FMU in fmpy's FMU2Slave, started at t = 0 (``logger``: a list that collects its log
+    messages, else fmpy's default logger)."""
 
-    def __init__(self, path):
+    def __init__(self, path, logger=None):
         from fmpy import extract, read_model_description
-        from fmpy.fmi2 import FMU2Slave
+        from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
         md = read_model_description(str(path))
         self.vr = {v.name: v.valueReference for v in md.modelVariables}
         self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(path)),
                              modelIdentifier=md.coSimulation.modelIdentifier, instanceName="system")
-        self.fmu.instantiate()
+        callbacks = None
+        if logger is not None:
+            from fmpy.fmi2 import defaultCallbacks
+            callbacks = fmi2CallbackFunctions()
+            callbacks.logger = fmi2CallbackLoggerTYPE(lambda env, name, status, cat, msg: logger.append(msg.decode()))
+            callbacks.allocateMemory = defaultCallbacks.allocateMemory
+            callbacks.freeMemory = defaultCallbacks.freeMemory
+            self._callbacks = callbacks     # kept alive as long as the instance
+        self.fmu.instantiate(callbacks=callbacks, loggingOn=logger is not None)
         self.fmu.setupExperiment(startTime=0.0)
         self.fmu.enterInitializationMode()
         self.fmu.exitInitializationMode()
@@ -371,3 +380,41 @@ def run_libcosim_seconds(path, stop, h):
 @pytest.mark.parametrize("h", [0.01, pytest.param(0.001, marks=pytest.mark.slow)])
 def test_libcosim_agrees_with_reference(field_auto_fmu, field_auto_ref, h):
     assert_agrees(run_libcosim_seconds(field_auto_fmu, STOP, h), field_auto_ref)
+
+
+@pytest.mark.soak
+@pytest.mark.slow
+@pytest.mark.parametrize("string_name,top,drills", [("field-2200m", "auto-driller", True), ("lab", "fixed", False)])
+def test_twenty_seconds_in_other_hosts_agree_with_reference(string_name, top, drills, tmp_path):
+    """The same 20 s in libcosim at 1 and 10 ms (each second), and in the C host under env -i and
+    the win64 binary under wine at 10 ms (the penetration at 20 s: those hosts print the end)."""
+    import os
+    import zipfile
+    from urllib.parse import quote
+
+    from fmpy import read_model_description
+    from native_hosts import linux_host, windows_host_or_skip
+    stop = 20.0
+    fmu, ref = _build_and_reference(string_name, top, stop, tmp_path)
+    for h in (0.01, 0.001):
+        assert_agrees(run_libcosim_seconds(fmu, stop, h), ref, drills=drills)
+    d = tmp_path / "x"
+    zipfile.ZipFile(fmu).extractall(d)
+    md = read_model_description(str(fmu))
+    args = [md.guid, f"steps={int(round(stop / 0.01))}", "h=0.01",
+            f"out={next(v.valueReference for v in md.modelVariables if v.name == 'bit_position')}"]
+    ends = [_host_values([str(linux_host(tmp_path)), str(d / "binaries/linux64/DrillingSystem.so"),
+                          (d / "resources").as_uri(), *args], env={})]
+    dll = d / "binaries/win64/DrillingSystem.dll"
+    if dll.exists():
+        wine, exe = windows_host_or_skip(dll, tmp_path)
+        env = {"PATH": "/usr/bin:/bin", "HOME": str(tmp_path), "WINEDEBUG": "-all",
+               "WINEPREFIX": os.environ.get("WINEPREFIX", os.path.expanduser("~/.wine"))}
+        ends.append(_host_values([wine, str(exe), "Z:" + str(dll).replace("/", "\\"),
+                                  "file:///Z:" + quote((d / "resources").as_posix()), *args], env))
+    for got in ends:
+        assert len(got) == 1
+        if drills:
+            assert abs(got[0] / ref[-1, 0] - 1.0) <= TOL
+        else:
+            assert abs(got[0] - ref[-1, 0]) <= 1e-12

@@ -9,6 +9,7 @@
  * of the subsystem (they enter it affinely; the generated header carries the derivatives). */
 #include <stdio.h>
 #include <stdlib.h>
+#include <float.h>
 #include <string.h>
 
 #include "model_system.h"
@@ -34,6 +35,11 @@ static void set_start_values(model *m) {
     /* the start inputs into the subsystem as a step applies them, so that a state saved before
        initialisation passes the state check (which recomputes them from 'applied') */
     apply_inputs(s);
+    memcpy(s->shadow.y, s->y, sizeof s->y);
+    memcpy(s->shadow.ist, s->ist, sizeof s->ist);
+    memcpy(s->shadow.fst, s->fst, sizeof s->fst);
+    memcpy(s->shadow.opts, s->opts, sizeof s->opts);
+    sys_regime_start(s);
     sys_outputs(s, 0.0, 0.0, 0.0, 0.0);
     snprintf(s->error, sizeof s->error, "not initialised (fmi2ExitInitializationMode)");
 }
@@ -61,6 +67,15 @@ static void apply_inputs(sysstate *s) {
 /* ------------------------------------------------------------------------------------------ */
 /* Outputs                                                                                     */
 /* ------------------------------------------------------------------------------------------ */
+/* the WOB impulse over a step of length dtau from tau_a [F0 / Omega]: the hammer's momentum balance
+ * x2' = drive + f_link - wob, with y[4 + IQ] = the integral of f_link over the step */
+static double wob_impulse(const double *y, const double *p, double dtau, double x2a, double tau_a) {
+    double a = p[HSYS_P_A], eta = p[HSYS_P_ETA], phi = p[HSYS_P_PHI];
+    double forcing = a / eta * (cos(eta * tau_a + phi) - cos(eta * (tau_a + dtau) + phi));
+    double constant = (p[HSYS_P_B] + p[HSYS_P_FEXT]) * dtau;
+    return y[4 + HSYS_IQ] + forcing + constant - (y[HSYS_V_HAMMER] - x2a);
+}
+
 void sys_outputs(sysstate *s, double dtau, double x2a, double x3a, double tau_a) {
     double f[4];
     hsys_forces(s->y, s->ist, s->p, f);
@@ -68,11 +83,7 @@ void sys_outputs(sysstate *s, double dtau, double x2a, double x3a, double tau_a)
     s->wob = f[2] * HSYS_F0;
     s->contact_force = f[1] * HSYS_F0;
     if (dtau > 0.0) {
-        /* the hammer's momentum balance over the step: x2' = drive + f_link - wob, with q = int f_link */
-        double a = s->p[HSYS_P_A], eta = s->p[HSYS_P_ETA], phi = s->p[HSYS_P_PHI];
-        double forcing = a / eta * (cos(eta * tau_a + phi) - cos(eta * (tau_a + dtau) + phi));
-        double constant = (s->p[HSYS_P_B] + s->p[HSYS_P_FEXT]) * dtau;
-        s->mean_wob = (y[4 + HSYS_IQ] + forcing + constant - (y[HSYS_V_HAMMER] - x2a)) / dtau * HSYS_F0;
+        s->mean_wob = wob_impulse(y, s->p, dtau, x2a, tau_a) / dtau * HSYS_F0;
         s->rate_of_penetration = (y[HSYS_X_BIT] - x3a) / dtau * HSYS_X0 * HSYS_OMEGA;
     } else {
         s->mean_wob = s->wob;
@@ -87,7 +98,20 @@ void sys_outputs(sysstate *s, double dtau, double x2a, double x3a, double tau_a)
     s->stick_slip = s->ist[HSYS_I_STICK] == HSYS_STICK;
     s->impact_count = s->ist[HSYS_I_COUNT0 + HSYS_EV_IMPACT];
     s->slip_count = s->ist[HSYS_I_COUNT0 + HSYS_EV_SLIP_START];
-    s->coupling_error = s->fst[HSYS_F_ERRACC] * s->opts[HSYS_O_RTOL];
+}
+
+/* the estimate of the main run's error over a step of length dtau from tau_a (x2a, x3a: the hammer
+ * velocity of each run there): its difference from the shadow run, in
+ * the bit position (relative to the largest penetration of either run so far) and in the WOB
+ * impulse over the step (relative), whichever is larger */
+static double error_estimate(sysstate *s, double dtau, double x2a, double x2a_shadow, double tau_a) {
+    const double *ys = s->shadow.y;
+    double xm = s->y[HSYS_X_BIT], xs = ys[HSYS_X_BIT];
+    s->penetration_scale = fmax(s->penetration_scale, fmax(fabs(xm), fabs(xs)));
+    double pen = s->penetration_scale > 0.0 ? fabs(xm - xs) / s->penetration_scale : 0.0;
+    double im = wob_impulse(s->y, s->p, dtau, x2a, tau_a), is = wob_impulse(ys, s->p, dtau, x2a_shadow, tau_a);
+    double wob = fabs(im - is) / fmax(fabs(is), DBL_MIN);
+    return fmax(pen, wob);
 }
 
 /* ------------------------------------------------------------------------------------------ */
@@ -162,6 +186,13 @@ static fmi2Status s_exit_init(fmi2Component c) {
     if (s->fst[HSYS_F_T_STICK] >= 0.0) s->fst[HSYS_F_T_STICK] = s->fst[HSYS_F_T];
     s->opts[HSYS_O_RTOL] = tol * HSYS_RTOL_PER_TOLERANCE;
     s->opts[HSYS_O_ATOL] = s->opts[HSYS_O_RTOL] * HSYS_ATOL_PER_RTOL;
+    memcpy(s->shadow.y, s->y, sizeof s->y);
+    memcpy(s->shadow.ist, s->ist, sizeof s->ist);
+    memcpy(s->shadow.fst, s->fst, sizeof s->fst);
+    memcpy(s->shadow.opts, s->opts, sizeof s->opts);
+    s->shadow.opts[HSYS_O_RTOL] *= SYS_SHADOW_RTOL_FACTOR;
+    s->shadow.opts[HSYS_O_ATOL] *= SYS_SHADOW_RTOL_FACTOR;
+    sys_regime_start(s);
     apply_inputs(s);
     s->ready = 1;
     s->error[0] = '\0';
@@ -174,6 +205,21 @@ HB_MODEL_TERMINATE_RESET(&((model *)c)->s)
 /* ------------------------------------------------------------------------------------------ */
 /* fmi2DoStep                                                                                   */
 /* ------------------------------------------------------------------------------------------ */
+/* one run (the main or the shadow) advanced to tau_end; its status (HSYS_ST_DONE: arrived) */
+static int64_t advance_run(model *m, double *y, int64_t *ist, double *fst, double *opts, double tau_end) {
+    sysstate *s = &m->s;
+    y[4 + HSYS_IQ] = 0.0;                 /* the link force's integral over this step */
+    fst[HSYS_F_DRIVE_MIN] = INFINITY;     /* the lowest drive on the bit in this step */
+    int64_t st;
+    hb_kernel_raised();
+    do {
+        double before = fst[HSYS_F_T];
+        st = hsys_advance(y, ist, fst, tau_end, s->p, opts, HSYS_NZ, m->csr, s->lin, m->H);
+        if (st == HSYS_ST_MAX_STEPS && !(fst[HSYS_F_T] > before)) break;
+    } while (st == HSYS_ST_MAX_STEPS);
+    return hb_kernel_raised() ? -1 : st;
+}
+
 static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_prior) {
     (void)no_prior;
     model *m = c;
@@ -186,10 +232,6 @@ static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
         return FAIL(m, "the step would end at t = %s s, beyond the FMU's time range [-1e9, 1e9] s; step "
                     "refused, state unchanged", a);
     }
-    /* kept to put back if the solver fails: the state stays at t */
-    double y[SYS_NY], fst[HSYS_N_FSTATE];
-    int64_t ist[HSYS_N_ISTATE];
-    memcpy(y, s->y, sizeof y), memcpy(ist, s->ist, sizeof ist), memcpy(fst, s->fst, sizeof fst);
     if (memcmp(s->in, s->applied, sizeof s->in) != 0) apply_inputs(s);
     double tau_end = HSYS_OMEGA * (s->t + h);
     if (tau_end - s->fst[HSYS_F_T] < SYS_MIN_ADVANCE * HSYS_OMEGA) {
@@ -197,29 +239,42 @@ static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
         sys_outputs(s, 0.0, 0.0, 0.0, 0.0);
         return fmi2OK;
     }
+    /* kept to put back if a solver fails: the state stays at t */
+    sysstate *kept = malloc(sizeof *kept);
+    if (!kept) return FAIL(m, "fmi2DoStep: out of memory; state unchanged");
+    memcpy(kept, s, sizeof *kept);
     double tau_a = s->fst[HSYS_F_T], x2a = s->y[HSYS_V_HAMMER], x3a = s->y[HSYS_X_BIT];
+    double x2a_shadow = s->shadow.y[HSYS_V_HAMMER], x3a_shadow = s->shadow.y[HSYS_X_BIT];
     int64_t bounces = s->ist[HSYS_I_COUNT0 + HSYS_EV_BOUNCE];
-    s->y[4 + HSYS_IQ] = 0.0;                 /* the link force's integral over this step */
-    s->fst[HSYS_F_DRIVE_MIN] = INFINITY;     /* the lowest drive on the bit in this step */
-    int64_t st;
-    hb_kernel_raised();
-    do {
-        double before = s->fst[HSYS_F_T];
-        st = hsys_advance(s->y, s->ist, s->fst, tau_end, s->p, s->opts, HSYS_NZ, m->csr, s->lin, m->H);
-        if (st == HSYS_ST_MAX_STEPS && !(s->fst[HSYS_F_T] > before)) break;
-    } while (st == HSYS_ST_MAX_STEPS);
-    if (hb_kernel_raised() || st != HSYS_ST_DONE) {
-        memcpy(s->y, y, sizeof y), memcpy(s->ist, ist, sizeof ist), memcpy(s->fst, fst, sizeof fst);
+    int64_t st = advance_run(m, s->y, s->ist, s->fst, s->opts, tau_end);
+    if (st == HSYS_ST_DONE) st = advance_run(m, s->shadow.y, s->shadow.ist, s->shadow.fst, s->shadow.opts, tau_end);
+    if (st != HSYS_ST_DONE) {
+        memcpy(s, kept, sizeof *s);
+        free(kept);
         hb_repr(s->t, a, sizeof a);
         return FAIL(m, "fmi2DoStep failed at t = %s s: the solver stopped (status %lld: an event storm, a "
                     "step below the time resolution or a non-finite state); state unchanged", a,
                     (long long)st);
     }
+    free(kept);
     s->t = t + h;
-    sys_outputs(s, s->fst[HSYS_F_T] - tau_a, x2a, x3a, tau_a);
+    double dtau = s->fst[HSYS_F_T] - tau_a;
+    s->coupling_error = error_estimate(s, dtau, x2a, x2a_shadow, tau_a);
+    if (s->coupling_error > s->tolerance) {
+        /* the main run left the tolerance in this step (an event its steps handled otherwise, such
+         * as a grazing stick): it goes on from the shadow's more accurate state, and the outputs are
+         * the shadow's; the estimate stays the main run's error, an over-estimate of theirs */
+        memcpy(s->y, s->shadow.y, sizeof s->y);
+        memcpy(s->ist, s->shadow.ist, sizeof s->ist);
+        memcpy(s->fst, s->shadow.fst, sizeof s->fst);
+        x2a = x2a_shadow, x3a = x3a_shadow;
+    }
+    sys_outputs(s, dtau, x2a, x3a, tau_a);
     s->regime = 0;
     if (s->ist[HSYS_I_COUNT0 + HSYS_EV_BOUNCE] > bounces || s->ist[HSYS_I_BOUNCE] == 1) s->regime |= HB_REGIME_BOUNCE;
     if (s->fst[HSYS_F_DRIVE_MIN] < 0.0) s->regime |= HB_REGIME_TENSION;
+    sys_regime_step(m, s->mean_wob / HSYS_F0 * dtau, dtau);
+    s->regime |= s->rg.verdict;
     return fmi2OK;
 }
 

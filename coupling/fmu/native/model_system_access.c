@@ -127,6 +127,32 @@ static int all_finite(const double *v, size_t n) {
     return 1;
 }
 
+/* why one run's solver arrays (the main run's or the shadow's) are refused (NULL: accepted) */
+static const char *solution_invalid(const sysstate *s, const double *y, const int64_t *ist, const double *fst,
+                                    const double *opts) {
+    if (!all_finite(y, SYS_NY)) return "its solver state holds a non-finite number";
+    for (int i = 0; i < HSYS_N_OPTS; i++) {
+        int tol = i == HSYS_O_RTOL || i == HSYS_O_ATOL;
+        if (tol ? !(isfinite(opts[i]) && opts[i] > 0.0) : memcmp(&opts[i], &HSYS_OPTS[i], sizeof(double)) != 0)
+            return "its solver options are not this build's";
+    }
+    for (int i = 0; i < HSYS_N_FSTATE; i++)
+        if (!(isfinite(fst[i]) || (i == HSYS_F_DRIVE_MIN && fst[i] == INFINITY)))
+            return "its solver state holds a non-finite number";
+    if (s->ready && !(fabs(fst[HSYS_F_T] - HSYS_OMEGA * s->t) <= 1e-6 * fmax(1.0, fabs(HSYS_OMEGA * s->t))))
+        return "its solver time is not its communication time";
+    if (!(fst[HSYS_F_H] > 0.0)) return "its proposed solver step is not positive";
+    if (ist[HSYS_I_STICK] != HSYS_STICK && ist[HSYS_I_STICK] != HSYS_SLIP) return "its stick mode is unknown";
+    if (ist[HSYS_I_CONTACT] < HSYS_FREE || ist[HSYS_I_CONTACT] > HSYS_CLAMPED) return "its contact mode is unknown";
+    if (ist[HSYS_I_BOUNCE] < 0 || ist[HSYS_I_BOUNCE] > 1) return "its bounce flag is neither 0 nor 1";
+    for (int i = 0; i < HSYS_N_ISTATE; i++) {
+        /* the forcing-period indices may be -1 (none yet) or negative before t = 0; the rest count */
+        int64_t lo = (i == HSYS_I_WIN || i == HSYS_I_SWIN) ? -(INT64_C(1) << 40) : 0;
+        if (ist[i] < lo || ist[i] > (INT64_C(1) << 40)) return "a counter or index of its solver state is out of range";
+    }
+    return NULL;
+}
+
 static const char *state_invalid(const sysstate *s) {
     if (s->magic != SYS_STATE_MAGIC || s->size != sizeof *s) return "it is not a state of this build";
     if ((s->ready | s->terminated) & ~1) return "a flag is neither 0 nor 1";
@@ -145,7 +171,7 @@ static const char *state_invalid(const sysstate *s) {
     if (s->stick_slip < 0 || s->stick_slip > 1 || s->impact_count < 0 || s->slip_count < 0 || s->regime < 0 ||
         s->regime > 31)
         return "an integer output is out of range";
-    if (!all_finite(s->y, SYS_NY)) return "its solver state holds a non-finite number";
+    if (!(isfinite(s->penetration_scale) && s->penetration_scale >= 0.0)) return "its penetration scale is out of range";
     /* the parameters, options and subsystem are the build's, but for what the inputs set */
     for (int i = 0; i < HSYS_N_P; i++) {
         int input = i == HSYS_P_A || i == HSYS_P_ETA || i == HSYS_P_PHI;
@@ -153,11 +179,6 @@ static const char *state_invalid(const sysstate *s) {
             return "its kernel parameters are not this build's";
     }
     if (!(s->p[HSYS_P_ETA] > 0.0 && s->p[HSYS_P_A] >= 0.0)) return "its forcing is out of range";
-    for (int i = 0; i < HSYS_N_OPTS; i++) {
-        int tol = i == HSYS_O_RTOL || i == HSYS_O_ATOL;
-        if (tol ? !(isfinite(s->opts[i]) && s->opts[i] > 0.0) : memcmp(&s->opts[i], &HSYS_OPTS[i], sizeof(double)) != 0)
-            return "its solver options are not this build's";
-    }
     double dv = s->applied[IN_FEED_VELOCITY] - HSYS_FEED_BUILD, dw = s->applied[IN_WOB_SET_POINT] - HSYS_WOB_BUILD;
     for (int64_t i = 0; i < HSYS_NZ; i++)
         for (int64_t k = HSYS_CSR[i]; k < HSYS_CSR[i + 1]; k++) {
@@ -169,22 +190,10 @@ static const char *state_invalid(const sysstate *s) {
         if (i == HSYS_IC) want = HSYS_G_IC + dv * HSYS_DG_V + dw * HSYS_DG_W;
         if (memcmp(&s->lin[HSYS_NNZ + i], &want, sizeof want) != 0) return "its subsystem is not this build's";
     }
-    for (int i = 0; i < HSYS_N_FSTATE; i++)
-        if (!(isfinite(s->fst[i]) || (i == HSYS_F_DRIVE_MIN && s->fst[i] == INFINITY)))
-            return "its solver state holds a non-finite number";
-    if (s->ready && !(fabs(s->fst[HSYS_F_T] - HSYS_OMEGA * s->t) <= 1e-6 * fmax(1.0, fabs(HSYS_OMEGA * s->t))))
-        return "its solver time is not its communication time";
-    if (!(s->fst[HSYS_F_H] > 0.0)) return "its proposed solver step is not positive";
-    const int64_t *ist = s->ist;
-    if (ist[HSYS_I_STICK] != HSYS_STICK && ist[HSYS_I_STICK] != HSYS_SLIP) return "its stick mode is unknown";
-    if (ist[HSYS_I_CONTACT] < HSYS_FREE || ist[HSYS_I_CONTACT] > HSYS_CLAMPED) return "its contact mode is unknown";
-    if (ist[HSYS_I_BOUNCE] < 0 || ist[HSYS_I_BOUNCE] > 1) return "its bounce flag is neither 0 nor 1";
-    for (int i = 0; i < HSYS_N_ISTATE; i++) {
-        /* the forcing-period indices may be -1 (none yet) or negative before t = 0; the rest count */
-        int64_t lo = (i == HSYS_I_WIN || i == HSYS_I_SWIN) ? -(INT64_C(1) << 40) : 0;
-        if (ist[i] < lo || ist[i] > (INT64_C(1) << 40)) return "a counter or index of its solver state is out of range";
-    }
-    return NULL;
+    const char *why_regime = sys_regime_invalid(s);
+    if (why_regime) return why_regime;
+    const char *why_run = solution_invalid(s, s->y, s->ist, s->fst, s->opts);
+    return why_run ? why_run : solution_invalid(s, s->shadow.y, s->shadow.ist, s->shadow.fst, s->shadow.opts);
 }
 
 static fmi2Status s_get_state(fmi2Component c, fmi2FMUstate *state) {
