@@ -294,8 +294,8 @@ def pythonfmu_builder():
     through it would write an FMU without any.  Such a copy is forgotten first, so that the
     import finds the installed package."""
     import sys
-    loaded = sys.modules.get("pythonfmu")
-    if loaded is not None and not (Path(loaded.__file__).parent / "resources" / "binaries").is_dir():
+    loaded = [sys.modules.get(name) for name in ("pythonfmu", "pythonfmu.builder")]
+    if any(m is not None and not (Path(m.__file__).parent / "resources" / "binaries").is_dir() for m in loaded):
         for name in [n for n in sys.modules if n == "pythonfmu" or n.startswith("pythonfmu.")]:
             del sys.modules[name]
     from pythonfmu import FmuBuilder
