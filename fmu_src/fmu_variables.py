@@ -111,6 +111,11 @@ OUTPUTS = (
     ("slip_count", "Integer", None, "number of stick-to-slip transitions since the start time"),
     ("bounce_count", "Integer", None, "number of bit-bounce violations (F_d < -F_s while stuck: the "
                                       "rock would have to pull the bit back; the bit is held)"),
+    ("regime", "Integer", None, "regime verdict known at the current time, a sum of bits: 1 runaway (the "
+                                "bit slips and provably never sticks again with the inputs held), 2 bounce "
+                                "(a bounce so far), 4 tension (the drive on the bit fell below zero so far), "
+                                "8 stall (no slip for 20 forcing periods up to now); one warning is logged "
+                                "when it changes"),
 )
 
 
