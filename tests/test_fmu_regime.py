@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import math
 import warnings
+from pathlib import Path
 
 import pytest
+from fmu_slave import Slave
 
 from hammerbit.model.presets import preset
 from hammerbit.model.regime_codes import REGIME_RUNAWAY, REGIME_TRANSIENT
@@ -111,3 +113,43 @@ def test_runaway_needs_the_preload_held():
     s.do_step(periods * h, h)
     assert not _regime(s) & REGIME_RUNAWAY
     assert math.isfinite(s._t)
+
+
+# ---------------------------------------------------------------------------------------------
+# the built FMUs, through fmpy
+# ---------------------------------------------------------------------------------------------
+def _scene_values(groups):
+    rig = groups.to_rig()
+    reals = {f: float(getattr(rig, f)) for f in _RIG_FIELDS}
+    reals["preload"] = float(rig.preload)
+    booleans = {"impact_enabled": True} if groups.has_gap else {}
+    if groups.has_gap:
+        reals["gap"] = float(rig.gap)
+    return reals, booleans, 1.0 / rig.frequency
+
+
+@pytest.mark.parametrize("scene", ["runaway", "bounce"])
+def test_built_fmus_report_the_slaves_regime_and_restore_it(any_fmu, tmp_path, scene):
+    """Each flavour through fmpy: the regime after every step and the warnings are the in-process
+    slave's; fmi2SetFMUstate brings back the regime of the state's time."""
+    import fmpy
+    groups, periods = SCENES[scene]
+    fmu_dir = Path(fmpy.extract(str(any_fmu), unzipdir=str(tmp_path / "fmu")))
+    reals, booleans, h = _scene_values(groups)
+    s = Slave(fmu_dir, logging=True, reals=reals, booleans=booleans)
+    vr = s.vr["regime"]
+    seen, t, state = [], 0.0, None
+    for k in range(periods):
+        s.fmu.doStep(t, h)
+        t += h
+        seen.append(s.fmu.getInteger([vr])[0])
+        if k == 1:
+            state = s.fmu.getFMUstate()
+    ref_slave, _ = _slave(groups)
+    assert seen == _run(ref_slave, h, periods)
+    assert [m for _, m in s.messages if m.startswith("regime at t")] == _regime_warnings(ref_slave)
+    s.fmu.setFMUstate(state)
+    assert s.fmu.getInteger([vr])[0] == seen[1]
+    s.fmu.freeFMUstate(state)
+    s.fmu.terminate()
+    s.fmu.freeInstance()
