@@ -1,7 +1,7 @@
 """The regime verdict's rules that a run applies once per forcing period: friction floor, runaway certificate, stall.
 
 One place for each rule, for every face (``simulate``, the studies, the
-co-simulation) and, later, the FMUs: each rule reads only the state at a
+co-simulation, the FMUs' ``regime`` output): each rule reads only the state at a
 Poincaré sample and a few numbers fixed per scene (:func:`certificate_constants`),
 so it runs causally, period by period (``docs/model.md``, "Validity domain and the regime verdict").
 
