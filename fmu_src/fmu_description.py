@@ -14,10 +14,10 @@ into C (:mod:`hammerbit.fmu.c_description`); nothing of it is typed again in C:
   evaluates it (:func:`evaluate`, used by ``RigParameters.to_groups``) and the generator writes
   it out as C with the same operations in the same order, so that both give the same bits.
 
-The variables themselves (names, units, ranges, descriptions) are the tables of
-:mod:`.fmu_variables` (HammerBitRock) and of the Drillstring slave; the value references are
-the order in which the slaves register them, read back from ``modelDescription.xml`` by the
-builds.
+The variables of ``Drillstring.fmu`` are :data:`STRING_VARIABLES` (the slave registers them
+from it); HammerBitRock's (names, units, ranges, descriptions) are the tables of
+:mod:`.fmu_variables`.  The value references are the order in which the slaves register them,
+read back from ``modelDescription.xml`` by the builds.
 """
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from . import kernel_layouts
 from .regime_codes import REGIME_BITS
 
-__all__ = ["FMI2_TYPE", "COUNTER_SUFFIX", "fmi3_type", "SystemVariable", "SYSTEM_VARIABLES", "SYSTEM_INPUT_TOPS", "TopCondition", "TOP_CONDITIONS", "top_condition", "top_conditions_text", "REGIME_BITS", "TWO_PI", "OPERATIONS",
+__all__ = ["FMI2_TYPE", "COUNTER_SUFFIX", "fmi3_type", "SystemVariable", "SYSTEM_VARIABLES", "SYSTEM_INPUT_TOPS", "STRING_VARIABLES", "string_description_fields", "TopCondition", "TOP_CONDITIONS", "top_condition", "top_conditions_text", "REGIME_BITS", "TWO_PI", "OPERATIONS",
            "SI_NAMES", "SCALE_FORMULAS", "GROUP_FORMULAS", "GROUP_SLOTS", "KERNEL_SLOTS", "evaluate", "si_to_groups", "formula_names"]
 
 #: the FMI 3 type of a variable -> its FMI 2 type
@@ -58,13 +58,17 @@ class TopCondition:
     form: str           #: the string side's form it steps with (``string_model.FORMS``)
     takes_feed: bool    #: whether ``feed_velocity`` may be non-zero
     description: str
+    #: a few words for the ``top_condition`` variable's description ("" : the name)
+    summary: str = ""
 
 
 #: the Drillstring's top conditions, in the order of their codes (0, 1, ...)
 TOP_CONDITIONS = (
-    TopCondition("fixed", 0, "fixed", False, "the hook is held at its static position"),
-    TopCondition("feed", 1, "fixed", True, "the hook moves down at feed_velocity"),
-    TopCondition("auto-driller", 2, "auto", False, "a PI controller moves the hook to hold the WOB set point"),
+    TopCondition("fixed", 0, "fixed", False, "the hook is held at its static position", "fixed hook"),
+    TopCondition("feed", 1, "fixed", True, "the hook moves down at feed_velocity",
+                 "constant feed (feed_velocity)"),
+    TopCondition("auto-driller", 2, "auto", False, "a PI controller moves the hook to hold the WOB set point",
+                 "auto-driller (PI on the hook load holding wob)"),
 )
 
 
@@ -209,3 +213,61 @@ SYSTEM_VARIABLES = (
 
 #: the inputs that only some top conditions use: input -> the top condition that uses it
 SYSTEM_INPUT_TOPS = {"wob_set_point": "auto-driller", "feed_velocity": "feed"}
+
+
+#: the variables of Drillstring.fmu, in value-reference order (both slaves register them from
+#: here; variability: parameters fixed, inputs and outputs continuous, the locals constant).  A
+#: description is a template: the slave fills ``{buoyed_weight}`` (its build's, N), ``{max_feed}``
+#: (m/s), ``{tops}`` (the top conditions' codes and summaries) and ``{feed}``, ``{auto}`` (the codes
+#: of the top conditions with a feed velocity and with the auto-driller's form).
+STRING_VARIABLES = (
+    SystemVariable("damping_ratio", "Float64", "parameter", "", "modal damping ratio of every string "
+                   "mode [-]; [0, 1)"),
+    SystemVariable("wob", "Float64", "parameter", "", "weight on bit of the static equilibrium [N]; "
+                   "[0, buoyed weight {buoyed_weight:.6g} N]"),
+    SystemVariable("hammer_position_at_rest", "Float64", "parameter", "", "hammer position of the "
+                   "static equilibrium [m] (the hammer's initial_hammer_position)"),
+    SystemVariable("extrapolation", "Int32", "parameter", "", "polynomial order of the hammer "
+                   "motion over a step and of the held force: 0, 1 or 2"),
+    SystemVariable("top_condition", "Int32", "parameter", "", "the top: {tops}"),
+    SystemVariable("feed_velocity", "Float64", "parameter", "", "top_condition {feed}: downward velocity "
+                   "of the block [m/s]; [-{max_feed:.4g}, {max_feed:.4g}] (1000 m/h)"),
+    SystemVariable("proportional_gain", "Float64", "parameter", "", "top_condition {auto}: k_p of the "
+                   "auto-driller [m/s per N of hook-load error]; [0, 1] (default: the build's tuning "
+                   "from the string's stiffness)"),
+    SystemVariable("integral_gain", "Float64", "parameter", "", "top_condition {auto}: k_i of the "
+                   "auto-driller [m/s per N s]; [0, 1] (default: the build's tuning)"),
+    SystemVariable("hammer_position", "Float64", "input", "", "hammer position at the step's start [m], "
+                   "downward"),
+    SystemVariable("hammer_velocity", "Float64", "input", "", "hammer velocity at the step's start "
+                   "[m/s], downward"),
+    SystemVariable("interface_force", "Float64", "output", "", "interface force on the hammer at the "
+                   "communication point [N]"),
+    SystemVariable("held_force", "Float64", "output", "", "interface force for the hammer to hold over "
+                   "the next step [N]"),
+    SystemVariable("held_force_change", "Float64", "output", "", "held_force - wob [N] (to the hammer's "
+                   "harmonic_force input)"),
+    SystemVariable("hook_load", "Float64", "output", "", "hook load: tension in the top element [N]"),
+    SystemVariable("top_position", "Float64", "output", "", "top (hook) displacement [m], downward"),
+    SystemVariable("top_velocity", "Float64", "output", "", "top (hook) velocity [m/s], downward"),
+    SystemVariable("string_length", "Float64", "local", "", "length of the string [m] (fixed at build "
+                   "time)"),
+    SystemVariable("interface_stiffness", "Float64", "local", "", "interface stiffness k_i [N/m] (fixed "
+                   "at build time)"),
+    SystemVariable("interface_damping", "Float64", "local", "", "interface damping c_i [N s/m] (fixed at "
+                   "build time)"),
+    SystemVariable("buoyed_weight", "Float64", "local", "", "buoyed weight of the string [N] (fixed at "
+                   "build time)"),
+    SystemVariable("string_states", "Int32", "local", "", "states of the string side (fixed at build "
+                   "time)"),
+)
+
+
+def string_description_fields(buoyed_weight: float, max_feed: float) -> dict:
+    """The fields of :data:`STRING_VARIABLES`' description templates for a build."""
+    def codes(tops):
+        return " or ".join(str(t.code) for t in tops)
+    return {"buoyed_weight": buoyed_weight, "max_feed": max_feed,
+            "tops": ", ".join(f"{t.code} {t.summary or t.name}" for t in TOP_CONDITIONS),
+            "feed": codes([t for t in TOP_CONDITIONS if t.takes_feed]),
+            "auto": codes([t for t in TOP_CONDITIONS if t.form == "auto"])}
