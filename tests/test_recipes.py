@@ -22,7 +22,7 @@ FLAVOURS = (("pythonfmu",), ("native",), ("native", "3"))
 
 #: docs/architecture.md, "Add an FMU output": (file, text after which, text to add)
 OUTPUT_RECIPE = (
-    ("fmu_src/fmu_variables.py", '    ("bounce_count", "Integer"',
+    ("fmu_src/fmu_description.py", '    ("bounce_count", "Integer"',
      '    ("recipe_output", "Real", "m", "twice the bit position (the recipe test)"),\n'),
     ("fmu_src/slave.py", '            "bounce_count": lambda',
      '            "recipe_output": lambda: 2.0 * (s._yi(2) * s._x0),\n'),
