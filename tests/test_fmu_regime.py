@@ -153,3 +153,16 @@ def test_built_fmus_report_the_slaves_regime_and_restore_it(any_fmu, tmp_path, s
     s.fmu.freeFMUstate(state)
     s.fmu.terminate()
     s.fmu.freeInstance()
+
+
+def test_the_outputs_description_names_the_rules_numbers():
+    """The description of ``regime`` (written in the one description, which cannot import the
+    rules) says the bits and the stall's period count the kernel uses."""
+    from hammerbit.model.fmu_description import OUTPUTS
+    from hammerbit.model.regime import STALL_PERIODS
+    from hammerbit.model.regime_codes import REGIME_BITS
+    text = {name: desc for name, _, _, desc in OUTPUTS}["regime"]
+    assert f"{STALL_PERIODS} forcing periods" in text
+    for name, bit in REGIME_BITS.items():
+        if name != "transient":                   # never set by the FMU
+            assert f"{bit} {name}" in text, name
