@@ -1,4 +1,4 @@
-"""The one description of the FMUs' codes and SI formulas, from which the C headers are generated.
+"""The one description of the FMUs: their variables, codes and SI formulas, from which the C headers are generated.
 
 What both languages need to agree on is written here once, in Python, and the builds write it
 into C (:mod:`hammerbit.fmu.c_description`); nothing of it is typed again in C:
@@ -14,10 +14,11 @@ into C (:mod:`hammerbit.fmu.c_description`); nothing of it is typed again in C:
   evaluates it (:func:`evaluate`, used by ``RigParameters.to_groups``) and the generator writes
   it out as C with the same operations in the same order, so that both give the same bits.
 
-The variables themselves (names, units, ranges, descriptions) are the tables of
-:mod:`.fmu_variables` (HammerBitRock) and of the Drillstring slave; the value references are
-the order in which the slaves register them, read back from ``modelDescription.xml`` by the
-builds.
+The variables of every FMU are here: ``DrillingSystem.fmu``'s :data:`SYSTEM_VARIABLES`,
+``Drillstring.fmu``'s :data:`STRING_VARIABLES` and ``HammerBitRock.fmu``'s :data:`UNITS`,
+:data:`PARAMETERS`, :data:`BOOL_PARAMETERS`, :data:`INPUTS` and :data:`OUTPUTS` (their ranges,
+start values and nominals: :mod:`.fmu_variables`).  The value references are the order in which the slaves register them,
+read back from ``modelDescription.xml`` by the builds.
 """
 from __future__ import annotations
 
@@ -28,7 +29,7 @@ from dataclasses import dataclass
 from . import kernel_layouts
 from .regime_codes import REGIME_BITS
 
-__all__ = ["FMI2_TYPE", "COUNTER_SUFFIX", "fmi3_type", "SystemVariable", "SYSTEM_VARIABLES", "SYSTEM_INPUT_TOPS", "TopCondition", "TOP_CONDITIONS", "top_condition", "top_conditions_text", "REGIME_BITS", "TWO_PI", "OPERATIONS",
+__all__ = ["FMI2_TYPE", "COUNTER_SUFFIX", "fmi3_type", "SystemVariable", "SYSTEM_VARIABLES", "SYSTEM_INPUT_TOPS", "STRING_VARIABLES", "string_description_fields", "UNITS", "PARAMETERS", "BOOL_PARAMETERS", "INPUTS", "OUTPUTS", "TopCondition", "TOP_CONDITIONS", "top_condition", "top_conditions_text", "REGIME_BITS", "TWO_PI", "OPERATIONS",
            "SI_NAMES", "SCALE_FORMULAS", "GROUP_FORMULAS", "GROUP_SLOTS", "KERNEL_SLOTS", "evaluate", "si_to_groups", "formula_names"]
 
 #: the FMI 3 type of a variable -> its FMI 2 type
@@ -58,13 +59,17 @@ class TopCondition:
     form: str           #: the string side's form it steps with (``string_model.FORMS``)
     takes_feed: bool    #: whether ``feed_velocity`` may be non-zero
     description: str
+    #: a few words for the ``top_condition`` variable's description ("" : the name)
+    summary: str = ""
 
 
 #: the Drillstring's top conditions, in the order of their codes (0, 1, ...)
 TOP_CONDITIONS = (
-    TopCondition("fixed", 0, "fixed", False, "the hook is held at its static position"),
-    TopCondition("feed", 1, "fixed", True, "the hook moves down at feed_velocity"),
-    TopCondition("auto-driller", 2, "auto", False, "a PI controller moves the hook to hold the WOB set point"),
+    TopCondition("fixed", 0, "fixed", False, "the hook is held at its static position", "fixed hook"),
+    TopCondition("feed", 1, "fixed", True, "the hook moves down at feed_velocity",
+                 "constant feed (feed_velocity)"),
+    TopCondition("auto-driller", 2, "auto", False, "a PI controller moves the hook to hold the WOB set point",
+                 "auto-driller (PI on the hook load holding wob)"),
 )
 
 
@@ -209,3 +214,148 @@ SYSTEM_VARIABLES = (
 
 #: the inputs that only some top conditions use: input -> the top condition that uses it
 SYSTEM_INPUT_TOPS = {"wob_set_point": "auto-driller", "feed_velocity": "feed"}
+
+
+#: the variables of Drillstring.fmu, in value-reference order (both slaves register them from
+#: here; variability: parameters fixed, inputs and outputs continuous, the locals constant).  A
+#: description is a template: the slave fills ``{buoyed_weight}`` (its build's, N), ``{max_feed}``
+#: (m/s), ``{tops}`` (the top conditions' codes and summaries) and ``{feed}``, ``{auto}`` (the codes
+#: of the top conditions with a feed velocity and with the auto-driller's form).
+STRING_VARIABLES = (
+    SystemVariable("damping_ratio", "Float64", "parameter", "", "modal damping ratio of every string "
+                   "mode [-]; [0, 1)"),
+    SystemVariable("wob", "Float64", "parameter", "", "weight on bit of the static equilibrium [N]; "
+                   "[0, buoyed weight {buoyed_weight:.6g} N]"),
+    SystemVariable("hammer_position_at_rest", "Float64", "parameter", "", "hammer position of the "
+                   "static equilibrium [m] (the hammer's initial_hammer_position)"),
+    SystemVariable("extrapolation", "Int32", "parameter", "", "polynomial order of the hammer "
+                   "motion over a step and of the held force: 0, 1 or 2"),
+    SystemVariable("top_condition", "Int32", "parameter", "", "the top: {tops}"),
+    SystemVariable("feed_velocity", "Float64", "parameter", "", "top_condition {feed}: downward velocity "
+                   "of the block [m/s]; [-{max_feed:.4g}, {max_feed:.4g}] (1000 m/h)"),
+    SystemVariable("proportional_gain", "Float64", "parameter", "", "top_condition {auto}: k_p of the "
+                   "auto-driller [m/s per N of hook-load error]; [0, 1] (default: the build's tuning "
+                   "from the string's stiffness)"),
+    SystemVariable("integral_gain", "Float64", "parameter", "", "top_condition {auto}: k_i of the "
+                   "auto-driller [m/s per N s]; [0, 1] (default: the build's tuning)"),
+    SystemVariable("hammer_position", "Float64", "input", "", "hammer position at the step's start [m], "
+                   "downward"),
+    SystemVariable("hammer_velocity", "Float64", "input", "", "hammer velocity at the step's start "
+                   "[m/s], downward"),
+    SystemVariable("interface_force", "Float64", "output", "", "interface force on the hammer at the "
+                   "communication point [N]"),
+    SystemVariable("held_force", "Float64", "output", "", "interface force for the hammer to hold over "
+                   "the next step [N]"),
+    SystemVariable("held_force_change", "Float64", "output", "", "held_force - wob [N] (to the hammer's "
+                   "harmonic_force input)"),
+    SystemVariable("hook_load", "Float64", "output", "", "hook load: tension in the top element [N]"),
+    SystemVariable("top_position", "Float64", "output", "", "top (hook) displacement [m], downward"),
+    SystemVariable("top_velocity", "Float64", "output", "", "top (hook) velocity [m/s], downward"),
+    SystemVariable("string_length", "Float64", "local", "", "length of the string [m] (fixed at build "
+                   "time)"),
+    SystemVariable("interface_stiffness", "Float64", "local", "", "interface stiffness k_i [N/m] (fixed "
+                   "at build time)"),
+    SystemVariable("interface_damping", "Float64", "local", "", "interface damping c_i [N s/m] (fixed at "
+                   "build time)"),
+    SystemVariable("buoyed_weight", "Float64", "local", "", "buoyed weight of the string [N] (fixed at "
+                   "build time)"),
+    SystemVariable("string_states", "Int32", "local", "", "states of the string side (fixed at build "
+                   "time)"),
+)
+
+
+def string_description_fields(buoyed_weight: float, max_feed: float) -> dict:
+    """The fields of :data:`STRING_VARIABLES`' description templates for a build."""
+    def codes(tops):
+        return " or ".join(str(t.code) for t in tops)
+    return {"buoyed_weight": buoyed_weight, "max_feed": max_feed,
+            "tops": ", ".join(f"{t.code} {t.summary or t.name}" for t in TOP_CONDITIONS),
+            "feed": codes([t for t in TOP_CONDITIONS if t.takes_feed]),
+            "auto": codes([t for t in TOP_CONDITIONS if t.form == "auto"])}
+
+
+# ---------------------------------------------------------------------------------------------
+# HammerBitRock.fmu's variables (ranges, start values and nominals: hammerbit.model.fmu_variables)
+# ---------------------------------------------------------------------------------------------
+#: unit name -> SI base-unit exponents (FMI 2.0 <UnitDefinitions>); None: no base unit
+UNITS = {
+    "m": {"m": 1},
+    "m/s": {"m": 1, "s": -1},
+    "kg": {"kg": 1},
+    "N": {"kg": 1, "m": 1, "s": -2},
+    "N/m": {"kg": 1, "s": -2},
+    "N.s/m": {"kg": 1, "s": -1},
+    "s/m": {"s": 1, "m": -1},
+    "Hz": {"s": -1},
+    "rad": {"rad": 1},
+    "s": {"s": 1},
+    "1": {},
+    "N/m^n": None,   # Hunt-Crossley stiffness: the exponent n is a parameter
+}
+
+#: Real parameters: (name, unit, description).
+PARAMETERS = (
+    ("hammer_mass", "kg", "m1, mass of the hammer (drillstring side); > 0"),
+    ("bit_mass", "kg", "m2, mass of the bit/slider (rock side); > 0"),
+    ("stiffness", "N/m", "K, stiffness of the spring joining hammer and bit; > 0"),
+    ("damping", "N.s/m", "C, viscous damping between hammer and bit; >= 0"),
+    ("mu_static", "1", "mu_e, static friction coefficient of the bit on the rock; > 0"),
+    ("mu_kinetic", "1", "mu_d, kinetic friction coefficient at high speed; 0 < mu_d <= mu_e"),
+    ("friction_decay", "s/m", "gamma, velocity-weakening decay of the kinetic friction; >= 0"),
+    ("normal_force", "N", "F_N, normal force of the bit on the rock; static threshold F0 = mu_e F_N; > 0"),
+    ("contact_stiffness", "N/m^n", "Kc, Hunt-Crossley contact stiffness [N/m^n, n = contact_exponent]; >= 0"),
+    ("contact_exponent", "1", "n, Hunt-Crossley exponent; 0 < n <= 5"),
+    ("contact_damping", "s/m", "lam, Hunt-Crossley damping; >= 0"),
+    ("gap", "m", "R, hammer-bit gap that closes before an impact; used only when impact_enabled; >= 0"),
+    ("amplitude", "N", "A, amplitude of the internal harmonic source A sin(2 pi f t + phase) on the "
+                       "hammer, added to the input harmonic_force; >= 0"),
+    ("frequency", "Hz", "f, frequency of the internal harmonic source; > 0"),
+    ("phase", "rad", "phase of the internal harmonic source at t = 0"),
+    ("initial_hammer_position", "m", "hammer position x_b at the start time (velocities start at 0)"),
+    ("initial_bit_position", "m", "bit position x_s at the start time; penetration is measured from it"),
+    ("tolerance", "1", "relative tolerance of the adaptive solver (DOP853; absolute tolerance "
+                       "1e-2 * tolerance in the length scale F0/K); tunable"),
+)
+#: Boolean parameters: (name, description)
+BOOL_PARAMETERS = (
+    ("impact_enabled", "true: the hammer closes the gap and impacts the bit (Hunt-Crossley contact); "
+                       "false: no impact device (R = infinity)"),
+)
+
+#: Real inputs: (name, unit, description)
+INPUTS = (
+    ("preload", "N", "B, weight on bit pushing the hammer toward the rock; held over each communication "
+                     "step; |B| <= 1000 F0 (F0 = mu_static normal_force, the static friction threshold; "
+                     "min/max are those of the start values)"),
+    ("harmonic_force", "N", "F_h, instantaneous external harmonic force on the hammer; held over each "
+                            "communication step (zero-order hold) and added to the internal source; "
+                            "|F_h| <= 1000 F0 (F0 = mu_static normal_force; min/max are those of the "
+                            "start values)"),
+)
+
+#: Outputs: (name, type, unit, description)
+OUTPUTS = (
+    ("hammer_position", "Real", "m", "x_b, hammer position (drilling direction positive)"),
+    ("hammer_velocity", "Real", "m/s", "v_b, hammer velocity"),
+    ("bit_position", "Real", "m", "x_s, bit position: the penetration (from the start time on)"),
+    ("bit_velocity", "Real", "m/s", "v_s, bit velocity (>= 0: the bit only moves forward)"),
+    ("spring_force", "Real", "N", "F_k = K (x_b - x_s) + C (v_b - v_s), spring and damper force on the bit"),
+    ("contact_force", "Real", "N", "F_c, Hunt-Crossley impact force of the hammer on the bit (0 when free)"),
+    ("friction_force", "Real", "N", "friction of the rock on the bit, positive against drilling: "
+                                    "F_N (mu_d + (mu_e - mu_d) exp(-gamma v_s)) in slip, the static "
+                                    "reaction F_d in stick"),
+    ("rock_force", "Real", "N", "F_d = F_k + F_c, the force the bit drives into the rock"),
+    ("rate_of_penetration", "Real", "m/s", "mean rate of penetration since the start time, "
+                                           "(x_s - x_s(t_start)) / (t - t_start)"),
+    ("stick_slip", "Integer", None, "bit state: 0 stick, 1 slip"),
+    ("in_contact", "Boolean", None, "true while the hammer is in contact with the bit (gap closed)"),
+    ("impact_count", "Integer", None, "number of impacts (gap closures) since the start time"),
+    ("slip_count", "Integer", None, "number of stick-to-slip transitions since the start time"),
+    ("bounce_count", "Integer", None, "number of bit-bounce violations (F_d < -F_s while stuck: the "
+                                      "rock would have to pull the bit back; the bit is held)"),
+    ("regime", "Integer", None, "regime verdict known at the current time, a sum of bits: 1 runaway (the "
+                                "bit slips and provably never sticks again with the inputs held), 2 bounce "
+                                "(a bounce so far), 4 tension (the drive on the bit fell below zero so far), "
+                                "8 stall (no slip for 20 forcing periods up to now); one warning is logged "
+                                "when it changes"),
+)

@@ -1,6 +1,8 @@
 """The variables of the HammerBitRock FMU: names, units, ranges, start values, descriptions.
 
-One table per causality.  Names are :class:`RigParameters` field names
+The tables, one per causality, are in the one description (:mod:`.fmu_description`: ``UNITS``,
+``PARAMETERS``, ``BOOL_PARAMETERS``, ``INPUTS``, ``OUTPUTS``); this module adds what the
+library's parameters give them.  Names are :class:`RigParameters` field names
 wherever one exists; allowed ranges come from :data:`validation.RANGES`, the
 inputs' from the static friction threshold (:func:`input_range`); the
 ``modelDescription.xml`` declares as ``min``/``max`` exactly what the slave
@@ -13,6 +15,7 @@ from __future__ import annotations
 import math
 import struct
 
+from .fmu_description import BOOL_PARAMETERS, INPUTS, OUTPUTS, PARAMETERS, UNITS
 from .params import RigParameters
 from .validation import RANGES, Range
 
@@ -22,97 +25,18 @@ __all__ = ["MAX_PERIODS_PER_STEP", "UNITS", "PARAMETERS", "BOOL_PARAMETERS", "IN
 
 _RIG = RigParameters()          # the lab rig at the paper's Fig. 9 operating point
 
-#: unit name -> SI base-unit exponents (FMI 2.0 <UnitDefinitions>); None: no base unit
-UNITS = {
-    "m": {"m": 1},
-    "m/s": {"m": 1, "s": -1},
-    "kg": {"kg": 1},
-    "N": {"kg": 1, "m": 1, "s": -2},
-    "N/m": {"kg": 1, "s": -2},
-    "N.s/m": {"kg": 1, "s": -1},
-    "s/m": {"s": 1, "m": -1},
-    "Hz": {"s": -1},
-    "rad": {"rad": 1},
-    "s": {"s": 1},
-    "1": {},
-    "N/m^n": None,   # Hunt-Crossley stiffness: the exponent n is a parameter
-}
-
-#: Real parameters: (name, unit, description).
-PARAMETERS = (
-    ("hammer_mass", "kg", "m1, mass of the hammer (drillstring side); > 0"),
-    ("bit_mass", "kg", "m2, mass of the bit/slider (rock side); > 0"),
-    ("stiffness", "N/m", "K, stiffness of the spring joining hammer and bit; > 0"),
-    ("damping", "N.s/m", "C, viscous damping between hammer and bit; >= 0"),
-    ("mu_static", "1", "mu_e, static friction coefficient of the bit on the rock; > 0"),
-    ("mu_kinetic", "1", "mu_d, kinetic friction coefficient at high speed; 0 < mu_d <= mu_e"),
-    ("friction_decay", "s/m", "gamma, velocity-weakening decay of the kinetic friction; >= 0"),
-    ("normal_force", "N", "F_N, normal force of the bit on the rock; static threshold F0 = mu_e F_N; > 0"),
-    ("contact_stiffness", "N/m^n", "Kc, Hunt-Crossley contact stiffness [N/m^n, n = contact_exponent]; >= 0"),
-    ("contact_exponent", "1", "n, Hunt-Crossley exponent; 0 < n <= 5"),
-    ("contact_damping", "s/m", "lam, Hunt-Crossley damping; >= 0"),
-    ("gap", "m", "R, hammer-bit gap that closes before an impact; used only when impact_enabled; >= 0"),
-    ("amplitude", "N", "A, amplitude of the internal harmonic source A sin(2 pi f t + phase) on the "
-                       "hammer, added to the input harmonic_force; >= 0"),
-    ("frequency", "Hz", "f, frequency of the internal harmonic source; > 0"),
-    ("phase", "rad", "phase of the internal harmonic source at t = 0"),
-    ("initial_hammer_position", "m", "hammer position x_b at the start time (velocities start at 0)"),
-    ("initial_bit_position", "m", "bit position x_s at the start time; penetration is measured from it"),
-    ("tolerance", "1", "relative tolerance of the adaptive solver (DOP853; absolute tolerance "
-                       "1e-2 * tolerance in the length scale F0/K); tunable"),
-)
 #: parameters that are RigParameters fields (the rest: gap, initial positions, tolerance)
 RIG_FIELDS = ("hammer_mass", "bit_mass", "stiffness", "damping", "mu_static", "mu_kinetic",
               "friction_decay", "normal_force", "contact_stiffness", "contact_exponent",
               "contact_damping", "amplitude", "frequency", "phase")
 FIXED_REALS = tuple(n for n, _, _ in PARAMETERS if n != "tolerance")
 
-#: Boolean parameters: (name, description)
-BOOL_PARAMETERS = (
-    ("impact_enabled", "true: the hammer closes the gap and impacts the bit (Hunt-Crossley contact); "
-                       "false: no impact device (R = infinity)"),
-)
-
 DEFAULT_TOLERANCE = 1e-8
 _DEFAULT_GAP = 0.84 * _RIG.scales.length     # the paper's Fig. 12 gap r = 0.84 (impact off by default)
-
-#: Real inputs: (name, unit, description)
-INPUTS = (
-    ("preload", "N", "B, weight on bit pushing the hammer toward the rock; held over each communication "
-                     "step; |B| <= 1000 F0 (F0 = mu_static normal_force, the static friction threshold; "
-                     "min/max are those of the start values)"),
-    ("harmonic_force", "N", "F_h, instantaneous external harmonic force on the hammer; held over each "
-                            "communication step (zero-order hold) and added to the internal source; "
-                            "|F_h| <= 1000 F0 (F0 = mu_static normal_force; min/max are those of the "
-                            "start values)"),
-)
 
 #: the nondimensional group of the library that bounds each input, in units of the static
 #: friction threshold F0: the preload b = B/F0, the forcing amplitude a = A/F0 (both +-1000 F0)
 INPUT_GROUPS = {"preload": "group.b", "harmonic_force": "group.a"}
-
-#: Outputs: (name, type, unit, description)
-OUTPUTS = (
-    ("hammer_position", "Real", "m", "x_b, hammer position (drilling direction positive)"),
-    ("hammer_velocity", "Real", "m/s", "v_b, hammer velocity"),
-    ("bit_position", "Real", "m", "x_s, bit position: the penetration (from the start time on)"),
-    ("bit_velocity", "Real", "m/s", "v_s, bit velocity (>= 0: the bit only moves forward)"),
-    ("spring_force", "Real", "N", "F_k = K (x_b - x_s) + C (v_b - v_s), spring and damper force on the bit"),
-    ("contact_force", "Real", "N", "F_c, Hunt-Crossley impact force of the hammer on the bit (0 when free)"),
-    ("friction_force", "Real", "N", "friction of the rock on the bit, positive against drilling: "
-                                    "F_N (mu_d + (mu_e - mu_d) exp(-gamma v_s)) in slip, the static "
-                                    "reaction F_d in stick"),
-    ("rock_force", "Real", "N", "F_d = F_k + F_c, the force the bit drives into the rock"),
-    ("rate_of_penetration", "Real", "m/s", "mean rate of penetration since the start time, "
-                                           "(x_s - x_s(t_start)) / (t - t_start)"),
-    ("stick_slip", "Integer", None, "bit state: 0 stick, 1 slip"),
-    ("in_contact", "Boolean", None, "true while the hammer is in contact with the bit (gap closed)"),
-    ("impact_count", "Integer", None, "number of impacts (gap closures) since the start time"),
-    ("slip_count", "Integer", None, "number of stick-to-slip transitions since the start time"),
-    ("bounce_count", "Integer", None, "number of bit-bounce violations (F_d < -F_s while stuck: the "
-                                      "rock would have to pull the bit back; the bit is held)"),
-)
-
 
 #: forcing periods one fmi2DoStep of HammerBitRock may span: the solver's limits count per period
 #: (steps, events), so the work of a step is bounded in advance by this times those limits; a

@@ -7,10 +7,11 @@ crosses from ``w <= 0`` to ``w > 0`` (``watch_value``, ``watch_slope``).
 from numba import njit
 
 from . import numba_cache  # noqa: F401  (registers the content-hash cache locator first)
-from .kernel_forces import force_on_bit, overlap
+from .kernel_forces import (contact_damping_factor, contact_damping_factor_rate, contact_force_rate, force_on_bit,
+                            overlap)
 from .kernel_layouts import (CONTACT, EPS, EV_BOUNCE, EV_BOUNCE_END, EV_CLAMP, EV_IMPACT, EV_SEPARATION,
-                             EV_SLIP_START, EV_STICK, EV_UNCLAMP, FREE, I_BOUNCE, I_CONTACT, I_STICK,
-                             P_CONTACT, P_KC, P_LAM, P_N, P_R, P_XI, STICK, V_BIT, V_HAMMER, X_BIT, X_HAMMER)
+                             EV_SLIP_START, EV_STICK, EV_UNCLAMP, FREE, I_BOUNCE, I_CONTACT, I_STICK, P_CONTACT,
+                             P_LAM, P_R, P_XI, STICK, V_BIT, V_HAMMER, X_BIT, X_HAMMER)
 
 @njit(cache=True, _nrt=False, no_cpython_wrapper=True)
 def watched(istate, p, out):
@@ -58,9 +59,9 @@ def watch_value(kind, y, p, mode_c):
     if kind == EV_SEPARATION:
         return -overlap(y, p)
     if kind == EV_CLAMP:
-        return -(1.0 + p[P_LAM] * (y[V_HAMMER] - y[V_BIT]))
+        return -contact_damping_factor(y[V_HAMMER] - y[V_BIT], p)
     if kind == EV_UNCLAMP:
-        return 1.0 + p[P_LAM] * (y[V_HAMMER] - y[V_BIT])
+        return contact_damping_factor(y[V_HAMMER] - y[V_BIT], p)
     return -1.0
 
 
@@ -101,12 +102,7 @@ def drive_rate(y, f, p, mode_c):
     ddd = f[V_HAMMER] - f[V_BIT]
     s = (f[X_HAMMER] - f[X_BIT]) + 2.0 * p[P_XI] * ddd
     if mode_c == CONTACT:
-        ad = abs(overlap(y, p))
-        if ad > 0.0:
-            n = p[P_N]
-            dn = ad ** n
-            dn1 = n * ad ** (n - 1.0)
-            s += p[P_KC] * (dn1 * dd * (1.0 + p[P_LAM] * dd) + dn * p[P_LAM] * ddd)
+        s += contact_force_rate(overlap(y, p), dd, ddd, p)
     return s
 
 
@@ -134,8 +130,8 @@ def watch_slope(kind, y, f, p, mode_c):
     if kind == EV_SEPARATION:
         return -(y[V_HAMMER] - y[V_BIT])
     if kind == EV_CLAMP:
-        return -p[P_LAM] * ddd
+        return -contact_damping_factor_rate(ddd, p)
     if kind == EV_UNCLAMP:
-        return p[P_LAM] * ddd
+        return contact_damping_factor_rate(ddd, p)
     return 0.0
 

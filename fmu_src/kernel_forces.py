@@ -31,7 +31,59 @@ def contact_force(d, d_rate, p, contact_mode):
     dn = ad ** p[P_N] if ad > 0.0 else 0.0
     if d < 0.0:
         dn = -dn
-    return p[P_KC] * dn * (1.0 + p[P_LAM] * d_rate)
+    return p[P_KC] * dn * contact_damping_factor(d_rate, p)
+
+
+# The contact law's derivatives live here, beside the law: the step-size cap, the
+# event slopes and the variational equations call them, so a new law is one file.
+
+@njit(cache=True, _nrt=False)
+def contact_damping_factor(d_rate, p):
+    """The Hunt–Crossley damping factor 1 + lam d' (the force pulls where it is negative:
+    the CLAMPED mode and its events watch its sign)."""
+    return 1.0 + p[P_LAM] * d_rate
+
+
+@njit(cache=True, _nrt=False)
+def contact_damping_factor_rate(d_accel, p):
+    """Time derivative of ``contact_damping_factor``, lam d''."""
+    return p[P_LAM] * d_accel
+
+
+@njit(cache=True, _nrt=False)
+def contact_stiffness(d, d_rate, p):
+    """dF_c/dd of ``contact_force`` in CONTACT: kc n |d|^(n-1) (1 + lam d'), 0 at d = 0
+    (for n > 1 the force is C^1 there)."""
+    ad = abs(d)
+    if ad > 0.0:
+        n = p[P_N]
+        return p[P_KC] * n * ad ** (n - 1.0) * contact_damping_factor(d_rate, p)
+    return 0.0
+
+
+@njit(cache=True, _nrt=False)
+def contact_damping(d, p):
+    """dF_c/dd' of ``contact_force`` in CONTACT: kc d^n lam (the power extended oddly)."""
+    return p[P_KC] * math.copysign(abs(d) ** p[P_N], d) * p[P_LAM]
+
+
+@njit(cache=True, _nrt=False)
+def contact_force_rate(d, d_rate, d_accel, p):
+    """dF_c/dt of ``contact_force`` in CONTACT along a motion with overlap ``d``, its rate d'
+    and acceleration d'': kc (n |d|^(n-1) d' (1 + lam d') + |d|^n lam d'')."""
+    ad = abs(d)
+    if ad > 0.0:
+        n = p[P_N]
+        dn = ad ** n
+        dn1 = n * ad ** (n - 1.0)
+        return p[P_KC] * (dn1 * d_rate * contact_damping_factor(d_rate, p) + dn * p[P_LAM] * d_accel)
+    return 0.0
+
+
+@njit(cache=True, _nrt=False)
+def contact_elastic_force(d, p):
+    """The elastic part kc d^n of ``contact_force`` for d > 0 (what the contact stores)."""
+    return p[P_KC] * d ** p[P_N]
 
 
 @njit(cache=True, _nrt=False)
@@ -57,7 +109,7 @@ def kinetic_friction(v, p):
 def contact_mode_at_impact(y, p):
     """Contact mode that a closed gap starts in: CLAMPED if the Hunt–Crossley
     damping term 1 + lam d' is not positive (the force would pull), else CONTACT."""
-    return CONTACT if 1.0 + p[P_LAM] * (y[V_HAMMER] - y[V_BIT]) > 0.0 else CLAMPED
+    return CONTACT if contact_damping_factor(y[V_HAMMER] - y[V_BIT], p) > 0.0 else CLAMPED
 
 
 @njit(cache=True, _nrt=False)
@@ -198,7 +250,7 @@ def rhs_forced(fh, y, field, out):
         out[j + 1] = 2.0 * p[P_XI] * dd * dd
         if mode_c != FREE and d > 0.0:
             # dissipated contact power: actual contact power minus elastic power
-            out[j + 2] = (f_contact - p[P_KC] * d ** p[P_N]) * dd
+            out[j + 2] = (f_contact - contact_elastic_force(d, p)) * dd
         else:
             out[j + 2] = 0.0
         out[j + 3] = f_friction * x4

@@ -14,11 +14,10 @@ import math
 from numba import njit
 
 from . import numba_cache  # noqa: F401  (registers the content-hash cache locator first)
-from .kernel_forces import overlap
-from .kernel_layouts import (CONTACT, CONTACT_STABILITY_LIMIT, ERRACC_FLOOR, F_ERRACC, F_H_MODE, F_HACC,
-                             F_V4_PEAK, FREE, I_SWIN, I_SWIN_STEPS, LAYER_TARGET, MAX_FACTOR, MIN_FACTOR, P_KC,
-                             P_LAM, P_MU, P_N, P_RHO, SAFETY, SLIP, STOP_OVERSHOOT, STOP_SHRINK_FLOOR, TINY,
-                             V_BIT, V_HAMMER)
+from .kernel_forces import contact_stiffness, overlap
+from .kernel_layouts import (CONTACT, CONTACT_STABILITY_LIMIT, ERRACC_FLOOR, F_ERRACC, F_H_MODE, F_HACC, F_V4_PEAK,
+                             FREE, I_SWIN, I_SWIN_STEPS, LAYER_TARGET, MAX_FACTOR, MIN_FACTOR, P_MU, P_RHO, SAFETY,
+                             SLIP, STOP_OVERSHOOT, STOP_SHRINK_FLOOR, TINY, V_BIT, V_HAMMER)
 from .kernel_runge_kutta import friction_layer_err
 
 
@@ -50,9 +49,8 @@ def limit_step(h, y, stages, p, ms, mc):
         # stability region, h omega_c <= 1.5, omega_c^2 = dF_c/dd / m_eff
         dpen = overlap(y, p)
         if dpen > 0.0:
-            kcl = p[P_KC] * p[P_N] * dpen ** (p[P_N] - 1.0)
-            if mc == CONTACT:
-                kcl *= 1.0 + p[P_LAM] * max(y[V_HAMMER] - y[V_BIT], 0.0)
+            # the damping only stiffens the contact while it closes (d' > 0); CLAMPED pulls nothing
+            kcl = contact_stiffness(dpen, max(y[V_HAMMER] - y[V_BIT], 0.0) if mc == CONTACT else 0.0, p)
             minv = 1.0 + (1.0 / p[P_RHO] if ms == SLIP else 0.0)
             hcap = CONTACT_STABILITY_LIMIT / math.sqrt(kcl * minv + TINY)
             if h > hcap:

@@ -1,7 +1,7 @@
 """The regime verdict's rules that a run applies once per forcing period: friction floor, runaway certificate, stall.
 
 One place for each rule, for every face (``simulate``, the studies, the
-co-simulation) and, later, the FMUs: each rule reads only the state at a
+co-simulation, the FMUs' ``regime`` output): each rule reads only the state at a
 Poincaré sample and a few numbers fixed per scene (:func:`certificate_constants`),
 so it runs causally, period by period (``docs/model.md``, "Validity domain and the regime verdict").
 
@@ -30,10 +30,11 @@ from functools import lru_cache
 import numpy as np
 from numba import njit
 
+from .kernel_layouts import P_A, P_ETA, P_GAMMA, P_MU, P_PHI, P_R, P_RHO, P_XI
 from .params import Groups
 
-__all__ = ["Regime", "regime", "friction_floor", "slip_speed_limit", "sliding_capacity",
-           "certificate_constants", "runaway_certified", "N_CERT", "STALL_PERIODS", "STALL_WOB_FRACTION"]
+__all__ = ["Regime", "regime", "friction_floor", "friction_floor_of", "slip_speed_limit", "slip_speed_limit_of",
+           "sliding_capacity", "oscillator_l1", "certificate_constants", "fill_certificate", "runaway_certified", "N_CERT", "STALL_PERIODS", "STALL_WOB_FRACTION"]
 
 #: A stall: no slip for this many forcing periods ...
 STALL_PERIODS = 20
@@ -58,7 +59,13 @@ L1_MAX_STEPS = 5_000_000
 
 def friction_floor(groups: Groups) -> float:
     """Kinetic friction at high speed [F0]: ``mu`` with velocity weakening, else 1 (the one rule)."""
-    return groups.mu if groups.gamma_hat > 0.0 else 1.0
+    return friction_floor_of(groups.mu, groups.gamma_hat)
+
+
+@njit(cache=True, nogil=True)
+def friction_floor_of(mu, gamma_hat):
+    """:func:`friction_floor` of the groups ``mu`` and ``gamma_hat`` (a kernel)."""
+    return mu if gamma_hat > 0.0 else 1.0
 
 
 def slip_speed_limit(groups: Groups) -> float:
@@ -69,11 +76,17 @@ def slip_speed_limit(groups: Groups) -> float:
     friction floor (no speed is fast enough), 0 when ``b >= 1`` or without
     velocity weakening above the floor.
     """
-    if groups.b <= friction_floor(groups):
+    return slip_speed_limit_of(groups.b, groups.mu, groups.gamma_hat)
+
+
+@njit(cache=True, nogil=True)
+def slip_speed_limit_of(b, mu, gamma_hat):
+    """:func:`slip_speed_limit` of the groups ``b``, ``mu`` and ``gamma_hat`` (a kernel)."""
+    if b <= friction_floor_of(mu, gamma_hat):
         return math.inf
-    if groups.b >= 1.0 or groups.gamma_hat == 0.0:
+    if b >= 1.0 or gamma_hat == 0.0:
         return 0.0
-    return math.log((1.0 - groups.mu) / (groups.b - groups.mu)) / groups.gamma_hat
+    return math.log((1.0 - mu) / (b - mu)) / gamma_hat
 
 
 def sliding_capacity(mu_kinetic: float, normal_force: float) -> float:
@@ -85,33 +98,33 @@ def sliding_capacity(mu_kinetic: float, normal_force: float) -> float:
 
 
 @njit(cache=True, nogil=True)
-def _impulse_l1(a, ds, n):
-    """L1 norms of the impulse responses of z and w (``z'' = a[1, 0] z + a[1, 1] z' + delta``)."""
+def _impulse_l1(a10, a11, ds, n):
+    """L1 norms of the impulse responses of z and w (``z'' = a10 z + a11 z' + delta``)."""
     # one exact-to-O(ds^5) RK4 step per ds: the system is linear, 2x2
     z, w = 0.0, 1.0
     l1z = l1w = 0.0
     for _ in range(n):
         l1z += abs(z) * ds
         l1w += abs(w) * ds
-        k1z, k1w = w, a[1, 0] * z + a[1, 1] * w
+        k1z, k1w = w, a10 * z + a11 * w
         z2, w2 = z + 0.5 * ds * k1z, w + 0.5 * ds * k1w
-        k2z, k2w = w2, a[1, 0] * z2 + a[1, 1] * w2
+        k2z, k2w = w2, a10 * z2 + a11 * w2
         z3, w3 = z + 0.5 * ds * k2z, w + 0.5 * ds * k2w
-        k3z, k3w = w3, a[1, 0] * z3 + a[1, 1] * w3
+        k3z, k3w = w3, a10 * z3 + a11 * w3
         z4, w4 = z + ds * k3z, w + ds * k3w
-        k4z, k4w = w4, a[1, 0] * z4 + a[1, 1] * w4
+        k4z, k4w = w4, a10 * z4 + a11 * w4
         z += ds / 6.0 * (k1z + 2 * k2z + 2 * k3z + k4z)
         w += ds / 6.0 * (k1w + 2 * k2w + 2 * k3w + k4w)
     # trapezoid: the left sum counts the first sample whole (z(0) = 0, w(0) = 1)
     return l1z, l1w - 0.5 * ds
 
 
-@lru_cache(maxsize=64)
-def _oscillator_l1(rho: float, xi: float) -> tuple:
-    """L1 norms of the relative oscillator's impulse responses in z and z' (they depend on rho, xi only)."""
+@njit(cache=True, nogil=True)
+def oscillator_l1(rho, xi):
+    """L1 norms of the relative oscillator's impulse responses in z and z' (they depend on rho, xi only;
+    inf, inf: too weakly damped to bound, no certificate)."""
     k = 1.0 + 1.0 / rho
     c = 2.0 * xi * k
-    a = np.array([[0.0, 1.0], [-k, -c]])
     sigma = 0.5 * c
     disc = sigma * sigma - k
     slow = sigma - math.sqrt(disc) if disc > 0 else sigma      # slowest decay rate
@@ -125,31 +138,45 @@ def _oscillator_l1(rho: float, xi: float) -> tuple:
     if not n_steps <= L1_MAX_STEPS:
         # a barely damped oscillator: its L1 norms are too large to bound here, no certificate
         return math.inf, math.inf
-    l1z, l1w = _impulse_l1(a, ds, int(math.ceil(n_steps)))
+    l1z, l1w = _impulse_l1(-k, -c, ds, int(math.ceil(n_steps)))
     return L1_SAFETY * l1z, L1_SAFETY * l1w
 
 
+@lru_cache(maxsize=64)
+def _oscillator_l1(rho: float, xi: float) -> tuple:
+    """:func:`oscillator_l1`, remembered (a study asks for the same rho, xi many times)."""
+    return oscillator_l1(float(rho), float(xi))
+
+
 def certificate_constants(groups: Groups) -> np.ndarray:
-    """The numbers of a scene that :func:`runaway_certified` reads (fixed per scene), shape ``(N_CERT,)``.
+    """The numbers of a scene that :func:`runaway_certified` reads (fixed per scene), shape ``(N_CERT,)``
+    (:func:`fill_certificate` of the scene's kernel parameters)."""
+    out = np.empty(N_CERT)
+    l1z, l1w = _oscillator_l1(float(groups.rho), float(groups.xi))
+    fill_certificate(groups.to_kernel(), float(groups.b), l1z, l1w, out)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def fill_certificate(p, b, l1z, l1w, out):
+    """The certificate's constants (shape ``(N_CERT,)``, into ``out``) of the kernel parameters ``p``
+    (``kernel_layouts.P_*``) with the constant drive ``b`` on the hammer [F0].
 
     The relative oscillator of a slipping bit, ``z = x1 - x3``:
     ``z'' + 2 xi k z' + k z = b + a sin(eta tau + phi) + f_f(x4)/rho`` with
     ``k = 1 + 1/rho``; its frequency response ``H_z(i eta)`` and the L1 norms
-    of its impulse responses in ``z`` and ``z'``.
+    ``l1z, l1w`` of its impulse responses in ``z`` and ``z'`` (:func:`oscillator_l1`).
     """
-    g = groups
-    k = 1.0 + 1.0 / g.rho
-    c = 2.0 * g.xi * k
-    l1z, l1w = _oscillator_l1(float(g.rho), float(g.xi))
-    s = 1j * g.eta
+    rho, eta = p[P_RHO], p[P_ETA]
+    k = 1.0 + 1.0 / rho
+    c = 2.0 * p[P_XI] * k
+    s = 1j * eta
     hz = 1.0 / (s * s + c * s + k)
-    out = np.empty(N_CERT)
     out[C_K], out[C_L1Z], out[C_L1W] = k, l1z, l1w
     out[C_HZ_RE], out[C_HZ_IM] = hz.real, hz.imag
-    out[C_A], out[C_B], out[C_ETA], out[C_PHI] = g.a, g.b, g.eta, g.phi
-    out[C_MU], out[C_GAMMA], out[C_RHO], out[C_R] = g.mu, g.gamma_hat, g.rho, g.r
-    out[C_VSTAR] = slip_speed_limit(g)
-    return out
+    out[C_A], out[C_B], out[C_ETA], out[C_PHI] = p[P_A], b, eta, p[P_PHI]
+    out[C_MU], out[C_GAMMA], out[C_RHO], out[C_R] = p[P_MU], p[P_GAMMA], rho, p[P_R]
+    out[C_VSTAR] = slip_speed_limit_of(b, p[P_MU], p[P_GAMMA])
 
 
 @njit(cache=True, nogil=True)

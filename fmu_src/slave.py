@@ -36,6 +36,7 @@ import math
 import os
 import time
 
+import numpy as np
 from pythonfmu import Boolean, DefaultExperiment, Fmi2Causality, Fmi2Initial, Fmi2Slave, \
     Fmi2Variability, Integer, Real
 from pythonfmu.enums import Fmi2Status
@@ -55,6 +56,9 @@ from .stepping import NO_LOG, NO_POINCARE, NO_SAMPLE_TIMES, NO_SAMPLES, Stepper
 from .validation import RANGES, ParameterError, check
 from .numba_dispatch import entry_point as _entry_point
 from .fmi_status import DISCARD, ERROR, OK, WARNING
+from .fmu_regime import N_CERT, causal_regime
+from .regime import oscillator_l1
+from .regime_codes import regime_names
 from .slave_access import VariableAccess
 from .slave_state import SavedState
 
@@ -269,6 +273,11 @@ class HammerBitRock(VariableAccess, SavedState, Fmi2Slave):
         self._dirty = False
         self._applied_preload = math.nan       # inputs last written into st.p (NaN: none yet)
         self._applied_force = math.nan
+        # the regime verdict's numbers fixed by the parameters, and its scratch
+        self._regime_args = (st.y, st.istate, st.fstate, st.p, *oscillator_l1(groups.rho, groups.xi),
+                             np.empty(N_CERT))
+        self._regime_kernel = causal_regime      # do_step's hot path: its entry point (_prepare_step)
+        self._regime_seen = self._regime()
         if warm_up:
             # first call of the kernels: load them from the numba cache (or compile them) now
             # rather than in the first fmi2DoStep (the state is put back exactly)
@@ -378,9 +387,23 @@ class HammerBitRock(VariableAccess, SavedState, Fmi2Slave):
                 return self._step_failed(e, snap, old_inputs, current_time, step_size)
             self._t = current_time + step_size
             self.last_status = OK
+            regime = self._regime()
+            if regime != self._regime_seen:
+                self._regime_changed(regime)
             return True
         except Exception as e:  # noqa: BLE001 -- an exception would be fmi2Fatal in pythonfmu
             return self._fail(f"fmi2DoStep failed: {type(e).__name__}: {e}")
+
+    def _regime(self) -> int:
+        """The regime bits known now (``fmu_regime.causal_regime``, the inputs as last applied)."""
+        return self._regime_kernel(*self._regime_args)
+
+    def _regime_changed(self, regime: int) -> None:
+        """Log the one warning of a change of the regime verdict."""
+        names = ", ".join(regime_names(regime)) or "none"
+        was = ", ".join(regime_names(self._regime_seen)) or "none"
+        self._regime_seen = regime
+        self._log(f"regime at t = {self._t!r} s: {names} (regime = {regime}; was {was})", WARNING)
 
     def _step_allowed(self, current_time, step_size) -> bool:
         """The checks of do_step off its common case; False (with the status recorded) to refuse."""
@@ -439,6 +462,7 @@ class HammerBitRock(VariableAccess, SavedState, Fmi2Slave):
                                         (st.y, st.istate, st.fstate, 0.0, st.p, st.opts, NO_REC))
         self._hot = (self._kernel, st.y, st.istate, st.fstate, st.p, st.opts, self._t_start, self._omega,
                      st.state_buffer)
+        self._regime_kernel = _entry_point(causal_regime, self._regime_args)
         self._slow = False
         return True
 
@@ -499,6 +523,7 @@ class HammerBitRock(VariableAccess, SavedState, Fmi2Slave):
             "impact_count": lambda: s._ii(c0 + kernel_layouts.EV_IMPACT),
             "slip_count": lambda: s._ii(c0 + kernel_layouts.EV_SLIP_START),
             "bounce_count": lambda: s._ii(c0 + kernel_layouts.EV_BOUNCE),
+            "regime": lambda: int(causal_regime(*s._regime_args)),
         }
 
     # ------------------------------------------------------------------

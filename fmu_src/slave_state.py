@@ -74,6 +74,9 @@ class SavedState:
             self._slow = True
             self._stale = False
             self.preload, self.harmonic_force = state["inputs"]
+            # the inputs in the kernel's parameters now, so the regime verdict is the state's own
+            self._apply_inputs(self._p)
+            self._regime_seen = self._regime()
             self._t = float(state["t"])
             self._ready = bool(state["ready"])
             self._terminated = bool(state.get("terminated", False))

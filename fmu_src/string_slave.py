@@ -47,7 +47,8 @@ from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Initial, Fmi2Slave, 
 from pythonfmu.enums import Fmi2Status
 
 from .pythonfmu_exit import guard_pythonfmu_exit
-from .fmu_description import TOP_CONDITIONS, top_condition, top_conditions_text
+from .fmu_description import (FMI2_TYPE, STRING_VARIABLES, TOP_CONDITIONS, string_description_fields,
+                               top_condition, top_conditions_text)
 from .string_model import OUTPUT_ROWS, form_of, load_model, string_matrices
 from .numba_dispatch import entry_point
 from .string_kernels import (EXCHANGE_HELD, HAMMER_ARG, DenseForm, ExchangeHistory, ExchangeScheme, HammerStep,
@@ -115,48 +116,16 @@ class Drillstring(Fmi2Slave):
 
     # -- variables -------------------------------------------------------------
     def _register(self) -> None:
-        fixed = dict(causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed)
-        self.register_variable(Real("damping_ratio", description="modal damping ratio of every string "
-                                    "mode [-]; [0, 1)", **fixed))
-        self.register_variable(Real("wob", description="weight on bit of the static equilibrium [N]; "
-                                    f"[0, buoyed weight {self.buoyed_weight:.6g} N]", **fixed))
-        self.register_variable(Real("hammer_position_at_rest", description="hammer position of the "
-                                    "static equilibrium [m] (the hammer's initial_hammer_position)", **fixed))
-        self.register_variable(Integer("extrapolation", description="polynomial order of the hammer "
-                                       "motion over a step and of the held force: 0, 1 or 2", **fixed))
-        self.register_variable(Integer("top_condition", description="the top: 0 fixed hook, 1 constant feed "
-                                       "(feed_velocity), 2 auto-driller (PI on the hook load holding wob)",
-                                       **fixed))
-        self.register_variable(Real("feed_velocity", description="top_condition 1: downward velocity of "
-                                    f"the block [m/s]; [-{MAX_FEED:.4g}, {MAX_FEED:.4g}] (1000 m/h)", **fixed))
-        self.register_variable(Real("proportional_gain", description="top_condition 2: k_p of the "
-                                    "auto-driller [m/s per N of hook-load error]; [0, 1] (default: the "
-                                    "build's tuning from the string's stiffness)", **fixed))
-        self.register_variable(Real("integral_gain", description="top_condition 2: k_i of the auto-driller "
-                                    "[m/s per N s]; [0, 1] (default: the build's tuning)", **fixed))
-        for name, desc in (("hammer_position", "hammer position at the step's start [m], downward"),
-                           ("hammer_velocity", "hammer velocity at the step's start [m/s], downward")):
-            self.register_variable(Real(name, causality=Fmi2Causality.input,
-                                        variability=Fmi2Variability.continuous, description=desc))
-        for name, desc in (
-                ("interface_force", "interface force on the hammer at the communication point [N]"),
-                ("held_force", "interface force for the hammer to hold over the next step [N]"),
-                ("held_force_change", "held_force - wob [N] (to the hammer's harmonic_force input)"),
-                ("hook_load", "hook load: tension in the top element [N]"),
-                ("top_position", "top (hook) displacement [m], downward"),
-                ("top_velocity", "top (hook) velocity [m/s], downward")):
-            self.register_variable(Real(name, causality=Fmi2Causality.output,
-                                        variability=Fmi2Variability.continuous,
-                                        initial=Fmi2Initial.calculated, description=desc))
-        for name, desc in (("string_length", "length of the string [m] (fixed at build time)"),
-                           ("interface_stiffness", "interface stiffness k_i [N/m] (fixed at build time)"),
-                           ("interface_damping", "interface damping c_i [N s/m] (fixed at build time)"),
-                           ("buoyed_weight", "buoyed weight of the string [N] (fixed at build time)")):
-            self.register_variable(Real(name, causality=Fmi2Causality.local,
-                                        variability=Fmi2Variability.constant, description=desc))
-        self.register_variable(Integer("string_states", causality=Fmi2Causality.local,
-                                       variability=Fmi2Variability.constant,
-                                       description="states of the string side (fixed at build time)"))
+        """Register :data:`~.fmu_description.STRING_VARIABLES`, in their order (the value references)."""
+        fields = string_description_fields(self.buoyed_weight, MAX_FEED)
+        kind = {"parameter": dict(causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed),
+                "input": dict(causality=Fmi2Causality.input, variability=Fmi2Variability.continuous),
+                "output": dict(causality=Fmi2Causality.output, variability=Fmi2Variability.continuous,
+                               initial=Fmi2Initial.calculated),
+                "local": dict(causality=Fmi2Causality.local, variability=Fmi2Variability.constant)}
+        for v in STRING_VARIABLES:
+            var_type = Real if FMI2_TYPE[v.type] == "Real" else Integer
+            self.register_variable(var_type(v.name, description=v.description.format(**fields), **kind[v.causality]))
 
     def to_xml(self, model_options=dict()):
         """pythonfmu's description; outputs declare no direct dependency on the inputs."""

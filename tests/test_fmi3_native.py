@@ -330,3 +330,37 @@ def test_fmi3_reference_results_equal_its_run_in_fmpy(fmu3):
     of its default experiment (tests/reference_check.py says how close and why)."""
     from reference_check import compare_with_fmpy
     compare_with_fmpy(fmu3)
+
+
+def test_regime_is_an_int32_output_with_the_fmi2_flavours_bits(fmu3_dir):
+    """The runaway scene of tests/test_fmu_regime.py: the FMI 3.0 front reads the same ``regime``
+    (Int32) as the in-process slave after every forcing period, logs the same one warning, and a
+    restored state brings back its regime."""
+    from test_fmu_regime import SCENES, _regime_warnings, _run
+    from test_fmu_regime import _slave as regime_slave
+    groups, periods = SCENES["runaway"]
+    sv = scene_start_values(groups)
+    s, vr, messages = _slave(fmu3_dir)
+    s.reset()
+    s.enterInitializationMode(startTime=0.0)
+    for name, value in sv.items():
+        if isinstance(value, bool):
+            s.setBoolean([vr[name]], [value])
+        else:
+            s.setFloat64([vr[name]], [float(value)])
+    s.exitInitializationMode()
+    h = 1.0 / sv["frequency"]
+    seen, state, t = [], None, 0.0
+    for k in range(periods):
+        s.doStep(t, h)
+        t += h
+        seen.append(s.getInt32([vr["regime"]])[0])
+        if k == 1:
+            state = s.getFMUState()
+    ref, _ = regime_slave(groups)
+    assert seen == _run(ref, h, periods)
+    assert [m for _, m in messages if m.startswith("regime at t")] == _regime_warnings(ref)
+    s.setFMUState(state)
+    assert s.getInt32([vr["regime"]])[0] == seen[1] == 0
+    s.freeFMUState(state)
+    s.freeInstance()

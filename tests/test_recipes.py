@@ -1,8 +1,8 @@
 """The recipes of docs/architecture.md, run: a new FMU output and a new top condition, each in at most three hand-written files.
 
 A copy of the package (coupling/ and fmu_src/ laid out as ``hammerbit``) gets the edits the
-recipe names and nothing else; both flavours of the FMU are then built from the copy and run
-through fmpy.  Building four FMUs takes minutes: the slow set.
+recipe names and nothing else; both flavours of the FMUs, and the native FMI 3.0 ones, are then
+built from the copy and run through fmpy.  Building six FMUs takes minutes: the slow set.
 """
 from __future__ import annotations
 
@@ -17,10 +17,12 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 #: hand-written files a recipe may touch, at most
 MAX_FILES = 3
+#: the builds a recipe must reach: (runtime, FMI version if not 2)
+FLAVOURS = (("pythonfmu",), ("native",), ("native", "3"))
 
 #: docs/architecture.md, "Add an FMU output": (file, text after which, text to add)
 OUTPUT_RECIPE = (
-    ("fmu_src/fmu_variables.py", '    ("bounce_count", "Integer"',
+    ("fmu_src/fmu_description.py", '    ("bounce_count", "Integer"',
      '    ("recipe_output", "Real", "m", "twice the bit position (the recipe test)"),\n'),
     ("fmu_src/slave.py", '            "bounce_count": lambda',
      '            "recipe_output": lambda: 2.0 * (s._yi(2) * s._x0),\n'),
@@ -94,18 +96,24 @@ def test_a_new_output_and_a_new_top_condition_need_at_most_three_hand_written_fi
     _copy_package(site)
     _apply(site, OUTPUT_RECIPE)
     output_files = _changed(site)
+    top_only = tmp_path / "top-only"          # both recipes edit fmu_description.py: count each alone
+    _copy_package(top_only)
+    _apply(top_only, TOP_RECIPE)
+    top_files = _changed(top_only)
     _apply(site, TOP_RECIPE)
-    top_files = _changed(site) - output_files
     assert output_files == {rel for rel, _, _ in OUTPUT_RECIPE} and len(output_files) <= MAX_FILES
     assert top_files == {rel for rel, _, _ in TOP_RECIPE} and len(top_files) <= MAX_FILES
 
     out = tmp_path / "dist"
-    for runtime in ("pythonfmu", "native"):
-        _hammerbit(site, "fmu", "build", "--runtime", runtime, "--out", str(out / runtime / "HammerBitRock.fmu"))
-        _hammerbit(site, "fmu", "build-string", "--string", "lab", "--runtime", runtime,
-                   "--out", str(out / runtime / "Drillstring.fmu"))
+    for runtime, *fmi in FLAVOURS:
+        version = ["--fmi-version", fmi[0]] if fmi else []
+        where = out / "-".join([runtime, *fmi])
+        _hammerbit(site, "fmu", "build", "--runtime", runtime, *version, "--out", str(where / "HammerBitRock.fmu"))
+        _hammerbit(site, "fmu", "build-string", "--string", "lab", "--runtime", runtime, *version,
+                   "--out", str(where / "Drillstring.fmu"))
     runs = {}
-    for runtime in ("pythonfmu", "native"):
+    for flavour in FLAVOURS:
+        runtime = "-".join(flavour)
         # a second: the spring first has to load the bit past the friction threshold
         r = _simulate(out / runtime / "HammerBitRock.fmu", ["bit_position", "recipe_output"],
                       {"preload": 60.0}, stop_time=1.0)
@@ -117,3 +125,4 @@ def test_a_new_output_and_a_new_top_condition_need_at_most_three_hand_written_fi
         assert (hold["interface_force"] == fixed["interface_force"]).all(), runtime
         runs[runtime] = r
     assert (runs["native"]["recipe_output"] == runs["pythonfmu"]["recipe_output"]).all()
+    assert (runs["native-3"]["recipe_output"] == runs["native"]["recipe_output"]).all()

@@ -18,7 +18,8 @@ import numpy as np
 from numba import njit
 
 from hammerbit.model import kernel_layouts as KL
-from hammerbit.model.kernel_forces import harmonic, kinetic_friction, overlap, rhs_forced
+from hammerbit.model.kernel_forces import (contact_damping, contact_stiffness, harmonic, kinetic_friction, overlap,
+                                           rhs_forced)
 from hammerbit.model.tableaux import METHODS
 
 from . import kernel_cache  # noqa: F401  (registers the cache locator before the kernels are decorated)
@@ -53,8 +54,8 @@ def jacobian(y, p, mode_s, mode_c, jac):
     """Jacobian d f / d y of the vector field in one mode at ``y``, into ``jac`` (4 x 4).
 
     Stuck (``mode_s`` STICK), the bit rows are zero: x3 and x4 do not move.
-    The contact force's derivative in d, kc n d^(n-1) (1 + lam d'), is zero at
-    d = 0 for n > 1 (the force is C^1 there).
+    The contact force's derivatives are the law's own (``contact_stiffness``,
+    ``contact_damping`` in :mod:`hammerbit.model.kernel_forces`).
     """
     for i in range(N_STATE):
         for j in range(N_STATE):
@@ -65,12 +66,9 @@ def jacobian(y, p, mode_s, mode_c, jac):
     dk_dr = xi2
     if mode_c == KL.CONTACT:
         d = overlap(y, p)
-        dd = y[KL.V_HAMMER] - y[KL.V_BIT]
-        ad = abs(d)
-        n = p[KL.P_N]
-        if ad > 0.0:
-            dk_dd += p[KL.P_KC] * n * ad ** (n - 1.0) * (1.0 + p[KL.P_LAM] * dd)
-            dk_dr += p[KL.P_KC] * math.copysign(ad ** n, d) * p[KL.P_LAM]
+        if abs(d) > 0.0:
+            dk_dd += contact_stiffness(d, y[KL.V_HAMMER] - y[KL.V_BIT], p)
+            dk_dr += contact_damping(d, p)
     jac[0, 1] = 1.0
     jac[1, 0] = -dk_dd
     jac[1, 1] = -dk_dr

@@ -84,6 +84,10 @@ def description_header() -> str:
     lines += [f"#define HB_FORM_{_macro(f)} {i}" for i, f in enumerate(FORMS)]
     lines += ["", "/* the bits of the regime verdict */"]
     lines += [f"#define HB_REGIME_{_macro(n)} {b}" for n, b in D.REGIME_BITS.items()]
+    lines += [f"#define HB_N_REGIME_BITS {len(D.REGIME_BITS)}",
+              f"static const int HB_REGIME_BIT[HB_N_REGIME_BITS] = {{{', '.join(str(b) for b in D.REGIME_BITS.values())}}};",
+              f"static const char *const HB_REGIME_NAME[HB_N_REGIME_BITS] = "
+              f"{{{', '.join(_c_string(n) for n in D.REGIME_BITS)}}};"]
     lines += ["", f"#define HB_TWO_PI {_c_number(D.TWO_PI)}", ""]
     lines += ["enum {"] + [f"    HB_SI_{n}," for n in D.SI_NAMES] + ["    HB_N_SI", "};"]
     lines += ["enum {"] + [f"    HB_SC_{n}," for n, _ in D.SCALE_FORMULAS] + ["    HB_N_SCALES", "};"]

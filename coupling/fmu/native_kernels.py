@@ -82,12 +82,15 @@ ENTRY_POINTS = {
     "hb_watch_value": "double hb_watch_value(int64_t kind, double *y, double *p, int64_t mode_c)",
     "hb_apply_event": "int64_t hb_apply_event(int64_t kind, double *y, int64_t *ist, double *fst, "
                       "double *p)",
+    "hb_oscillator_l1": "int64_t hb_oscillator_l1(double rho, double xi, double *l1)",
+    "hb_regime": "int64_t hb_regime(double *y, int64_t *ist, double *fst, double *p, double *l1, "
+                 "double *cert)",
 }
 
 #: symbols an object may leave to the C side: libm, and what native/nrt_shim.c defines
 ALLOWED_UNDEFINED = frozenset({
     # libm (what LLVM lowers the math intrinsics to, per platform)
-    "exp", "pow", "sin", "cos", "sincos", "log", "floor", "sqrt", "fabs", "fmod", "tan", "atan",
+    "exp", "pow", "sin", "cos", "sincos", "log", "floor", "ceil", "sqrt", "fabs", "fmod", "tan", "atan",
     "atan2", "log1p", "expm1", "cosh", "sinh", "tanh", "memset", "memcpy", "memmove",
     # numba's runtime helpers the shim provides
     "NRT_MemInfo_alloc_aligned", "NRT_MemInfo_call_dtor", "NRT_Free", "numba_gil_ensure",
@@ -121,6 +124,8 @@ def layout() -> dict:
     from hammerbit.model import kernel_layouts as KL
     out = {name: int(getattr(KL, name)) for name in LAYOUT_NAMES + _PARAM_NAMES}
     out["WATCH_SLOTS"] = WATCH_SLOTS
+    from hammerbit.model.regime import N_CERT
+    out["N_CERT"] = N_CERT
     return out
 
 
@@ -196,12 +201,39 @@ def compile_entry_points() -> dict:
         return apply_event(kind, carray(yp, (NY,)), carray(ip, (NI,)), carray(fp, (NF,)),
                            carray(pp, (N_P,)))
 
+    hb_oscillator_l1, hb_regime = _regime_entry_points()
     funcs = {"hb_advance": hb_advance, "hb_advance_to_event": hb_advance_to_event,
              "hb_init_modes": hb_init_modes, "hb_forces": hb_forces,
              "hb_rhs": hb_rhs, "hb_watched": hb_watched, "hb_watch_value": hb_watch_value,
-             "hb_apply_event": hb_apply_event}
+             "hb_apply_event": hb_apply_event, "hb_oscillator_l1": hb_oscillator_l1, "hb_regime": hb_regime}
     assert set(funcs) == set(ENTRY_POINTS)
     return funcs
+
+
+def _regime_entry_points():
+    """``hb_oscillator_l1`` (the regime certificate's L1 norms of rho, xi, into l1[2]) and
+    ``hb_regime`` (``fmu_regime.causal_regime``, with l1[2] and a scratch cert[N_CERT])."""
+    from numba import carray, cfunc
+    from numba.core.types import CPointer, float64, int64
+
+    from hammerbit.model import kernel_layouts as KL
+    from hammerbit.model.fmu_regime import N_CERT, causal_regime
+    from hammerbit.model.regime import oscillator_l1
+    f64p, i64p = CPointer(float64), CPointer(int64)
+    NI, NF, N_P = KL.N_ISTATE, KL.N_FSTATE, KL.N_P
+
+    @cfunc(int64(float64, float64, f64p))
+    def hb_oscillator_l1(rho, xi, lp):
+        l1 = carray(lp, (2,))
+        l1[0], l1[1] = oscillator_l1(rho, xi)
+        return 0
+
+    @cfunc(int64(f64p, i64p, f64p, f64p, f64p, f64p))
+    def hb_regime(yp, ip, fp, pp, lp, cp):
+        l1 = carray(lp, (2,))
+        return causal_regime(carray(yp, (4,)), carray(ip, (NI,)), carray(fp, (NF,)), carray(pp, (N_P,)),
+                             l1[0], l1[1], carray(cp, (N_CERT,)))
+    return hb_oscillator_l1, hb_regime
 
 
 # ---------------------------------------------------------------------------

@@ -29,6 +29,12 @@ double hb_watch_value(int64_t kind, double *y, double *p, int64_t mode_c);
 /* the reset map of an event kind (y, ist, fst changed in place); the kind actually taken */
 int64_t hb_apply_event(int64_t kind, double *y, int64_t *ist, double *fst, double *p);
 
+/* the L1 norms of the relative oscillator's impulse responses of rho, xi (regime.oscillator_l1) */
+int64_t hb_oscillator_l1(double rho, double xi, double *l1);
+/* the regime bits known now (fmu_regime.causal_regime): l1 of hb_oscillator_l1, cert[HBK_N_CERT]
+ * scratch */
+int64_t hb_regime(double *y, int64_t *ist, double *fst, double *p, double *l1, double *cert);
+
 /* nrt_shim.c: 1 if a kernel raised an exception on this thread since the last call (then 0) */
 int hb_kernel_raised(void);
 

@@ -190,6 +190,19 @@ static int64_t advance(model_state *s, double tau_end, int to_event, int *stoppe
     return *stopped ? HBK_ST_DONE : status;
 }
 
+/* the one warning of a change of the regime verdict, at the end of a step */
+static void regime_check(model *m) {
+    model_state *s = &m->s;
+    int32_t regime = hb_regime_now(s);
+    if (regime == s->regime_seen) return;
+    char now[128], was[128], t[40];
+    hb_regime_names(regime, now, sizeof now);
+    hb_regime_names(s->regime_seen, was, sizeof was);
+    hb_repr(s->t, t, sizeof t);
+    s->regime_seen = regime;
+    hb_model_log(m, fmi2Warning, "regime at t = %s s: %s (regime = %d; was %s)", t, now, (int)regime, was);
+}
+
 static fmi2Status do_step(model *m, fmi2Real t, fmi2Real h, int to_event, fmi2Real *reached) {
     model_state *s = &m->s;
     s->last_status = fmi2OK;
@@ -263,6 +276,7 @@ static fmi2Status do_step(model *m, fmi2Real t, fmi2Real h, int to_event, fmi2Re
     }
     s->t = stopped ? fmin(s->t_start + s->fst[HBK_F_T] / s->omega, t + h) : t + h;
     *reached = s->t;
+    regime_check(m);
     return fmi2OK;
 }
 

@@ -45,7 +45,7 @@ typedef struct {
 /* ------------------------------------------------------------------------------------------ */
 /* State                                                                                       */
 /* ------------------------------------------------------------------------------------------ */
-#define MODEL_STATE_MAGIC 0x48424e31u   /* "HBN1": layout version of model_state */
+#define MODEL_STATE_MAGIC 0x48424e32u   /* "HBN2": layout version of model_state */
 
 typedef struct {
     uint32_t magic;
@@ -65,6 +65,8 @@ typedef struct {
     double opts[HBK_N_OPTS];
     double x0, v0, F0, omega, x3_start;
     double applied_preload, applied_force;   /* inputs last written into p (NaN: none yet) */
+    double l1[2];                  /* the regime certificate's L1 norms of rho, xi (hb_oscillator_l1) */
+    int32_t regime_seen;           /* the regime verdict last logged (or of the commit) */
     char error[512];               /* why fmi2DoStep is refused (not initialised, ...) */
 } model_state;
 
@@ -92,6 +94,11 @@ void hb_input_error(const model_state *s, int k, double v, char *out, size_t n);
 int hb_commit(model_state *s, const double *v, int impact, int keep, char *err, size_t n);
 /* apply the inputs as set to the kernel's parameter vector (Model Exchange: at every evaluation) */
 void hb_apply_inputs(model_state *s);
+
+/* the regime bits known now (hammerbit.model.fmu_regime.causal_regime), the inputs as applied */
+int32_t hb_regime_now(model_state *s);
+/* "runaway, tension" (the bits' names) or "none" into out */
+void hb_regime_names(int32_t regime, char *out, size_t n);
 
 /* model_values.c: the fmi2Get* and fmi2Set* functions of the backend table */
 void hb_values_fill(hb_wrapper *w);

@@ -93,7 +93,28 @@ int hb_commit(model_state *s, const double *v, int impact, int keep, char *err, 
     s->dirty = 0;
     s->has_commit = 1;
     s->applied_preload = s->applied_force = NAN;
+    hb_oscillator_l1(g[HB_G_rho], g[HB_G_xi], s->l1);
+    s->regime_seen = hb_regime_now(s);
     return 1;
+}
+
+
+int32_t hb_regime_now(model_state *s) {
+    double cert[HBK_N_CERT];
+    return (int32_t)hb_regime(s->y, s->ist, s->fst, s->p, s->l1, cert);
+}
+
+
+void hb_regime_names(int32_t regime, char *out, size_t n) {
+    size_t used = 0;
+    out[0] = '\0';
+    for (int i = 0; i < HB_N_REGIME_BITS; i++) {
+        if (!(regime & HB_REGIME_BIT[i])) continue;
+        int k = snprintf(out + used, n - used, "%s%s", used ? ", " : "", HB_REGIME_NAME[i]);
+        if (k < 0 || (size_t)k >= n - used) break;
+        used += (size_t)k;
+    }
+    if (!used) snprintf(out, n, "none");
 }
 
 

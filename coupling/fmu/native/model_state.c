@@ -62,6 +62,8 @@ static const char *derived_invalid(const model_state *s) {
     if (memcmp(s->opts, trial.opts, sizeof s->opts) != 0 || s->x0 != trial.x0 || s->v0 != trial.v0 ||
         s->F0 != trial.F0 || s->omega != trial.omega || s->x3_start != trial.x3_start)
         return "its solver options or scales are not those of its parameters in use";
+    if (memcmp(s->l1, trial.l1, sizeof s->l1) != 0)
+        return "its regime certificate's numbers are not those of its parameters in use";
     for (int k = HBS_preload; s->ready && k <= HBS_harmonic_force; k++)
         if (!hb_input_ok(s, k, s->value[k])) return "an input is out of range";
     double tau = (s->t - s->t_start) * s->omega;

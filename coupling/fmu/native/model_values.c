@@ -77,6 +77,7 @@ static fmi2Status n_get_integer(fmi2Component c, const fmi2ValueReference vr[], 
         case HB_VR_impact_count: value[i] = (fmi2Integer)s->ist[HBK_I_COUNT0 + HBK_EV_IMPACT]; break;
         case HB_VR_slip_count: value[i] = (fmi2Integer)s->ist[HBK_I_COUNT0 + HBK_EV_SLIP_START]; break;
         case HB_VR_bounce_count: value[i] = (fmi2Integer)s->ist[HBK_I_COUNT0 + HBK_EV_BOUNCE]; break;
+        case HB_VR_regime: value[i] = hb_regime_now(s); break;
         case HB_VR_last_status: value[i] = s->last_status; break;
         default: value[i] = 0;
         }
