@@ -121,16 +121,21 @@ def max_overlap(orbit: PeriodicOrbit) -> float:
     return best
 
 
-def _overlap_samples(orbit: PeriodicOrbit, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The overlap d = x1 - x3 - r and its rate x2 - x4 along the orbit at ``times`` (from phase 0)."""
-    g = orbit.groups
+def _orbit_samples(orbit: PeriodicOrbit, times: np.ndarray) -> np.ndarray:
+    """The library's sample rows of the orbit at ``times`` (from phase 0)."""
     samples = np.zeros((times.size, KL.N_SAMPLE_COLS))
-    st = Stepper(g, solver=ORBIT_SOLVER, y0=orbit.state, compile_helper=False)
+    st = Stepper(orbit.groups, solver=ORBIT_SOLVER, y0=orbit.state, compile_helper=False)
     try:
         st.advance(times[-1], sample_times=times, samples=samples)
     except SolverError as e:
         raise ContinuationError(f"the orbit could not be sampled: {e}") from None
-    return samples[:, 0] - samples[:, 2] - g.r, samples[:, 1] - samples[:, 3]
+    return samples
+
+
+def _overlap_samples(orbit: PeriodicOrbit, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The overlap d = x1 - x3 - r and its rate x2 - x4 along the orbit at ``times`` (from phase 0)."""
+    samples = _orbit_samples(orbit, times)
+    return samples[:, 0] - samples[:, 2] - orbit.groups.r, samples[:, 1] - samples[:, 3]
 
 
 def min_drive(orbit: PeriodicOrbit) -> float:
@@ -163,12 +168,7 @@ def _stick_margin(orbit: PeriodicOrbit) -> float:
     in slip, or of ``1 - drive`` in stick (the drive's interior maxima below the static threshold 1)."""
     g = orbit.groups
     times = np.linspace(0.0, orbit.period * g.period, SAMPLES_PER_PERIOD * orbit.period + 1)
-    samples = np.zeros((times.size, KL.N_SAMPLE_COLS))
-    st = Stepper(g, solver=ORBIT_SOLVER, y0=orbit.state, compile_helper=False)
-    try:
-        st.advance(times[-1], sample_times=times, samples=samples)
-    except SolverError as e:
-        raise ContinuationError(f"the orbit could not be sampled: {e}") from None
+    samples = _orbit_samples(orbit, times)
     slip = samples[:, 6] == KL.SLIP
     drive = samples[:, 0] - samples[:, 2] + 2 * g.xi * (samples[:, 1] - samples[:, 3]) + samples[:, 4]
     margin = np.where(slip, samples[:, 3], 1.0 - drive)
