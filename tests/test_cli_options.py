@@ -182,7 +182,7 @@ NOT_YET_DRIVEN = {
     "map": {"--overlay"},
     "continue": {"--csv", "--curve-points", "--json", "--out", "--param", "--param2", "--plot", "--preset",
                  "--range", "--range2", "--seeds", "--set"},
-    "fmu build-system": {"--f-max", "--interface-damping", "--interface-stiffness", "--out", "--set", "--string",
+    "fmu build-system": {"--f-max", "--fmi-version", "--interface-damping", "--interface-stiffness", "--out", "--set", "--string",
                          "--tolerance", "--top", "--wob"},
 }
 
