@@ -90,6 +90,7 @@ def _simulate(fmu: Path, outputs, start_values=None, stop_time=0.05):
                         start_values=start_values or {})
 
 
+@pytest.mark.soak
 @pytest.mark.slow
 def test_a_new_output_and_a_new_top_condition_need_at_most_three_hand_written_files(tmp_path):
     site = tmp_path / "site"
