@@ -32,7 +32,6 @@ rows transformed the same way (the hook load: ``row . T``).  The variables are t
 """
 from __future__ import annotations
 
-import shutil
 import tempfile
 import uuid
 import zipfile
@@ -317,8 +316,8 @@ def build_system_fmu(string, config, out=None, *, tolerance: float = 1e-3, log=p
     from hammerbit.fmu.c_description import write_description_header
     from hammerbit.fmu.fmi3_description import FMI3_PLATFORMS, fmi3_header, fmi3_model_description
     from hammerbit.fmu.native import generate_header, read_model_description
-    from hammerbit.fmu.native_build import AARCH64_CC, FMI3_DEFINES, FMI3_SOURCES, MINGW_CC, TARGETS, \
-        find_compiler, link_binary, select_platforms
+    from hammerbit.fmu.native_build import FMI3_DEFINES, FMI3_SOURCES, link_platforms, platform_compilers, \
+        select_platforms
     from hammerbit.fmu.native_kernels import build_objects
     from hammerbit.fmu.reference_results import system_results
     if fmi_version not in (2, 3):
@@ -340,16 +339,9 @@ def build_system_fmu(string, config, out=None, *, tolerance: float = 1e-3, log=p
             md3 = fmi3_model_description(md, ())
             (tmp / "hb_fmi3.h").write_text(fmi3_header(md3, 0))
             sources, defines = SYSTEM_SOURCES + FMI3_SOURCES, FMI3_DEFINES
-        platforms = select_platforms(log, fmi_version)
-        build_objects(tmp, platforms, kernels="system")
-        built = {}
-        for plat in platforms:
-            cc = {"linux64": find_compiler, "win64": lambda: shutil.which(MINGW_CC),
-                  "aarch64-linux": lambda: shutil.which(AARCH64_CC)}[plat]()
-            dest = tmp / "bin" / plat / f"{MODEL_NAME}{TARGETS[plat].suffix}"
-            dest.parent.mkdir(parents=True, exist_ok=True)
-            link_binary(plat, cc, tmp / f"kernels_{plat}.o", tmp, dest, sources, defines)
-            built[plat] = dest
+        compilers = platform_compilers(select_platforms(log, fmi_version), fmi3=fmi_version == 3)
+        build_objects(tmp, list(compilers), kernels="system")
+        built = link_platforms(compilers, tmp, tmp / "bin", MODEL_NAME, sources, defines)
         tmp_out = out.with_name(out.name + ".tmp")
         with zipfile.ZipFile(tmp_out, "w", zipfile.ZIP_DEFLATED) as zf:
             zf.writestr("modelDescription.xml", md if md3 is None else md3)

@@ -222,6 +222,27 @@ def build_binaries(model_description_xml, out_dir, *, start_values=None, platfor
     spec = read_model_description(model_description_xml)
     if platforms is None:
         platforms = select_platforms(log, 3 if fmi3_xml is not None else 2)
+    compilers = platform_compilers(platforms, fmi3=fmi3_xml is not None)
+    out_dir = Path(out_dir)
+    with tempfile.TemporaryDirectory(prefix="hammerbit_native_") as tmp:
+        tmp = Path(tmp)
+        summary = build_objects(tmp, platforms)
+        (tmp / "hb_model.h").write_text(generate_header(spec, wrapper_file="", python_modules=()))
+        write_description_header(tmp)
+        (tmp / "hb_native.h").write_text(native_header(model_description_xml, start_values or {},
+                                                       summary["layout"]))
+        sources, defines = NATIVE_SOURCES, ()
+        if fmi3_xml is not None:
+            from hammerbit.fmu.fmi3_description import fmi3_header
+            (tmp / "hb_fmi3.h").write_text(fmi3_header(fmi3_xml, len(STATES)))
+            sources, defines = NATIVE_SOURCES + FMI3_SOURCES, FMI3_DEFINES
+        built = link_platforms(compilers, tmp, out_dir, spec.model_identifier, sources, defines)
+    return built
+
+
+def platform_compilers(platforms, *, fmi3: bool) -> dict:
+    """``{platform: C compiler}`` for ``platforms``, before any work: a missing cross-compiler, an
+    unknown platform or aarch64-linux for FMI 2.0 raises :class:`NativeBuildError` naming it."""
     compilers = {}
     for plat in platforms:
         if plat not in TARGETS:
@@ -237,30 +258,24 @@ def build_binaries(model_description_xml, out_dir, *, start_values=None, platfor
             if not cc:
                 raise NativeBuildError(f"the {plat} binary needs {cross} (Debian: apt-get install "
                                        f"{'gcc-mingw-w64-x86-64' if plat == 'win64' else 'gcc-aarch64-linux-gnu'})")
-            if plat == "aarch64-linux" and fmi3_xml is None:
+            if plat == "aarch64-linux" and not fmi3:
                 raise NativeBuildError("aarch64-linux is a platform of the FMI 3.0 FMU only (FMI 2.0 "
                                        "names no AArch64 platform)")
             compilers[plat] = cc
-    out_dir = Path(out_dir)
+    return compilers
+
+
+def link_platforms(compilers: dict, build_dir: Path, out_dir: Path, model_identifier: str, sources,
+                   defines) -> dict:
+    """Link each platform's binary from ``build_dir/kernels_<platform>.o`` (:func:`build_objects`)
+    and the headers in ``build_dir`` into ``out_dir/<platform>/<modelIdentifier>.<so|dll>``;
+    returns ``{platform: path}``."""
     built = {}
-    with tempfile.TemporaryDirectory(prefix="hammerbit_native_") as tmp:
-        tmp = Path(tmp)
-        summary = build_objects(tmp, platforms)
-        (tmp / "hb_model.h").write_text(generate_header(spec, wrapper_file="", python_modules=()))
-        write_description_header(tmp)
-        (tmp / "hb_native.h").write_text(native_header(model_description_xml, start_values or {},
-                                                       summary["layout"]))
-        sources, defines = NATIVE_SOURCES, ()
-        if fmi3_xml is not None:
-            from hammerbit.fmu.fmi3_description import fmi3_header
-            (tmp / "hb_fmi3.h").write_text(fmi3_header(fmi3_xml, len(STATES)))
-            sources, defines = NATIVE_SOURCES + FMI3_SOURCES, FMI3_DEFINES
-        for plat in platforms:
-            obj = tmp / f"kernels_{plat}.o"
-            dest = out_dir / plat / f"{spec.model_identifier}{TARGETS[plat].suffix}"
-            dest.parent.mkdir(parents=True, exist_ok=True)
-            link_binary(plat, compilers[plat], obj, tmp, dest, sources, defines)
-            built[plat] = dest
+    for plat, cc in compilers.items():
+        dest = Path(out_dir) / plat / f"{model_identifier}{TARGETS[plat].suffix}"
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        link_binary(plat, cc, build_dir / f"kernels_{plat}.o", build_dir, dest, sources, defines)
+        built[plat] = dest
     return built
 
 

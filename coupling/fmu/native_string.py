@@ -28,7 +28,6 @@ description's variables, causality, start values and messages.
 from __future__ import annotations
 
 import json
-import shutil
 import struct
 import tempfile
 import zipfile
@@ -239,14 +238,13 @@ def build_native_string_fmu(string_arg, out=None, *, steps=None, build=None, log
     ``fmi_version``: 2, or 3 for an FMI 3.0 FMU (:mod:`hammerbit.fmu.fmi3_description`);
     ``kw`` go to :func:`~hammerbit.fmu.build_string.string_build`."""
     from hammerbit.fmu.fmi3_description import FMI3_PLATFORMS, fmi3_header, fmi3_model_description
-    from hammerbit.fmu.native_build import AARCH64_CC, FMI3_DEFINES, FMI3_SOURCES
+    from hammerbit.fmu.native_build import FMI3_DEFINES, FMI3_SOURCES
     if fmi_version not in (2, 3):
         raise ValueError(f"fmi_version = {fmi_version!r} is out of range: allowed 2 or 3")
     from hammerbit.fmu.build_string import MODEL_NAME, build_string_fmu, string_build, string_fmu_path
     from hammerbit.fmu.c_description import write_description_header
     from hammerbit.fmu.native import generate_header, read_model_description
-    from hammerbit.fmu.native_build import TARGETS, link_binary, select_platforms
-    from hammerbit.fmu.native_build import find_compiler, MINGW_CC
+    from hammerbit.fmu.native_build import link_platforms, platform_compilers, select_platforms
     from hammerbit.fmu.native_kernels import build_objects
     from hammerbit.fmu.reference_results import slave_results
     from hammerbit.model.string_model import INFO_FILE
@@ -277,17 +275,9 @@ def build_native_string_fmu(string_arg, out=None, *, steps=None, build=None, log
             md3 = fmi3_model_description(md, ())
             (tmp / "hb_fmi3.h").write_text(fmi3_header(md3, 0))
             sources, defines = STRING_SOURCES + FMI3_SOURCES, FMI3_DEFINES
-        platforms = select_platforms(log, fmi_version)
-        build_objects(tmp, platforms, kernels="string")
-        built = {}
-        for plat in platforms:
-            obj = tmp / f"kernels_{plat}.o"
-            cc = {"linux64": find_compiler(), "win64": shutil.which(MINGW_CC),
-                  "aarch64-linux": shutil.which(AARCH64_CC)}[plat]
-            dest = tmp / "bin" / plat / f"{spec.model_identifier}{TARGETS[plat].suffix}"
-            dest.parent.mkdir(parents=True, exist_ok=True)
-            link_binary(plat, cc, obj, tmp, dest, sources, defines)
-            built[plat] = dest
+        compilers = platform_compilers(select_platforms(log, fmi_version), fmi3=fmi_version == 3)
+        build_objects(tmp, list(compilers), kernels="string")
+        built = link_platforms(compilers, tmp, tmp / "bin", spec.model_identifier, sources, defines)
         tmp_out = out.with_name(out.name + ".tmp")
         with zipfile.ZipFile(tmp_out, "w", zipfile.ZIP_DEFLATED) as zf:
             zf.writestr("modelDescription.xml", md if md3 is None else md3)
