@@ -25,6 +25,7 @@ from .continuation import Branch, BranchPoint, ContinuationOptions, follow_branc
 from .monodromy import ContinuationError
 from .orbit import MAX_PERIOD, correct_orbit, orbit_from_simulation
 from .parameter import Parameter
+from .runaway import detect_runaway
 from .touch import detect_touches
 
 __all__ = ["Diagram", "RestRun", "continue_orbits", "stable_intervals", "SEEDS", "MAX_BRANCHES"]
@@ -168,6 +169,7 @@ def _add_branch(diagram: Diagram, param, base, branch: Branch, options, on_point
     index = len(diagram.branches)
     diagram.branches.append(branch)
     bifs = detect(param, base, branch.points, index) + detect_touches(param, base, branch.points, index)
+    bifs += detect_runaway(param, base, bifs)
     diagram.bifurcations.extend(bifs)
     failed = []
     for point, why in branch.stop_points:
