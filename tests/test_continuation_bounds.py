@@ -8,7 +8,7 @@ from hammerbit.continuation.bifurcation import detect
 from hammerbit.continuation.continuation import follow_branch
 from hammerbit.continuation.monodromy import ORBIT_SOLVER
 from hammerbit.continuation.parameter import Parameter
-from hammerbit.continuation.runaway import detect_runaway, follow_runaway
+from hammerbit.continuation.runaway import detect_runaway, follow_runaway, runaway_side
 from hammerbit.continuation.touch import bounce_margin, follow_touch
 from hammerbit.model import kernel_layouts as KL
 from hammerbit.model.presets import preset
@@ -103,6 +103,8 @@ def test_runaway_onset_is_the_fold_past_which_runs_from_the_orbit_run_away(runaw
     assert not _runs_away(below.groups, below.state)
     # past the fold no orbit: the run from the last one drifts away, the verdict's certificate proves it
     assert _runs_away(base.replace(b=bif.value + 1e-7), bif.orbit.state)
+    assert runaway_side(Parameter.on("b", base), base, bif.value, bif.orbit) == 1.0
+    assert "above" in bif.detail
 
 
 def test_the_runaway_curve_separates_the_verdict_of_runs_from_its_orbits(runaway_onset):
