@@ -148,3 +148,12 @@ def test_the_located_bounce_onset_is_that_of_a_bisection_of_long_runs_from_rest(
         return st.istate[KL.I_COUNT0 + KL.EV_BOUNCE] == before
     b_star = _bisect(bounces, bif.value - 1e-3, bif.value + 1e-3, 1e-7)
     assert abs(b_star - bif.value) < 2e-7
+
+
+def test_the_diagram_reports_the_runaway_onset_and_a_run_from_rest_that_runs_away():
+    from hammerbit.continuation.diagram import continue_orbits
+    d = continue_orbits(preset("paper-fig9").replace(**RUNAWAY_SCENE), "b", 0.78, 0.84, seeds=2)
+    assert [b.kind for b in d.bifurcations].count("runaway") == 1
+    # the seed at b = 0.84 (past the onset, where no stick-slip orbit is left) runs away from rest
+    assert any(s.startswith("b = 0.84: a run from rest runs away") for s in d.stops), d.stops
+    assert simulate(preset("paper-fig9").replace(a=0.2, b=0.84), 100).flags.runaway

@@ -41,7 +41,8 @@ from .monodromy import ORBIT_SOLVER, ContinuationError
 from .orbit import PeriodicOrbit
 from .parameter import Parameter
 
-__all__ = ["runaway_side", "detect_runaway", "follow_runaway", "VERDICT_OFFSET", "VERDICT_PERIODS"]
+__all__ = ["runaway_side", "detect_runaway", "follow_runaway", "runs_away_from_rest", "VERDICT_OFFSET",
+           "VERDICT_PERIODS"]
 
 #: the offset (scaled parameter) either side of a fold at which the verdict of a run from its orbit is read
 VERDICT_OFFSET = 1e-6
@@ -49,15 +50,20 @@ VERDICT_OFFSET = 1e-6
 VERDICT_PERIODS = 400
 
 
-def _runs_away(groups: Groups, orbit: PeriodicOrbit, periods: int = VERDICT_PERIODS) -> bool:
-    """The verdict's runaway flag of a run of ``groups`` from the orbit's state at phase 0."""
-    st = Stepper(groups, solver=ORBIT_SOLVER, y0=orbit.state, compile_helper=False)
+def _runs_away(groups: Groups, orbit: Optional[PeriodicOrbit], periods: int = VERDICT_PERIODS) -> bool:
+    """The verdict's runaway flag of a run of ``groups`` from the orbit's state at phase 0 (None: from rest)."""
+    st = Stepper(groups, solver=ORBIT_SOLVER, y0=None if orbit is None else orbit.state, compile_helper=False)
     poin = np.zeros((periods + 1, 5))
     try:
         st.advance(periods * groups.period, poincare=poin)
     except SolverError:
         return False
     return bool(stepper_flags(groups, st, poin[:int(st.istate[KL.I_POIN_NEXT])]).runaway)
+
+
+def runs_away_from_rest(groups: Groups) -> bool:
+    """Whether a run from rest is a runaway by the regime verdict within :data:`VERDICT_PERIODS` periods."""
+    return groups.b > friction_floor(groups) and _runs_away(groups, None)
 
 
 def _candidate(orbit: PeriodicOrbit) -> bool:
