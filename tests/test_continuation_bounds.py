@@ -150,6 +150,7 @@ def test_the_located_bounce_onset_is_that_of_a_bisection_of_long_runs_from_rest(
     assert abs(b_star - bif.value) < 2e-7
 
 
+@pytest.mark.slow
 def test_the_diagram_reports_the_runaway_onset_and_a_run_from_rest_that_runs_away():
     from hammerbit.continuation.diagram import continue_orbits
     d = continue_orbits(preset("paper-fig9").replace(**RUNAWAY_SCENE), "b", 0.78, 0.84, seeds=2)
@@ -157,3 +158,17 @@ def test_the_diagram_reports_the_runaway_onset_and_a_run_from_rest_that_runs_awa
     # the seed at b = 0.84 (past the onset, where no stick-slip orbit is left) runs away from rest
     assert any(s.startswith("b = 0.84: a run from rest runs away") for s in d.stops), d.stops
     assert simulate(preset("paper-fig9").replace(a=0.2, b=0.84), 100).flags.runaway
+
+
+def test_a_corner_that_runs_from_its_orbit_do_not_confirm_is_no_runaway_onset():
+    # lab at a = 0.15: the stable stick-slip orbit ends at a corner near b = 0.92008 (its slip onset on the
+    # phase-0 section), where Newton's method on the fold test finds a point that runs from it leave on both sides
+    base = preset("lab").replace(b=0.9)
+    n, s = orbit_from_simulation(base)
+    param = Parameter.on("b", base)
+    bifs = detect(param, base, follow_branch(param, base, correct_orbit(base, s, n), 0.93).points, 0)
+    corner = [b for b in bifs if b.kind == "border-collision" and abs(b.value - 0.92008) < 1e-4]
+    assert len(corner) == 1
+    assert _runs_away(base.replace(b=corner[0].value - 1e-6), corner[0].orbit.state)
+    assert _runs_away(base.replace(b=corner[0].value + 1e-6), corner[0].orbit.state)
+    assert detect_runaway(param, base, bifs) == []
