@@ -58,8 +58,8 @@ from .monodromy import ORBIT_SOLVER, ContinuationError, period_map
 from .orbit import PeriodicOrbit, correct_orbit
 from .parameter import Parameter
 
-__all__ = ["max_overlap", "min_drive", "bounce_margin", "INDICATORS", "detect_touches", "follow_touch", "SAMPLES_PER_PERIOD",
-           "BRACKET_STEP", "ROOT_TOL"]
+__all__ = ["max_overlap", "min_drive", "bounce_margin", "INDICATORS", "detect_touches", "follow_touch",
+           "SAMPLES_PER_PERIOD", "BRACKET_STEP", "ROOT_TOL"]
 
 #: samples of the orbit per forcing period when looking for the largest overlap
 SAMPLES_PER_PERIOD = 2000
