@@ -172,3 +172,34 @@ def test_a_corner_that_runs_from_its_orbit_do_not_confirm_is_no_runaway_onset():
     assert _runs_away(base.replace(b=corner[0].value - 1e-6), corner[0].orbit.state)
     assert _runs_away(base.replace(b=corner[0].value + 1e-6), corner[0].orbit.state)
     assert detect_runaway(param, base, bifs) == []
+
+
+def test_continue_json_gives_the_bounce_curve_that_map_overlay_draws(capsys, tmp_path):
+    import json
+
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from cli_run import run_cli
+    from hammerbit.continuation.output import draw_curves, load_curves, MARKERS
+    code, out, err = run_cli(["continue", "--set", "a=1.5", "--set", "b=0.2", "--param", "b", "--range", "0.2",
+                              "0.05", "--seeds", "2", "--param2", "a", "--range2", "1.4", "1.6", "--curve-points",
+                              "2", "--json"], capsys)
+    assert code == 0, err
+    d = json.loads(out)
+    assert [b["kind"] for b in d["bifurcations"]] == ["bounce"]
+    (curve,) = d["curves"]
+    assert curve["kind"] == "bounce" and not curve["stopped"] and [p["a"] for p in curve["points"]] == \
+        pytest.approx([1.4, 1.5, 1.6])
+    # each point is where the orbit's indicator is zero (an independent correction from the point's own b)
+    for p in curve["points"]:
+        g = preset("paper-fig9").replace(a=p["a"], b=p["b"])
+        n, s = orbit_from_simulation(g)
+        assert abs(bounce_margin(correct_orbit(g, s, n))) < 1e-8
+    path = tmp_path / "curves.json"
+    path.write_text(out)
+    fig, ax = plt.subplots()
+    assert draw_curves(ax, load_curves(path), "a", "b") == 1
+    assert ax.get_lines()[0].get_marker() == MARKERS["bounce"]
+    plt.close(fig)
