@@ -1,12 +1,16 @@
 """The regime verdict's operational boundaries as curves (hammerbit.continuation.touch's bounce, .runaway): the
 located onsets against dense sampling, the verdict of runs either side and bisections of long runs."""
+import json
+
 import numpy as np
 import pytest
+from cli_run import run_cli
 
 from hammerbit.continuation import correct_orbit, orbit_from_simulation
 from hammerbit.continuation.bifurcation import detect
 from hammerbit.continuation.continuation import follow_branch
 from hammerbit.continuation.monodromy import ORBIT_SOLVER
+from hammerbit.continuation.output import MARKERS, draw_curves, load_curves
 from hammerbit.continuation.parameter import Parameter
 from hammerbit.continuation.runaway import detect_runaway, follow_runaway, runaway_side
 from hammerbit.continuation.touch import bounce_margin, follow_touch
@@ -175,14 +179,9 @@ def test_a_corner_that_runs_from_its_orbit_do_not_confirm_is_no_runaway_onset():
 
 
 def test_continue_json_gives_the_bounce_curve_that_map_overlay_draws(capsys, tmp_path):
-    import json
-
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from cli_run import run_cli
-    from hammerbit.continuation.output import draw_curves, load_curves, MARKERS
     code, out, err = run_cli(["continue", "--set", "a=1.5", "--set", "b=0.2", "--param", "b", "--range", "0.2",
                               "0.05", "--seeds", "2", "--param2", "a", "--range2", "1.4", "1.6", "--curve-points",
                               "2", "--json"], capsys)
