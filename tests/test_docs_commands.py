@@ -47,6 +47,8 @@ REDUCE = [
 ]
 #: commands that read what the command before them in their block builds: the fixture that holds it
 PREPARE = {"--interface-type ModelExchange": "built_native_fmu"}
+#: a file a command reads that an earlier command of its document writes (``> FILE``): that one runs first
+READS = re.compile(r"--overlay (\S+)")
 #: cheap commands run in the fast set (documents' line numbers change; matched by text)
 FAST = ("hammerbit simulate --preset paper-fig12 --set a=0.06 --method rk4",
         "hammerbit modes --string lab --count 8 --csv lab_modes.csv",
@@ -133,7 +135,17 @@ def test_every_document_has_its_commands_found():
     assert all(any(c == f for _, _, c, _ in cmds) for f in FAST), "a FAST command is no longer in the docs"
 
 
-def _run(doc, command, code, tmp_path, request):
+def _producer(doc, line, command):
+    """(command, code) of the last command of ``doc`` before ``line`` that writes the file ``command`` reads."""
+    m = READS.search(command)
+    if not m:
+        return None
+    writes = re.compile(r">\s*" + re.escape(m.group(1)) + r"(\s|$)")
+    return next(((c, k) for d, n, c, k in reversed(shell_commands()) if d == doc and n < line and writes.search(c)),
+                None)
+
+
+def _run(doc, line, command, code, tmp_path, request):
     why = skip_reason(command)
     if why:
         pytest.skip(why)
@@ -151,6 +163,11 @@ def _run(doc, command, code, tmp_path, request):
         pytest.importorskip("libcosimpy")
     env = dict(os.environ, PATH=os.path.dirname(sys.executable) + os.pathsep + os.environ.get("PATH", ""),
                MPLBACKEND="Agg")
+    first = _producer(doc, line, command)
+    if first:
+        r = subprocess.run(["bash", "-c", reduced(first[0])], cwd=tmp_path, capture_output=True, text=True,
+                           timeout=1800, env=env)
+        assert r.returncode == (0 if first[1] is None else first[1]), (doc, first[0], r.returncode, r.stderr[-3000:])
     r = subprocess.run(["bash", "-c", reduced(command)], cwd=tmp_path, capture_output=True, text=True,
                        timeout=1800, env=env)
     assert "Traceback" not in r.stderr, (doc, command, r.stderr[-3000:])
@@ -162,7 +179,7 @@ FAST_CMDS = [c for c in shell_commands() if c[2] in FAST]
 
 @pytest.mark.parametrize("doc, line, command, code", FAST_CMDS, ids=_ids(FAST_CMDS))
 def test_documented_command_runs(doc, line, command, code, tmp_path, request):
-    _run(doc, command, code, tmp_path, request)
+    _run(doc, line, command, code, tmp_path, request)
 
 
 SLOW_CMDS = [c for c in shell_commands() if c[2] not in FAST]
@@ -172,7 +189,7 @@ SLOW_CMDS = [c for c in shell_commands() if c[2] not in FAST]
 @pytest.mark.slow
 @pytest.mark.parametrize("doc, line, command, code", SLOW_CMDS, ids=_ids(SLOW_CMDS))
 def test_documented_command_runs_slow(doc, line, command, code, tmp_path, request):
-    _run(doc, command, code, tmp_path, request)
+    _run(doc, line, command, code, tmp_path, request)
 
 
 def test_the_transient_example_of_model_md():

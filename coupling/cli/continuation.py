@@ -24,7 +24,8 @@ def register(subparsers) -> argparse.ArgumentParser:
         description="Numerical continuation of the periodic orbits of the hammer-bit-rock model in one "
                     "parameter (docs/continuation.md): branches seeded by runs from rest, followed by "
                     "pseudo-arclength continuation with their Floquet multipliers; period-doubling, fold, "
-                    "Neimark-Sacker, grazing and sliding bifurcations located; the period-doubled branch "
+                    "Neimark-Sacker, grazing and sliding bifurcations and the tension, bounce and runaway onsets "
+                    "located; the period-doubled branch "
                     "followed; coexisting stable branches and the one a run from rest reaches. Exit 5 "
                     "when a branch cannot be followed, with the parameter value and the reason.")
     p.add_argument("--preset", default="paper-fig9", choices=sorted(PRESETS), help="parameter preset")
@@ -35,9 +36,9 @@ def register(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--range", required=True, nargs=2, type=float, metavar=("START", "END"),
                    help="the parameter's range, in its units (SI names: SI units)")
     p.add_argument("--param2", default=None, metavar="NAME",
-                   help="a second parameter: every period-doubling, fold, Neimark-Sacker, grazing, sliding and "
-                        "tension point found along --param is followed over --range2 as a curve (JSON "
-                        "'curves')")
+                   help="a second parameter: every period-doubling, fold, Neimark-Sacker, grazing, sliding, "
+                        "tension, bounce and runaway point found along --param is followed over --range2 as a "
+                        "curve (JSON 'curves')")
     p.add_argument("--range2", default=None, nargs=2, type=float, metavar=("START", "END"),
                    help="the range of --param2, in its units")
     p.add_argument("--curve-points", type=int, default=21, metavar="N",
@@ -153,10 +154,12 @@ def cmd_continue(args) -> int:
 
 
 def _curves(base, d, args) -> list:
-    """Each smooth bifurcation, grazing, sliding and tension point of the diagram followed over --range2:
+    """Each smooth bifurcation, grazing, sliding, tension, bounce and runaway point of the diagram followed over
+    --range2:
     [(branch index, Curve)]."""
     from hammerbit.continuation.bifurcation import SMOOTH_KINDS
     from hammerbit.continuation.boundary import follow_boundary
+    from hammerbit.continuation.runaway import follow_runaway
     from hammerbit.continuation.touch import INDICATORS, follow_touch
     out = []
     for b in d.bifurcations:
@@ -164,6 +167,8 @@ def _curves(base, d, args) -> list:
             follow = follow_boundary
         elif b.kind in INDICATORS or b.kind == "sliding":
             follow = follow_touch
+        elif b.kind == "runaway":
+            follow = follow_runaway
         else:
             continue
         c = follow(base, b, args.param, args.param2, args.range2[0], args.range2[1], points=args.curve_points)

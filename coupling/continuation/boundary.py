@@ -25,7 +25,7 @@ from .monodromy import ContinuationError, period_map
 from .orbit import NEWTON_TOL, make_orbit
 from .parameter import Parameter
 
-__all__ = ["Curve", "follow_boundary", "CURVE_POINTS"]
+__all__ = ["Curve", "follow_boundary", "refine", "CURVE_POINTS"]
 
 #: points of a curve over the second parameter's range
 CURVE_POINTS = 21
@@ -48,13 +48,15 @@ class Curve:
     param2: str
     points: list = field(default_factory=list)
     stopped: str = ""
-    #: the orbit at each point, where the follower keeps them (the indicator boundaries of :mod:`.touch`)
+    #: the orbit at each point (at the bifurcation's own point: its orbit as located along the branch)
     orbits: list = field(default_factory=list)
 
 
 def _residual(param, param2, base, n, kind, x, w):
     k = x.shape[0] - 1
-    g = param2.at(param.at(base, x[k] * param.scale), w * param2.scale)
+    g = param.at(base, x[k] * param.scale)
+    if param2 is not None:
+        g = param2.at(g, w * param2.scale)
     res = period_map(g, x[:k], n)
     if res.s_end.shape[0] != k:
         raise ContinuationError("the section's stick/slip state changed")
@@ -89,12 +91,12 @@ def _reach(param, param2, base, bif, prev, w_to, depth=0):
         (w1, x1), (w2, x2) = prev[-2], prev[-1]
         guess = x2 + (x2 - x1) * ((w_to - w2) / (w2 - w1))
     try:
-        return _solve(param, param2, base, bif.orbit.period, bif.kind, guess, w_to)[0]
+        return _solve(param, param2, base, bif.orbit.period, bif.kind, guess, w_to)
     except (ContinuationError, np.linalg.LinAlgError, ValueError):
         if depth >= MAX_HALVINGS:
             raise
     w_mid = 0.5 * (w_from + w_to)
-    x_mid = _reach(param, param2, base, bif, prev, w_mid, depth + 1)
+    x_mid = _reach(param, param2, base, bif, prev, w_mid, depth + 1)[0]
     return _reach(param, param2, base, bif, prev + [(w_mid, x_mid)], w_to, depth + 1)
 
 
@@ -120,14 +122,37 @@ def follow_boundary(base: Groups, bif: Bifurcation, name: str, name2: str, start
         side, prev = [], [(w0, x0)]
         for w in ws[1:]:
             try:
-                x = _reach(param, param2, base, bif, prev, w)
+                x, orbit = _reach(param, param2, base, bif, prev, w)
             except (ContinuationError, np.linalg.LinAlgError, ValueError) as e:
                 curve.stopped = "; ".join(v for v in (curve.stopped, f"at {name2} = {w * param2.scale:.9g}: {e}") if v)
                 break
             prev.append((w, x))
-            side.append((x[-1] * param.scale, w * param2.scale))
+            side.append((x[-1] * param.scale, w * param2.scale, orbit))
             if on_point:
-                on_point(*side[-1])
+                on_point(*side[-1][:2])
         sides.append(side)
-    curve.points = list(reversed(sides[0])) + [(bif.value, w0 * param2.scale)] + sides[1]
+    rows = list(reversed(sides[0])) + [(bif.value, w0 * param2.scale, bif.orbit)] + sides[1]
+    curve.points = [(v, v2) for v, v2, _ in rows]
+    curve.orbits = [orb for _, _, orb in rows]
     return curve
+
+
+def refine(base: Groups, bif: Bifurcation, name: str) -> Bifurcation:
+    """The smooth bifurcation ``bif`` (located along ``name``) with its test function solved to zero by the
+    curve's Newton iteration at its own values of the other parameters (orbit and ``name`` together).
+
+    Raises
+    ------
+    ContinuationError
+        Newton's method does not converge.
+    """
+    if bif.kind not in SMOOTH_KINDS:
+        raise ValueError(f"only smooth bifurcations are refined, not {bif.kind!r}")
+    param = Parameter.on(name, base)
+    x0 = np.concatenate([bif.orbit.s, [bif.value / param.scale]])
+    try:
+        x, orbit = _solve(param, None, base, bif.orbit.period, bif.kind, x0, 0.0)
+    except (np.linalg.LinAlgError, ValueError) as e:
+        raise ContinuationError(f"the {bif.kind} point is not refined: {e}") from None
+    return Bifurcation(kind=bif.kind, value=float(x[-1] * param.scale), branch=bif.branch, orbit=orbit,
+                       detail=bif.detail)

@@ -25,6 +25,7 @@ from .continuation import Branch, BranchPoint, ContinuationOptions, follow_branc
 from .monodromy import ContinuationError
 from .orbit import MAX_PERIOD, correct_orbit, orbit_from_simulation
 from .parameter import Parameter
+from .runaway import detect_runaway, runs_away_from_rest
 from .touch import detect_touches
 
 __all__ = ["Diagram", "RestRun", "continue_orbits", "stable_intervals", "SEEDS", "MAX_BRANCHES"]
@@ -143,8 +144,11 @@ def continue_orbits(base: Groups, name: str, start: float, end: float, *, seeds:
         run = rest_run(param, param_base, float(value), diagram.branches)
         diagram.rest_runs.append(run)
         if run.period is None:
-            diagram.stops.append(f"{name} = {value:.9g}: a run from rest settles to no period up to "
-                                 f"{MAX_PERIOD} (chaos, a long period or a long transient)")
+            g = param.at(param_base, float(value))
+            why = ("runs away (the regime verdict: the bit slips and provably never sticks again)"
+                   if runs_away_from_rest(g) else
+                   f"settles to no period up to {MAX_PERIOD} (chaos, a long period or a long transient)")
+            diagram.stops.append(f"{name} = {value:.9g}: a run from rest {why}")
         if run.period is None or run.branch is not None or len(diagram.branches) >= MAX_BRANCHES:
             continue
         g = param.at(param_base, float(value))
@@ -168,6 +172,7 @@ def _add_branch(diagram: Diagram, param, base, branch: Branch, options, on_point
     index = len(diagram.branches)
     diagram.branches.append(branch)
     bifs = detect(param, base, branch.points, index) + detect_touches(param, base, branch.points, index)
+    bifs += detect_runaway(param, base, bifs)
     diagram.bifurcations.extend(bifs)
     failed = []
     for point, why in branch.stop_points:

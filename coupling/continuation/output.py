@@ -101,7 +101,7 @@ def write_netcdf(d: Diagram, path) -> None:
 
 #: marker of each bifurcation kind in the figure
 MARKERS = {"period-doubling": "o", "fold": "s", "neimark-sacker": "D", "grazing": "^", "sliding": "v",
-           "bounce": "x", "tension": "<", "branch-end": "|", "border-collision": "P"}
+           "bounce": "x", "tension": "<", "runaway": ">", "branch-end": "|", "border-collision": "P"}
 
 
 def section_points(orbit) -> np.ndarray:

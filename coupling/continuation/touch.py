@@ -1,4 +1,4 @@
-"""Boundaries where an indicator's extremum along the periodic orbit touches zero (grazing, sliding, tension onset): located along a branch and followed in two parameters.
+"""Boundaries where an indicator's extremum along the periodic orbit touches zero (grazing, sliding, tension and bounce onset): located along a branch and followed in two parameters.
 
 These boundaries are not zeros of a test function of the multipliers
 (:mod:`.boundary`) but of an indicator along the orbit, a continuous function
@@ -16,7 +16,13 @@ of the parameters on both sides though not a smooth one of the orbit:
 ``tension``
     the spring starts to pull the bit: the smallest drive on the bit
     ``min_t (f_k + f_c)`` crosses zero (the library's Stepper tracks it,
-    locating each dip between its steps).
+    locating each dip between its steps);
+``bounce``
+    the stuck bit's drive would need the rock to pull it back (the regime
+    verdict's bounce: ``F_d < -F_s`` while stuck): the smallest drive plus the
+    static threshold over the stick phases, ``min_{stuck} (f_k + f_c) + 1``,
+    crosses zero (:func:`bounce_margin`; the same tracker, reset at each stick
+    and slip event of the orbit).
 
 The periodic-orbit system is augmented with the indicator,
 
@@ -52,8 +58,8 @@ from .monodromy import ORBIT_SOLVER, ContinuationError, period_map
 from .orbit import PeriodicOrbit, correct_orbit
 from .parameter import Parameter
 
-__all__ = ["max_overlap", "min_drive", "INDICATORS", "detect_touches", "follow_touch", "SAMPLES_PER_PERIOD",
-           "BRACKET_STEP", "ROOT_TOL"]
+__all__ = ["max_overlap", "min_drive", "bounce_margin", "INDICATORS", "detect_touches", "follow_touch",
+           "SAMPLES_PER_PERIOD", "BRACKET_STEP", "ROOT_TOL"]
 
 #: samples of the orbit per forcing period when looking for the largest overlap
 SAMPLES_PER_PERIOD = 2000
@@ -148,9 +154,46 @@ def min_drive(orbit: PeriodicOrbit) -> float:
     return float(st.fstate[KL.F_DRIVE_MIN])
 
 
+def bounce_margin(orbit: PeriodicOrbit) -> float:
+    """The smallest drive on the stuck bit plus the static threshold, ``min_{stuck} (f_k + f_c) + 1``, over the
+    orbit's period [F_s]: negative where the verdict flags a bounce (the rock would have to pull the bit back).
+
+    The orbit is integrated from one stick or slip event to the next with the Stepper's drive tracker reset at
+    each; a phase counts as stuck by the bit's mode at its middle (robust to where the event lands on the
+    phase's first step).
+
+    Raises
+    ------
+    ValueError
+        The orbit never sticks: there is no stuck bit to bounce.
+    """
+    g = orbit.groups
+    t_n = orbit.period * g.period
+    kinds = orbit.events[:, KL.L_KIND].astype(int)
+    switches = orbit.events[(kinds == KL.EV_STICK) | (kinds == KL.EV_SLIP_START), KL.L_T]
+    bounds = np.unique(np.concatenate([[0.0], switches[(switches > 0.0) & (switches < t_n)], [t_n]]))
+    st = Stepper(g, solver=ORBIT_SOLVER, y0=orbit.state, compile_helper=False)
+    lowest = math.inf
+    try:
+        for t0, t1 in zip(bounds[:-1], bounds[1:]):
+            st.fstate[KL.F_DRIVE_MIN] = math.inf
+            st.advance(0.5 * (t0 + t1))
+            stuck = st.istate[KL.I_STICK] == KL.STICK
+            st.advance(t1)
+            if stuck:
+                lowest = min(lowest, float(st.fstate[KL.F_DRIVE_MIN]))
+    except SolverError as e:
+        raise ContinuationError(f"the orbit could not be integrated: {e}") from None
+    if lowest == math.inf:
+        raise ValueError("the orbit never sticks: no stuck bit to bounce")
+    return lowest + 1.0
+
+
 #: the indicators by boundary kind, and what their zero means
 INDICATORS = {"grazing": (max_overlap, "the contact overlap's maximum touches zero (an impact appears)"),
-              "tension": (min_drive, "the drive's minimum on the bit touches zero (the spring starts to pull it)")}
+              "tension": (min_drive, "the drive's minimum on the bit touches zero (the spring starts to pull it)"),
+              "bounce": (bounce_margin, "the drive's minimum on the stuck bit touches -F_s (the rock would have to "
+                                        "pull it back: a bounce)")}
 
 
 def _phase_durations(orbit: PeriodicOrbit) -> np.ndarray:
