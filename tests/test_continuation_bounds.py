@@ -27,25 +27,43 @@ RUNAWAY_SCENE = dict(a=0.2, b=0.78)
 SIDE = 1e-5
 
 
-def _located(scene, end, kind):
+def _bifurcations(scene, end):
     base = preset("paper-fig9").replace(**scene)
     n, s = orbit_from_simulation(base)
     param = Parameter.on("b", base)
     branch = follow_branch(param, base, correct_orbit(base, s, n), end)
     bifs = detect(param, base, branch.points, 0)
-    found = [b for b in bifs + detect_runaway(param, base, bifs) if b.kind == kind]
-    assert len(found) == 1
+    return base, bifs + detect_runaway(param, base, bifs)
+
+
+def _one(located, kind):
+    base, bifs = located
+    found = [b for b in bifs if b.kind == kind]
+    assert len(found) == 1, [b.kind for b in bifs]
     return base, found[0]
 
 
 @pytest.fixture(scope="module")
 def bounce_onset():
-    return _located(BOUNCE_SCENE, 0.05, "bounce")
+    return _one(_bifurcations(BOUNCE_SCENE, 0.05), "bounce")
 
 
 @pytest.fixture(scope="module")
-def runaway_onset():
-    return _located(RUNAWAY_SCENE, 0.84, "runaway")
+def runaway_scene_bifurcations():
+    return _bifurcations(RUNAWAY_SCENE, 0.84)
+
+
+@pytest.fixture(scope="module")
+def runaway_onset(runaway_scene_bifurcations):
+    return _one(runaway_scene_bifurcations, "runaway")
+
+
+def test_the_smooth_fold_is_located_as_a_fold_to_its_multiplier(runaway_scene_bifurcations):
+    """The fold that ends the stick-slip family is smooth (its multiplier passes +1 continuously): located on
+    the arclength, its multiplier is +1 to 1e-6, and it is named a fold, not a border collision."""
+    _, fold = _one(runaway_scene_bifurcations, "fold")
+    assert not [b for b in runaway_scene_bifurcations[1] if b.kind == "border-collision"]
+    assert np.min(np.abs(fold.orbit.multipliers - 1.0)) < 1e-6
 
 
 def _settled_bounces(g, state, periods=40):
@@ -164,14 +182,14 @@ def test_the_diagram_reports_the_runaway_onset_and_a_run_from_rest_that_runs_awa
     assert simulate(preset("paper-fig9").replace(a=0.2, b=0.84), 100).flags.runaway
 
 
-def test_a_corner_that_runs_from_its_orbit_do_not_confirm_is_no_runaway_onset():
-    # lab at a = 0.15: the stable stick-slip orbit ends at a corner near b = 0.92008 (its slip onset on the
-    # phase-0 section), where Newton's method on the fold test finds a point that runs from it leave on both sides
+def test_a_fold_that_runs_from_its_orbit_do_not_confirm_is_no_runaway_onset():
+    # lab at a = 0.15: the stable stick-slip orbit ends at a fold near b = 0.92008, where runs from the orbit
+    # leave on both sides (the fold's ghost): the verdict check does not confirm it as a runaway onset
     base = preset("lab").replace(b=0.9)
     n, s = orbit_from_simulation(base)
     param = Parameter.on("b", base)
     bifs = detect(param, base, follow_branch(param, base, correct_orbit(base, s, n), 0.93).points, 0)
-    corner = [b for b in bifs if b.kind == "border-collision" and abs(b.value - 0.92008) < 1e-4]
+    corner = [b for b in bifs if b.kind == "fold" and abs(b.value - 0.92008) < 1e-4]
     assert len(corner) == 1
     assert _runs_away(base.replace(b=corner[0].value - 1e-6), corner[0].orbit.state)
     assert _runs_away(base.replace(b=corner[0].value + 1e-6), corner[0].orbit.state)

@@ -20,8 +20,10 @@ disappears (the bit velocity's minimum touches zero in slip, or the drive's
 maximum touches the static threshold in stick: *sliding*), a bounce appears.  A change in the number of impacts or stick phases per
 period counts, not only their appearance from none.
 A change is located by bisection of the arclength step between the two points
-(each trial a pseudo-arclength correction), until the parameter bracket is
-below :data:`LOCATE_TOL` (scaled parameter).
+(each trial a pseudo-arclength correction), until the arclength bracket is
+below :data:`LOCATE_TOL`.  The arclength, not the parameter: at a fold the
+parameter is quadratic in the arclength, so a parameter bracket of 1e-9 can
+still hold the two sides of the fold far apart, with the multiplier far from +1.
 """
 from __future__ import annotations
 
@@ -41,7 +43,8 @@ from .parameter import Parameter
 __all__ = ["Bifurcation", "SMOOTH_KINDS", "SIGNATURE_KINDS", "test_values", "signature", "detect",
            "locate", "switch_period_doubling", "LOCATE_TOL"]
 
-#: the parameter bracket (scaled) at which a bifurcation counts as located
+#: the arclength bracket (scaled state and parameter; it bounds the scaled parameter's) at which a
+#: bifurcation counts as located
 LOCATE_TOL = 1e-9
 #: bisection steps at most (the bracket halves each time)
 LOCATE_MAX_STEPS = 60
@@ -123,8 +126,8 @@ def locate(param: Parameter, base: Groups, a: BranchPoint, b: BranchPoint, kind:
 
     Bisection of the arclength step from ``a`` along its tangent; each trial is
     corrected onto the branch.  Returns the trial orbit on ``b``'s side of the
-    change at the end (the bracket in the scaled parameter below
-    :data:`LOCATE_TOL`).
+    change at the end (the arclength bracket below :data:`LOCATE_TOL`; the tangent is a unit vector,
+    so the scaled parameter's bracket is below it too).
     """
     n = a.orbit.period
     xa = np.concatenate([a.orbit.s, [a.value / param.scale]])
@@ -133,10 +136,9 @@ def locate(param: Parameter, base: Groups, a: BranchPoint, b: BranchPoint, kind:
         return None  # the section's coordinates changed between the two: no common arclength
     t = a.tangent
     lo, hi = 0.0, float(t @ (xb - xa))
-    q_lo, q_hi = xa[-1], xb[-1]
     best = b.orbit
     for _ in range(LOCATE_MAX_STEPS):
-        if abs(q_hi - q_lo) < LOCATE_TOL:
+        if abs(hi - lo) < LOCATE_TOL:
             break
         mid = 0.5 * (lo + hi)
         got = corrector(param, base, xa + mid * t, t, n, 12, reach=abs(hi - lo) + abs(mid))
@@ -145,9 +147,9 @@ def locate(param: Parameter, base: Groups, a: BranchPoint, b: BranchPoint, kind:
         x, res, _ = got
         orb = make_orbit(param.at(base, x[-1] * param.scale), n, x[:-1], res)
         if _changed(kind, a, orb):
-            hi, q_hi, best = mid, x[-1], orb
+            hi, best = mid, orb
         else:
-            lo, q_lo = mid, x[-1]
+            lo = mid
     return best
 
 
