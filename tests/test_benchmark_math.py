@@ -243,3 +243,21 @@ def test_warm_speed_boot_maps_a_checkout_without_installing_it(tmp_path):
                        timeout=60)
     assert r.returncode == 0, r.stderr
     assert r.stdout.strip() == "checkout | checkout model | 7"
+
+
+@pytest.mark.parametrize("text, rounds", [(None, 3), ("", 3), ("8", 8), (" 12 ", 12)])
+def test_warm_speed_rounds_come_from_the_environment(monkeypatch, text, rounds):
+    from benchmarks import bench_warm_speed as W
+    if text is None:
+        monkeypatch.delenv("HAMMERBIT_BENCH_ROUNDS", raising=False)
+    else:
+        monkeypatch.setenv("HAMMERBIT_BENCH_ROUNDS", text)
+    assert W.rounds_from_env() == rounds
+
+
+@pytest.mark.parametrize("text", ["0", "-2", "three", "2.5"])
+def test_warm_speed_bad_rounds_are_refused_naming_the_variable(monkeypatch, text):
+    from benchmarks import bench_warm_speed as W
+    monkeypatch.setenv("HAMMERBIT_BENCH_ROUNDS", text)
+    with pytest.raises(ValueError, match=f"HAMMERBIT_BENCH_ROUNDS={text!r}.*positive integer"):
+        W.rounds_from_env()
