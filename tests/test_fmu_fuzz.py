@@ -8,6 +8,7 @@ instance ends bit-identical to a clean instance that made only the valid calls.
 """
 import json
 import math
+import signal
 import subprocess
 import sys
 import zipfile
@@ -107,17 +108,20 @@ ALL_FMUS = ["built_fmu", "built_native_fmu", "built_string_fmu", "built_native_s
             "built_native_fmu3", "built_native_string_fmu3"]
 
 
-def fuzz_states(fmu: Path, tmp: Path, *, seed: int, count: int, watchdog: float, timeout: float) -> dict:
+def fuzz_states(fmu: Path, tmp: Path, *, seed: int, count: int, watchdog: float, timeout: float,
+                cpu_budget: int | None = None) -> dict:
     """Run the state fuzzing host on ``fmu``; its counts per kind and outcome.
 
     A crash of the host (a signal), a hang of one state beyond ``watchdog`` seconds (the
-    host's own watchdog ends it with a traceback), an accepted state whose outputs leave their
+    host's own watchdog ends it with a traceback) or beyond ``cpu_budget`` to ``cpu_budget + 1``
+    s of CPU (SIGXCPU: a hang whatever the load), an accepted state whose outputs leave their
     declared ranges, or a lost instance fails the calling test, naming the state."""
     d = tmp / "fmu"
     with zipfile.ZipFile(fmu) as zf:
         zf.extractall(d)
     try:
-        proc = subprocess.run([sys.executable, str(STATE_FUZZ_HOST), str(d), str(seed), str(count), str(watchdog)],
+        args = [sys.executable, str(STATE_FUZZ_HOST), str(d), str(seed), str(count), str(watchdog)]
+        proc = subprocess.run(args + ([str(cpu_budget)] if cpu_budget is not None else []),
                               capture_output=True, text=True, timeout=timeout)
     except subprocess.TimeoutExpired as e:
         last = (e.stdout or b"")[-300:]
@@ -127,7 +131,8 @@ def fuzz_states(fmu: Path, tmp: Path, *, seed: int, count: int, watchdog: float,
     if proc.returncode != 0:
         done = [ln for ln in lines if ln[:1].isdigit()]
         after = f"after state {done[-1]!r}" if done else "before the first state"
-        kind = (f"crashed with signal {-proc.returncode}" if proc.returncode < 0 else
+        kind = (f"hung (over {cpu_budget} s of CPU)" if proc.returncode == -signal.SIGXCPU else
+                f"crashed with signal {-proc.returncode}" if proc.returncode < 0 else
                 "hung (watchdog)" if "Timeout" in proc.stderr else f"exited {proc.returncode}")
         pytest.fail(f"{fmu.name}: the host {kind} {after}: {last}\n{proc.stderr[-2000:]}")
     counts = json.loads(last)
