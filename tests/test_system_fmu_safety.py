@@ -13,7 +13,7 @@ import pytest
 
 pytest.importorskip("fmpy")
 
-from test_fmu_fuzz import _assert_exercised, fuzz_states  # noqa: E402
+from test_fmu_fuzz import CPU_BUDGET, WATCHDOG, _assert_exercised, fuzz_states  # noqa: E402
 from test_glibc_baseline import too_new, version_references  # noqa: E402
 
 from hammerbit.cosim.config import CosimConfig, default_hammer  # noqa: E402
@@ -42,15 +42,6 @@ def test_the_binary_needs_no_more_than_glibc_2_17(system_fmu, tmp_path):
         refs = version_references(tmp_path / name)
         assert refs.get("libc.so.6"), f"{name}: no version references read (objdump's format?)"
         assert too_new(refs) == [], f"{name} needs more than glibc 2.17"
-
-
-#: a hang is a state that computes for more than this (to this + 1) seconds of CPU: CPU time, not
-#: wall time, so that a loaded host (a load of 11 on 2 cores stretches a 0.13 s state to a second of
-#: wall time) is not taken for a hang, and a real one (states of a hammer 1e12 x0 into the bit
-#: computed 20 s before the state checks refused them) is caught at any load
-CPU_BUDGET = 1
-#: the wall-clock watchdog beside it catches a state that blocks without computing
-WATCHDOG = 60.0
 
 
 def test_fuzzed_states_never_crash_or_hang_the_host(system_fmu, tmp_path):
