@@ -115,8 +115,8 @@ def kernel_problem(stepper, p_expected, t: float, t_start: float, omega: float, 
 
 def _forces_problem(y, contact_mode: int, p):
     """Why the contact mode does not fit the positions (None: it does): in contact, the contact
-    law's force must be finite (the hammer clear of the bit marked in contact raises a negative
-    overlap to a fractional power)."""
+    law's force must be finite (contact marked without an impact device, whose gap is infinite,
+    gives an infinite force)."""
     if contact_mode != K.CONTACT:
         return None
     from . import kernel_forces as KF

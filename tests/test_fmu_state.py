@@ -143,10 +143,10 @@ def test_a_pythonfmu_state_inconsistent_with_its_parameters_or_clock_is_refused(
 
 
 @pytest.mark.parametrize("flavour", ["pythonfmu", "native"])
-def test_a_contact_mode_with_the_hammer_clear_of_the_bit_is_refused(stepped_states, flavour):
-    """The mode in range but not fitting the positions: the hammer clear of the bit (free) marked in
-    contact gives the contact law a negative overlap to a fractional power, a non-finite contact
-    force (an accepted fuzzed state of the native flavour read contact_force = -inf)."""
+def test_a_contact_mode_without_an_impact_device_is_refused(stepped_states, flavour):
+    """The mode in range but not fitting the positions: the default FMU has no impact device (an
+    infinite gap), so contact marked in its state gives an infinite contact force (an accepted
+    fuzzed state of the native flavour read contact_force = -inf)."""
     ist = _ist_of_json(stepped_states["pythonfmu"][1])
     assert ist[K.I_CONTACT] == K.FREE, "the stepped state is not free: the test would be vacuous"
     d, data = stepped_states[flavour]

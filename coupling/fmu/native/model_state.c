@@ -73,8 +73,8 @@ static const char *derived_invalid(const model_state *s) {
     return NULL;
 }
 
-/* the hybrid mode fits the positions: the forces of the state finite (a contact mode with the
- * hammer clear of the bit raises a negative overlap to a fractional power) */
+/* the hybrid mode fits the positions: the forces of the state finite (contact marked without an
+ * impact device, whose gap is infinite, gives an infinite contact force) */
 static const char *forces_invalid(const model_state *s) {
     double y[4], p[HBK_N_P], f[4];
     int64_t ist[HBK_N_ISTATE];
