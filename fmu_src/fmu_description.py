@@ -207,7 +207,8 @@ SYSTEM_VARIABLES = (
     SystemVariable("slip_count", "Int32", "output", "", "slip phases of the bit started so far"),
     SystemVariable("coupling_error", "Float64", "output", "", "error estimate of the last communication "
                    "step: the larger of the relative errors of the bit position (to the largest penetration "
-                   "so far) and of the mean WOB, from a shadow run at a 32 times tighter tolerance"),
+                   "so far) and of the mean WOB, from a shadow run at a 32 times tighter tolerance; at a step "
+                   "corrected from the shadow, the shadow's error (the difference over 32^(8/9))"),
     SystemVariable("regime", "Int32", "output", "", "regime bits: bounce and tension seen in the last "
                    "communication step, runaway and stall the verdicts on the run so far"),
 )

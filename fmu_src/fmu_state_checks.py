@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from . import kernel_layouts as K
 from .kernel_layouts import N_P
 from .validation import RANGES
@@ -108,6 +110,21 @@ def kernel_problem(stepper, p_expected, t: float, t_start: float, omega: float, 
     want = (t - t_start) * omega
     if not abs(tau - want) <= _TAU_REL_TOL * max(1.0, abs(want)):
         return f"the kernel's clock tau = {tau!r} is not omega (t - t_start) = {want!r}"
+    return _forces_problem(stepper[:4], int(stepper[n_y + K.I_CONTACT]), p)
+
+
+def _forces_problem(y, contact_mode: int, p):
+    """Why the contact mode does not fit the positions (None: it does): in contact, the contact
+    law's force must be finite (contact marked without an impact device, whose gap is infinite,
+    gives an infinite force)."""
+    if contact_mode != K.CONTACT:
+        return None
+    from . import kernel_forces as KF
+    y, p = np.asarray(y, dtype=float), np.asarray(p, dtype=float)
+    with np.errstate(all="ignore"):
+        force = KF.contact_force(KF.overlap(y, p), y[1] - y[3], p, contact_mode)
+    if not math.isfinite(force):
+        return f"the contact mode does not fit the positions: the contact force is {force!r}"
     return None
 
 

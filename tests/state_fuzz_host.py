@@ -1,6 +1,6 @@
 """A host process that feeds fuzzed FMU states to an FMU (run by tests/test_fmu_fuzz.py).
 
-    python state_fuzz_host.py FMU_DIR SEED COUNT WATCHDOG_S
+    python state_fuzz_host.py FMU_DIR SEED COUNT WATCHDOG_S [CPU_S]
 
 The FMU (extracted in FMU_DIR) is stepped to a state with some history, which is serialised.
 Then COUNT fuzzed byte strings, of three kinds in turn, are deserialised, and each accepted
@@ -15,7 +15,10 @@ state is set and stepped:
 
 Before each state a watchdog (``faulthandler``) is armed for WATCHDOG_S seconds: a state that
 hangs the FMU ends this process with a traceback, a crash ends it with a signal; the parent
-sees either.  Each state prints ``<index> <kind> <outcome>`` (``refused``, ``ran``, ``failed``:
+sees either.  With CPU_S (whole seconds), the process's CPU time is limited too (RLIMIT_CPU, reset
+before each state to what is used plus CPU_S + 1): a state that computes for more than CPU_S to
+CPU_S + 1 s of CPU ends the process with SIGXCPU, however loaded the machine (the wall-clock
+watchdog can then be generous: a loaded host stretches wall time, not CPU time).  Each state prints ``<index> <kind> <outcome>`` (``refused``, ``ran``, ``failed``:
 accepted, then a step refused) as soon as it is done; the last line is a JSON summary.  An
 accepted state whose outputs leave the declared ranges (Reals finite and within min/max, the
 counters >= 0, the mode among its values) prints ``bad <index> <kind> <what>`` and exits 3.
@@ -25,6 +28,7 @@ from __future__ import annotations
 import faulthandler
 import json
 import math
+import resource
 import struct
 import sys
 from pathlib import Path
@@ -172,6 +176,7 @@ def _prepare(fmu_dir: Path) -> tuple:
 
 def main(argv) -> int:
     fmu_dir, seed, count, watchdog = Path(argv[1]), int(argv[2]), int(argv[3]), float(argv[4])
+    cpu_budget = int(argv[5]) if len(argv) > 5 else None
     rng = np.random.default_rng(seed)
     s, base, valid = _prepare(fmu_dir)
     check = Checker(s)
@@ -181,6 +186,8 @@ def main(argv) -> int:
         kind = KINDS[i % len(KINDS)]
         data = fuzzed(kind, valid, rng)
         faulthandler.dump_traceback_later(watchdog, exit=True)
+        if cpu_budget is not None:
+            _limit_cpu(cpu_budget)
         outcome = "ran"
         try:
             state = s.fmu.deSerializeFMUstate(data)
@@ -224,6 +231,14 @@ def main(argv) -> int:
         s.t = t_base
     print(json.dumps(counts), flush=True)
     return 0
+
+
+def _limit_cpu(budget: int) -> None:
+    """SIGXCPU once this process has computed ``budget`` to ``budget + 1`` s more (the limit counts
+    whole seconds)."""
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    used = usage.ru_utime + usage.ru_stime
+    resource.setrlimit(resource.RLIMIT_CPU, (int(used) + 1 + budget, resource.RLIM_INFINITY))
 
 
 def _state_time(data: bytes) -> float:

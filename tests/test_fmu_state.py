@@ -140,3 +140,15 @@ def test_a_pythonfmu_state_inconsistent_with_its_parameters_or_clock_is_refused(
         doc[field] = value
     status, errors = _deserialize_status(d, data[:FRONT_HEADER] + json.dumps(doc).encode())
     assert status == FMI_ERROR and errors, field
+
+
+@pytest.mark.parametrize("flavour", ["pythonfmu", "native"])
+def test_a_contact_mode_without_an_impact_device_is_refused(stepped_states, flavour):
+    """The mode in range but not fitting the positions: the default FMU has no impact device (an
+    infinite gap), so contact marked in its state gives an infinite contact force (an accepted
+    fuzzed state of the native flavour read contact_force = -inf)."""
+    ist = _ist_of_json(stepped_states["pythonfmu"][1])
+    assert ist[K.I_CONTACT] == K.FREE, "the stepped state is not free: the test would be vacuous"
+    d, data = stepped_states[flavour]
+    status, errors = _deserialize_status(d, _with_ist_entry(flavour, data, ist, K.I_CONTACT, K.CONTACT))
+    assert status == FMI_ERROR and errors

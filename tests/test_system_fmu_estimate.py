@@ -2,12 +2,19 @@
 
 The truth is the FMU's relative error against an independent reference: the
 monolithic subsystem in its physical (nodal) form, run by the library's Stepper
-at rtol 1e-8 (1e4 times tighter than the FMU's solver), with the link force's
+at rtol 1e-10 (1e6 times tighter than the FMU's solver), with the link force's
 integral as one more state so that the WOB impulse over each master step comes
 from the hammer's momentum balance without quadrature.  The truth of a step is
 the larger of the bit position's error (relative to the largest penetration so
 far) and the mean WOB's error over the step (relative); the estimate must be
 within 3x of it wherever it is above 1e-6.
+
+The reference's own floor: at rtol 1e-8 it is 3e-6 off one at 1e-11 on most
+steps of the drilling scene, but 2.1e-4 at the step ending at 0.30 s, whose
+mean WOB (-20.6 N) is near zero; at 1e-10 it is 2.2e-7 off there and 2.5e-8
+elsewhere.  That step is one the FMU corrects (the main run's difference from
+the shadow, 5.7e-3 relative to a mean WOB of 20 N, exceeds the tolerance), so
+the corrected-step class is judged against the 1e-10 reference.
 """
 from __future__ import annotations
 
@@ -29,7 +36,7 @@ FACTOR = 3.0
 FLOOR = 1e-6
 #: the FMU's tolerance (its start value)
 TOLERANCE = 1e-3
-REF_RTOL = 1e-8
+REF_RTOL = 1e-10
 
 
 def drilling_config(field, stop):
@@ -83,64 +90,95 @@ def reference_steps(string, cfg, stop, h):
 
 
 def truth_and_estimate(path, ref, h):
-    """``(truth, estimate)`` at the end of each master step of ``h``."""
-    s = Slave(path)
+    """``(truth, estimate, corrected)`` at the end of each master step of ``h``; corrected: the FMU
+    logged that it went on from the shadow's state in that step."""
+    log = []
+    s = Slave(path, logger=log)
     out, scale = [], 0.0
     try:
         for x_ref, wob_ref in ref:
+            n_log = len(log)
             s.step(h)
             x, wob, est = s.real("bit_position", "mean_wob", "coupling_error")
             scale = max(scale, abs(x_ref))
             pen = abs(x - x_ref) / scale if scale > 0.0 else abs(x - x_ref)   # the bit not moved yet
-            out.append((max(pen, abs(wob / wob_ref - 1.0)), est))
+            corrected = any("corrected" in m for m in log[n_log:])
+            out.append((max(pen, abs(wob / wob_ref - 1.0)), est, corrected))
     finally:
         s.close()
     return np.array(out)
 
 
-def assert_within_factor(pairs):
-    """Within FACTOR where the truth is above FLOOR; a step whose estimate exceeds the FMU's
-    tolerance was corrected (the main run went on from the shadow's state, its outputs the
-    shadow's): there the estimate is the main run's error before the correction, which must not be
-    below the truth (an over-estimate, documented in docs/fmu.md)."""
-    truth, est = pairs[:, 0], pairs[:, 1]
-    corrected = est > TOLERANCE
-    assert np.all(est[corrected] >= truth[corrected])
-    judged = (truth > FLOOR) & ~corrected
+def assert_within_factor(rows, *, corrected_steps: bool):
+    """Within FACTOR where the truth is above FLOOR, on ordinary steps and on the steps the FMU
+    corrected (the main run went on from the shadow's state, its outputs the shadow's; the estimate
+    the difference over the runs' error ratio); ``corrected_steps``: the run must hold one at least
+    whose truth is above the floor.  The ratios are printed (``pytest -s``)."""
+    truth, est, corrected = rows[:, 0], rows[:, 1], rows[:, 2] > 0.5
+    judged = truth > FLOOR
     assert judged.sum() >= len(truth) // 2, "the truth is below the floor: the test would be vacuous"
-    ratio = est[judged] / truth[judged]
-    assert ratio.min() >= 1.0 / FACTOR and ratio.max() <= FACTOR, \
-        f"estimate / truth in [{ratio.min():.3g}, {ratio.max():.3g}], allowed [1/{FACTOR:g}, {FACTOR:g}]"
+    if corrected_steps:
+        assert (judged & corrected).any(), "no corrected step above the floor: the test would be vacuous"
+    failures = []
+    for label, sel in (("ordinary", judged & ~corrected), ("corrected", judged & corrected)):
+        if not sel.any():
+            continue
+        ratio = est[sel] / truth[sel]
+        print(f"\n{label} steps: {sel.sum()}, estimate / truth in [{ratio.min():.3g}, {ratio.max():.3g}]")
+        if not (ratio.min() >= 1.0 / FACTOR and ratio.max() <= FACTOR):
+            failures.append(f"{label}: estimate / truth in [{ratio.min():.3g}, {ratio.max():.3g}]")
+    assert not failures, f"{failures}, allowed [1/{FACTOR:g}, {FACTOR:g}]"
 
 
 @pytest.mark.parametrize("h", [1.0, pytest.param(0.01, marks=pytest.mark.slow)])
 def test_estimate_within_three_times_the_truth(field, drilling_fmu, h):
     stop = 2.0
     ref = reference_steps(field, drilling_config(field, stop), stop, h)
-    assert_within_factor(truth_and_estimate(drilling_fmu, ref, h))
+    assert_within_factor(truth_and_estimate(drilling_fmu, ref, h), corrected_steps=h == 0.01)
 
 
-def test_a_step_beyond_the_tolerance_goes_on_from_the_shadow(field, tmp_path):
-    """field-2200m with a fixed top: the bit slips once and sticks at 0.11 s, grazingly.  At some
-    master steps near 10 ms (times k h, a host's clock) the main run's steps miss that stick (the bit
-    slides on, 2.4e-3 too far) and the shadow catches it: the FMU reports the difference and goes on
-    from the shadow, so every run ends within tolerance of the reference.  Which steps miss depends
-    on the last bits of the build's matrices: many steps are tried, and at least one must miss."""
-    from hammerbit.cosim.reference import monolithic
+def fixed_config(field):
+    """field-2200m with a fixed top: the bit slips once and sticks at 0.11 s, grazingly."""
+    return CosimConfig(stop=0.2, step=0.01, rig=default_hammer(field), top=TopCondition.parse("fixed"), rtol=1e-6)
+
+
+@pytest.fixture(scope="module")
+def fixed_fmu(field, tmp_path_factory):
     from hammerbit.fmu.build_system import build_system_fmu
-    stop = 0.2
-    cfg = CosimConfig(stop=stop, step=0.01, rig=default_hammer(field), top=TopCondition.parse("fixed"), rtol=1e-6)
-    path = build_system_fmu(field, cfg, tmp_path / "DS.fmu", log=lambda m: None)
-    ref = monolithic(field, cfg)
+    return build_system_fmu(field, fixed_config(field), tmp_path_factory.mktemp("fixed") / "DS.fmu",
+                            log=lambda m: None)
+
+
+def test_estimate_within_three_times_the_truth_at_a_corrected_step(field, drilling_fmu):
+    """The first 0.3 s of the drilling scene at 10 ms steps: the step ending at 0.30 s, whose mean
+    WOB (-20.6 N) is near zero, so that the main run's relative difference from the shadow (5.7e-3)
+    exceeds the tolerance, is corrected; its estimate is the shadow's error, within 3x (the main
+    run's difference was 26x the truth).  (The other kind of corrected step, the fixed top's grazing
+    stick at 0.11 s, is not judged here: whether the runs and the reference stick there depends on
+    the last bits of the build and of the master's clock, so its truth is not reproducible.)"""
+    stop, h = 0.3, 0.01
+    ref = reference_steps(field, drilling_config(field, stop), stop, h)
+    assert_within_factor(truth_and_estimate(drilling_fmu, ref, h), corrected_steps=True)
+
+
+def test_a_step_beyond_the_tolerance_goes_on_from_the_shadow(field, fixed_fmu):
+    """The fixed top's grazing stick: at some master steps near 10 ms (times k h, a host's clock)
+    the main run's steps miss that stick (the bit slides on, 2.4e-3 too far) and the shadow catches
+    it: the FMU logs the correction and goes on from the shadow, so every run ends within tolerance
+    of the reference.  Which steps miss depends on the last bits of the build's matrices: many steps
+    are tried, and at least one must miss."""
+    from hammerbit.cosim.reference import monolithic
+    ref = monolithic(field, fixed_config(field))
     x_ref = float(ref.data["bit_position"][-1])
     missed, worst = 0, 0.0
     for j in range(80):
         h = 0.01 * (1.0 + j * 1e-11)
-        s = Slave(path)
+        log = []
+        s = Slave(fixed_fmu, logger=log)
         try:
             for k in range(20):
                 s.fmu.doStep(k * h, h)
-                missed += s.real("coupling_error")[0] > 1e-3
+            missed += sum("corrected" in m for m in log)
             worst = max(worst, abs(s.real("bit_position")[0] / x_ref - 1.0))
         finally:
             s.close()

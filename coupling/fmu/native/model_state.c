@@ -5,6 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "kernel_api.h"
 #include "model_native.h"
 
 /* ------------------------------------------------------------------------------------------ */
@@ -72,6 +73,20 @@ static const char *derived_invalid(const model_state *s) {
     return NULL;
 }
 
+/* the hybrid mode fits the positions: the forces of the state finite (contact marked without an
+ * impact device, whose gap is infinite, gives an infinite contact force) */
+static const char *forces_invalid(const model_state *s) {
+    double y[4], p[HBK_N_P], f[4];
+    int64_t ist[HBK_N_ISTATE];
+    memcpy(y, s->y, sizeof y);
+    memcpy(p, s->p, sizeof p);
+    memcpy(ist, s->ist, sizeof ist);
+    hb_forces(y, ist, p, f);
+    for (int i = 0; i < 4; i++)
+        if (!isfinite(f[i])) return "its hybrid mode does not fit its positions (a force is not finite)";
+    return NULL;
+}
+
 /* NULL if `s` can be a state of this build, checked in full; else the reason */
 static const char *state_invalid(const model_state *s) {
     if (s->magic != MODEL_STATE_MAGIC || s->size != sizeof *s) return "it is not a state of this build";
@@ -95,7 +110,8 @@ static const char *state_invalid(const model_state *s) {
     if (!isfinite(s->fst[HBK_F_T]) || !(s->fst[HBK_F_H] > 0.0 && isfinite(s->fst[HBK_F_H])))
         return "its solver time or step proposal is not finite and positive";
     const char *why = ist_invalid(s->ist);
-    return why ? why : derived_invalid(s);
+    if (!why) why = derived_invalid(s);
+    return why ? why : forces_invalid(s);
 }
 
 static fmi2Status n_set_state(fmi2Component c, fmi2FMUstate state) {

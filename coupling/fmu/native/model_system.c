@@ -259,15 +259,24 @@ static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
     free(kept);
     s->t = t + h;
     double dtau = s->fst[HSYS_F_T] - tau_a;
-    s->coupling_error = error_estimate(s, dtau, x2a, x2a_shadow, tau_a);
-    if (s->coupling_error > s->tolerance) {
+    double difference = error_estimate(s, dtau, x2a, x2a_shadow, tau_a);
+    s->coupling_error = difference;
+    if (difference > s->tolerance) {
         /* the main run left the tolerance in this step (an event its steps handled otherwise, such
-         * as a grazing stick): it goes on from the shadow's more accurate state, and the outputs are
-         * the shadow's; the estimate stays the main run's error, an over-estimate of theirs */
+         * as a grazing stick, or a mean WOB near zero that its relative error is taken against): it
+         * goes on from the shadow's more accurate state, and the outputs are the shadow's.  Their
+         * error is the shadow's: the difference scaled down by the ratio of the two runs' errors
+         * (Richardson), an upper bound where the main run missed an event the shadow caught */
         memcpy(s->y, s->shadow.y, sizeof s->y);
         memcpy(s->ist, s->shadow.ist, sizeof s->ist);
         memcpy(s->fst, s->shadow.fst, sizeof s->fst);
         x2a = x2a_shadow, x3a = x3a_shadow;
+        s->coupling_error = difference / SYS_SHADOW_ERROR_RATIO;
+        char at[40], d[40];
+        hb_repr(t + h, at, sizeof at);
+        hb_repr(difference, d, sizeof d);
+        hb_model_log(m, fmi2OK, "step to t = %s s corrected: the main run differed from the shadow by %s, "
+                     "beyond tolerance; it goes on from the shadow's state", at, d);
     }
     sys_outputs(s, dtau, x2a, x3a, tau_a);
     s->regime = 0;

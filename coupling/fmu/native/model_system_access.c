@@ -131,9 +131,17 @@ static int all_finite(const double *v, size_t n) {
 static const char *solution_invalid(const sysstate *s, const double *y, const int64_t *ist, const double *fst,
                                     const double *opts) {
     if (!all_finite(y, SYS_NY)) return "its solver state holds a non-finite number";
+    /* the hybrid system is stiff far outside its physical range (a hammer 100 x0 inside the bit, a
+     * string state of 1e9): the solver would spend minutes there before its step-storm limit */
+    for (int i = 0; i < SYS_NY; i++)
+        if (!(fabs(y[i]) <= SYS_STATE_LIMIT)) return "its solver state is beyond the physical range";
+    if (!(fabs(y[HSYS_X_HAMMER] - y[HSYS_X_BIT]) <= SYS_GAP_LIMIT))
+        return "its hammer is further from the bit than the physical range";
+    if (memcmp(&y[4 + HSYS_IC], &HSYS_Y0[4 + HSYS_IC], sizeof(double)) != 0)
+        return "its subsystem's constant state is not 1";
     for (int i = 0; i < HSYS_N_OPTS; i++) {
         int tol = i == HSYS_O_RTOL || i == HSYS_O_ATOL;
-        if (tol ? !(isfinite(opts[i]) && opts[i] > 0.0) : memcmp(&opts[i], &HSYS_OPTS[i], sizeof(double)) != 0)
+        if (!tol && memcmp(&opts[i], &HSYS_OPTS[i], sizeof(double)) != 0)
             return "its solver options are not this build's";
     }
     for (int i = 0; i < HSYS_N_FSTATE; i++)
@@ -150,6 +158,23 @@ static const char *solution_invalid(const sysstate *s, const double *y, const in
         int64_t lo = (i == HSYS_I_WIN || i == HSYS_I_SWIN) ? -(INT64_C(1) << 40) : 0;
         if (ist[i] < lo || ist[i] > (INT64_C(1) << 40)) return "a counter or index of its solver state is out of range";
     }
+    return NULL;
+}
+
+/* the solver tolerances of both runs, as fmi2ExitInitializationMode sets them from a tolerance in
+ * range (a tolerance of 1e-300 would never finish a step); before it, the build's */
+static const char *tolerances_invalid(const sysstate *s) {
+    const double *o = s->opts, *so = s->shadow.opts;
+    if (!s->ready)
+        return memcmp(o, HSYS_OPTS, sizeof s->opts) != 0 || memcmp(so, HSYS_OPTS, sizeof s->opts) != 0
+                   ? "its solver options are not this build's" : NULL;
+    double rtol = o[HSYS_O_RTOL], atol = rtol * HSYS_ATOL_PER_RTOL;
+    if (!(HSYS_MIN_tolerance * HSYS_RTOL_PER_TOLERANCE <= rtol && rtol <= HSYS_MAX_tolerance * HSYS_RTOL_PER_TOLERANCE))
+        return "its solver tolerance is out of range";
+    double srtol = rtol * SYS_SHADOW_RTOL_FACTOR, satol = atol * SYS_SHADOW_RTOL_FACTOR;
+    if (memcmp(&o[HSYS_O_ATOL], &atol, sizeof atol) != 0 || memcmp(&so[HSYS_O_RTOL], &srtol, sizeof srtol) != 0 ||
+        memcmp(&so[HSYS_O_ATOL], &satol, sizeof satol) != 0)
+        return "its solver tolerances are not those of one tolerance";
     return NULL;
 }
 
@@ -178,7 +203,13 @@ static const char *state_invalid(const sysstate *s) {
         if (input ? !isfinite(s->p[i]) : memcmp(&s->p[i], &HSYS_P[i], sizeof(double)) != 0)
             return "its kernel parameters are not this build's";
     }
-    if (!(s->p[HSYS_P_ETA] > 0.0 && s->p[HSYS_P_A] >= 0.0)) return "its forcing is out of range";
+    /* the forcing as apply_inputs sets it from the applied inputs (a frequency of 1e12 times the
+     * input's would make the solver step a billion times a period) */
+    double a = s->applied[IN_AMPLITUDE] / HSYS_F0, eta = HB_TWO_PI * s->applied[IN_FREQUENCY] / HSYS_OMEGA;
+    if (s->ready && (memcmp(&s->p[HSYS_P_A], &a, sizeof a) != 0 || memcmp(&s->p[HSYS_P_ETA], &eta, sizeof eta) != 0))
+        return "its forcing is not its applied inputs'";
+    if (!(s->p[HSYS_P_ETA] > 0.0 && s->p[HSYS_P_A] >= 0.0 && s->p[HSYS_P_PHI] >= 0.0 && s->p[HSYS_P_PHI] <= HB_TWO_PI))
+        return "its forcing is out of range";
     double dv = s->applied[IN_FEED_VELOCITY] - HSYS_FEED_BUILD, dw = s->applied[IN_WOB_SET_POINT] - HSYS_WOB_BUILD;
     for (int64_t i = 0; i < HSYS_NZ; i++)
         for (int64_t k = HSYS_CSR[i]; k < HSYS_CSR[i + 1]; k++) {
@@ -190,6 +221,8 @@ static const char *state_invalid(const sysstate *s) {
         if (i == HSYS_IC) want = HSYS_G_IC + dv * HSYS_DG_V + dw * HSYS_DG_W;
         if (memcmp(&s->lin[HSYS_NNZ + i], &want, sizeof want) != 0) return "its subsystem is not this build's";
     }
+    const char *why_tol = tolerances_invalid(s);
+    if (why_tol) return why_tol;
     const char *why_regime = sys_regime_invalid(s);
     if (why_regime) return why_regime;
     const char *why_run = solution_invalid(s, s->y, s->ist, s->fst, s->opts);
