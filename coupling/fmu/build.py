@@ -152,7 +152,7 @@ def check_start_values(values: Mapping[str, float]) -> dict:
             raise UnknownVariableError(name, known)
     vals = start_values(values)
     rig, _ = HammerBitRock._validate({k: v for k, v in vals.items() if k not in ("preload", "harmonic_force")})
-    for name, _unit, _desc in INPUTS:   # bounded by the static friction threshold of these parameters
+    for name in (v.name for v in INPUTS):   # bounded by the static friction threshold of these parameters
         check_range(name, vals[name], input_range(name, rig.scales.friction_force))
     return {name: vals[name] for name in values}
 
