@@ -211,8 +211,8 @@ SYSTEM_VARIABLES = (
     FmuVariable("hammer_velocity", "Float64", "output", "m/s", "hammer velocity"),
     FmuVariable("contact_force", "Float64", "output", "N", "contact force between hammer and bit"),
     FmuVariable("stick_slip", "Int32", "output", "", "1 while the bit sticks, 0 while it slips"),
-    FmuVariable("impact_count", "Int32", "output", "", "impacts of the hammer on the bit so far"),
-    FmuVariable("slip_count", "Int32", "output", "", "slip phases of the bit started so far"),
+    FmuVariable("impact_count", "UInt64", "output", "", "impacts of the hammer on the bit so far"),
+    FmuVariable("slip_count", "UInt64", "output", "", "slip phases of the bit started so far"),
     FmuVariable("coupling_error", "Float64", "output", "", "error estimate of the last communication "
                    "step: the larger of the relative errors of the bit position (to the largest penetration "
                    "so far) and of the mean WOB, from a shadow run at a 32 times tighter tolerance"),

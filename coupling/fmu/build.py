@@ -418,6 +418,9 @@ def build_fmu(out=None, *, options: BuildOptions = BuildOptions(), **kw) -> Path
             contents = {n: zf.read(n) for n in zf.namelist() if not n.endswith("/")}
         md = _edit_model_description(contents["modelDescription.xml"])
         contents["modelDescription.xml"] = md
+        from hammerbit.fmu.table_check import check_description
+        from hammerbit.model.fmu_description import HAMMER_VARIABLES
+        check_description(md, HAMMER_VARIABLES, out.name)
         model_identifier = ET.fromstring(md).find("CoSimulation").get("modelIdentifier")
         if options.native_front:
             add_native_front(contents, md.decode("utf-8"), model_identifier, work)
