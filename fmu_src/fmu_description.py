@@ -31,25 +31,12 @@ from dataclasses import dataclass
 from . import kernel_layouts
 from .regime_codes import REGIME_BITS
 
-__all__ = ["FMI2_TYPE", "COUNTER_SUFFIX", "fmi3_type", "FmuVariable", "value_references", "SYSTEM_VARIABLES", "SYSTEM_INPUT_TOPS", "STRING_VARIABLES", "string_description_fields", "UNITS", "PARAMETERS", "BOOL_PARAMETERS", "INPUTS", "OUTPUTS", "STATUS_VARIABLE", "HAMMER_VARIABLES", "TopCondition", "TOP_CONDITIONS", "top_condition", "top_conditions_text", "REGIME_BITS", "TWO_PI", "OPERATIONS",
+__all__ = ["FMI2_TYPE", "FmuVariable", "value_references", "SYSTEM_VARIABLES", "SYSTEM_INPUT_TOPS", "STRING_VARIABLES", "string_description_fields", "UNITS", "PARAMETERS", "BOOL_PARAMETERS", "INPUTS", "OUTPUTS", "STATUS_VARIABLE", "HAMMER_VARIABLES", "TopCondition", "TOP_CONDITIONS", "top_condition", "top_conditions_text", "REGIME_BITS", "TWO_PI", "OPERATIONS",
            "SI_NAMES", "SCALE_FORMULAS", "GROUP_FORMULAS", "GROUP_SLOTS", "KERNEL_SLOTS", "evaluate", "si_to_groups", "formula_names"]
 
 #: the FMI 3 type of a variable -> its FMI 2 type
 FMI2_TYPE = {"Float64": "Real", "Int32": "Integer", "UInt64": "Integer", "Boolean": "Boolean",
              "String": "String"}
-#: the suffix of the names of counters (UInt64 in FMI 3; modes and flags are Int32)
-COUNTER_SUFFIX = "_count"
-
-
-def fmi3_type(name: str, fmi2_type: str) -> str:
-    """The FMI 3 type of the FMU variable ``name`` whose FMI 2 type is ``fmi2_type``: Float64 for
-    the reals, UInt64 for the counters, Int32 for the modes, codes and ``regime`` flags."""
-    if fmi2_type == "Integer":
-        return "UInt64" if name.endswith(COUNTER_SUFFIX) else "Int32"
-    types = {v: k for k, v in FMI2_TYPE.items() if v != "Integer"}
-    if fmi2_type not in types:
-        raise ValueError(f"no FMI 3 type for the FMI 2 type {fmi2_type!r} of {name!r}")
-    return types[fmi2_type]
 
 
 @dataclass(frozen=True)

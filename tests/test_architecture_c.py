@@ -126,8 +126,9 @@ def _write_headers(inc: Path) -> None:
     (inc / "hb_native.h").write_text(native_header({}, layout()))
     from hammerbit.fmu.fmi3_description import fmi3_header, fmi3_model_description
     from hammerbit.fmu.native_build import STATES
+    from hammerbit.model.fmu_description import HAMMER_VARIABLES
     from hammerbit.model.kernel_layouts import EVENT_NAMES
-    (inc / "hb_fmi3.h").write_text(fmi3_header(fmi3_model_description(md, EVENT_NAMES), len(STATES)))
+    (inc / "hb_fmi3.h").write_text(fmi3_header(fmi3_model_description(md, EVENT_NAMES, HAMMER_VARIABLES), len(STATES)))
     write_description_header(inc)
     (inc / "hs_string.h").write_text(string_header(string_build("lab"), DEFAULT_STEPS))
     from hammerbit.cosim.config import CosimConfig, default_hammer

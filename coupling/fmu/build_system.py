@@ -338,7 +338,7 @@ def build_system_fmu(string, config, out=None, *, tolerance: float = 1e-3, log=p
         (tmp / "hsys_data.h").write_text(system_header(data))
         md3, sources, defines = None, SYSTEM_SOURCES, ()
         if fmi_version == 3:
-            md3 = fmi3_model_description(md, ())
+            md3 = fmi3_model_description(md, (), SYSTEM_VARIABLES)
             (tmp / "hb_fmi3.h").write_text(fmi3_header(md3, 0))
             sources, defines = SYSTEM_SOURCES + FMI3_SOURCES, FMI3_DEFINES
         check_description(md if md3 is None else md3, SYSTEM_VARIABLES, out.name)

@@ -365,7 +365,7 @@ def assemble_native_fmu(python_fmu: Path, out: Path, start_values: dict, *, log=
     from hammerbit.model.slave import HammerBitRock
     with zipfile.ZipFile(python_fmu) as zf:
         md = native_model_description(zf.read("modelDescription.xml"))
-    md3 = fmi3_model_description(md, EVENT_NAMES) if fmi_version == 3 else None
+    md3 = fmi3_model_description(md, EVENT_NAMES, HAMMER_VARIABLES) if fmi_version == 3 else None
     check_description(md if md3 is None else md3, HAMMER_VARIABLES, out.name)
     with tempfile.TemporaryDirectory(prefix="hammerbit_native_fmu_") as tmp:
         built = build_binaries(md, Path(tmp), start_values=start_values, log=log, fmi3_xml=md3)

@@ -275,7 +275,7 @@ def build_native_string_fmu(string_arg, out=None, *, steps=None, build=None, log
         (tmp / "hs_string.h").write_text(string_header(build, steps))
         md3, sources, defines = None, STRING_SOURCES, ()
         if fmi_version == 3:
-            md3 = fmi3_model_description(md, ())
+            md3 = fmi3_model_description(md, (), STRING_VARIABLES)
             (tmp / "hb_fmi3.h").write_text(fmi3_header(md3, 0))
             sources, defines = STRING_SOURCES + FMI3_SOURCES, FMI3_DEFINES
         check_description(md if md3 is None else md3, STRING_VARIABLES, out.name)
