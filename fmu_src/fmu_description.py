@@ -4,8 +4,7 @@ What both languages need to agree on is written here once, in Python, and the bu
 into C (:mod:`hammerbit.fmu.c_description`); nothing of it is typed again in C:
 
 * the FMI types of the variables (FMI 3 names, with the FMI 2 type each maps to);
-* the variables of ``DrillingSystem.fmu`` (:data:`SYSTEM_VARIABLES`; its value references are
-  their order);
+* the variables of the three FMUs and their value references (below);
 * the integer codes of the Drillstring's ``top_condition`` (:data:`TOP_CONDITIONS`) and the
   bits of the ``regime`` verdict (:mod:`.regime_codes`);
 * the formulas from the SI rig parameters to the paper's groups and the scales
@@ -14,11 +13,14 @@ into C (:mod:`hammerbit.fmu.c_description`); nothing of it is typed again in C:
   evaluates it (:func:`evaluate`, used by ``RigParameters.to_groups``) and the generator writes
   it out as C with the same operations in the same order, so that both give the same bits.
 
-The variables of every FMU are here: ``DrillingSystem.fmu``'s :data:`SYSTEM_VARIABLES`,
-``Drillstring.fmu``'s :data:`STRING_VARIABLES` and ``HammerBitRock.fmu``'s :data:`UNITS`,
-:data:`PARAMETERS`, :data:`BOOL_PARAMETERS`, :data:`INPUTS` and :data:`OUTPUTS` (their ranges,
-start values and nominals: :mod:`.fmu_variables`).  The value references are the order in which the slaves register them,
-read back from ``modelDescription.xml`` by the builds.
+Every variable of every FMU is an :class:`FmuVariable` of its FMU's table, in value-reference
+order: ``HammerBitRock.fmu``'s :data:`HAMMER_VARIABLES` (:data:`INPUTS`, :data:`PARAMETERS`,
+:data:`BOOL_PARAMETERS`, :data:`OUTPUTS`, then :data:`STATUS_VARIABLE`; the ranges and nominals
+its build's start values give: :mod:`.fmu_variables`), ``Drillstring.fmu``'s
+:data:`STRING_VARIABLES` and ``DrillingSystem.fmu``'s :data:`SYSTEM_VARIABLES`.  A variable's
+value reference is its index in its table (:func:`value_references`): the slaves register the
+tables in order, the C headers are generated from them, and the builds check that the
+``modelDescription.xml`` they ship declares exactly these (:mod:`hammerbit.fmu.table_check`).
 """
 from __future__ import annotations
 
@@ -29,25 +31,12 @@ from dataclasses import dataclass
 from . import kernel_layouts
 from .regime_codes import REGIME_BITS
 
-__all__ = ["FMI2_TYPE", "COUNTER_SUFFIX", "fmi3_type", "SystemVariable", "SYSTEM_VARIABLES", "SYSTEM_INPUT_TOPS", "STRING_VARIABLES", "string_description_fields", "UNITS", "PARAMETERS", "BOOL_PARAMETERS", "INPUTS", "OUTPUTS", "TopCondition", "TOP_CONDITIONS", "top_condition", "top_conditions_text", "REGIME_BITS", "TWO_PI", "OPERATIONS",
+__all__ = ["FMI2_TYPE", "FmuVariable", "value_references", "SYSTEM_VARIABLES", "SYSTEM_INPUT_TOPS", "STRING_VARIABLES", "string_description_fields", "UNITS", "PARAMETERS", "BOOL_PARAMETERS", "INPUTS", "OUTPUTS", "STATUS_VARIABLE", "HAMMER_VARIABLES", "TopCondition", "TOP_CONDITIONS", "top_condition", "top_conditions_text", "REGIME_BITS", "TWO_PI", "OPERATIONS",
            "SI_NAMES", "SCALE_FORMULAS", "GROUP_FORMULAS", "GROUP_SLOTS", "KERNEL_SLOTS", "evaluate", "si_to_groups", "formula_names"]
 
 #: the FMI 3 type of a variable -> its FMI 2 type
 FMI2_TYPE = {"Float64": "Real", "Int32": "Integer", "UInt64": "Integer", "Boolean": "Boolean",
              "String": "String"}
-#: the suffix of the names of counters (UInt64 in FMI 3; modes and flags are Int32)
-COUNTER_SUFFIX = "_count"
-
-
-def fmi3_type(name: str, fmi2_type: str) -> str:
-    """The FMI 3 type of the FMU variable ``name`` whose FMI 2 type is ``fmi2_type``: Float64 for
-    the reals, UInt64 for the counters, Int32 for the modes, codes and ``regime`` flags."""
-    if fmi2_type == "Integer":
-        return "UInt64" if name.endswith(COUNTER_SUFFIX) else "Int32"
-    types = {v: k for k, v in FMI2_TYPE.items() if v != "Integer"}
-    if fmi2_type not in types:
-        raise ValueError(f"no FMI 3 type for the FMI 2 type {fmi2_type!r} of {name!r}")
-    return types[fmi2_type]
 
 
 @dataclass(frozen=True)
@@ -166,50 +155,56 @@ def si_to_groups(si: dict) -> tuple:
 
 
 @dataclass(frozen=True)
-class SystemVariable:
-    """One variable of ``DrillingSystem.fmu`` (value reference: its index in :data:`SYSTEM_VARIABLES`)."""
+class FmuVariable:
+    """One variable of an FMU; its value reference is its index in its FMU's table
+    (:data:`HAMMER_VARIABLES`, :data:`STRING_VARIABLES`, :data:`SYSTEM_VARIABLES`)."""
 
     name: str
     type: str           #: FMI 3 type name (:data:`FMI2_TYPE` gives the FMI 2 one)
-    causality: str      #: parameter, input or output
-    unit: str           #: SI unit ("" for counts and codes)
+    causality: str      #: parameter, input, output or local
+    unit: str           #: SI unit ("" for counts, codes and where the description names it)
     description: str
     start: object = None  #: parameters and inputs: the start value (None: the build's value)
-    min: object = None
+    min: object = None    #: None: unbounded, or the build's
     max: object = None
+    #: a number; or the rig scale that sizes the variable (``length``, ``velocity``,
+    #: ``friction_force``: :class:`~.params.Scales` fields), or ``rig`` (the rig parameter's own
+    #: value); None: none declared
+    nominal: object = None
+    variability: str = ""  #: FMI 2 variability ("": the FMU's rule by causality)
 
 
 #: the variables of DrillingSystem.fmu, in value-reference order (the C model reads them by name)
 SYSTEM_VARIABLES = (
-    SystemVariable("tolerance", "Float64", "parameter", "", "relative accuracy of penetration and mean "
+    FmuVariable("tolerance", "Float64", "parameter", "", "relative accuracy of penetration and mean "
                    "WOB against the monolithic reference (the solver runs at rtol = tolerance / 10)",
                    1e-3, 1e-8, 0.1),
-    SystemVariable("amplitude", "Float64", "input", "N", "amplitude of the hammer's harmonic force", None, 0.0),
-    SystemVariable("frequency", "Float64", "input", "Hz", "frequency of the harmonic force (the phase is "
+    FmuVariable("amplitude", "Float64", "input", "N", "amplitude of the hammer's harmonic force", None, 0.0),
+    FmuVariable("frequency", "Float64", "input", "Hz", "frequency of the harmonic force (the phase is "
                    "kept continuous when it changes)", None, 1e-3, 1e4),
-    SystemVariable("wob_set_point", "Float64", "input", "N", "the auto-driller's WOB set point (only "
+    FmuVariable("wob_set_point", "Float64", "input", "N", "the auto-driller's WOB set point (only "
                    "with the auto-driller; other top conditions refuse a change)", None, 0.0),
-    SystemVariable("feed_velocity", "Float64", "input", "m/s", "the block's downward velocity (only with "
+    FmuVariable("feed_velocity", "Float64", "input", "m/s", "the block's downward velocity (only with "
                    "the feed; other top conditions refuse a change)", None),
-    SystemVariable("bit_position", "Float64", "output", "m", "bit position (down positive)"),
-    SystemVariable("rate_of_penetration", "Float64", "output", "m/s", "mean bit velocity over the last "
+    FmuVariable("bit_position", "Float64", "output", "m", "bit position (down positive)"),
+    FmuVariable("rate_of_penetration", "Float64", "output", "m/s", "mean bit velocity over the last "
                    "communication step"),
-    SystemVariable("wob", "Float64", "output", "N", "weight on bit: spring, damper and contact force on "
+    FmuVariable("wob", "Float64", "output", "N", "weight on bit: spring, damper and contact force on "
                    "the bit at the communication point"),
-    SystemVariable("mean_wob", "Float64", "output", "N", "weight on bit averaged over the last "
+    FmuVariable("mean_wob", "Float64", "output", "N", "weight on bit averaged over the last "
                    "communication step (from the hammer's momentum balance, exact to the solver's accuracy)"),
-    SystemVariable("hook_load", "Float64", "output", "N", "tension at the top of the string"),
-    SystemVariable("hammer_position", "Float64", "output", "m", "hammer position (down positive)"),
-    SystemVariable("hammer_velocity", "Float64", "output", "m/s", "hammer velocity"),
-    SystemVariable("contact_force", "Float64", "output", "N", "contact force between hammer and bit"),
-    SystemVariable("stick_slip", "Int32", "output", "", "1 while the bit sticks, 0 while it slips"),
-    SystemVariable("impact_count", "Int32", "output", "", "impacts of the hammer on the bit so far"),
-    SystemVariable("slip_count", "Int32", "output", "", "slip phases of the bit started so far"),
-    SystemVariable("coupling_error", "Float64", "output", "", "error estimate of the last communication "
+    FmuVariable("hook_load", "Float64", "output", "N", "tension at the top of the string"),
+    FmuVariable("hammer_position", "Float64", "output", "m", "hammer position (down positive)"),
+    FmuVariable("hammer_velocity", "Float64", "output", "m/s", "hammer velocity"),
+    FmuVariable("contact_force", "Float64", "output", "N", "contact force between hammer and bit"),
+    FmuVariable("stick_slip", "Int32", "output", "", "1 while the bit sticks, 0 while it slips"),
+    FmuVariable("impact_count", "UInt64", "output", "", "impacts of the hammer on the bit so far"),
+    FmuVariable("slip_count", "UInt64", "output", "", "slip phases of the bit started so far"),
+    FmuVariable("coupling_error", "Float64", "output", "", "error estimate of the last communication "
                    "step: the larger of the relative errors of the bit position (to the largest penetration "
                    "so far) and of the mean WOB, from a shadow run at a 32 times tighter tolerance; at a step "
                    "corrected from the shadow, the shadow's error (the difference over 32^(8/9))"),
-    SystemVariable("regime", "Int32", "output", "", "regime bits: bounce and tension seen in the last "
+    FmuVariable("regime", "Int32", "output", "", "regime bits: bounce and tension seen in the last "
                    "communication step, runaway and stall the verdicts on the run so far"),
 )
 
@@ -223,44 +218,44 @@ SYSTEM_INPUT_TOPS = {"wob_set_point": "auto-driller", "feed_velocity": "feed"}
 #: (m/s), ``{tops}`` (the top conditions' codes and summaries) and ``{feed}``, ``{auto}`` (the codes
 #: of the top conditions with a feed velocity and with the auto-driller's form).
 STRING_VARIABLES = (
-    SystemVariable("damping_ratio", "Float64", "parameter", "", "modal damping ratio of every string "
+    FmuVariable("damping_ratio", "Float64", "parameter", "", "modal damping ratio of every string "
                    "mode [-]; [0, 1)"),
-    SystemVariable("wob", "Float64", "parameter", "", "weight on bit of the static equilibrium [N]; "
+    FmuVariable("wob", "Float64", "parameter", "", "weight on bit of the static equilibrium [N]; "
                    "[0, buoyed weight {buoyed_weight:.6g} N]"),
-    SystemVariable("hammer_position_at_rest", "Float64", "parameter", "", "hammer position of the "
+    FmuVariable("hammer_position_at_rest", "Float64", "parameter", "", "hammer position of the "
                    "static equilibrium [m] (the hammer's initial_hammer_position)"),
-    SystemVariable("extrapolation", "Int32", "parameter", "", "polynomial order of the hammer "
+    FmuVariable("extrapolation", "Int32", "parameter", "", "polynomial order of the hammer "
                    "motion over a step and of the held force: 0, 1 or 2"),
-    SystemVariable("top_condition", "Int32", "parameter", "", "the top: {tops}"),
-    SystemVariable("feed_velocity", "Float64", "parameter", "", "top_condition {feed}: downward velocity "
+    FmuVariable("top_condition", "Int32", "parameter", "", "the top: {tops}"),
+    FmuVariable("feed_velocity", "Float64", "parameter", "", "top_condition {feed}: downward velocity "
                    "of the block [m/s]; [-{max_feed:.4g}, {max_feed:.4g}] (1000 m/h)"),
-    SystemVariable("proportional_gain", "Float64", "parameter", "", "top_condition {auto}: k_p of the "
+    FmuVariable("proportional_gain", "Float64", "parameter", "", "top_condition {auto}: k_p of the "
                    "auto-driller [m/s per N of hook-load error]; [0, 1] (default: the build's tuning "
                    "from the string's stiffness)"),
-    SystemVariable("integral_gain", "Float64", "parameter", "", "top_condition {auto}: k_i of the "
+    FmuVariable("integral_gain", "Float64", "parameter", "", "top_condition {auto}: k_i of the "
                    "auto-driller [m/s per N s]; [0, 1] (default: the build's tuning)"),
-    SystemVariable("hammer_position", "Float64", "input", "", "hammer position at the step's start [m], "
+    FmuVariable("hammer_position", "Float64", "input", "", "hammer position at the step's start [m], "
                    "downward"),
-    SystemVariable("hammer_velocity", "Float64", "input", "", "hammer velocity at the step's start "
+    FmuVariable("hammer_velocity", "Float64", "input", "", "hammer velocity at the step's start "
                    "[m/s], downward"),
-    SystemVariable("interface_force", "Float64", "output", "", "interface force on the hammer at the "
+    FmuVariable("interface_force", "Float64", "output", "", "interface force on the hammer at the "
                    "communication point [N]"),
-    SystemVariable("held_force", "Float64", "output", "", "interface force for the hammer to hold over "
+    FmuVariable("held_force", "Float64", "output", "", "interface force for the hammer to hold over "
                    "the next step [N]"),
-    SystemVariable("held_force_change", "Float64", "output", "", "held_force - wob [N] (to the hammer's "
+    FmuVariable("held_force_change", "Float64", "output", "", "held_force - wob [N] (to the hammer's "
                    "harmonic_force input)"),
-    SystemVariable("hook_load", "Float64", "output", "", "hook load: tension in the top element [N]"),
-    SystemVariable("top_position", "Float64", "output", "", "top (hook) displacement [m], downward"),
-    SystemVariable("top_velocity", "Float64", "output", "", "top (hook) velocity [m/s], downward"),
-    SystemVariable("string_length", "Float64", "local", "", "length of the string [m] (fixed at build "
+    FmuVariable("hook_load", "Float64", "output", "", "hook load: tension in the top element [N]"),
+    FmuVariable("top_position", "Float64", "output", "", "top (hook) displacement [m], downward"),
+    FmuVariable("top_velocity", "Float64", "output", "", "top (hook) velocity [m/s], downward"),
+    FmuVariable("string_length", "Float64", "local", "", "length of the string [m] (fixed at build "
                    "time)"),
-    SystemVariable("interface_stiffness", "Float64", "local", "", "interface stiffness k_i [N/m] (fixed "
+    FmuVariable("interface_stiffness", "Float64", "local", "", "interface stiffness k_i [N/m] (fixed "
                    "at build time)"),
-    SystemVariable("interface_damping", "Float64", "local", "", "interface damping c_i [N s/m] (fixed at "
+    FmuVariable("interface_damping", "Float64", "local", "", "interface damping c_i [N s/m] (fixed at "
                    "build time)"),
-    SystemVariable("buoyed_weight", "Float64", "local", "", "buoyed weight of the string [N] (fixed at "
+    FmuVariable("buoyed_weight", "Float64", "local", "", "buoyed weight of the string [N] (fixed at "
                    "build time)"),
-    SystemVariable("string_states", "Int32", "local", "", "states of the string side (fixed at build "
+    FmuVariable("string_states", "Int32", "local", "", "states of the string side (fixed at build "
                    "time)"),
 )
 
@@ -294,69 +289,98 @@ UNITS = {
     "N/m^n": None,   # Hunt-Crossley stiffness: the exponent n is a parameter
 }
 
-#: Real parameters: (name, unit, description).
-PARAMETERS = (
-    ("hammer_mass", "kg", "m1, mass of the hammer (drillstring side); > 0"),
-    ("bit_mass", "kg", "m2, mass of the bit/slider (rock side); > 0"),
-    ("stiffness", "N/m", "K, stiffness of the spring joining hammer and bit; > 0"),
-    ("damping", "N.s/m", "C, viscous damping between hammer and bit; >= 0"),
-    ("mu_static", "1", "mu_e, static friction coefficient of the bit on the rock; > 0"),
-    ("mu_kinetic", "1", "mu_d, kinetic friction coefficient at high speed; 0 < mu_d <= mu_e"),
-    ("friction_decay", "s/m", "gamma, velocity-weakening decay of the kinetic friction; >= 0"),
-    ("normal_force", "N", "F_N, normal force of the bit on the rock; static threshold F0 = mu_e F_N; > 0"),
-    ("contact_stiffness", "N/m^n", "Kc, Hunt-Crossley contact stiffness [N/m^n, n = contact_exponent]; >= 0"),
-    ("contact_exponent", "1", "n, Hunt-Crossley exponent; 0 < n <= 5"),
-    ("contact_damping", "s/m", "lam, Hunt-Crossley damping; >= 0"),
-    ("gap", "m", "R, hammer-bit gap that closes before an impact; used only when impact_enabled; >= 0"),
-    ("amplitude", "N", "A, amplitude of the internal harmonic source A sin(2 pi f t + phase) on the "
-                       "hammer, added to the input harmonic_force; >= 0"),
-    ("frequency", "Hz", "f, frequency of the internal harmonic source; > 0"),
-    ("phase", "rad", "phase of the internal harmonic source at t = 0"),
-    ("initial_hammer_position", "m", "hammer position x_b at the start time (velocities start at 0)"),
-    ("initial_bit_position", "m", "bit position x_s at the start time; penetration is measured from it"),
-    ("tolerance", "1", "relative tolerance of the adaptive solver (DOP853; absolute tolerance "
-                       "1e-2 * tolerance in the length scale F0/K); tunable"),
-)
-#: Boolean parameters: (name, description)
+def _real(name, unit, description, causality, nominal=None, variability=None) -> FmuVariable:
+    return FmuVariable(name, "Float64", causality, unit, description, nominal=nominal, variability=variability)
+
+
+#: Real parameters, in value-reference order (nominal: see :class:`FmuVariable`)
+PARAMETERS = tuple(_real(name, unit, desc, "parameter", nominal,
+                         "tunable" if name == "tolerance" else "fixed") for name, unit, nominal, desc in (
+    ("hammer_mass", "kg", "rig", "m1, mass of the hammer (drillstring side); > 0"),
+    ("bit_mass", "kg", "rig", "m2, mass of the bit/slider (rock side); > 0"),
+    ("stiffness", "N/m", "rig", "K, stiffness of the spring joining hammer and bit; > 0"),
+    ("damping", "N.s/m", "rig", "C, viscous damping between hammer and bit; >= 0"),
+    ("mu_static", "1", None, "mu_e, static friction coefficient of the bit on the rock; > 0"),
+    ("mu_kinetic", "1", None, "mu_d, kinetic friction coefficient at high speed; 0 < mu_d <= mu_e"),
+    ("friction_decay", "s/m", "rig", "gamma, velocity-weakening decay of the kinetic friction; >= 0"),
+    ("normal_force", "N", "rig", "F_N, normal force of the bit on the rock; static threshold F0 = mu_e F_N; > 0"),
+    ("contact_stiffness", "N/m^n", "rig", "Kc, Hunt-Crossley contact stiffness [N/m^n, n = contact_exponent]; "
+                                          ">= 0"),
+    ("contact_exponent", "1", None, "n, Hunt-Crossley exponent; 0 < n <= 5"),
+    ("contact_damping", "s/m", None, "lam, Hunt-Crossley damping; >= 0"),
+    ("gap", "m", "length", "R, hammer-bit gap that closes before an impact; used only when impact_enabled; >= 0"),
+    ("amplitude", "N", "rig", "A, amplitude of the internal harmonic source A sin(2 pi f t + phase) on the "
+                              "hammer, added to the input harmonic_force; >= 0"),
+    ("frequency", "Hz", None, "f, frequency of the internal harmonic source; > 0"),
+    ("phase", "rad", None, "phase of the internal harmonic source at t = 0"),
+    ("initial_hammer_position", "m", "length", "hammer position x_b at the start time (velocities start at 0)"),
+    ("initial_bit_position", "m", "length", "bit position x_s at the start time; penetration is measured from it"),
+    ("tolerance", "1", None, "relative tolerance of the adaptive solver (DOP853; absolute tolerance "
+                             "1e-2 * tolerance in the length scale F0/K); tunable"),
+))
+#: Boolean parameters
 BOOL_PARAMETERS = (
-    ("impact_enabled", "true: the hammer closes the gap and impacts the bit (Hunt-Crossley contact); "
-                       "false: no impact device (R = infinity)"),
+    FmuVariable("impact_enabled", "Boolean", "parameter", "", "true: the hammer closes the gap and impacts the "
+                "bit (Hunt-Crossley contact); false: no impact device (R = infinity)", variability="fixed"),
 )
 
-#: Real inputs: (name, unit, description)
-INPUTS = (
-    ("preload", "N", "B, weight on bit pushing the hammer toward the rock; held over each communication "
-                     "step; |B| <= 1000 F0 (F0 = mu_static normal_force, the static friction threshold; "
-                     "min/max are those of the start values)"),
-    ("harmonic_force", "N", "F_h, instantaneous external harmonic force on the hammer; held over each "
-                            "communication step (zero-order hold) and added to the internal source; "
-                            "|F_h| <= 1000 F0 (F0 = mu_static normal_force; min/max are those of the "
-                            "start values)"),
-)
+#: Real inputs (min/max: the build's, from the static friction threshold of its start values)
+INPUTS = tuple(_real(name, "N", desc, "input", "friction_force", "continuous") for name, desc in (
+    ("preload", "B, weight on bit pushing the hammer toward the rock; held over each communication "
+                "step; |B| <= 1000 F0 (F0 = mu_static normal_force, the static friction threshold; "
+                "min/max are those of the start values)"),
+    ("harmonic_force", "F_h, instantaneous external harmonic force on the hammer; held over each "
+                       "communication step (zero-order hold) and added to the internal source; "
+                       "|F_h| <= 1000 F0 (F0 = mu_static normal_force; min/max are those of the "
+                       "start values)"),
+))
 
-#: Outputs: (name, type, unit, description)
+
+def _out(name, fmi3, unit, description, nominal=None) -> FmuVariable:
+    return FmuVariable(name, fmi3, "output", unit, description, nominal=nominal,
+                       variability="continuous" if fmi3 == "Float64" else "discrete")
+
+
+#: Outputs, in value-reference order
 OUTPUTS = (
-    ("hammer_position", "Real", "m", "x_b, hammer position (drilling direction positive)"),
-    ("hammer_velocity", "Real", "m/s", "v_b, hammer velocity"),
-    ("bit_position", "Real", "m", "x_s, bit position: the penetration (from the start time on)"),
-    ("bit_velocity", "Real", "m/s", "v_s, bit velocity (>= 0: the bit only moves forward)"),
-    ("spring_force", "Real", "N", "F_k = K (x_b - x_s) + C (v_b - v_s), spring and damper force on the bit"),
-    ("contact_force", "Real", "N", "F_c, Hunt-Crossley impact force of the hammer on the bit (0 when free)"),
-    ("friction_force", "Real", "N", "friction of the rock on the bit, positive against drilling: "
-                                    "F_N (mu_d + (mu_e - mu_d) exp(-gamma v_s)) in slip, the static "
-                                    "reaction F_d in stick"),
-    ("rock_force", "Real", "N", "F_d = F_k + F_c, the force the bit drives into the rock"),
-    ("rate_of_penetration", "Real", "m/s", "mean rate of penetration since the start time, "
-                                           "(x_s - x_s(t_start)) / (t - t_start)"),
-    ("stick_slip", "Integer", None, "bit state: 0 stick, 1 slip"),
-    ("in_contact", "Boolean", None, "true while the hammer is in contact with the bit (gap closed)"),
-    ("impact_count", "Integer", None, "number of impacts (gap closures) since the start time"),
-    ("slip_count", "Integer", None, "number of stick-to-slip transitions since the start time"),
-    ("bounce_count", "Integer", None, "number of bit-bounce violations (F_d < -F_s while stuck: the "
-                                      "rock would have to pull the bit back; the bit is held)"),
-    ("regime", "Integer", None, "regime verdict known at the current time, a sum of bits: 1 runaway (the "
+    _out("hammer_position", "Float64", "m", "x_b, hammer position (drilling direction positive)", "length"),
+    _out("hammer_velocity", "Float64", "m/s", "v_b, hammer velocity", "velocity"),
+    _out("bit_position", "Float64", "m", "x_s, bit position: the penetration (from the start time on)", "length"),
+    _out("bit_velocity", "Float64", "m/s", "v_s, bit velocity (>= 0: the bit only moves forward)", "velocity"),
+    _out("spring_force", "Float64", "N", "F_k = K (x_b - x_s) + C (v_b - v_s), spring and damper force on the "
+                                         "bit", "friction_force"),
+    _out("contact_force", "Float64", "N", "F_c, Hunt-Crossley impact force of the hammer on the bit (0 when "
+                                          "free)", "friction_force"),
+    _out("friction_force", "Float64", "N", "friction of the rock on the bit, positive against drilling: "
+                                           "F_N (mu_d + (mu_e - mu_d) exp(-gamma v_s)) in slip, the static "
+                                           "reaction F_d in stick", "friction_force"),
+    _out("rock_force", "Float64", "N", "F_d = F_k + F_c, the force the bit drives into the rock", "friction_force"),
+    _out("rate_of_penetration", "Float64", "m/s", "mean rate of penetration since the start time, "
+                                                  "(x_s - x_s(t_start)) / (t - t_start)", "velocity"),
+    _out("stick_slip", "Int32", "", "bit state: 0 stick, 1 slip"),
+    _out("in_contact", "Boolean", "", "true while the hammer is in contact with the bit (gap closed)"),
+    _out("impact_count", "UInt64", "", "number of impacts (gap closures) since the start time"),
+    _out("slip_count", "UInt64", "", "number of stick-to-slip transitions since the start time"),
+    _out("bounce_count", "UInt64", "", "number of bit-bounce violations (F_d < -F_s while stuck: the "
+                                       "rock would have to pull the bit back; the bit is held)"),
+    _out("regime", "Int32", "", "regime verdict known at the current time, a sum of bits: 1 runaway (the "
                                 "bit slips and provably never sticks again with the inputs held), 2 bounce "
                                 "(a bounce so far), 4 tension (the drive on the bit fell below zero so far), "
                                 "8 stall (no slip for 20 forcing periods up to now); one warning is logged "
                                 "when it changes"),
 )
+#: the status of the last call, for the native front of the pythonfmu flavour (``last_status``)
+STATUS_VARIABLE = FmuVariable(
+    "last_status", "Int32", "local", "", "FMI status the last call should return (0 OK, 1 Warning, 2 Discard, "
+    "3 Error); the FMU's native front returns it to the master", variability="discrete")
+
+#: every variable of HammerBitRock.fmu, in value-reference order (the slave registers them so)
+HAMMER_VARIABLES = INPUTS + PARAMETERS + BOOL_PARAMETERS + OUTPUTS + (STATUS_VARIABLE,)
+
+
+def value_references(variables) -> dict:
+    """``{name: value reference}`` of an FMU's table: each variable's index in it."""
+    vrs = {v.name: vr for vr, v in enumerate(variables)}
+    if len(vrs) != len(variables):
+        raise ValueError("two variables of one FMU's table share a name")
+    return vrs

@@ -1,8 +1,9 @@
 """The variables of the HammerBitRock FMU: names, units, ranges, start values, descriptions.
 
-The tables, one per causality, are in the one description (:mod:`.fmu_description`: ``UNITS``,
-``PARAMETERS``, ``BOOL_PARAMETERS``, ``INPUTS``, ``OUTPUTS``); this module adds what the
-library's parameters give them.  Names are :class:`RigParameters` field names
+The table of the variables is in the one description (:mod:`.fmu_description`:
+``HAMMER_VARIABLES``, by causality ``PARAMETERS``, ``BOOL_PARAMETERS``, ``INPUTS``, ``OUTPUTS``,
+and ``UNITS``); this module adds what the library's parameters and the build's start values
+give them.  Names are :class:`RigParameters` field names
 wherever one exists; allowed ranges come from :data:`validation.RANGES`, the
 inputs' from the static friction threshold (:func:`input_range`); the
 ``modelDescription.xml`` declares as ``min``/``max`` exactly what the slave
@@ -15,11 +16,11 @@ from __future__ import annotations
 import math
 import struct
 
-from .fmu_description import BOOL_PARAMETERS, INPUTS, OUTPUTS, PARAMETERS, UNITS
+from .fmu_description import BOOL_PARAMETERS, HAMMER_VARIABLES, INPUTS, OUTPUTS, PARAMETERS, UNITS
 from .params import RigParameters
 from .validation import RANGES, Range
 
-__all__ = ["MAX_PERIODS_PER_STEP", "UNITS", "PARAMETERS", "BOOL_PARAMETERS", "INPUTS", "OUTPUTS", "RIG_FIELDS",
+__all__ = ["MAX_PERIODS_PER_STEP", "UNITS", "HAMMER_VARIABLES", "PARAMETERS", "BOOL_PARAMETERS", "INPUTS", "OUTPUTS", "RIG_FIELDS",
            "FIXED_REALS", "range_key", "variable_range", "start_values", "nominal_values",
            "DEFAULT_TOLERANCE", "INPUT_GROUPS", "input_range", "accepted_bounds"]
 
@@ -29,7 +30,7 @@ _RIG = RigParameters()          # the lab rig at the paper's Fig. 9 operating po
 RIG_FIELDS = ("hammer_mass", "bit_mass", "stiffness", "damping", "mu_static", "mu_kinetic",
               "friction_decay", "normal_force", "contact_stiffness", "contact_exponent",
               "contact_damping", "amplitude", "frequency", "phase")
-FIXED_REALS = tuple(n for n, _, _ in PARAMETERS if n != "tolerance")
+FIXED_REALS = tuple(v.name for v in PARAMETERS if v.variability == "fixed")
 
 DEFAULT_TOLERANCE = 1e-8
 _DEFAULT_GAP = 0.84 * _RIG.scales.length     # the paper's Fig. 12 gap r = 0.84 (impact off by default)
@@ -93,7 +94,7 @@ def accepted_bounds(values: dict, accepts, names=None) -> dict:
     constraints between parameters, e.g. mu_kinetic <= mu_static, and by the library's
     ranges of the nondimensional groups)."""
     out = {}
-    for name in names or [n for n, _, _ in PARAMETERS]:
+    for name in names or [v.name for v in PARAMETERS]:
         rng = variable_range(name)
 
         def ok(x, name=name):
@@ -118,16 +119,14 @@ def start_values(overrides=None) -> dict:
 
 
 def nominal_values(rig: RigParameters) -> dict:
-    """``nominal`` of the Real variables whose size is far from 1 (the rig's own scales)."""
-    s = rig.scales
-    x0, v0, F0 = s.length, s.velocity, s.friction_force
-    out = {"hammer_position": x0, "bit_position": x0, "hammer_velocity": v0, "bit_velocity": v0,
-           "spring_force": F0, "contact_force": F0, "friction_force": F0, "rock_force": F0,
-           "rate_of_penetration": v0, "preload": F0, "harmonic_force": F0, "gap": x0,
-           "initial_hammer_position": x0, "initial_bit_position": x0}
-    for name in ("stiffness", "damping", "normal_force", "contact_stiffness", "friction_decay",
-                 "hammer_mass", "bit_mass", "amplitude"):
-        v = abs(float(getattr(rig, name)))
-        if v > 0.0 and math.isfinite(v):
-            out[name] = v
+    """``nominal`` of the Real variables whose size is far from 1: each variable's rig scale or own
+    value (:attr:`FmuVariable.nominal <.fmu_description.FmuVariable.nominal>`)."""
+    out = {}
+    for var in HAMMER_VARIABLES:
+        if var.nominal == "rig":
+            v = abs(float(getattr(rig, var.name)))
+            if v > 0.0 and math.isfinite(v):
+                out[var.name] = v
+        elif var.nominal is not None:
+            out[var.name] = float(getattr(rig.scales, var.nominal))
     return {k: float(f"{v:.6g}") for k, v in out.items() if not 0.1 <= v <= 10.0}

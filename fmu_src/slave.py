@@ -44,9 +44,10 @@ from pythonfmu.enums import Fmi2Status
 from . import build_info
 from . import kernel_driver, kernel_forces, kernel_layouts
 from . import numba_cache
+from .fmu_description import STATUS_VARIABLE
 from .fmu_state import STATE_FORMAT, pop_deserialize_reason, pop_deserialize_status
 from .fmu_variable_xml import KIND, RealVar
-from .fmu_variables import (BOOL_PARAMETERS, DEFAULT_TOLERANCE, FIXED_REALS, INPUTS, MAX_PERIODS_PER_STEP, OUTPUTS, PARAMETERS, RIG_FIELDS, UNITS, accepted_bounds, input_range, nominal_values, range_key, start_values, variable_range)
+from .fmu_variables import (DEFAULT_TOLERANCE, FIXED_REALS, HAMMER_VARIABLES, INPUTS, MAX_PERIODS_PER_STEP, OUTPUTS, PARAMETERS, RIG_FIELDS, UNITS, accepted_bounds, input_range, nominal_values, range_key, start_values, variable_range)
 from .kernel_layouts import P_B, P_FEXT
 from .params import RigParameters
 from .pythonfmu_exit import guard_pythonfmu_exit
@@ -134,44 +135,7 @@ class HammerBitRock(VariableAccess, SavedState, Fmi2Slave):
         self._committed = None     # dict of the validated parameter values in use
         self._commit(self._param_values(), warm_up=False)
 
-        rig = self._rig
-        nominal = nominal_values(rig)
-        for name, unit, desc in INPUTS:
-            rng = input_range(name, self._F0)
-            self.register_variable(RealVar(name, unit, min=rng.lo, max=rng.hi, nominal=nominal.get(name),
-                                            causality=Fmi2Causality.input,
-                                            variability=Fmi2Variability.continuous, description=desc,
-                                            setter=self._input_setter(name)))
-        for name, unit, desc in PARAMETERS:
-            rng = variable_range(name)
-            self.register_variable(RealVar(name, unit, min=rng.lo, max=rng.hi, nominal=nominal.get(name),
-                                            causality=Fmi2Causality.parameter,
-                                            variability=(Fmi2Variability.tunable if name == "tolerance"
-                                                         else Fmi2Variability.fixed),
-                                            initial=Fmi2Initial.exact, description=desc,
-                                            setter=self._param_setter(name)))
-        for name, desc in BOOL_PARAMETERS:
-            self.register_variable(Boolean(name, causality=Fmi2Causality.parameter,
-                                           variability=Fmi2Variability.fixed,
-                                           initial=Fmi2Initial.exact, description=desc,
-                                           setter=self._param_setter(name)))
-        getters = self._output_getters()
-        for name, typ, unit, desc in OUTPUTS:
-            kw = dict(causality=Fmi2Causality.output, initial=Fmi2Initial.calculated,
-                      description=desc, getter=getters[name])
-            if typ == "Real":
-                var = RealVar(name, unit, nominal=nominal.get(name),
-                               variability=Fmi2Variability.continuous, **kw)
-            elif typ == "Integer":
-                var = Integer(name, variability=Fmi2Variability.discrete, **kw)
-            else:
-                var = Boolean(name, variability=Fmi2Variability.discrete, **kw)
-            self.register_variable(var)
-        self.register_variable(Integer(
-            "last_status", causality=Fmi2Causality.local, variability=Fmi2Variability.discrete,
-            initial=Fmi2Initial.calculated, getter=self._read_last_status,
-            description="FMI status the last call should return (0 OK, 1 Warning, 2 Discard, 3 Error); "
-                        "the FMU's native front returns it to the master"))
+        self._register(nominal_values(self._rig))
         # value reference -> getter / setter, by type (the fast paths of fmi2Get/Set*)
         self._getters = {t: {} for t in (Real, Integer, Boolean)}
         self._setters = {t: {} for t in (Real, Integer, Boolean)}
@@ -186,6 +150,26 @@ class HammerBitRock(VariableAccess, SavedState, Fmi2Slave):
         self._real_set = self._setters[Real]
         HammerBitRock._STATE_SIZE = self._st.get_state().shape[0]   # the same for every instance
         guard_pythonfmu_exit(self.resources)
+
+    def _register(self, nominal: dict) -> None:
+        """Register :data:`~.fmu_description.HAMMER_VARIABLES` in their order: their value references."""
+        getters = {**self._output_getters(), STATUS_VARIABLE.name: self._read_last_status}
+        for v in HAMMER_VARIABLES:
+            kw = dict(causality=getattr(Fmi2Causality, v.causality), description=v.description,
+                      variability=getattr(Fmi2Variability, v.variability))
+            if v.causality == "parameter":
+                kw.update(initial=Fmi2Initial.exact, setter=self._param_setter(v.name))
+            elif v.causality == "input":
+                kw.update(setter=self._input_setter(v.name))
+            else:
+                kw.update(initial=Fmi2Initial.calculated, getter=getters[v.name])
+            if v.type == "Float64":
+                rng = (input_range(v.name, self._F0) if v.causality == "input"
+                       else variable_range(v.name) if v.causality == "parameter" else None)
+                bounds = {} if rng is None else dict(min=rng.lo, max=rng.hi)
+                self.register_variable(RealVar(v.name, v.unit, nominal=nominal.get(v.name), **bounds, **kw))
+            else:
+                self.register_variable((Boolean if v.type == "Boolean" else Integer)(v.name, **kw))
 
     # ------------------------------------------------------------------
     # statuses and messages
@@ -267,7 +251,7 @@ class HammerBitRock(VariableAccess, SavedState, Fmi2Slave):
         self._omega = s.omega
         # in place: the input setters hold this dict
         self.__dict__.setdefault("_input_ranges", {}).update(
-            {name: input_range(name, self._F0) for name, _, _ in INPUTS})
+            {v.name: input_range(v.name, self._F0) for v in INPUTS})
         self._x3_start = y0[2]
         self._committed = dict(vals)
         self._dirty = False
@@ -539,7 +523,7 @@ class HammerBitRock(VariableAccess, SavedState, Fmi2Slave):
         root = super().to_xml(opts)
         # min/max of the parameters: exactly the values initialisation accepts (the other
         # parameters and the inputs at their start values)
-        inputs = {name: getattr(self, name) for name, _, _ in INPUTS}
+        inputs = {v.name: getattr(self, v.name) for v in INPUTS}
         bounds = accepted_bounds(self._param_values(), lambda vals: self._accepts(vals, inputs))
         for sv in root.find("ModelVariables"):
             b = bounds.get(sv.get("name"))

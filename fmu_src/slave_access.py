@@ -136,7 +136,7 @@ class VariableAccess:
 
     def _check_inputs(self) -> None:
         """ParameterError if an input is outside its range for the parameters in use."""
-        for name, _, _ in INPUTS:
+        for name in (i.name for i in INPUTS):
             rng = self._input_ranges[name]
             value = getattr(self, name)
             if not rng.lo <= value <= rng.hi:

@@ -104,7 +104,7 @@ class SavedState:
             rig, _ = cls._validate(s["committed"])
         except ParameterError as e:
             return f"its parameters in use are invalid: {e}"
-        for (name, _, _), v in zip(INPUTS, s["inputs"]):
+        for name, v in zip((i.name for i in INPUTS), s["inputs"]):
             rng = input_range(name, rig.scales.friction_force)
             if not rng.contains(v):
                 return f"input {name!r} = {v!r} is outside {rng.text()} (1000 F0 of its parameters)"

@@ -10,7 +10,6 @@
 from __future__ import annotations
 
 import hashlib
-import json
 import re
 import shutil
 import subprocess
@@ -121,24 +120,17 @@ def _write_headers(inc: Path) -> None:
     from hammerbit.fmu.native_kernels import layout
     from hammerbit.fmu.native_string import DEFAULT_STEPS, string_header
     from hammerbit.model.slave import HammerBitRock
-    from hammerbit.model.string_model import INFO_FILE, MODEL_FILE, save_model
-    from hammerbit.model.string_slave import Drillstring
     md = native_model_description(_model_description(HammerBitRock(instance_name="x")))
     (inc / "hb_model.h").write_text(generate_header(read_model_description(md), wrapper_file="x.so"))
     (inc / "hb_python.h").write_text('#define HB_WRAPPER_FILE "x.so"\n#define HB_PYTHON_MODULES ""\n')
-    (inc / "hb_native.h").write_text(native_header(md, {}, layout()))
+    (inc / "hb_native.h").write_text(native_header({}, layout()))
     from hammerbit.fmu.fmi3_description import fmi3_header, fmi3_model_description
     from hammerbit.fmu.native_build import STATES
+    from hammerbit.model.fmu_description import HAMMER_VARIABLES
     from hammerbit.model.kernel_layouts import EVENT_NAMES
-    (inc / "hb_fmi3.h").write_text(fmi3_header(fmi3_model_description(md, EVENT_NAMES), len(STATES)))
+    (inc / "hb_fmi3.h").write_text(fmi3_header(fmi3_model_description(md, EVENT_NAMES, HAMMER_VARIABLES), len(STATES)))
     write_description_header(inc)
-    build = string_build("lab")
-    res = inc / "resources"
-    res.mkdir()
-    save_model(res / MODEL_FILE, build.arrays["forms"], build.arrays["build_values"])
-    (res / INFO_FILE).write_text(json.dumps(build.info))
-    md = _model_description(Drillstring(instance_name="x", resources=str(res)))
-    (inc / "hs_string.h").write_text(string_header(md, build, DEFAULT_STEPS))
+    (inc / "hs_string.h").write_text(string_header(string_build("lab"), DEFAULT_STEPS))
     from hammerbit.cosim.config import CosimConfig, default_hammer
     from hammerbit.drillstring import load_string
     from hammerbit.fmu.build_system import system_data, system_header

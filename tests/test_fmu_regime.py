@@ -161,7 +161,7 @@ def test_the_outputs_description_names_the_rules_numbers():
     from hammerbit.model.fmu_description import OUTPUTS
     from hammerbit.model.regime import STALL_PERIODS
     from hammerbit.model.regime_codes import REGIME_BITS
-    text = {name: desc for name, _, _, desc in OUTPUTS}["regime"]
+    text = {v.name: v.description for v in OUTPUTS}["regime"]
     assert f"{STALL_PERIODS} forcing periods" in text
     for name, bit in REGIME_BITS.items():
         if name != "transient":                   # never set by the FMU

@@ -22,8 +22,8 @@ FLAVOURS = (("pythonfmu",), ("native",), ("native", "3"))
 
 #: docs/architecture.md, "Add an FMU output": (file, text after which, text to add)
 OUTPUT_RECIPE = (
-    ("fmu_src/fmu_description.py", '    ("bounce_count", "Integer"',
-     '    ("recipe_output", "Real", "m", "twice the bit position (the recipe test)"),\n'),
+    ("fmu_src/fmu_description.py", '    _out("bounce_count",',
+     '    _out("recipe_output", "Float64", "m", "twice the bit position (the recipe test)", "length"),\n'),
     ("fmu_src/slave.py", '            "bounce_count": lambda',
      '            "recipe_output": lambda: 2.0 * (s._yi(2) * s._x0),\n'),
     ("coupling/fmu/native/model_values.c", "    case HB_VR_bit_velocity:",

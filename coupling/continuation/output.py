@@ -51,7 +51,7 @@ def _unit(name: str) -> str:
     kind, target = setting_target(name)
     if kind == "group":
         return "1"
-    return next((unit for n, unit, _ in PARAMETERS if n == target), "1")
+    return next((v.unit for v in PARAMETERS if v.name == target), "1")
 
 
 #: the CSV's columns after the parameter's: (name, unit)

@@ -152,7 +152,7 @@ def check_start_values(values: Mapping[str, float]) -> dict:
             raise UnknownVariableError(name, known)
     vals = start_values(values)
     rig, _ = HammerBitRock._validate({k: v for k, v in vals.items() if k not in ("preload", "harmonic_force")})
-    for name, _unit, _desc in INPUTS:   # bounded by the static friction threshold of these parameters
+    for name in (v.name for v in INPUTS):   # bounded by the static friction threshold of these parameters
         check_range(name, vals[name], input_range(name, rig.scales.friction_force))
     return {name: vals[name] for name in values}
 
@@ -418,6 +418,9 @@ def build_fmu(out=None, *, options: BuildOptions = BuildOptions(), **kw) -> Path
             contents = {n: zf.read(n) for n in zf.namelist() if not n.endswith("/")}
         md = _edit_model_description(contents["modelDescription.xml"])
         contents["modelDescription.xml"] = md
+        from hammerbit.fmu.table_check import check_description
+        from hammerbit.model.fmu_description import HAMMER_VARIABLES
+        check_description(md, HAMMER_VARIABLES, out.name)
         model_identifier = ET.fromstring(md).find("CoSimulation").get("modelIdentifier")
         if options.native_front:
             add_native_front(contents, md.decode("utf-8"), model_identifier, work)

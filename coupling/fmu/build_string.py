@@ -244,6 +244,9 @@ def build_string_fmu(string_arg, out=None, *, build: Optional[StringBuild] = Non
         # the native front, as HammerBitRock's: loads Python into a native host (pythonfmu's own
         # binary expects the host to be Python) and keeps the FMI calling sequence
         md = contents["modelDescription.xml"]
+        from hammerbit.fmu.table_check import check_description
+        from hammerbit.model.fmu_description import STRING_VARIABLES
+        check_description(md, STRING_VARIABLES, out.name)
         model_identifier = ET.fromstring(md).find("CoSimulation").get("modelIdentifier")
         add_native_front(contents, md.decode("utf-8"), model_identifier, work)
         tmp_out = out.with_name(out.name + ".tmp")

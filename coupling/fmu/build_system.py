@@ -220,7 +220,7 @@ def system_model_description(data: dict, guid: str) -> bytes:
     outputs = []
     for vr, v in enumerate(SYSTEM_VARIABLES):
         attrs = {"name": v.name, "valueReference": str(vr), "causality": v.causality, "description": v.description}
-        attrs["variability"] = {"parameter": "fixed", "input": "continuous"}.get(v.causality, "discrete" if v.type == "Int32" else "continuous")
+        attrs["variability"] = {"parameter": "fixed", "input": "continuous"}.get(v.causality, "continuous" if v.type == "Float64" else "discrete")
         if v.causality == "output":
             attrs["initial"] = "calculated"
             outputs.append(vr + 1)
@@ -316,6 +316,8 @@ def build_system_fmu(string, config, out=None, *, tolerance: float = 1e-3, log=p
     from hammerbit.fmu.c_description import write_description_header
     from hammerbit.fmu.fmi3_description import FMI3_PLATFORMS, fmi3_header, fmi3_model_description
     from hammerbit.fmu.native import generate_header, read_model_description
+    from hammerbit.fmu.table_check import check_description
+    from hammerbit.model.fmu_description import SYSTEM_VARIABLES
     from hammerbit.fmu.native_build import FMI3_DEFINES, FMI3_SOURCES, link_platforms, platform_compilers, \
         select_platforms
     from hammerbit.fmu.native_kernels import build_objects
@@ -336,9 +338,10 @@ def build_system_fmu(string, config, out=None, *, tolerance: float = 1e-3, log=p
         (tmp / "hsys_data.h").write_text(system_header(data))
         md3, sources, defines = None, SYSTEM_SOURCES, ()
         if fmi_version == 3:
-            md3 = fmi3_model_description(md, ())
+            md3 = fmi3_model_description(md, (), SYSTEM_VARIABLES)
             (tmp / "hb_fmi3.h").write_text(fmi3_header(md3, 0))
             sources, defines = SYSTEM_SOURCES + FMI3_SOURCES, FMI3_DEFINES
+        check_description(md if md3 is None else md3, SYSTEM_VARIABLES, out.name)
         compilers = platform_compilers(select_platforms(log, fmi_version), fmi3=fmi_version == 3)
         build_objects(tmp, list(compilers), kernels="system")
         built = link_platforms(compilers, tmp, tmp / "bin", MODEL_NAME, sources, defines)

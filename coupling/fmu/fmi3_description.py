@@ -4,8 +4,9 @@ The native builds write the FMI 2.0 description (:mod:`hammerbit.fmu.native_buil
 one is that description in FMI 3.0's form, so both versions have the same variables, names,
 value references, units, ranges and start values:
 
-* the types by :func:`hammerbit.model.fmu_description.fmi3_type` (Float64, Int32, UInt64,
-  Boolean, String);
+* the types of the FMU's table (:class:`hammerbit.model.fmu_description.FmuVariable`: Float64,
+  Int32, UInt64, Boolean, String); a variable the build adds after the table (``der(...)``) is
+  a Real, Float64;
 * ``<CoSimulation>`` declares ``mightReturnEarlyFromDoStep`` and ``hasEventMode`` where the model
   has events, ``canHandleVariableCommunicationStepSize`` as in FMI 2.0; ``<ModelExchange>`` as
   in FMI 2.0;
@@ -46,6 +47,20 @@ def _root_attrs(md2) -> dict:
     return out
 
 
+def _fmi3_types(table):
+    """``(name, FMI 2 type) -> FMI 3 type``: the table's types; Float64 for a Real the build
+    added (``der(...)``)."""
+    types = {v.name: v.type for v in table}
+
+    def fmi3_type(name: str, fmi2_type: str) -> str:
+        if name in types:
+            return types[name]
+        if fmi2_type != "Real":
+            raise Fmi3DescriptionError(f"{name!r} ({fmi2_type}) is not in the FMU's table: no FMI 3 type")
+        return "Float64"
+    return fmi3_type
+
+
 def _variables(md2, fmi3_type) -> tuple:
     """(FMI 3 variable elements, {FMI 2 index: value reference}, derivatives' value references)."""
     out, vr_of_index, der = [], {}, []
@@ -74,13 +89,13 @@ def _variables(md2, fmi3_type) -> tuple:
     return out, vr_of_index, [int(el.get("valueReference")) for el, _ in der]
 
 
-def fmi3_model_description(xml2: bytes, event_names) -> bytes:
+def fmi3_model_description(xml2: bytes, event_names, table) -> bytes:
     """The FMI 3.0 ``modelDescription.xml`` of a native FMU from its FMI 2.0 one.
 
     ``event_names`` names the event indicators (the kernels' event kinds, in the order of
     ``fmi2GetEventIndicators``); empty for an FMU without events (no Model Exchange, no early
-    return, no Event Mode: the Drillstring)."""
-    from hammerbit.model.fmu_description import fmi3_type
+    return, no Event Mode: the Drillstring); ``table``: the FMU's variables
+    (:mod:`hammerbit.model.fmu_description`), whose types the FMI 3.0 variables take."""
     md2 = ET.fromstring(xml2)
     if md2.get("fmiVersion") != "2.0":
         raise Fmi3DescriptionError("not an FMI 2.0 model description")
@@ -111,7 +126,7 @@ def fmi3_model_description(xml2: bytes, event_names) -> bytes:
         el = md2.find(tag)
         if el is not None:
             root.append(el)
-    variables, vr_of_index, der_vrs = _variables(md2, fmi3_type)
+    variables, vr_of_index, der_vrs = _variables(md2, _fmi3_types(table))
     top = max(vr_of_index.values()) + 1
     time_vr, ind_vr0 = top, top + 1
     mv = ET.SubElement(root, "ModelVariables")

@@ -94,7 +94,7 @@ def _system_hammer_values(rig, wob: float) -> dict:
     """:func:`hammer_parameters` of the HammerBitRock FMU this install builds (from its variables)."""
     from hammerbit.cosim.hammer_fmu import fmu_start_values
     from hammerbit.model.fmu_variables import INPUTS, start_values
-    inputs = {name for name, _unit, _desc in INPUTS}
+    inputs = {v.name for v in INPUTS}
     causality = {name: "input" if name in inputs else "parameter" for name in start_values()}
     reals, booleans = fmu_start_values(causality, rig, wob, HAMMER_TOLERANCE)
     return {**reals, **booleans}
