@@ -167,6 +167,20 @@ SLOW_TESTS = {
         "tests/test_cosim.py::test_estimate_within_a_factor_3_of_the_true_error[stuck-0.01]",
     "tests/test_cosim_defects.py::test_a_claimed_tolerance_holds_against_the_reference[25.0-5000.0-1.0-0.0]":
         "tests/test_cosim_defects.py::test_a_claimed_tolerance_holds_against_the_reference[20.0-5000.0-0.3-0.0]",
+    "tests/test_fmi3_platforms.py::test_windows_dll_under_wine_equals_x86_64_linux[1000]":
+        "tests/test_fmu_native_runtime.py::test_windows_host_under_wine_equals_the_linux_run",
+    "tests/test_string_fmu_native.py::test_windows_host_under_wine_equals_the_linux_run":
+        "tests/test_fmu_native_runtime.py::test_windows_host_under_wine_equals_the_linux_run",
+    "tests/test_fmu_native.py::test_ecos_runs_the_fmu_natively[pythonfmu]":
+        "tests/test_fmu_native.py::test_ecos_runs_the_fmu_natively[native]",
+    "tests/test_fmu_native_runtime.py::test_model_exchange_reproduces_the_library[paper-fig12-0.06]":
+        "tests/test_fmu_native_runtime.py::test_model_exchange_reproduces_the_library[paper-fig9-0.083]",
+    "tests/test_reference.py::test_paper_scenes_at_default_tolerance_agree_with_reference[paper-fig9-0.2]":
+        "tests/test_reference.py::test_paper_scenes_at_default_tolerance_agree_with_reference[paper-fig9-0.083]",
+    "tests/test_ssp_native.py::test_runners_give_the_pythonfmu_packages_penetration[libcosim]":
+        "tests/test_ssp_native.py::test_runners_give_the_pythonfmu_packages_penetration[fmpy]",
+    "tests/test_string_fmu.py::test_auto_driller_gain_parameter_equals_a_side_built_with_it[integral_gain]":
+        "tests/test_string_fmu.py::test_auto_driller_gain_parameter_equals_a_side_built_with_it[proportional_gain]",
 }
 
 
