@@ -78,9 +78,10 @@ def changes(every):
 
 
 @pytest.fixture(scope="module")
-def stall_fmu(field, tmp_path_factory):
-    """The FMU of the stalling scene (3 s off resonance), shared by this module's tests."""
-    return build(field, scene(field, 3.0), tmp_path_factory.mktemp("stall"))
+def stall_fmu(built_field_system_fmu):
+    """The FMU of the stalling scene (the session's shared build of field-2200m under the
+    auto-driller: the build takes nothing from the scene's stop, step or rtol)."""
+    return built_field_system_fmu
 
 
 def test_stall_off_resonance_is_the_librarys_verdict_at_every_second(field, stall_fmu):
