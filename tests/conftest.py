@@ -137,8 +137,6 @@ SLOW_TESTS = {
         "tests/test_figure_worker.py::test_worker_saves_what_this_process_saves_and_raises_what_it_raises",
     "tests/test_reference.py::test_penetration_matches_independent_reference[rtol-1e-10-no_impact]":
         "tests/test_reference.py::test_penetration_matches_independent_reference[rtol-1e-10-impact]",
-    "tests/test_system_fmu_estimate.py::test_a_step_beyond_the_tolerance_goes_on_from_the_shadow":
-        "tests/test_system_fmu_estimate.py::test_estimate_within_three_times_the_truth[1.0]",
     "tests/test_system_fmu_safety.py::test_fuzzed_states_never_crash_or_hang_the_host":
         "tests/test_system_fmu_safety.py::test_a_few_fuzzed_states_never_crash_or_hang_the_host",
     "tests/test_fmu_fuzz.py::test_fuzzed_states_never_crash_or_hang_the_host[built_string_fmu]":
