@@ -170,7 +170,7 @@ SLOW_TESTS = {
     "tests/test_string_fmu_native.py::test_windows_host_under_wine_equals_the_linux_run":
         "tests/test_fmu_native_runtime.py::test_windows_host_under_wine_equals_the_linux_run",
     "tests/test_fmu_native.py::test_ecos_runs_the_fmu_natively[pythonfmu]":
-        "tests/test_fmu_native.py::test_ecos_runs_the_fmu_natively[native]",
+        "tests/test_fmu_native.py::test_c_host_steps_10_s_like_fmpy_and_exits_0",
     "tests/test_fmu_native_runtime.py::test_model_exchange_reproduces_the_library[paper-fig12-0.06]":
         "tests/test_fmu_native_runtime.py::test_model_exchange_reproduces_the_library[paper-fig9-0.083]",
     "tests/test_reference.py::test_paper_scenes_at_default_tolerance_agree_with_reference[paper-fig9-0.2]":
