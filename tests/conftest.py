@@ -151,14 +151,6 @@ SLOW_TESTS = {
         "tests/test_continuation.py::test_bad_input_exits_2_naming_the_option[args0---param nonsense]",
     "tests/test_continuation.py::test_bad_input_exits_2_naming_the_option[args4---plot x.txt]":
         "tests/test_continuation.py::test_bad_input_exits_2_naming_the_option[args0---param nonsense]",
-    "tests/test_docs_commands.py::test_documented_command_runs[README.md:95: hammerbit simulate --preset paper-fig12 "
-    "--set a=0.06 --method rk4]":
-        "tests/test_docs_commands.py::test_documented_command_runs[cli.md:104: hammerbit simulate --preset "
-        "paper-fig12 --set a=0.06 --method rk4]",
-    "tests/test_docs_commands.py::test_documented_command_runs[fmu.md:5: python -m fmpy validate "
-    "dist/HammerBitRock.fmu]":
-        "tests/test_docs_commands.py::test_documented_command_runs[README.md:321: python -m fmpy validate "
-        "dist/HammerBitRock.fmu]",
     "tests/test_cosim.py::test_estimate_within_a_factor_3_of_the_true_error[drilling-0.002]":
         "tests/test_cosim.py::test_estimate_within_a_factor_3_of_the_true_error[drilling-0.005]",
     "tests/test_cosim.py::test_estimate_within_a_factor_3_of_the_true_error[stuck-0.005]":
