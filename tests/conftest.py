@@ -137,7 +137,46 @@ SLOW_TESTS = {
         "tests/test_figure_worker.py::test_worker_saves_what_this_process_saves_and_raises_what_it_raises",
     "tests/test_reference.py::test_penetration_matches_independent_reference[rtol-1e-10-no_impact]":
         "tests/test_reference.py::test_penetration_matches_independent_reference[rtol-1e-10-impact]",
+    "tests/test_system_fmu_safety.py::test_fuzzed_states_never_crash_or_hang_the_host":
+        "tests/test_system_fmu_safety.py::test_a_few_fuzzed_states_never_crash_or_hang_the_host",
+    "tests/test_fmu_fuzz.py::test_fuzzed_states_never_crash_or_hang_the_host[built_string_fmu]":
+        "tests/test_fmu_fuzz.py::test_fuzzed_states_never_crash_or_hang_the_host[built_fmu]",
+    "tests/test_fmu_fuzz.py::test_fuzzed_states_never_crash_or_hang_the_host[built_native_string_fmu3]":
+        "tests/test_fmu_fuzz.py::test_fuzzed_states_never_crash_or_hang_the_host[built_native_string_fmu]",
+    "tests/test_fmi3_system.py::test_system_reference_results_equal_its_run_in_fmpy[3]":
+        "tests/test_fmi3_native.py::test_fmi3_reference_results_equal_its_run_in_fmpy",
+    "tests/test_continuation.py::test_bad_input_exits_2_naming_the_option[args2---range 0.2 0.2]":
+        "tests/test_continuation.py::test_bad_input_exits_2_naming_the_option[args1---range -1]",
+    "tests/test_continuation.py::test_bad_input_exits_2_naming_the_option[args3---seeds 1]":
+        "tests/test_continuation.py::test_bad_input_exits_2_naming_the_option[args0---param nonsense]",
+    "tests/test_continuation.py::test_bad_input_exits_2_naming_the_option[args4---plot x.txt]":
+        "tests/test_continuation.py::test_bad_input_exits_2_naming_the_option[args0---param nonsense]",
+    "tests/test_cosim.py::test_estimate_within_a_factor_3_of_the_true_error[drilling-0.002]":
+        "tests/test_cosim.py::test_estimate_within_a_factor_3_of_the_true_error[drilling-0.005]",
+    "tests/test_cosim.py::test_estimate_within_a_factor_3_of_the_true_error[stuck-0.005]":
+        "tests/test_cosim.py::test_estimate_within_a_factor_3_of_the_true_error[stuck-0.01]",
+    "tests/test_cosim_defects.py::test_a_claimed_tolerance_holds_against_the_reference[25.0-5000.0-1.0-0.0]":
+        "tests/test_cosim_defects.py::test_a_claimed_tolerance_holds_against_the_reference[20.0-5000.0-0.3-0.0]",
+    "tests/test_fmi3_platforms.py::test_windows_dll_under_wine_equals_x86_64_linux[1000]":
+        "tests/test_fmu_native_runtime.py::test_windows_host_under_wine_equals_the_linux_run",
+    "tests/test_string_fmu_native.py::test_windows_host_under_wine_equals_the_linux_run":
+        "tests/test_fmu_native_runtime.py::test_windows_host_under_wine_equals_the_linux_run",
+    "tests/test_fmu_native.py::test_ecos_runs_the_fmu_natively[pythonfmu]":
+        "tests/test_fmu_native.py::test_c_host_steps_10_s_like_fmpy_and_exits_0",
+    "tests/test_fmu_native_runtime.py::test_model_exchange_reproduces_the_library[paper-fig12-0.06]":
+        "tests/test_fmu_native_runtime.py::test_model_exchange_reproduces_the_library[paper-fig9-0.083]",
+    "tests/test_reference.py::test_paper_scenes_at_default_tolerance_agree_with_reference[paper-fig9-0.2]":
+        "tests/test_reference.py::test_paper_scenes_at_default_tolerance_agree_with_reference[paper-fig9-0.083]",
+    "tests/test_ssp_native.py::test_runners_give_the_pythonfmu_packages_penetration[libcosim]":
+        "tests/test_ssp_native.py::test_runners_give_the_pythonfmu_packages_penetration[fmpy]",
+    "tests/test_string_fmu.py::test_auto_driller_gain_parameter_equals_a_side_built_with_it[integral_gain]":
+        "tests/test_string_fmu.py::test_auto_driller_gain_parameter_equals_a_side_built_with_it[proportional_gain]",
 }
+
+
+#: ``{node id: slow?}`` of every test this process collected, before ``-m`` deselects
+#: (tests/test_slow_set.py checks :data:`SLOW_TESTS` against it)
+COLLECTED = {}
 
 
 @pytest.hookimpl(tryfirst=True)
@@ -146,6 +185,7 @@ def pytest_collection_modifyitems(config, items):
     for item in items:
         if item.nodeid in SLOW_TESTS or item.nodeid.split("[")[0] in SLOW_TESTS:
             item.add_marker(pytest.mark.slow)
+        COLLECTED[item.nodeid] = item.get_closest_marker("slow") is not None
 
 
 @pytest.fixture(scope="session")
@@ -197,3 +237,40 @@ def built_system_fmu(tmp_path_factory):
     config = CosimConfig(stop=1.0, step=1e-3, rig=default_hammer(lab), top=TopCondition.parse("auto-driller"))
     return shared_build(tmp_path_factory, "system", "DrillingSystem.fmu",
                         lambda path: build_system_fmu(lab, config, path, log=lambda msg: None))
+
+
+def _field_system_build(version: int):
+    """``build(path)`` of DrillingSystem.fmu (native, FMI ``version``) of field-2200m under the
+    auto-driller, 2 s at H = 10 ms."""
+    def build(path):
+        from hammerbit.cosim.config import CosimConfig, default_hammer
+        from hammerbit.drillstring import load_string
+        from hammerbit.drillstring.top import TopCondition
+        from hammerbit.fmu.build_system import build_system_fmu
+        field = load_string("field-2200m")
+        config = CosimConfig(stop=2.0, step=0.01, rig=default_hammer(field), top=TopCondition.parse("auto-driller"))
+        return build_system_fmu(field, config, path, log=lambda msg: None, fmi_version=version)
+    return build
+
+
+@pytest.fixture(scope="session")
+def built_field_system_fmu(tmp_path_factory):
+    """``DrillingSystem.fmu`` (native, FMI 2.0) of field-2200m under the auto-driller (2 s, H = 10 ms),
+    built once per session."""
+    from hammerbit.fmu.native import FrontBuildError, find_compiler
+    try:
+        find_compiler()
+    except FrontBuildError as e:
+        pytest.skip(str(e))
+    return shared_build(tmp_path_factory, "field_system", "DrillingSystem.fmu", _field_system_build(2))
+
+
+@pytest.fixture(scope="session")
+def built_field_system_fmu3(tmp_path_factory):
+    """The FMU of :func:`built_field_system_fmu` in FMI 3.0, built once per session."""
+    from hammerbit.fmu.native import FrontBuildError, find_compiler
+    try:
+        find_compiler()
+    except FrontBuildError as e:
+        pytest.skip(str(e))
+    return shared_build(tmp_path_factory, "field_system3", "DrillingSystem.fmu", _field_system_build(3))

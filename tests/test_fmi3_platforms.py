@@ -36,11 +36,9 @@ def assert_close(got, want, label):
 
 
 @pytest.fixture(scope="module")
-def fmu3_dir(tmp_path_factory):
-    from hammerbit.fmu.build import build_fmu
-    fmu = build_fmu(tmp_path_factory.mktemp("fmi3p") / "HammerBitRock.fmu", runtime="native", fmi_version=3)
+def fmu3_dir(built_native_fmu3, tmp_path_factory):
     d = tmp_path_factory.mktemp("fmi3p_unzipped")
-    with zipfile.ZipFile(fmu) as zf:
+    with zipfile.ZipFile(built_native_fmu3) as zf:
         zf.extractall(d)
     (d / "resources").mkdir(exist_ok=True)
     return d

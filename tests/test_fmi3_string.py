@@ -22,15 +22,9 @@ AMP, FREQ = 5e-5, 25.0
 
 
 @pytest.fixture(scope="module")
-def fmus(tmp_path_factory):
-    from hammerbit.fmu.build_string import string_build
-    from hammerbit.fmu.native_string import build_native_string_fmu
-    d = tmp_path_factory.mktemp("string_fmi3")
-    build = string_build(STRING)
-    two = build_native_string_fmu(STRING, d / "2" / "Drillstring.fmu", build=build, log=lambda m: None)
-    three = build_native_string_fmu(STRING, d / "3" / "Drillstring.fmu", build=build, log=lambda m: None,
-                                    fmi_version=3)
-    return two, three
+def fmus(built_native_string_fmu, built_native_string_fmu3):
+    """The lab string's native Drillstring.fmu in FMI 2.0 and 3.0 (the session's shared builds)."""
+    return built_native_string_fmu, built_native_string_fmu3
 
 
 def drive(t: float, rest: float) -> tuple:

@@ -25,21 +25,9 @@ AGREE = 1e-12
 
 
 @pytest.fixture(scope="module")
-def system_fmus(tmp_path_factory):
-    from hammerbit.cosim.config import CosimConfig, default_hammer
-    from hammerbit.drillstring import load_string
-    from hammerbit.drillstring.top import TopCondition
-    from hammerbit.fmu.build_system import build_system_fmu
-    from hammerbit.fmu.native import FrontBuildError, find_compiler
-    try:
-        find_compiler()
-    except FrontBuildError as e:
-        pytest.skip(str(e))
-    string = load_string(STRING)
-    cfg = CosimConfig(stop=STOP, step=H, rig=default_hammer(string), top=TopCondition.parse(TOP))
-    d = tmp_path_factory.mktemp("system_fmi3")
-    return tuple(build_system_fmu(string, cfg, d / str(v) / "DrillingSystem.fmu", fmi_version=v,
-                                  log=lambda m: None) for v in (2, 3))
+def system_fmus(built_field_system_fmu, built_field_system_fmu3):
+    """field-2200m under the auto-driller (STOP, H) in FMI 2.0 and 3.0 (the session's shared builds)."""
+    return built_field_system_fmu, built_field_system_fmu3
 
 
 def test_system_fmi3_description_is_valid(system_fmus):

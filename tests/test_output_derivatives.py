@@ -209,18 +209,10 @@ def test_pythonfmu_flavour_refuses(built_fmu):
 # FMI 3.0: fmi3GetOutputDerivatives
 # ---------------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
-def fmu3_dir(tmp_path_factory):
+def fmu3_dir(built_native_fmu3, tmp_path_factory):
     import zipfile
-
-    from hammerbit.fmu.build import build_fmu
-    from hammerbit.fmu.native import FrontBuildError, find_compiler
-    try:
-        find_compiler()
-    except FrontBuildError as e:
-        pytest.skip(str(e))
-    fmu = build_fmu(tmp_path_factory.mktemp("fmi3") / "HammerBitRock.fmu", runtime="native", fmi_version=3)
     d = tmp_path_factory.mktemp("fmi3_unzipped")
-    with zipfile.ZipFile(fmu) as zf:
+    with zipfile.ZipFile(built_native_fmu3) as zf:
         zf.extractall(d)
     return d
 

@@ -33,14 +33,9 @@ REL = 1e-12
 
 
 @pytest.fixture(scope="module")
-def fmus(tmp_path_factory):
-    from hammerbit.fmu.build_string import build_string_fmu, string_build
-    from hammerbit.fmu.native_string import build_native_string_fmu
-    d = tmp_path_factory.mktemp("string_native")
-    build = string_build(STRING)
-    py = build_string_fmu(STRING, d / "python" / "Drillstring.fmu", build=build)
-    nat = build_native_string_fmu(STRING, d / "native" / "Drillstring.fmu", build=build, log=lambda m: None)
-    return py, nat
+def fmus(built_string_fmu, built_native_string_fmu):
+    """The lab string's Drillstring.fmu in both flavours (the session's shared builds)."""
+    return built_string_fmu, built_native_string_fmu
 
 
 @pytest.fixture(scope="module")

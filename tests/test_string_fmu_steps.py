@@ -196,15 +196,9 @@ def _differences(got, want):
 
 
 @pytest.fixture(scope="module")
-def native_lab(lab, tmp_path_factory):
-    from hammerbit.fmu.native import FrontBuildError, find_compiler
-    from hammerbit.fmu.native_string import build_native_string_fmu
-    try:
-        find_compiler()
-    except FrontBuildError as e:
-        pytest.skip(str(e))
-    return build_native_string_fmu("lab", tmp_path_factory.mktemp("steps") / "Drillstring.fmu", build=lab,
-                                   log=lambda m: None)
+def native_lab(built_native_string_fmu):
+    """The lab string's native Drillstring.fmu (the session's shared build)."""
+    return built_native_string_fmu
 
 
 def test_a_leftover_step_before_every_output_point_changes_nothing(native_lab):

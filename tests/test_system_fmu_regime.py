@@ -77,11 +77,18 @@ def changes(every):
     return int(np.count_nonzero(np.diff(np.r_[0, v])))
 
 
-def test_stall_off_resonance_is_the_librarys_verdict_at_every_second(field, tmp_path):
+@pytest.fixture(scope="module")
+def stall_fmu(built_field_system_fmu):
+    """The FMU of the stalling scene (the session's shared build of field-2200m under the
+    auto-driller: the build takes nothing from the scene's stop, step or rtol)."""
+    return built_field_system_fmu
+
+
+def test_stall_off_resonance_is_the_librarys_verdict_at_every_second(field, stall_fmu):
     seconds = [1, 2, 3]
     cfg = scene(field, 3.0)
     logged = []
-    got, every = fmu_verdicts(build(field, cfg, tmp_path), seconds, 0.01, logged)
+    got, every = fmu_verdicts(stall_fmu, seconds, 0.01, logged)
     want = library_verdicts(field, cfg, seconds)
     assert want[3] == REGIME_STALL, "the scene does not stall: the test would be vacuous"
     assert want[1] == 0, "the scene stalls within a second: the causal check would be vacuous"
@@ -91,12 +98,11 @@ def test_stall_off_resonance_is_the_librarys_verdict_at_every_second(field, tmp_
     assert len(regime_msgs) == changes(every) >= 1 and "stall yes" in regime_msgs[-1]
 
 
-def test_stall_verdict_is_part_of_the_state(field, tmp_path):
+def test_stall_verdict_is_part_of_the_state(field, stall_fmu):
     """Rolled back to before the stall, the verdict is 0 again and comes back at the same step; a
     state whose regime memory is corrupted is refused."""
     cfg = scene(field, 3.0)
-    path = build(field, cfg, tmp_path)
-    s = Slave(path)
+    s = Slave(stall_fmu)
     try:
         for _ in range(50):
             s.step(0.01)
