@@ -2,7 +2,7 @@
 
 The first run gets a fresh, empty ``HAMMERBIT_CACHE_DIR`` (numba compiles every
 kernel the tests use); the second run reuses that cache.  Goals: <= 3 min
-empty, <= 60 s warm.  ``--quick`` times only the warm run of one test file.
+empty, <= 90 s warm (issue 30, for the fast set as it grew).  ``--quick`` times only the warm run of one test file.
 
 The slow and stress tests (``-m slow``) are not part of the command and not
 timed here.
@@ -25,7 +25,7 @@ COMMAND = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider"]
 SLOWEST = 15
 _DURATION = re.compile(r"^\s*([\d.]+)s (setup|call|teardown)\s+(\S.*)$")
 GOAL_COLD_S = 180.0
-GOAL_WARM_S = 60.0
+GOAL_WARM_S = 90.0
 
 
 def run_pytest(args, env) -> dict:
