@@ -184,6 +184,28 @@ def test_a_ctrl_c_inside_the_compiler_is_raised_at_the_end_of_the_block():
     assert reached == [True]
 
 
+def test_a_ctrl_c_that_a_host_turns_into_another_error_is_raised_as_the_interrupt():
+    """A foreign host (pythonfmu's instantiate under fmpy) catches the KeyboardInterrupt and fails
+    with its own error: the block raises the interrupt (exit 130), not the host's error (exit 1)."""
+    from hammerbit.cli.interrupt import interrupt_or_exit
+
+    def host_instantiate():
+        try:
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.05)
+        except KeyboardInterrupt:
+            raise RuntimeError("Failed to instantiate model") from None
+
+    with pytest.raises(KeyboardInterrupt) as got:
+        with interrupt_or_exit(grace_s=60.0, always=False):
+            host_instantiate()
+    assert "Failed to instantiate model" in str(got.value.__cause__)
+    # without a Ctrl-C the host's own error goes through unchanged
+    with pytest.raises(ValueError):
+        with interrupt_or_exit(grace_s=60.0, always=False):
+            raise ValueError("a host's own error")
+
+
 def test_after_the_command_completed_a_ctrl_c_is_ignored():
     from hammerbit.cli.interrupt import interrupt_or_exit
     with interrupt_or_exit(grace_s=60.0, always=False) as guard:

@@ -151,6 +151,12 @@ def interrupt_or_exit(grace_s: float = INTERRUPT_GRACE_S, prog: str = "hammerbit
         if guard.pending and not guard.raised:
             guard.raised = True
             raise KeyboardInterrupt
+    except Exception as exc:
+        if guard.pending:
+            # the Ctrl-C surfaced as another error: a foreign host (an FMU's instantiate, an
+            # extension module) caught the KeyboardInterrupt and failed instead
+            raise KeyboardInterrupt from exc
+        raise
     finally:
         signal.signal(signal.SIGINT, old)
         guard.close()
