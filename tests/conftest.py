@@ -24,6 +24,16 @@ if _hypothesis_settings is not None:
     _hypothesis_settings.load_profile("hammerbit")
 
 
+def native_build(tmp_path_factory, key: str, name: str, build):
+    """:func:`shared_build` of a native FMU or package; skips, saying why, where no C compiler is found."""
+    from hammerbit.fmu.native import FrontBuildError, find_compiler
+    try:
+        find_compiler()
+    except FrontBuildError as e:
+        pytest.skip(str(e))
+    return shared_build(tmp_path_factory, key, name, build)
+
+
 @pytest.fixture(scope="session")
 def built_fmu(tmp_path_factory):
     """``HammerBitRock.fmu`` built once per session (``hammerbit fmu build``) into a temporary directory."""
@@ -45,13 +55,8 @@ def built_native_ssp(tmp_path_factory):
     """The package of :func:`built_ssp` (field-2200m, 22.5 Hz, H = 1 ms), native flavour, built once
     per session."""
     from hammerbit.cosim.config import field_hammer
-    from hammerbit.fmu.native import FrontBuildError, find_compiler
     from hammerbit.ssp.package import SSPOptions, build_ssp
-    try:
-        find_compiler()
-    except FrontBuildError as e:
-        pytest.skip(str(e))
-    return shared_build(tmp_path_factory, "ssp_native", "drilling.ssp", lambda path: build_ssp(
+    return native_build(tmp_path_factory, "ssp_native", "drilling.ssp", lambda path: build_ssp(
         "field-2200m", path, SSPOptions(stop=2.0, step=1e-3, rig=field_hammer().replace(frequency=22.5),
                                         runtime="native")))
 
@@ -60,12 +65,7 @@ def built_native_ssp(tmp_path_factory):
 def built_native_fmu(tmp_path_factory):
     """The native flavour (``hammerbit fmu build --runtime native``), built once per session."""
     from hammerbit.fmu.build import build_fmu
-    from hammerbit.fmu.native import FrontBuildError, find_compiler
-    try:
-        find_compiler()
-    except FrontBuildError as e:
-        pytest.skip(str(e))
-    return shared_build(tmp_path_factory, "native", "HammerBitRock.fmu",
+    return native_build(tmp_path_factory, "native", "HammerBitRock.fmu",
                         lambda path: build_fmu(path, runtime="native"))
 
 
@@ -73,12 +73,7 @@ def built_native_fmu(tmp_path_factory):
 def built_native_fmu3(tmp_path_factory):
     """The native flavour in FMI 3.0 (``--runtime native --fmi-version 3``), built once per session."""
     from hammerbit.fmu.build import build_fmu
-    from hammerbit.fmu.native import FrontBuildError, find_compiler
-    try:
-        find_compiler()
-    except FrontBuildError as e:
-        pytest.skip(str(e))
-    return shared_build(tmp_path_factory, "native3", "HammerBitRock.fmu",
+    return native_build(tmp_path_factory, "native3", "HammerBitRock.fmu",
                         lambda path: build_fmu(path, runtime="native", fmi_version=3))
 
 
@@ -198,26 +193,16 @@ def built_string_fmu(tmp_path_factory):
 @pytest.fixture(scope="session")
 def built_native_string_fmu(tmp_path_factory):
     """``Drillstring.fmu`` of the lab string, native flavour, built once per session."""
-    from hammerbit.fmu.native import FrontBuildError, find_compiler
     from hammerbit.fmu.native_string import build_native_string_fmu
-    try:
-        find_compiler()
-    except FrontBuildError as e:
-        pytest.skip(str(e))
-    return shared_build(tmp_path_factory, "string_native", "Drillstring.fmu",
+    return native_build(tmp_path_factory, "string_native", "Drillstring.fmu",
                         lambda path: build_native_string_fmu("lab", path, log=lambda msg: None))
 
 
 @pytest.fixture(scope="session")
 def built_native_string_fmu3(tmp_path_factory):
     """``Drillstring.fmu`` of the lab string, native flavour in FMI 3.0, built once per session."""
-    from hammerbit.fmu.native import FrontBuildError, find_compiler
     from hammerbit.fmu.native_string import build_native_string_fmu
-    try:
-        find_compiler()
-    except FrontBuildError as e:
-        pytest.skip(str(e))
-    return shared_build(tmp_path_factory, "string_native3", "Drillstring.fmu",
+    return native_build(tmp_path_factory, "string_native3", "Drillstring.fmu",
                         lambda path: build_native_string_fmu("lab", path, log=lambda msg: None, fmi_version=3))
 
 
@@ -228,14 +213,9 @@ def built_system_fmu(tmp_path_factory):
     from hammerbit.drillstring import load_string
     from hammerbit.drillstring.top import TopCondition
     from hammerbit.fmu.build_system import build_system_fmu
-    from hammerbit.fmu.native import FrontBuildError, find_compiler
-    try:
-        find_compiler()
-    except FrontBuildError as e:
-        pytest.skip(str(e))
     lab = load_string("lab")
     config = CosimConfig(stop=1.0, step=1e-3, rig=default_hammer(lab), top=TopCondition.parse("auto-driller"))
-    return shared_build(tmp_path_factory, "system", "DrillingSystem.fmu",
+    return native_build(tmp_path_factory, "system", "DrillingSystem.fmu",
                         lambda path: build_system_fmu(lab, config, path, log=lambda msg: None))
 
 
@@ -257,20 +237,10 @@ def _field_system_build(version: int):
 def built_field_system_fmu(tmp_path_factory):
     """``DrillingSystem.fmu`` (native, FMI 2.0) of field-2200m under the auto-driller (2 s, H = 10 ms),
     built once per session."""
-    from hammerbit.fmu.native import FrontBuildError, find_compiler
-    try:
-        find_compiler()
-    except FrontBuildError as e:
-        pytest.skip(str(e))
-    return shared_build(tmp_path_factory, "field_system", "DrillingSystem.fmu", _field_system_build(2))
+    return native_build(tmp_path_factory, "field_system", "DrillingSystem.fmu", _field_system_build(2))
 
 
 @pytest.fixture(scope="session")
 def built_field_system_fmu3(tmp_path_factory):
     """The FMU of :func:`built_field_system_fmu` in FMI 3.0, built once per session."""
-    from hammerbit.fmu.native import FrontBuildError, find_compiler
-    try:
-        find_compiler()
-    except FrontBuildError as e:
-        pytest.skip(str(e))
-    return shared_build(tmp_path_factory, "field_system3", "DrillingSystem.fmu", _field_system_build(3))
+    return native_build(tmp_path_factory, "field_system3", "DrillingSystem.fmu", _field_system_build(3))

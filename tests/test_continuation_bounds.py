@@ -4,12 +4,12 @@ import json
 
 import numpy as np
 import pytest
+from orbit_sampling import dense_orbit_samples, settled_events_per_period
 from cli_run import run_cli
 
 from hammerbit.continuation import correct_orbit, orbit_from_simulation
 from hammerbit.continuation.bifurcation import detect
 from hammerbit.continuation.continuation import follow_branch
-from hammerbit.continuation.monodromy import ORBIT_SOLVER
 from hammerbit.continuation.output import MARKERS, draw_curves, load_curves
 from hammerbit.continuation.parameter import Parameter
 from hammerbit.continuation.runaway import detect_runaway, follow_runaway, runaway_side
@@ -68,21 +68,12 @@ def test_the_smooth_fold_is_located_as_a_fold_to_its_multiplier(runaway_scene_bi
 
 def _settled_bounces(g, state, periods=40):
     """Bounce events per period of the library's Stepper run from ``state``, over its second half."""
-    st = Stepper(g, solver=ORBIT_SOLVER, y0=state, compile_helper=False)
-    st.advance(periods // 2 * g.period)
-    before = st.istate[KL.I_COUNT0 + KL.EV_BOUNCE]
-    st.advance(periods * g.period)
-    return (st.istate[KL.I_COUNT0 + KL.EV_BOUNCE] - before) / (periods - periods // 2)
+    return settled_events_per_period(g, state, KL.EV_BOUNCE, periods)
 
 
 def test_the_bounce_margin_is_that_of_a_dense_sampling():
     g = preset("paper-fig9").replace(a=1.5, b=0.1)
-    n, s = orbit_from_simulation(g)
-    orbit = correct_orbit(g, s, n)
-    times = np.linspace(0.0, n * g.period, 400_001)
-    samples = np.zeros((times.size, KL.N_SAMPLE_COLS))
-    Stepper(g, solver=ORBIT_SOLVER, y0=orbit.state, compile_helper=False).advance(times[-1], sample_times=times,
-                                                                                   samples=samples)
+    orbit, samples = dense_orbit_samples(g)
     stuck = samples[:, 6] == KL.STICK
     # no gap: the drive on the bit is the spring and the damper, (x1 - x3) + 2 xi (x2 - x4)
     drive = samples[:, 0] - samples[:, 2] + 2 * g.xi * (samples[:, 1] - samples[:, 3])

@@ -2,14 +2,12 @@
 overlap, and its zero followed as a curve, against a regime map's impact count."""
 import numpy as np
 import pytest
+from orbit_sampling import dense_orbit_samples
 
 from hammerbit.continuation import correct_orbit, orbit_from_simulation
 from hammerbit.continuation.bifurcation import Bifurcation
 from hammerbit.continuation.touch import follow_touch, max_overlap
-from hammerbit.continuation.monodromy import ORBIT_SOLVER
-from hammerbit.model import kernel_layouts as KL
 from hammerbit.model.presets import preset
-from hammerbit.model.stepping import Stepper
 from hammerbit.studies.map import run_cell
 
 #: paper-fig9 with a gap: its period-1 orbit (the attractor from rest for a > 0.175) grazes near r = 1.01-1.04
@@ -45,12 +43,7 @@ def grazing_curves(grazing_curve):
 
 def test_the_largest_overlap_is_that_of_a_dense_sampling():
     g = preset("paper-fig9").replace(a=0.2, r=1.0)
-    n, s = orbit_from_simulation(g)
-    orbit = correct_orbit(g, s, n)
-    times = np.linspace(0.0, n * g.period, 400_001)
-    samples = np.zeros((times.size, KL.N_SAMPLE_COLS))
-    Stepper(g, solver=ORBIT_SOLVER, y0=orbit.state, compile_helper=False).advance(times[-1], sample_times=times,
-                                                                                   samples=samples)
+    orbit, samples = dense_orbit_samples(g)
     dense = np.max(samples[:, 0] - samples[:, 2] - g.r)
     assert dense > 0  # impacts: the largest overlap is the peak of an impact
     assert abs(max_overlap(orbit) - dense) < 1e-9

@@ -2,11 +2,11 @@
 a branch and followed in a second parameter, against dense sampling and long runs from rest."""
 import numpy as np
 import pytest
+from orbit_sampling import dense_orbit_samples, settled_events_per_period
 
 from hammerbit.continuation import correct_orbit, orbit_from_simulation
 from hammerbit.continuation.bifurcation import detect
 from hammerbit.continuation.continuation import follow_branch
-from hammerbit.continuation.monodromy import ORBIT_SOLVER
 from hammerbit.continuation.parameter import Parameter
 from hammerbit.continuation.touch import detect_touches, follow_touch, min_drive
 from hammerbit.model import kernel_layouts as KL
@@ -30,12 +30,7 @@ def tension_onset():
 
 def test_the_smallest_drive_is_that_of_a_dense_sampling():
     g = preset("paper-fig9").replace(a=0.2, b=0.4)
-    n, s = orbit_from_simulation(g)
-    orbit = correct_orbit(g, s, n)
-    times = np.linspace(0.0, n * g.period, 400_001)
-    samples = np.zeros((times.size, KL.N_SAMPLE_COLS))
-    Stepper(g, solver=ORBIT_SOLVER, y0=orbit.state, compile_helper=False).advance(times[-1], sample_times=times,
-                                                                                   samples=samples)
+    orbit, samples = dense_orbit_samples(g)
     # no gap: the drive on the bit is the spring and the damper, (x1 - x3) + 2 xi (x2 - x4)
     dense = np.min(samples[:, 0] - samples[:, 2] + 2 * g.xi * (samples[:, 1] - samples[:, 3]))
     assert dense < 0
@@ -91,11 +86,7 @@ def sliding_point():
 
 def _sticks_per_period(g, state, periods=60):
     """Stick phases per forcing period of a long run of the library's Stepper from ``state`` (its second half)."""
-    st = Stepper(g, solver=ORBIT_SOLVER, y0=state, compile_helper=False)
-    st.advance(periods // 2 * g.period)
-    before = st.istate[KL.I_COUNT0 + KL.EV_STICK]
-    st.advance(periods * g.period)
-    return (st.istate[KL.I_COUNT0 + KL.EV_STICK] - before) / (periods - periods // 2)
+    return settled_events_per_period(g, state, KL.EV_STICK, periods)
 
 
 def test_the_sliding_curve_separates_one_stick_phase_from_two(sliding_point):
