@@ -10,11 +10,11 @@ at a fold (a multiplier +1), past which no periodic orbit is near and a run
 from the last orbit's state drifts away.
 
 A candidate is a fold on a branch whose orbit sticks, with ``b`` above the
-friction floor (a fold that the multipliers jump across, reported as a
-``border-collision`` of the fold test, is first refined by Newton's method
-on the orbit and the fold test together: a multiplier that moves like the
-square root of the distance to the fold is more than 1e-4 from +1 at a
-parameter bracket of 1e-9).  It is a ``runaway`` point when the verdict of
+friction floor (also a ``border-collision`` of the fold test, where the
+multipliers jump across +1 at a non-smooth point); it is first refined by
+Newton's method on the orbit and the fold test together, so that its orbit is
+the fold's to the curve's tolerance, wherever the bisection along the branch
+stopped.  It is a ``runaway`` point when the verdict of
 runs from its orbit's state, :data:`VERDICT_PERIODS` forcing periods at the
 fold's value ± :data:`VERDICT_OFFSET` (scaled), differs: a runaway proved on
 one side, none on the other.  Followed in a second parameter as a fold
