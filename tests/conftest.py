@@ -77,6 +77,14 @@ def built_native_fmu3(tmp_path_factory):
                         lambda path: build_fmu(path, runtime="native", fmi_version=3))
 
 
+@pytest.fixture
+def built(request):
+    """The session build whose fixture the test names in an indirect parameter
+    (``@pytest.mark.parametrize("built", ["built_fmu", ...], indirect=True)``): requested in the
+    set-up, so that the run that builds it times the build as set-up, not as the test's call."""
+    return request.getfixturevalue(request.param)
+
+
 @pytest.fixture(params=["pythonfmu", "native"])
 def any_fmu(request):
     """Each runtime flavour of HammerBitRock.fmu in turn (built once per session each)."""

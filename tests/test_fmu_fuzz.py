@@ -156,19 +156,21 @@ def _assert_exercised(counts: dict, fmu_fixture: str) -> None:
         assert counts["field:ran"] + counts["field:failed"] > 0, counts
 
 
-@pytest.mark.parametrize("fmu_fixture", ALL_FMUS)
-def test_fuzzed_states_never_crash_or_hang_the_host(fmu_fixture, request, tmp_path):
+@pytest.mark.parametrize("built", ALL_FMUS, indirect=True)
+def test_fuzzed_states_never_crash_or_hang_the_host(built, request, tmp_path):
     """150 states per FMU and flavour (a few hundred in all), a third field-corrupted: 0 crashes,
     0 hangs over a second of CPU."""
-    counts = fuzz_states(request.getfixturevalue(fmu_fixture), tmp_path, seed=11, count=150,
+    fmu_fixture = request.node.callspec.params["built"]
+    counts = fuzz_states(built, tmp_path, seed=11, count=150,
                          watchdog=WATCHDOG, timeout=900.0, cpu_budget=CPU_BUDGET)
     _assert_exercised(counts, fmu_fixture)
 
 
 @pytest.mark.soak
 @pytest.mark.slow
-@pytest.mark.parametrize("fmu_fixture", ALL_FMUS)
-def test_ten_thousand_fuzzed_states_never_crash_or_hang_over_a_second(fmu_fixture, request, tmp_path):
-    counts = fuzz_states(request.getfixturevalue(fmu_fixture), tmp_path, seed=12345, count=10_002,
+@pytest.mark.parametrize("built", ALL_FMUS, indirect=True)
+def test_ten_thousand_fuzzed_states_never_crash_or_hang_over_a_second(built, request, tmp_path):
+    fmu_fixture = request.node.callspec.params["built"]
+    counts = fuzz_states(built, tmp_path, seed=12345, count=10_002,
                          watchdog=WATCHDOG, timeout=3600.0, cpu_budget=CPU_BUDGET)
     _assert_exercised(counts, fmu_fixture)

@@ -36,11 +36,11 @@ BAD_TIMES = [(-6.2e144, None), (math.nextafter(TIME_LIMIT, math.inf), None),
              (-math.nextafter(TIME_LIMIT, math.inf), None), (math.nan, None), (0.0, 2e9), (5.0, 4.0)]
 
 
-@pytest.mark.parametrize("fmu_fixture", ALL_FMUS)
-def test_setup_experiment_refuses_times_outside_the_declared_range(fmu_fixture, request, tmp_path):
+@pytest.mark.parametrize("built", ALL_FMUS, indirect=True)
+def test_setup_experiment_refuses_times_outside_the_declared_range(built, tmp_path):
     """Each refused with fmi2Error naming the range (fmi2Reset between them: out of the Error
     state); the ends of the range are accepted."""
-    s = Slave(_extract(request.getfixturevalue(fmu_fixture), tmp_path), logging=True, setup=False)
+    s = Slave(_extract(built, tmp_path), logging=True, setup=False)
     try:
         for start, stop in BAD_TIMES:
             n = len(s.errors())
@@ -52,9 +52,9 @@ def test_setup_experiment_refuses_times_outside_the_declared_range(fmu_fixture, 
         s.fmu.freeInstance()
 
 
-@pytest.mark.parametrize("fmu_fixture", HAMMER_FMUS)
-def test_a_step_beyond_max_periods_is_refused_at_once_naming_the_limit(fmu_fixture, request, tmp_path):
-    s = Slave(_extract(request.getfixturevalue(fmu_fixture), tmp_path), logging=True)
+@pytest.mark.parametrize("built", HAMMER_FMUS, indirect=True)
+def test_a_step_beyond_max_periods_is_refused_at_once_naming_the_limit(built, tmp_path):
+    s = Slave(_extract(built, tmp_path), logging=True)
     try:
         f = s.get("frequency")[0]
         before = s.get("bit_position", "hammer_position")
@@ -66,11 +66,10 @@ def test_a_step_beyond_max_periods_is_refused_at_once_naming_the_limit(fmu_fixtu
         s.fmu.freeInstance()
 
 
-@pytest.mark.parametrize("fmu_fixture", HAMMER_FMUS)
-def test_a_step_over_the_whole_default_run_is_legal(fmu_fixture, request, tmp_path):
+@pytest.mark.parametrize("built", HAMMER_FMUS, indirect=True)
+def test_a_step_over_the_whole_default_run_is_legal(built, tmp_path):
     """20 s (the default experiment) in one step, and in 1000 steps: the same state to the tolerance."""
-    fmu = request.getfixturevalue(fmu_fixture)
-    one, many = (Slave(_extract(fmu, tmp_path / k), reals={"tolerance": 1e-10}) for k in ("a", "b"))
+    one, many = (Slave(_extract(built, tmp_path / k), reals={"tolerance": 1e-10}) for k in ("a", "b"))
     try:
         assert one.status_of(one.fmu.doStep, 0.0, 20.0) == FMI_OK
         for i in range(1000):

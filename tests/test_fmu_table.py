@@ -46,12 +46,12 @@ def _float(x):
     return None if x is None else float(x)
 
 
-@pytest.mark.parametrize("fixture", sorted(BUILDS))
-def test_the_shipped_description_declares_its_table(fixture, request):
+@pytest.mark.parametrize("built", sorted(BUILDS), indirect=True)
+def test_the_shipped_description_declares_its_table(built, request):
     """Names, value references, causalities, types, units and ranges of every shipped FMU are its
     table's; nothing else has a value reference in the table's range."""
-    which, version = BUILDS[fixture]
-    table, fmu = TABLES[which], request.getfixturevalue(fixture)
+    which, version = BUILDS[request.node.callspec.params["built"]]
+    table, fmu = TABLES[which], built
     shipped = _shipped(fmu)
     for vr, var in enumerate(table):
         v = shipped[var.name]

@@ -95,10 +95,10 @@ def test_the_shim_binds_the_oldest_math_versions_and_keeps_the_results(tmp_path)
         assert k(x) == math.exp(x) + 3.0 * math.log(x) + 5.0 * math.pow(x, 1.25)
 
 
-@pytest.mark.parametrize("which", ["built_fmu", "built_native_fmu", "built_string_fmu",
-                                   "built_native_string_fmu"])
-def test_no_binary_of_ours_needs_more_than_glibc_2_17(which, request, tmp_path):
-    fmu = request.getfixturevalue(which)
+@pytest.mark.parametrize("built", ["built_fmu", "built_native_fmu", "built_string_fmu",
+                                   "built_native_string_fmu"], indirect=True)
+def test_no_binary_of_ours_needs_more_than_glibc_2_17(built, tmp_path):
+    fmu = built
     ours = [so for so in _shared_objects(fmu, tmp_path) if not so.stem.endswith(WRAPPER_SUFFIX)]
     assert ours, f"{fmu.name} has no linux64 binary of ours"
     for so in ours:
