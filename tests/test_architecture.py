@@ -11,9 +11,12 @@ import json
 import os
 import subprocess
 import sys
+from functools import lru_cache
 from pathlib import Path
 
 import pytest
+
+from source_trees import parse
 
 ROOT = Path(__file__).resolve().parents[1]
 #: source directory -> the package it is imported as (pyproject.toml's package-dir)
@@ -64,10 +67,15 @@ def _resolve(module: str, node: ast.ImportFrom) -> str:
     return f"{base}.{node.module}" if node.module else base
 
 
-def _imports(module: str):
+@lru_cache(maxsize=None)
+def _imports(module: str) -> tuple:
     """(imported library module, the names taken from it, line) of every import in ``module``,
-    at any depth."""
-    tree = ast.parse(MODULES[module].read_text(encoding="utf-8"))
+    at any depth (found once per process: several checks read them)."""
+    return tuple(_find_imports(module))
+
+
+def _find_imports(module: str):
+    tree = parse(MODULES[module].read_text(encoding="utf-8"))
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
             for a in node.names:
@@ -154,7 +162,7 @@ def test_no_private_name_is_imported_from_another_module():
 def test_every_module_says_what_it_is_on_its_first_line():
     missing = []
     for m, path in MODULES.items():
-        doc = ast.get_docstring(ast.parse(path.read_text(encoding="utf-8")))
+        doc = ast.get_docstring(parse(path.read_text(encoding="utf-8")))
         if not doc or len(doc.splitlines()[0].split()) < 3:
             missing.append(m)
     assert not missing, f"modules without a first docstring line saying what they are: {missing}"
@@ -164,7 +172,7 @@ def _function_lengths(source: str) -> list:
     """``(name, def line, lines from the def line to the last, decorated inline='always')`` of every
     function in ``source``, nested ones included (and counted in the function around them too)."""
     out = []
-    for node in ast.walk(ast.parse(source)):
+    for node in ast.walk(parse(source)):
         if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
             inlined = any(isinstance(d, ast.Call) and any(k.arg == "inline" and getattr(k.value, "value", None)
                                                           == "always" for k in d.keywords)
@@ -259,7 +267,7 @@ def _kernel_params(source: str) -> dict:
     """{function name: number of parameters} of the functions compiled by numba in ``source``:
     decorated with ``njit``/``jit``/``cfunc`` (bare or called), or passed to one as
     ``njit(...)(f)`` or ``njit(...)(bind(f, ...))``."""
-    tree = ast.parse(source)
+    tree = parse(source)
     defs = {n.name: n for n in ast.walk(tree) if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef))}
     compiled = {name for name, d in defs.items() if any(_compiler_name(dec) for dec in d.decorator_list)}
     for node in ast.walk(tree):

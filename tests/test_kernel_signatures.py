@@ -11,6 +11,8 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
+from source_trees import parse
+
 ROOT = Path(__file__).resolve().parents[1]
 #: most arguments a kernel takes (issue 26: "no kernel call passes more than about 10 arguments")
 MAX_PARAMS = 10
@@ -41,7 +43,7 @@ def _kernels() -> dict:
     """{name: (file, line, parameter count)} of every numba kernel in :data:`SCOPE`."""
     out = {}
     for path in _files():
-        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        for node in ast.walk(parse(path.read_text(encoding="utf-8"))):
             if isinstance(node, ast.FunctionDef) and any(
                     _decorator_name(d) in KERNEL_DECORATORS for d in node.decorator_list):
                 out[node.name] = (path.relative_to(ROOT), node.lineno, _param_count(node))
@@ -65,7 +67,7 @@ def test_no_kernel_is_called_with_more_than_ten_arguments():
     names = set(_kernels())
     bad = []
     for path in sorted(ROOT.glob("coupling/**/*.py")) + sorted(ROOT.glob("fmu_src/*.py")):
-        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        for node in ast.walk(parse(path.read_text(encoding="utf-8"))):
             if not isinstance(node, ast.Call):
                 continue
             f = node.func
@@ -83,7 +85,7 @@ def test_a_kernel_calls_only_kernels_of_its_own_module():
     for path in _files():
         if path.parent.name != "fmu_src":
             continue
-        tree = ast.parse(path.read_text(encoding="utf-8"))
+        tree = parse(path.read_text(encoding="utf-8"))
         per_file[path] = [n for n in ast.walk(tree) if isinstance(n, ast.FunctionDef) and any(
             _decorator_name(d) in KERNEL_DECORATORS for d in n.decorator_list)]
     owner = {f.name: path for path, fs in per_file.items() for f in fs}
