@@ -148,12 +148,6 @@ SLOW_TESTS = {
         "tests/test_fmu_fuzz.py::test_fuzzed_states_never_crash_or_hang_the_host[built_native_string_fmu]",
     "tests/test_fmi3_system.py::test_system_reference_results_equal_its_run_in_fmpy[3]":
         "tests/test_fmi3_native.py::test_fmi3_reference_results_equal_its_run_in_fmpy",
-    "tests/test_continuation.py::test_bad_input_exits_2_naming_the_option[args2---range 0.2 0.2]":
-        "tests/test_continuation.py::test_bad_input_exits_2_naming_the_option[args1---range -1]",
-    "tests/test_continuation.py::test_bad_input_exits_2_naming_the_option[args3---seeds 1]":
-        "tests/test_continuation.py::test_bad_input_exits_2_naming_the_option[args0---param nonsense]",
-    "tests/test_continuation.py::test_bad_input_exits_2_naming_the_option[args4---plot x.txt]":
-        "tests/test_continuation.py::test_bad_input_exits_2_naming_the_option[args0---param nonsense]",
     "tests/test_cosim.py::test_estimate_within_a_factor_3_of_the_true_error[drilling-0.002]":
         "tests/test_cosim.py::test_estimate_within_a_factor_3_of_the_true_error[drilling-0.005]",
     "tests/test_cosim.py::test_estimate_within_a_factor_3_of_the_true_error[stuck-0.005]":

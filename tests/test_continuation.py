@@ -7,6 +7,7 @@ import sys
 import numpy as np
 import pytest
 
+from cli_run import run_cli
 from hammerbit.continuation import correct_orbit, orbit_from_simulation, period_map
 from hammerbit.continuation.bifurcation import detect, switch_period_doubling
 from hammerbit.continuation.continuation import follow_branch
@@ -92,10 +93,17 @@ def _cli(*args):
     (["--param", "a", "--range", "0.2", "0.1", "--seeds", "1"], "--seeds 1"),
     (["--param", "a", "--range", "0.2", "0.1", "--plot", "x.txt"], "--plot x.txt"),
 ])
-def test_bad_input_exits_2_naming_the_option(args, option):
-    r = _cli(*args)
+def test_bad_input_exits_2_naming_the_option(args, option, capsys):
+    code, out, err = run_cli(["continue", *args], capsys)
+    assert code == 2, err
+    assert option in err and "Traceback" not in err and out == ""
+
+
+def test_bad_input_in_a_new_process_exits_2_without_a_traceback():
+    """The console's process boundary: the exit code and the message reach the shell as they are."""
+    r = _cli("--param", "nonsense", "--range", "0.2", "0.1")
     assert r.returncode == 2, r.stderr
-    assert option in r.stderr and "Traceback" not in r.stderr
+    assert "--param nonsense" in r.stderr and "Traceback" not in r.stderr
 
 
 @pytest.mark.slow
@@ -148,13 +156,12 @@ def test_the_period_doubling_followed_in_eta_stays_on_the_multiplier_minus_one(p
         assert mins[0] > -1.0 > mins[1], (a, eta, mins)
 
 
-def test_map_overlay_refuses_a_file_without_curves_before_any_work(tmp_path):
+def test_map_overlay_refuses_a_file_without_curves_before_any_work(tmp_path, capsys):
     bad = tmp_path / "c.json"
     bad.write_text('{"branches": []}')
-    r = subprocess.run([sys.executable, "-m", "hammerbit", "map", "--axis", "a=0.1:0.2:3", "--axis", "eta=0.9:1.1:3",
-                        "--plot", str(tmp_path / "m.png"), "--overlay", str(bad)], capture_output=True, text=True,
-                       timeout=600)
-    assert r.returncode == 2 and f"--overlay {bad}" in r.stderr and "curves" in r.stderr
+    code, _, err = run_cli(["map", "--axis", "a=0.1:0.2:3", "--axis", "eta=0.9:1.1:3", "--plot",
+                            str(tmp_path / "m.png"), "--overlay", str(bad)], capsys)
+    assert code == 2 and f"--overlay {bad}" in err and "curves" in err and "Traceback" not in err
     assert not (tmp_path / "m.png").exists()
 
 
