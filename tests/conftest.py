@@ -168,6 +168,14 @@ SLOW_TESTS = {
         "tests/test_ssp_native.py::test_runners_give_the_pythonfmu_packages_penetration[fmpy]",
     "tests/test_string_fmu.py::test_auto_driller_gain_parameter_equals_a_side_built_with_it[integral_gain]":
         "tests/test_string_fmu.py::test_auto_driller_gain_parameter_equals_a_side_built_with_it[proportional_gain]",
+    # the error estimate of DrillingSystem.fmu against the fine-step truth: 2 s at H = 1 s (and the
+    # grazing stick tried at 80 clocks) slow; 0.3 s with a corrected step fast
+    "tests/test_system_fmu_estimate.py::test_estimate_within_three_times_the_truth[1.0]":
+        "tests/test_system_fmu_estimate.py::test_estimate_within_three_times_the_truth_at_a_corrected_step",
+    "tests/test_system_fmu_estimate.py::test_a_step_beyond_the_tolerance_goes_on_from_the_shadow":
+        "tests/test_system_fmu_estimate.py::test_estimate_within_three_times_the_truth_at_a_corrected_step",
+    "tests/test_fmi3_system.py::test_system_reference_results_equal_its_run_in_fmpy[2]":
+        "tests/test_fmu_reference_results.py::test_native_hammer_reference_results_equal_its_run_in_fmpy",
 }
 
 

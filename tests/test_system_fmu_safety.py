@@ -32,6 +32,14 @@ def system_fmu(built_field_system_fmu):
     return built_field_system_fmu
 
 
+@pytest.fixture(scope="module")
+def system_fmu_data():
+    """The data the build of :func:`system_fmu` compiles in (computed once: the string's modal
+    system takes seconds)."""
+    from hammerbit.fmu.build_system import system_data
+    return system_data(*_config())
+
+
 def test_the_binary_needs_no_more_than_glibc_2_17(system_fmu, tmp_path):
     with zipfile.ZipFile(system_fmu) as zf:
         names = [n for n in zf.namelist() if n.startswith("binaries/linux64/") and n.endswith(".so")]
@@ -81,7 +89,7 @@ def _word_offsets(data: bytes, value: float) -> list:
     ("rtol", 2e-4, "not those of one tolerance"),               # the shadow no longer 32x tighter
     ("eta", 1e12, "not its applied inputs'"),                   # a billion solver steps a period
 ])
-def test_a_state_out_of_its_physical_range_is_refused(system_fmu, field, value, reason):
+def test_a_state_out_of_its_physical_range_is_refused(system_fmu, system_fmu_data, field, value, reason):
     """The fields whose corruption made the solver step for tens of seconds (found by setting each
     solver-state word to each adversarial value), each refused when the state is deserialised,
     naming why.  A field is found by the value the build gives it in the state right after
@@ -90,10 +98,9 @@ def test_a_state_out_of_its_physical_range_is_refused(system_fmu, field, value, 
     from fmpy.fmi1 import FMICallException
     from test_system_fmu import Slave
 
-    from hammerbit.fmu.build_system import RTOL_PER_TOLERANCE, system_data
+    from hammerbit.fmu.build_system import RTOL_PER_TOLERANCE
     from hammerbit.model.fmu_description import TWO_PI
-    string, cfg = _config()
-    data = system_data(string, cfg)
+    data = system_fmu_data
     start = {"hammer_position": float(data["y0"][0]), "rtol": 1e-3 * RTOL_PER_TOLERANCE,
              "eta": TWO_PI * data["frequency"] / data["Om"]}[field]
     log = []
