@@ -176,6 +176,9 @@ SLOW_TESTS = {
         "tests/test_system_fmu_estimate.py::test_estimate_within_three_times_the_truth_at_a_corrected_step",
     "tests/test_fmi3_system.py::test_system_reference_results_equal_its_run_in_fmpy[2]":
         "tests/test_fmu_reference_results.py::test_native_hammer_reference_results_equal_its_run_in_fmpy",
+    # three PNGs encoded (seconds of matplotlib): the drawing stays fast
+    "tests/test_modal_check.py::test_plots":
+        "tests/test_modal_check.py::test_campbell_and_receptance_draw_in_si_without_saving",
 }
 
 

@@ -401,6 +401,21 @@ def test_plots(tmp_path, field_check_20hz, lab):
     assert (tmp_path / "campbell.png").exists() and (tmp_path / "rec.png").exists()
 
 
+def test_campbell_and_receptance_draw_in_si_without_saving(lab):
+    """The drawing of the Campbell and receptance plots, without the PNG encoding that makes
+    test_plots (slow set) slow: curves on SI axes (the check's own figure: the CLI test's --plot)."""
+    import matplotlib.pyplot as plt
+    r = check(lab, CheckConfig(excitation_hz=1.47, frequency_range_hz=(0, 10)))
+    ax = plot_campbell(r)
+    rec, factor = plot_receptance(r)
+    try:
+        assert ax.lines and rec.lines and factor.lines
+        assert (ax.get_xlabel(), ax.get_ylabel()) == ("rotary speed [rpm]", "frequency [Hz]")
+        assert rec.get_ylabel() == "bit receptance [m/N]" and factor.get_xlabel() == "excitation frequency [Hz]"
+    finally:
+        plt.close("all")
+
+
 # ------------------------------------------------------------------ CLI
 def _cli(argv, capsys):
     code = cli.main(argv)
