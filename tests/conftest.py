@@ -179,6 +179,19 @@ SLOW_TESTS = {
     # three PNGs encoded (seconds of matplotlib): the drawing stays fast
     "tests/test_modal_check.py::test_plots":
         "tests/test_modal_check.py::test_campbell_and_receptance_draw_in_si_without_saving",
+    # a new process with the front (fmpy, a C host): one of each kind stays fast
+    "tests/test_fmu_native.py::test_python_host_with_front_matches_and_exits_0":
+        "tests/test_fmu_exit.py::test_a_few_process_runs_exit_0[user_loop-front]",
+    "tests/test_string_fmu_front.py::test_a_native_c_host_runs_it_like_fmpy":
+        "tests/test_fmu_native.py::test_c_host_steps_10_s_like_fmpy_and_exits_0",
+    # 0.8 s of field string at 50 us with impacts; the fundamental's independence of the sampling
+    # and of a contact spike is checked on a closed form
+    "tests/test_cosim_defects.py::test_reference_wob_amplitude_does_not_depend_on_its_sampling_with_impacts":
+        "tests/test_cosim_defects.py::test_fundamental_of_a_sinusoid_with_a_spike",
+    # the tension onset checked by runs from rest either side (seconds of runs); its location by the
+    # smallest drive's sign change stays fast
+    "tests/test_continuation_touch.py::test_the_tension_curve_separates_settled_runs_from_rest":
+        "tests/test_continuation_touch.py::test_tension_onset_is_located_where_the_smallest_drive_changes_sign",
 }
 
 
