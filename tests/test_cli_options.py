@@ -258,8 +258,10 @@ def test_option_used_or_refused_slow(command, option, tmp_path, capsys, monkeypa
 
 @pytest.mark.parametrize("command", list(BASE))
 def test_every_single_valued_option_given_twice_exits_2(command, capsys):
-    """argparse keeps the last of a repeated option: each one (but the repeatable) refuses a second."""
-    for action in command_options(build_parser())[command]:
+    """argparse keeps the last of a repeated option: each one (but the repeatable) refuses a second.
+    One parser serves every parse (what an option saw is kept in the parse's namespace)."""
+    parser = build_parser()
+    for action in command_options(parser)[command]:
         option = action.option_strings[-1]
         if action.__class__.__name__ not in ("StoreOnce", "StoreTrueOnce"):
             assert option in ("--set", "--axis", "--step", "--version"), (command, option, action)
@@ -269,7 +271,7 @@ def test_every_single_valued_option_given_twice_exits_2(command, capsys):
             value = [str(next(iter(action.choices)))]
         argv = command.split() + [option, *value, option, *value]
         with pytest.raises(SystemExit) as e:
-            build_parser().parse_args(argv)
+            parser.parse_args(argv)
         assert e.value.code == 2
         assert f"{option} given twice" in capsys.readouterr().err, argv
 
