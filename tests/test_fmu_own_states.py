@@ -13,14 +13,14 @@ import math
 import pytest
 from fmpy import extract, read_model_description
 from fmpy.fmi1 import FMICallException
-from fmpy.fmi2 import FMU2Slave
 
 #: communication steps per case: enough to carry a thrown hammer or a running-away bit past the
 #: range checks of every FMU built by the fixtures (DrillingSystem refuses within 2 steps at the
 #: largest amplitude; without its refusal, its state was unrestorable after 1)
 STEPS = 6
-#: the FMI 2 co-simulation FMUs that declare FMU states (pythonfmu's Drillstring declares none)
-FMUS = ["built_fmu", "built_native_fmu", "built_native_string_fmu", "built_system_fmu"]
+#: the co-simulation FMUs that declare FMU states (pythonfmu's Drillstring declares none), FMI 2 and 3
+FMUS = ["built_fmu", "built_native_fmu", "built_native_string_fmu", "built_system_fmu",
+        "built_native_fmu3", "built_native_string_fmu3", "built_field_system_fmu3"]
 
 
 #: an input's end where its range is not declared: large values in SI units (a force of 1e9 N, a
@@ -33,7 +33,7 @@ def _extreme_inputs(md):
     at :data:`UNDECLARED_ENDS` on a side with none)."""
     cases = []
     for v in md.modelVariables:
-        if v.causality != "input" or v.type != "Real":
+        if v.causality != "input" or v.type not in ("Real", "Float64"):
             continue
         ends = []
         for bound, sign in ((v.min, -1.0), (v.max, 1.0)):
@@ -43,25 +43,50 @@ def _extreme_inputs(md):
 
 
 class _Run:
-    """One instance of ``path``, initialised at its start values, with its log."""
+    """One instance of ``path`` (FMI 2 or 3), initialised at its start values, with its log; the
+    calls this test makes, named as FMI 2 names them."""
 
     def __init__(self, path, md, unzipdir):
-        from fmpy.fmi2 import defaultCallbacks, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
         self.log = []
-        self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir, instanceName="own_states",
-                             modelIdentifier=md.coSimulation.modelIdentifier)
-        callbacks = fmi2CallbackFunctions()
-        callbacks.logger = fmi2CallbackLoggerTYPE(
-            lambda env, name, status, cat, msg: self.log.append(msg.decode(errors="replace")))
-        callbacks.allocateMemory = defaultCallbacks.allocateMemory
-        callbacks.freeMemory = defaultCallbacks.freeMemory
-        self._callbacks = callbacks     # kept alive as long as the instance
-        self.fmu.instantiate(callbacks=callbacks, loggingOn=True)
-        self.fmu.setupExperiment(startTime=0.0)
-        self.fmu.enterInitializationMode()
-        self.fmu.exitInitializationMode()
+        self.fmi3 = md.fmiVersion.startswith("3")
         self.outputs = [v.valueReference for v in md.modelVariables
-                        if v.causality == "output" and v.type == "Real"]
+                        if v.causality == "output" and v.type in ("Real", "Float64")]
+        kw = dict(guid=md.guid, unzipDirectory=unzipdir, instanceName="own_states",
+                  modelIdentifier=md.coSimulation.modelIdentifier)
+        if self.fmi3:
+            from fmpy.fmi3 import FMU3Slave
+            self.fmu = FMU3Slave(**kw)
+            self.fmu.instantiate(loggingOn=True, logMessage=lambda env, status, cat, msg:
+                                 self.log.append(msg.decode(errors="replace")))
+            self.fmu.enterInitializationMode(startTime=0.0)
+        else:
+            from fmpy.fmi2 import FMU2Slave, defaultCallbacks, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
+            self.fmu = FMU2Slave(**kw)
+            callbacks = fmi2CallbackFunctions()
+            callbacks.logger = fmi2CallbackLoggerTYPE(
+                lambda env, name, status, cat, msg: self.log.append(msg.decode(errors="replace")))
+            callbacks.allocateMemory = defaultCallbacks.allocateMemory
+            callbacks.freeMemory = defaultCallbacks.freeMemory
+            self._callbacks = callbacks     # kept alive as long as the instance
+            self.fmu.instantiate(callbacks=callbacks, loggingOn=True)
+            self.fmu.setupExperiment(startTime=0.0)
+            self.fmu.enterInitializationMode()
+        self.fmu.exitInitializationMode()
+
+    def set_real(self, vr, value):
+        (self.fmu.setFloat64 if self.fmi3 else self.fmu.setReal)([vr], [value])
+
+    def outputs_now(self):
+        return list((self.fmu.getFloat64 if self.fmi3 else self.fmu.getReal)(self.outputs))
+
+    def get_state(self):
+        return self.fmu.getFMUState() if self.fmi3 else self.fmu.getFMUstate()
+
+    def set_state(self, state):
+        (self.fmu.setFMUState if self.fmi3 else self.fmu.setFMUstate)(state)
+
+    def free_state(self, state):
+        (self.fmu.freeFMUState if self.fmi3 else self.fmu.freeFMUstate)(state)
 
     def close(self):
         try:
@@ -89,32 +114,32 @@ def test_every_state_an_fmu_steps_to_can_be_restored(fixture, request, tmp_path)
         run = _Run(path, md, unzipdir)
         try:
             try:
-                run.fmu.setReal([vr], [value])
+                run.set_real(vr, value)
             except FMICallException:
                 continue            # refused as an input, before any work
             accepted += 1
             t = 0.0
             for k in range(STEPS):
-                before = run.fmu.getFMUstate()
-                outputs = run.fmu.getReal(run.outputs)
+                before = run.get_state()
+                outputs = run.outputs_now()
                 try:
                     run.fmu.doStep(t, h)
                 except FMICallException:
                     # a refused step names why and keeps the state of its start
                     refused += 1
                     assert "refused" in run.log[-1] or "failed" in run.log[-1], (fixture, name, value, run.log[-1])
-                    run.fmu.setFMUstate(before)     # out of the error state (FMI 2.0.4)
-                    assert run.fmu.getReal(run.outputs) == outputs, (fixture, name, value)
+                    run.set_state(before)     # out of the error state (FMI 2.0.4)
+                    assert run.outputs_now() == outputs, (fixture, name, value)
                     break
                 t += h
-                state = run.fmu.getFMUstate()
+                state = run.get_state()
                 try:
-                    run.fmu.setFMUstate(state)
+                    run.set_state(state)
                 except FMICallException:
                     pytest.fail(f"{fixture}: with {name} = {value!r}, the state after step {k + 1} "
                                 f"(t = {t!r} s) is refused on restore: {run.log[-1]}")
-                run.fmu.freeFMUstate(state)
-                run.fmu.freeFMUstate(before)
+                run.free_state(state)
+                run.free_state(before)
         finally:
             run.close()
     assert accepted, f"{fixture}: every extreme input was refused"
