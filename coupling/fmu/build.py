@@ -43,6 +43,8 @@ from pathlib import Path
 from typing import Mapping, Optional
 from xml.etree import ElementTree as ET
 
+from hammerbit.fmu.guid import content_guid, replace_guid
+
 __all__ = ["MODEL_NAME", "RUNTIME_PREFIX", "ENTRY_PREFIX", "RUNTIMES", "BuildOptions", "FMUBuildError",
            "UnknownVariableError", "build_fmu", "add_native_front", "runtime_dir", "runtime_files", "build_hash",
            "check_start_values", "default_output"]
@@ -417,6 +419,7 @@ def build_fmu(out=None, *, options: BuildOptions = BuildOptions(), **kw) -> Path
         with zipfile.ZipFile(raw) as zf:
             contents = {n: zf.read(n) for n in zf.namelist() if not n.endswith("/")}
         md = _edit_model_description(contents["modelDescription.xml"])
+        md = replace_guid(md, content_guid(md, tag))
         contents["modelDescription.xml"] = md
         from hammerbit.fmu.table_check import check_description
         from hammerbit.model.fmu_description import HAMMER_VARIABLES

@@ -31,6 +31,8 @@ from xml.etree import ElementTree as ET
 
 import numpy as np
 
+from hammerbit.fmu.guid import content_guid, replace_guid
+
 from hammerbit.fmu.build import (add_native_front, build_hash, forget_staged_modules, pythonfmu_builder,
                                   runtime_files)
 
@@ -244,6 +246,8 @@ def build_string_fmu(string_arg, out=None, *, build: Optional[StringBuild] = Non
         # the native front, as HammerBitRock's: loads Python into a native host (pythonfmu's own
         # binary expects the host to be Python) and keeps the FMI calling sequence
         md = contents["modelDescription.xml"]
+        md = replace_guid(md, content_guid(md, tag))
+        contents["modelDescription.xml"] = md
         from hammerbit.fmu.table_check import check_description
         from hammerbit.model.fmu_description import STRING_VARIABLES
         check_description(md, STRING_VARIABLES, out.name)

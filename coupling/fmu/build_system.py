@@ -32,13 +32,15 @@ rows transformed the same way (the hook load: ``row . T``).  The variables are t
 """
 from __future__ import annotations
 
+import hashlib
 import tempfile
-import uuid
 import zipfile
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
 import numpy as np
+
+from hammerbit.fmu.guid import content_guid
 
 __all__ = ["MODEL_NAME", "SYSTEM_TOOL", "SYSTEM_SOURCES", "modal_transform", "system_data",
            "system_model_description", "system_header", "build_system_fmu"]
@@ -320,7 +322,7 @@ def build_system_fmu(string, config, out=None, *, tolerance: float = 1e-3, log=p
     from hammerbit.model.fmu_description import SYSTEM_VARIABLES
     from hammerbit.fmu.native_build import FMI3_DEFINES, FMI3_SOURCES, link_platforms, platform_compilers, \
         select_platforms
-    from hammerbit.fmu.native_kernels import build_objects
+    from hammerbit.fmu.native_kernels import build_objects, sources_key
     from hammerbit.fmu.reference_results import system_results
     if fmi_version not in (2, 3):
         raise ValueError(f"fmi_version = {fmi_version!r} is out of range: allowed 2 or 3")
@@ -329,7 +331,10 @@ def build_system_fmu(string, config, out=None, *, tolerance: float = 1e-3, log=p
         out = out / f"{MODEL_NAME}.fmu"
     out.parent.mkdir(parents=True, exist_ok=True)
     data = system_data(string, config, tolerance=tolerance)
-    md = system_model_description(data, "{" + str(uuid.uuid4()) + "}")
+    # the GUID: a fingerprint of the description and the kernels' and C sources (same build, same GUID)
+    code = sources_key(["linux64"], "system") + "".join(
+        hashlib.sha256(f.read_bytes()).hexdigest() for f in SYSTEM_SOURCES)
+    md = system_model_description(data, "{" + content_guid(system_model_description(data, ""), code) + "}")
     with tempfile.TemporaryDirectory(prefix="hammerbit_system_") as tmp:
         tmp = Path(tmp)
         spec = read_model_description(md)
