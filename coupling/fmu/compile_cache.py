@@ -143,9 +143,10 @@ def compiler_identity(cc: str) -> bytes:
     path, ``--version``, ``-v`` configuration, and the files of its search directories."""
     resolved = shutil.which(cc) or cc
     real = os.path.realpath(resolved)
-    if real in _IDENTITIES:
-        return _IDENTITIES[real]
     st = os.stat(real)
+    memo = (real, st.st_size, st.st_mtime_ns)      # a compiler replaced in place is a new one
+    if memo in _IDENTITIES:
+        return _IDENTITIES[memo]
     version = subprocess.run([resolved, "--version"], capture_output=True, text=True)
     verbose = subprocess.run([resolved, "-v", "-E", "-x", "c", os.devnull, "-o", os.devnull],
                              capture_output=True, text=True)
@@ -161,8 +162,8 @@ def compiler_identity(cc: str) -> bytes:
         if found:
             pst = os.stat(found)
             h.update(f"{prog}\0{os.path.realpath(found)}\0{pst.st_size}\0{pst.st_mtime_ns}\0".encode())
-    _IDENTITIES[real] = h.digest()
-    return _IDENTITIES[real]
+    _IDENTITIES[memo] = h.digest()
+    return _IDENTITIES[memo]
 
 
 def _candidates(arg: str) -> list:
@@ -324,7 +325,12 @@ def compile_output(cmd, output, *, scratch=(), what: str = "compiling", error=Ru
     if root is None:
         _run(cmd, what, error)
         return False
-    key = compile_key(cmd, output, scratch)
+    try:
+        key = compile_key(cmd, output, scratch)
+    except OSError:
+        # an input or the compiler cannot be read: the compiler reports it better than a key could
+        _run(cmd, what, error)
+        return False
     entry = root / key[:2] / key[2:]
     found = _read_entry(entry)
     if found is not None:
