@@ -57,8 +57,8 @@ _OFF, _ON = ("0", "off", "no", "false"), ("", "1", "on", "yes", "true")
 CACHE_DIR_NAME = "compiler-outputs"
 #: the cache keeps at most this many entries ...
 MAX_ENTRIES = 400
-#: ... and at most this many bytes (a native binary is 1-3 MB), the least recently used pruned
-MAX_BYTES = 512 * 2 ** 20
+#: ... and at most this many bytes (a native binary is 0.1-1 MB), the least recently used pruned
+MAX_BYTES = 256 * 2 ** 20
 #: environment variables that change what gcc, clang or the linker do (their values enter the key)
 COMPILER_ENVIRONMENT = ("CPATH", "C_INCLUDE_PATH", "CPLUS_INCLUDE_PATH", "OBJC_INCLUDE_PATH",
                         "LIBRARY_PATH", "COMPILER_PATH", "GCC_EXEC_PREFIX", "GCC_COMPARE_DEBUG",
