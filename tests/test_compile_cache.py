@@ -152,6 +152,14 @@ def test_the_switch_turns_the_cache_off_and_a_bad_value_is_refused(cache_root, t
         cache_enabled()
 
 
+def test_a_build_refuses_a_bad_switch_before_any_work(tmp_path, monkeypatch):
+    from hammerbit.fmu.build import build_fmu
+    monkeypatch.setenv(SWITCH, "maybe")
+    with pytest.raises(ValueError, match=f"{SWITCH} = 'maybe'"):
+        build_fmu(tmp_path / "x.fmu", runtime="native")
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_the_oldest_entries_are_pruned(cache_root, tmp_path, monkeypatch):
     monkeypatch.setattr(compile_cache, "MAX_ENTRIES", 2)
     for k in range(3):

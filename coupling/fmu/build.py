@@ -10,14 +10,17 @@ installed package :mod:`hammerbit.model`).  The steps:
    start values of a build travel in ``resources/start_values.json``).
 2. **Compile the kernels once** in a subprocess for numba's portable CPU
    target (``NUMBA_CPU_NAME=generic``, no extra features) into the package's
-   ``_compiled/`` directory, then check in a second subprocess that they load
-   with nothing compiled.  The compiled code is kept in
-   ``<user cache>/fmu-build/`` so a rebuild of the same code takes seconds.
+   ``_compiled/`` directory; a new process must then load them with nothing
+   compiled (that subprocess itself if it compiled nothing, else a second one).
+   The compiled code is kept in ``<user cache>/fmu-build/`` so a rebuild of the
+   same code takes seconds.
 3. **pythonfmu** writes the FMU; the build then edits ``modelDescription.xml``
-   (outputs declare ``dependencies=""``: no direct feedthrough).
+   (outputs declare ``dependencies=""``: no direct feedthrough) and sets its
+   GUID to a fingerprint of it and the runtime (:mod:`hammerbit.fmu.guid`).
 4. **Native front** (when :mod:`hammerbit.fmu.native` is installed): pythonfmu's
    binary is renamed ``<id>_python.so`` and the front, compiled with the
-   system C compiler, becomes ``binaries/linux64/<id>.so``.
+   system C compiler through the compile cache (:mod:`hammerbit.fmu.compile_cache`),
+   becomes ``binaries/linux64/<id>.so``.
 
 From Python::
 
@@ -43,6 +46,7 @@ from pathlib import Path
 from typing import Mapping, Optional
 from xml.etree import ElementTree as ET
 
+from hammerbit.fmu.compile_cache import cache_enabled
 from hammerbit.fmu.guid import content_guid, replace_guid
 
 __all__ = ["MODEL_NAME", "RUNTIME_PREFIX", "ENTRY_PREFIX", "RUNTIMES", "BuildOptions", "FMUBuildError",
@@ -372,7 +376,7 @@ def build_fmu(out=None, *, options: BuildOptions = BuildOptions(), **kw) -> Path
         do not compile, ...).
     """
     FmuBuilder = pythonfmu_builder()
-
+    cache_enabled()                       # a bad HAMMERBIT_BUILD_CACHE is refused before any work
     if kw:
         from dataclasses import replace
         options = replace(options, **kw)

@@ -326,6 +326,8 @@ def build_system_fmu(string, config, out=None, *, tolerance: float = 1e-3, log=p
     from hammerbit.fmu.reference_results import system_results
     if fmi_version not in (2, 3):
         raise ValueError(f"fmi_version = {fmi_version!r} is out of range: allowed 2 or 3")
+    from hammerbit.fmu.compile_cache import cache_enabled
+    cache_enabled()                       # a bad HAMMERBIT_BUILD_CACHE is refused before any work
     out = Path("dist") / f"{MODEL_NAME}.fmu" if out is None else Path(out)
     if out.is_dir():
         out = out / f"{MODEL_NAME}.fmu"

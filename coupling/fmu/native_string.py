@@ -242,6 +242,8 @@ def build_native_string_fmu(string_arg, out=None, *, steps=None, build=None, log
     from hammerbit.fmu.native_build import FMI3_DEFINES, FMI3_SOURCES
     if fmi_version not in (2, 3):
         raise ValueError(f"fmi_version = {fmi_version!r} is out of range: allowed 2 or 3")
+    from hammerbit.fmu.compile_cache import cache_enabled
+    cache_enabled()                       # a bad HAMMERBIT_BUILD_CACHE is refused before any work
     from hammerbit.fmu.build_string import MODEL_NAME, build_string_fmu, string_build, string_fmu_path
     from hammerbit.fmu.c_description import write_description_header
     from hammerbit.fmu.native import generate_header, read_model_description
