@@ -160,6 +160,18 @@ def test_a_build_refuses_a_bad_switch_before_any_work(tmp_path, monkeypatch):
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize("argv", [["fmu", "build", "--runtime", "native"], ["fmu", "build-system", "--string", "lab"],
+                                  ["ssp", "build", "--string", "lab"]])
+def test_the_commands_that_build_refuse_a_bad_switch_with_exit_2(argv, tmp_path, monkeypatch, capsys):
+    from hammerbit.cli.main import main
+    monkeypatch.setenv(SWITCH, "maybe")
+    monkeypatch.chdir(tmp_path)
+    assert main([*argv, "--out", str(tmp_path / ("x.ssp" if argv[0] == "ssp" else "x.fmu"))]) == 2
+    err = capsys.readouterr().err
+    assert f"{SWITCH} = 'maybe' is out of range" in err and "Traceback" not in err and "building" not in err
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_the_oldest_entries_are_pruned(cache_root, tmp_path, monkeypatch):
     monkeypatch.setattr(compile_cache, "MAX_ENTRIES", 2)
     for k in range(3):
