@@ -84,7 +84,7 @@ def _word_offsets(data: bytes, value: float) -> list:
 
 @pytest.mark.parametrize("field,value,reason", [
     ("hammer_position", 1e12, "beyond the physical range"),     # stepped 20 s before the state checks
-    ("hammer_position", 101.0, "further from the bit"),         # a hammer 100 x0 inside the bit
+    ("hammer_position", 101.0, "from the bit, beyond"),        # a hammer 100 x0 inside the bit
     ("rtol", 1e-300, "tolerance is out of range"),              # a step that never ends
     ("rtol", 2e-4, "not those of one tolerance"),               # the shadow no longer 32x tighter
     ("eta", 1e12, "not its applied inputs'"),                   # a billion solver steps a period

@@ -76,6 +76,8 @@ def known_name(name: str, option: str) -> None:
 def preflight(args) -> None:
     """Check the request ``args`` of any command before its run (see the module docs)."""
     cmd = getattr(args, "command", None)
+    if cmd in ("fmu", "ssp"):
+        _build_cache_switch()
     if cmd == "fmu":
         _fmu_out(getattr(args, "out", None))
         return
@@ -92,6 +94,15 @@ def preflight(args) -> None:
     check = _CHECKS.get(cmd)
     if check is not None:
         check(args)
+
+
+def _build_cache_switch() -> None:
+    """The commands that build FMUs refuse a bad ``HAMMERBIT_BUILD_CACHE`` as a usage error."""
+    from hammerbit.fmu.compile_cache import cache_enabled
+    try:
+        cache_enabled()
+    except ValueError as e:
+        raise UsageError(str(e)) from None
 
 
 def _formats(formats, cmd):

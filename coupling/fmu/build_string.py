@@ -31,6 +31,9 @@ from xml.etree import ElementTree as ET
 
 import numpy as np
 
+from hammerbit.fmu.compile_cache import cache_enabled
+from hammerbit.fmu.guid import content_guid, replace_guid
+
 from hammerbit.fmu.build import (add_native_front, build_hash, forget_staged_modules, pythonfmu_builder,
                                   runtime_files)
 
@@ -213,6 +216,7 @@ def build_string_fmu(string_arg, out=None, *, build: Optional[StringBuild] = Non
     ``out``: the ``.fmu`` file or a directory (default ``dist/Drillstring.fmu``); ``kw`` go to
     :func:`string_build` (``wob``, ``rig``, ``top``, ``interface_stiffness``, ``interface_damping``)."""
     FmuBuilder = pythonfmu_builder()
+    cache_enabled()                       # a bad HAMMERBIT_BUILD_CACHE is refused before any work
     from hammerbit.model.string_model import INFO_FILE, MODEL_FILE, save_model
     build = string_build(string_arg, **kw) if build is None else build
     out = string_fmu_path(out)
@@ -244,6 +248,8 @@ def build_string_fmu(string_arg, out=None, *, build: Optional[StringBuild] = Non
         # the native front, as HammerBitRock's: loads Python into a native host (pythonfmu's own
         # binary expects the host to be Python) and keeps the FMI calling sequence
         md = contents["modelDescription.xml"]
+        md = replace_guid(md, content_guid(md, tag))
+        contents["modelDescription.xml"] = md
         from hammerbit.fmu.table_check import check_description
         from hammerbit.model.fmu_description import STRING_VARIABLES
         check_description(md, STRING_VARIABLES, out.name)

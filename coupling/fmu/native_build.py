@@ -22,7 +22,6 @@ import json
 import math
 import os
 import shutil
-import subprocess
 import sys
 import tempfile
 import zipfile
@@ -32,6 +31,7 @@ from xml.etree import ElementTree as ET
 from hammerbit.fmu.native import FRONT_SOURCES, SOURCE_DIR, FrontBuildError, c_string, find_compiler, generate_header, \
     read_model_description
 from hammerbit.fmu.c_description import write_description_header
+from hammerbit.fmu.compile_cache import cache_enabled, compile_output
 from hammerbit.fmu.native_kernels import TARGETS, ALLOWED_UNDEFINED, build_objects, undefined_symbols
 
 __all__ = ["NATIVE_GENERATION_TOOL", "MINGW_CC", "MAX_OUTPUT_DERIVATIVE_ORDER", "C_FLAGS", "NATIVE_SOURCES", "GLIBC_COMPAT_SOURCE", "GLIBC_WRAPPED", "STATES", "NativeBuildError", "native_header", "native_value_references",
@@ -143,15 +143,6 @@ def native_header(start_values: dict, layout: dict) -> str:
 # ---------------------------------------------------------------------------
 # compile and link
 # ---------------------------------------------------------------------------
-def _run(cmd, what: str) -> None:
-    try:
-        r = subprocess.run(cmd, capture_output=True, text=True)
-    except OSError as e:
-        raise NativeBuildError(f"{what}: cannot run {cmd[0]}: {e}") from None
-    if r.returncode != 0:
-        raise NativeBuildError(f"{what} failed ({' '.join(map(str, cmd))}):\n{r.stderr.strip()[-4000:]}")
-
-
 def nm_for(platform: str) -> str:
     """The ``nm`` that reads the objects of ``platform``."""
     if platform == "win64":
@@ -178,8 +169,10 @@ def link_binary(platform: str, cc: str, obj: Path, include: Path, out: Path, sou
         raise NativeBuildError(f"the {platform} kernel object {obj.name} needs symbols no shim provides: "
                                f"{sorted(extra)}")
     srcs = [str(s) for s in sources]
+    # the build directory's name (a new temporary one per build) must not reach the binary: the
+    # compile cache keys on its contents, not on its name
     common = [*C_FLAGS, "-Wall", "-Wextra", "-Wno-unused-parameter", "-DHB_NATIVE_MODEL", *defines,
-              "-I", str(include), "-I", str(SOURCE_DIR)]
+              f"-ffile-prefix-map={include}=.", "-I", str(include), "-I", str(SOURCE_DIR)]
     if platform in ("linux64", "aarch64-linux"):
         # glibc_compat.c and --wrap: no symbol version above glibc 2.17 (see that file)
         wrap = "-Wl," + ",".join(f"--wrap={name}" for name in GLIBC_WRAPPED)
@@ -187,10 +180,13 @@ def link_binary(platform: str, cc: str, obj: Path, include: Path, out: Path, sou
                str(obj), "-Wl,-Bsymbolic", "-Wl,--no-undefined", wrap, "-lm",
                "-lpthread"]
     else:
-        # static libgcc/winpthread: the DLL needs only the system's KERNEL32 and msvcrt
-        cmd = [cc, *common, "-D__USE_MINGW_ANSI_STDIO=1", "-shared", "-static", "-o", str(out), *srcs,
-               str(obj), "-Wl,--no-undefined", "-lm", "-lpthread"]
-    _run(cmd, f"linking the {platform} binary")
+        # static libgcc/winpthread: the DLL needs only the system's KERNEL32 and msvcrt.  Same
+        # inputs, same bytes: no link timestamp, and the fixed image base instead of one hashed
+        # from the output's path (Windows relocates the DLL anyway: it is built DYNAMIC_BASE)
+        cmd = [cc, *common, "-D__USE_MINGW_ANSI_STDIO=1", "-shared", "-static", "-Wl,--no-insert-timestamp",
+               "-Wl,--disable-auto-image-base", "-o", str(out), *srcs, str(obj), "-Wl,--no-undefined", "-lm",
+               "-lpthread"]
+    compile_output(cmd, out, scratch=(include,), what=f"linking the {platform} binary", error=NativeBuildError)
 
 
 def select_platforms(log=print, fmi_version: int = 2) -> list:
@@ -241,7 +237,9 @@ def build_binaries(model_description_xml, out_dir, *, start_values=None, platfor
 
 def platform_compilers(platforms, *, fmi3: bool) -> dict:
     """``{platform: C compiler}`` for ``platforms``, before any work: a missing cross-compiler, an
-    unknown platform or aarch64-linux for FMI 2.0 raises :class:`NativeBuildError` naming it."""
+    unknown platform or aarch64-linux for FMI 2.0 raises :class:`NativeBuildError` naming it
+    (and a bad ``HAMMERBIT_BUILD_CACHE`` ValueError)."""
+    cache_enabled()
     compilers = {}
     for plat in platforms:
         if plat not in TARGETS:

@@ -242,6 +242,8 @@ def build_native_string_fmu(string_arg, out=None, *, steps=None, build=None, log
     from hammerbit.fmu.native_build import FMI3_DEFINES, FMI3_SOURCES
     if fmi_version not in (2, 3):
         raise ValueError(f"fmi_version = {fmi_version!r} is out of range: allowed 2 or 3")
+    from hammerbit.fmu.compile_cache import cache_enabled
+    cache_enabled()                       # a bad HAMMERBIT_BUILD_CACHE is refused before any work
     from hammerbit.fmu.build_string import MODEL_NAME, build_string_fmu, string_build, string_fmu_path
     from hammerbit.fmu.c_description import write_description_header
     from hammerbit.fmu.native import generate_header, read_model_description
@@ -258,15 +260,18 @@ def build_native_string_fmu(string_arg, out=None, *, steps=None, build=None, log
             raise ValueError(f"--step = {h!r} is out of range: allowed a finite step size > 0 s")
     build = string_build(string_arg, **kw) if build is None else build
     out = string_fmu_path(out)
-    with tempfile.TemporaryDirectory(prefix="hammerbit_native_string_") as tmp:
-        tmp = Path(tmp)
-        py_fmu = build_string_fmu(string_arg, tmp / "python" / f"{MODEL_NAME}.fmu", build=build)
+    # the Python flavour in a directory of its own: the link's directory (-I) holds only what the
+    # link reads, since the compile cache keys on every file in it
+    with tempfile.TemporaryDirectory(prefix="hammerbit_native_string_") as tmp, \
+            tempfile.TemporaryDirectory(prefix="hammerbit_string_python_") as python_tmp:
+        tmp, python_dir = Path(tmp), Path(python_tmp)
+        py_fmu = build_string_fmu(string_arg, python_dir / f"{MODEL_NAME}.fmu", build=build)
         with zipfile.ZipFile(py_fmu) as zf:
             md = native_string_description(zf.read("modelDescription.xml"))
             info = json.loads(zf.read(f"resources/{INFO_FILE}"))
-            zf.extractall(tmp / "python" / "unzipped", [n for n in zf.namelist() if n.startswith("resources/")])
+            zf.extractall(python_dir / "unzipped", [n for n in zf.namelist() if n.startswith("resources/")])
         # the reference results (FMI-LS-REF) from the library's slave on the Python flavour's resources
-        reference = slave_results(Drillstring, MODEL_NAME, md, tmp / "python" / "unzipped" / "resources")
+        reference = slave_results(Drillstring, MODEL_NAME, md, python_dir / "unzipped" / "resources")
         info["steps"] = list(steps)
         write_tables(tmp / DATA_FILE, string_tables(build, steps))
         spec = read_model_description(md)

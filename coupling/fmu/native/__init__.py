@@ -18,12 +18,13 @@ from __future__ import annotations
 
 import os
 import shutil
-import subprocess
 import sys
 import tempfile
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
+
+from hammerbit.fmu.compile_cache import cache_enabled, compile_output
 
 __all__ = ["FrontBuildError", "FrontSpec", "Variable", "STATUS_VARIABLE", "PYTHON_MODULES",
            "SOURCE_DIR", "FRONT_SOURCES", "SOURCES", "c_string", "read_model_description", "generate_header",
@@ -241,6 +242,7 @@ def build_front(model_description_xml, out_dir, *, model_identifier: str | None 
         wrapper += ".so"
     if wrapper == f"{ident}.so":
         raise FrontBuildError(f"wrapper_name {wrapper_name!r} would overwrite the front itself")
+    cache_enabled()                       # a bad HAMMERBIT_BUILD_CACHE fails before any work
     compiler = cc or find_compiler()
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -252,16 +254,12 @@ def build_front(model_description_xml, out_dir, *, model_identifier: str | None 
             f"#define HB_WRAPPER_FILE {c_string(wrapper)}\n"
             f"#define HB_PYTHON_MODULES {c_string(' '.join(python_modules))}\n")
         target = Path(tmp) / out.name
+        # the temporary directory's name must not reach the binary: the compile cache keys on
+        # its contents, not on its name
         cmd = [compiler, "-std=gnu11", "-O2", "-fPIC", "-shared", "-fvisibility=hidden",
-               "-Wall", "-Wextra", "-Wno-unused-parameter", "-I", tmp, "-I", str(SOURCE_DIR),
-               "-o", str(target), *(str(f) for f in SOURCES),
+               "-Wall", "-Wextra", "-Wno-unused-parameter", f"-ffile-prefix-map={tmp}=.", "-I", tmp,
+               "-I", str(SOURCE_DIR), "-o", str(target), *(str(f) for f in SOURCES),
                "-Wl,-z,nodelete", "-Wl,-Bsymbolic", "-Wl,--no-as-needed", "-l:libdl.so.2", "-lpthread"]
-        try:
-            proc = subprocess.run(cmd, capture_output=True, text=True)
-        except OSError as e:
-            raise FrontBuildError(f"cannot run the C compiler {compiler}: {e}") from None
-        if proc.returncode != 0:
-            raise FrontBuildError(f"compiling the native front failed ({' '.join(cmd)}):\n"
-                                  f"{proc.stderr.strip()}")
+        compile_output(cmd, target, scratch=(tmp,), what="compiling the native front", error=FrontBuildError)
         shutil.copyfile(target, out)
     return out

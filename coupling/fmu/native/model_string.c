@@ -293,6 +293,17 @@ HB_MODEL_TERMINATE_RESET(((model *)c)->s)
 /* ------------------------------------------------------------------------------------------ */
 /* fmi2DoStep                                                                                   */
 /* ------------------------------------------------------------------------------------------ */
+/* a failed step to t_end: the state of its start put back (`kept`, freed here), and why logged */
+static fmi2Status put_back(model *m, sstate *kept, double t_end, const char *why) {
+    char a[40], b[40], reason[256];
+    hb_repr(kept->t, a, sizeof a);
+    hb_repr(t_end, b, sizeof b);
+    snprintf(reason, sizeof reason, "%s", why);   /* `why` may point into the state put back */
+    memcpy(m->s, kept, m->size);
+    free(kept);
+    return FAIL(m, "fmi2DoStep from t = %s s to %s s refused: %s; state unchanged", a, b, reason);
+}
+
 static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_prior) {
     (void)no_prior;
     model *m = c;
@@ -307,6 +318,10 @@ static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
         return FAIL(m, "fmi2DoStep failed: the exponentials of the step h = %s s: %s; step refused, state "
                     "unchanged", a, why);
     }
+    /* kept to put back if the step fails or ends in a state fmi2SetFMUstate would refuse */
+    sstate *kept = malloc(m->size);
+    if (!kept) return FAIL(m, "fmi2DoStep: out of memory; state unchanged");
+    memcpy(kept, s, m->size);
     double x = 0.0, v = 0.0;      /* the first step: the hammer at rest in the static equilibrium */
     if (s->started) {
         const char *names[2] = {"hammer_position", "hammer_velocity"}, *units[2] = {"m", "m/s"};
@@ -314,6 +329,7 @@ static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
         for (int i = 0; i < 2; i++)
             if (!(isfinite(vals[i]) && fabs(vals[i]) <= HS_INPUT_LIMIT)) {
                 hb_repr(vals[i], a, sizeof a);
+                free(kept);
                 return FAIL(m, "input '%s' = %s is out of range: allowed [-%g, %g] %s; step refused, "
                             "state unchanged", names[i], a, HS_INPUT_LIMIT, HS_INPUT_LIMIT, units[i]);
             }
@@ -334,11 +350,18 @@ static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
     s->F_held = hs_exchange(s->order, given, h, s->modal, s->n, b->P ? b->P : m->tmp, xi, m->buf, m->tmp,
                             b->frow_r ? b->frow_r : m->tmp, b->d, b->G, b->irow, (double *)b->icol, eta,
                             b->frow_c, s->k3, s->th, s->wh, s->Fh, s->out, s->F_held, s->c, s->feed);
-    if (hb_kernel_raised()) return FAIL(m, "fmi2DoStep failed: a kernel raised an exception");
+    if (hb_kernel_raised()) return put_back(m, kept, t + h, "a kernel raised an exception");
     s->der_given = 0;             /* input derivatives hold for one step */
     memset(s->der_in, 0, sizeof s->der_in);
     s->t = t + h;
     set_outputs(m);
+    const char *refused = hs_state_invalid(m, s);
+    if (refused) {
+        char why[300];
+        snprintf(why, sizeof why, "the state it ends in would leave the FMU's range (%s)", refused);
+        return put_back(m, kept, t + h, why);
+    }
+    free(kept);
     return fmi2OK;
 }
 /* ------------------------------------------------------------------------------------------ */

@@ -100,6 +100,10 @@ int hs_load_table(const char *dir, table *t, char *err, size_t en);
 /* the first block of a form (its n and modal flag are those of every step size of the form) */
 const block *hs_any_block(const table *t, int64_t form);
 
+/* model_string_access.c: why a state is refused, checked in full (NULL: accepted).
+ * fmi2SetFMUstate and fmi2DeSerializeFMUstate refuse such a state, and fmi2DoStep refuses a step
+ * that would end in one, so that every state the FMU holds can be restored */
+const char *hs_state_invalid(const model *m, const sstate *s);
 /* model_string_access.c: fmi2Get*, fmi2Set* and the FMU-state functions of the backend table */
 void hs_access_fill(hb_wrapper *w);
 

@@ -121,7 +121,7 @@ static const char *derived_invalid(const model *m, const sstate *s) {
 }
 
 /* NULL if `s` can be a state of this build, checked in full; else the reason */
-static const char *state_invalid(const model *m, const sstate *s) {
+const char *hs_state_invalid(const model *m, const sstate *s) {
     if (s->magic != STATE_MAGIC || s->size != m->size) return "it is not a state of this build";
     if ((s->ready | s->terminated | s->started) & ~1 || (s->modal & ~1)) return "a flag is neither 0 nor 1";
     if (!(fabs(s->t) <= HS_STATE_TIME_LIMIT) || !(fabs(s->t_start) <= HS_STATE_TIME_LIMIT) ||
@@ -159,7 +159,7 @@ static fmi2Status s_get_state(fmi2Component c, fmi2FMUstate *state) {
 
 static fmi2Status s_set_state(fmi2Component c, fmi2FMUstate state) {
     model *m = c;
-    const char *why = state_invalid(m, state);
+    const char *why = hs_state_invalid(m, state);
     if (why) return FAIL(m, "fmi2SetFMUstate: %s; state unchanged", why);
     memcpy(m->s, state, m->size);
     return fmi2OK;
@@ -179,9 +179,9 @@ static fmi2Status s_serialize(fmi2Component c, fmi2FMUstate state, fmi2Byte out[
     return fmi2OK;
 }
 
-/* state_invalid for hb_model_deserialize */
+/* hs_state_invalid for hb_model_deserialize */
 static const char *block_invalid(const void *m, const void *state) {
-    return state_invalid(m, state);
+    return hs_state_invalid(m, state);
 }
 
 static fmi2Status s_deserialize(fmi2Component c, const fmi2Byte in[], size_t size, fmi2FMUstate *state) {

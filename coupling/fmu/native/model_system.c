@@ -220,6 +220,27 @@ static int64_t advance_run(model *m, double *y, int64_t *ist, double *fst, doubl
     return hb_kernel_raised() ? -1 : st;
 }
 
+/* the end of a step: a state fmi2SetFMUstate would refuse (a bit run away beyond the physical
+ * range, a hammer thrown metres from the bit) is not kept but refused with its reason, so that every
+ * state the FMU holds can be restored; `kept` is the state before the step (freed here) */
+static fmi2Status refuse_if_unrestorable(model *m, sysstate *kept) {
+    sysstate *s = &m->s;
+    char why[SYS_WHY_SIZE], a[40], b[40];
+    const char *refused = sys_state_invalid(s, why, sizeof why);
+    if (!refused) {
+        free(kept);
+        return fmi2OK;
+    }
+    hb_repr(kept->t, a, sizeof a);
+    hb_repr(s->t, b, sizeof b);
+    char reason[SYS_WHY_SIZE];
+    snprintf(reason, sizeof reason, "%s", refused);
+    memcpy(s, kept, sizeof *s);
+    free(kept);
+    return FAIL(m, "fmi2DoStep from t = %s s to %s s refused: the state it ends in would leave the FMU's range "
+                "(%s); state unchanged", a, b, reason);
+}
+
 static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_prior) {
     (void)no_prior;
     model *m = c;
@@ -256,7 +277,6 @@ static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
                     "step below the time resolution or a non-finite state); state unchanged", a,
                     (long long)st);
     }
-    free(kept);
     s->t = t + h;
     double dtau = s->fst[HSYS_F_T] - tau_a;
     double difference = error_estimate(s, dtau, x2a, x2a_shadow, tau_a);
@@ -284,7 +304,7 @@ static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
     if (s->fst[HSYS_F_DRIVE_MIN] < 0.0) s->regime |= HB_REGIME_TENSION;
     sys_regime_step(m, s->mean_wob / HSYS_F0 * dtau, dtau);
     s->regime |= s->rg.verdict;
-    return fmi2OK;
+    return refuse_if_unrestorable(m, kept);
 }
 
 /* ------------------------------------------------------------------------------------------ */

@@ -114,6 +114,12 @@ void sys_regime_step(model *m, double step_impulse, double dtau);
 const char *sys_regime_invalid(const sysstate *s);
 /* model_system_access.c: why an input value is refused (NULL: accepted; idx an IN_*) */
 const char *sys_input_refused(const sysstate *s, int idx, double v, char *buf, size_t n);
+/* model_system_access.c: why a state is refused, checked in full (NULL: accepted; a reason that
+ * names a value is written into why[n], of at least SYS_WHY_SIZE bytes).  fmi2SetFMUstate and
+ * fmi2DeSerializeFMUstate refuse such a state, and fmi2DoStep refuses a step that would end in one,
+ * so that every state the FMU holds can be restored */
+#define SYS_WHY_SIZE 200
+const char *sys_state_invalid(const sysstate *s, char *why, size_t n);
 /* model_system_access.c: fmi2Get*, fmi2Set* and the FMU-state functions */
 void sys_access_fill(hb_wrapper *w);
 

@@ -127,16 +127,28 @@ static int all_finite(const double *v, size_t n) {
     return 1;
 }
 
-/* why one run's solver arrays (the main run's or the shadow's) are refused (NULL: accepted) */
+/* why one run's solver arrays (the main run's or the shadow's) are refused (NULL: accepted; the
+ * reasons that name a value are written into why[n]) */
 static const char *solution_invalid(const sysstate *s, const double *y, const int64_t *ist, const double *fst,
-                                    const double *opts) {
+                                    const double *opts, char *why, size_t n) {
     if (!all_finite(y, SYS_NY)) return "its solver state holds a non-finite number";
     /* the hybrid system is stiff far outside its physical range (a hammer 100 x0 inside the bit, a
-     * string state of 1e9): the solver would spend minutes there before its step-storm limit */
+     * string state of 1e12): the solver would spend minutes there before its step-storm limit */
+    char a[40], b[40];
     for (int i = 0; i < SYS_NY; i++)
-        if (!(fabs(y[i]) <= SYS_STATE_LIMIT)) return "its solver state is beyond the physical range";
-    if (!(fabs(y[HSYS_X_HAMMER] - y[HSYS_X_BIT]) <= SYS_GAP_LIMIT))
-        return "its hammer is further from the bit than the physical range";
+        if (!(fabs(y[i]) <= SYS_STATE_LIMIT)) {
+            hb_repr(y[i], a, sizeof a);
+            snprintf(why, n, "its solver state %d is %s of its scale, beyond the physical range of %g", i, a,
+                     SYS_STATE_LIMIT);
+            return why;
+        }
+    if (!(fabs(y[HSYS_X_HAMMER] - y[HSYS_X_BIT]) <= SYS_GAP_LIMIT)) {
+        hb_repr((y[HSYS_X_HAMMER] - y[HSYS_X_BIT]) * HSYS_X0, a, sizeof a);
+        hb_repr(SYS_GAP_LIMIT * HSYS_X0, b, sizeof b);
+        snprintf(why, n, "its hammer is %s m from the bit, beyond the physical range of %s m (%g length scales)",
+                 a, b, SYS_GAP_LIMIT);
+        return why;
+    }
     if (memcmp(&y[4 + HSYS_IC], &HSYS_Y0[4 + HSYS_IC], sizeof(double)) != 0)
         return "its subsystem's constant state is not 1";
     for (int i = 0; i < HSYS_N_OPTS; i++) {
@@ -178,16 +190,15 @@ static const char *tolerances_invalid(const sysstate *s) {
     return NULL;
 }
 
-static const char *state_invalid(const sysstate *s) {
+const char *sys_state_invalid(const sysstate *s, char *why, size_t n) {
     if (s->magic != SYS_STATE_MAGIC || s->size != sizeof *s) return "it is not a state of this build";
     if ((s->ready | s->terminated) & ~1) return "a flag is neither 0 nor 1";
     if (!(isfinite(s->t) && isfinite(s->t_start) && fabs(s->t) <= 1e9 && fabs(s->t_start) <= 1e9))
         return "its time is not finite or beyond 1e9 s";
     if (!(isfinite(s->tolerance) && HSYS_MIN_tolerance <= s->tolerance && s->tolerance <= HSYS_MAX_tolerance))
         return "its tolerance is out of range";
-    char why[512];
     for (int i = 0; i < N_INPUTS; i++)
-        if (sys_input_refused(s, i, s->in[i], why, sizeof why) || sys_input_refused(s, i, s->applied[i], why, sizeof why))
+        if (sys_input_refused(s, i, s->in[i], why, n) || sys_input_refused(s, i, s->applied[i], why, n))
             return "an input is out of range";
     const double *reals[] = {&s->bit_position, &s->rate_of_penetration, &s->wob, &s->mean_wob, &s->hook_load,
                              &s->hammer_position, &s->hammer_velocity, &s->contact_force, &s->coupling_error};
@@ -225,8 +236,8 @@ static const char *state_invalid(const sysstate *s) {
     if (why_tol) return why_tol;
     const char *why_regime = sys_regime_invalid(s);
     if (why_regime) return why_regime;
-    const char *why_run = solution_invalid(s, s->y, s->ist, s->fst, s->opts);
-    return why_run ? why_run : solution_invalid(s, s->shadow.y, s->shadow.ist, s->shadow.fst, s->shadow.opts);
+    const char *why_run = solution_invalid(s, s->y, s->ist, s->fst, s->opts, why, n);
+    return why_run ? why_run : solution_invalid(s, s->shadow.y, s->shadow.ist, s->shadow.fst, s->shadow.opts, why, n);
 }
 
 static fmi2Status s_get_state(fmi2Component c, fmi2FMUstate *state) {
@@ -240,7 +251,8 @@ static fmi2Status s_get_state(fmi2Component c, fmi2FMUstate *state) {
 
 static fmi2Status s_set_state(fmi2Component c, fmi2FMUstate state) {
     model *m = c;
-    const char *why = state_invalid(state);
+    char buf[SYS_WHY_SIZE];
+    const char *why = sys_state_invalid(state, buf, sizeof buf);
     if (why) return FAIL(m, "fmi2SetFMUstate: %s; state unchanged", why);
     memcpy(&m->s, state, sizeof m->s);
     return fmi2OK;
@@ -259,10 +271,11 @@ static fmi2Status s_serialize(fmi2Component c, fmi2FMUstate state, fmi2Byte out[
     return fmi2OK;
 }
 
-/* state_invalid for hb_model_deserialize: the system's checks need no instance */
+/* sys_state_invalid for hb_model_deserialize: the system's checks need no instance */
 static const char *checked(const void *m, const void *state) {
     (void)m;
-    return state_invalid(state);
+    static _Thread_local char buf[SYS_WHY_SIZE];   /* read by the caller before this thread's next call */
+    return sys_state_invalid(state, buf, sizeof buf);
 }
 
 static fmi2Status s_deserialize(fmi2Component c, const fmi2Byte in[], size_t size, fmi2FMUstate *state) {
