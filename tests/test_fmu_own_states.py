@@ -100,9 +100,9 @@ def _step_size(md) -> float:
     return float(de.stepSize) if de is not None and de.stepSize else 1e-3
 
 
-@pytest.mark.parametrize("fixture", FMUS)
-def test_every_state_an_fmu_steps_to_can_be_restored(fixture, request, tmp_path):
-    path = request.getfixturevalue(fixture)
+@pytest.mark.parametrize("built", FMUS, indirect=True)
+def test_every_state_an_fmu_steps_to_can_be_restored(built, request, tmp_path):
+    fixture, path = request.node.callspec.params["built"], built
     md = read_model_description(str(path))
     assert md.coSimulation.canGetAndSetFMUstate, fixture
     unzipdir = extract(str(path), unzipdir=str(tmp_path / "fmu"))
