@@ -91,7 +91,9 @@ def bounded(fn, *args, timeout: float = TIME_LIMIT, **kw):
     th.start()
     th.join(timeout)
     if th.is_alive():
-        raise Hang(f"{getattr(fn, '__name__', fn)} did not finish within {timeout:.0f} s (hang?)")
+        hang = Hang(f"{getattr(fn, '__name__', fn)} did not finish within {timeout:.0f} s (hang?)")
+        hang.thread = th            # still running: a caller that can release it joins it
+        raise hang
     if "error" in box:
         raise box["error"]
     return box["value"], box["warnings"]
@@ -206,8 +208,15 @@ def _random_scene_case(scene):
 
 
 def test_bounded_detects_a_hang():
-    with pytest.raises(Hang):
-        bounded(time.sleep, 2.0, timeout=0.2)
+    # the "hung" call ends when released, before this test does: a thread left running would
+    # leave its warnings.catch_warnings later and put back the process's warning state of its
+    # start in the middle of another test's (which then recorded no BounceWarning)
+    release = threading.Event()
+    with pytest.raises(Hang) as hang:
+        bounded(release.wait, 60.0, timeout=0.2)
+    release.set()
+    hang.value.thread.join(60.0)
+    assert not hang.value.thread.is_alive()
     assert bounded(sum, [1, 2])[0] == 3
 
 
