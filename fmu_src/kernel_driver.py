@@ -234,23 +234,34 @@ def march(y, istate, fstate, t_end, p, opts, method, sub, rec, buffers):
 
 
 # Entry points, each compiled on its first call (or loaded from the cache): they
-# allocate the work arrays and run the loop ``march``.  ``advance_hammer`` (DOP853,
-# no linear subsystem, no energy block: a plain ``simulate``, the FMU, the sweeps)
-# runs ``march_hammer``, the loop with the tableau and the empty subsystem bound
-# as constants (``numba_partial.bind``), so they fold into the loop and into every
-# piece inlined there, without numba re-typing a copy of the driver; ``advance``
-# serves every other combination (DP54, RK4, the energy block, the monolithic
-# reference).
+# allocate the work arrays and run the loop ``march``.  A system of the hammer and
+# the bit alone (no linear subsystem, no energy block: a plain ``simulate``, the FMU,
+# the sweeps) runs a copy of the loop with its method's tableau and the empty
+# subsystem bound as constants (``numba_partial.bind``), so they fold into the loop
+# and into every piece inlined there, without numba re-typing a copy of the driver:
+# ``advance_hammer`` (DOP853), ``advance_dp54`` and ``advance_rk4``.  Given as
+# arguments instead, the fixed-step loop of RK4 measured 5-10 % slower.
+# ``advance`` serves every other combination (the linear subsystem, the energy
+# block, the monolithic reference).
 
 #: the empty linear subsystem and no energy block: the ``sub`` group of a hammer-only system
 NO_SUB = (0, 0, np.zeros(1, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros((0, 2)),
           np.zeros(0), np.zeros(2))
-#: the method of ``advance_hammer``
-DOP853 = _T.METHODS["dop853"]
+#: the methods of the hammer-only entry points
+DOP853, DP54, RK4 = _T.METHODS["dop853"], _T.METHODS["dp54"], _T.METHODS["rk4"]
+#: the entry point of a hammer-only system, by ``SolverOptions.method``
+HAMMER_ENTRY = {"adaptive": "advance_hammer", "dp54": "advance_dp54", "rk4": "advance_rk4"}
+#: the loop each entry point runs
+ENTRY_LOOP = {"advance_hammer": "march_hammer", "advance_dp54": "march_dp54", "advance_rk4": "march_rk4",
+              "advance": "march"}
 
-#: ``march`` with DOP853, no linear subsystem and no energy block, all bound as constants
+#: ``march`` with a method, no linear subsystem and no energy block, all bound as constants
 march_hammer = njit(cache=True, _nrt=False, no_cpython_wrapper=True)(bind(
     march, "march_hammer", method=DOP853, sub=NO_SUB))
+march_dp54 = njit(cache=True, _nrt=False, no_cpython_wrapper=True)(bind(
+    march, "march_dp54", method=DP54, sub=NO_SUB))
+march_rk4 = njit(cache=True, _nrt=False, no_cpython_wrapper=True)(bind(
+    march, "march_rk4", method=RK4, sub=NO_SUB))
 
 
 @njit(cache=True, nogil=True)
@@ -277,3 +288,15 @@ def advance(y, istate, fstate, t_end, p, opts, method, sub, rec):
 def advance_hammer(y, istate, fstate, t_end, p, opts, rec):
     """:func:`advance` with DOP853, no linear subsystem and no energy block (``march_hammer``)."""
     return march_hammer(y, istate, fstate, t_end, p, opts, rec, scratch(DOP853, y.shape[0]))
+
+
+@njit(cache=True, nogil=True)
+def advance_dp54(y, istate, fstate, t_end, p, opts, rec):
+    """:func:`advance` with DP54, no linear subsystem and no energy block (``march_dp54``)."""
+    return march_dp54(y, istate, fstate, t_end, p, opts, rec, scratch(DP54, y.shape[0]))
+
+
+@njit(cache=True, nogil=True)
+def advance_rk4(y, istate, fstate, t_end, p, opts, rec):
+    """:func:`advance` with RK4, no linear subsystem and no energy block (``march_rk4``)."""
+    return march_rk4(y, istate, fstate, t_end, p, opts, rec, scratch(RK4, y.shape[0]))
