@@ -22,7 +22,8 @@ subsystem) reach into every piece, and the per-step state
 ``march`` runs without numba's reference counting (``_nrt=False``: it
 allocates nothing), so the groups of arrays the pieces unpack cost nothing.
 The kernels the pieces call (``rk_step``, ``locate_event``, ...) are ordinary
-compiled functions.
+compiled functions, and so is the piece that runs once per event,
+``step_to_event``: its code stays out of the loop every step runs through.
 
 Besides the groups of :mod:`.kernel_layouts` (``method``, ``tableau``,
 ``sub``, ``field``, ``step``, ``rec``), the pieces share these, built once per
