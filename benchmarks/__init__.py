@@ -165,7 +165,7 @@ def kernel_source() -> dict:
     except Exception:  # pragma: no cover
         return {"source": None}
     out = {"cache_dir": numba_cache.cache_root(), "functions": {}}
-    for name in ("advance_hammer", "advance"):
+    for name in (*kernel_driver.HAMMER_ENTRY.values(), "advance"):
         d = getattr(kernel_driver, name, None)
         if d is None or not getattr(d, "signatures", None):
             continue

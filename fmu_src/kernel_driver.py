@@ -11,16 +11,19 @@ step or move to its event and record (:mod:`.kernel_step_accept`,
 state lives in plain arrays (layouts: :mod:`.kernel_layouts`), so a call that
 returns early resumes where it stopped.
 
-The entry points ``advance`` and ``advance_hammer`` allocate the work arrays
-and run the loop, :func:`march`.  The pieces are compiled with
+The entry points (``advance``, and ``advance_hammer``, ``advance_dp54`` and
+``advance_rk4`` for a system of the hammer and the bit alone) allocate the work
+arrays and run the loop, :func:`march`.  The pieces are compiled with
 ``inline='always'``: numba copies their code into ``march`` before typing it,
-so the constants that :func:`.numba_partial.bind` gives ``march_hammer`` (the
-method, the empty subsystem) reach into every piece, and the per-step state
+so the constants that :func:`.numba_partial.bind` gives the copies
+``march_hammer``, ``march_dp54`` and ``march_rk4`` (the method, the empty
+subsystem) reach into every piece, and the per-step state
 (time, step size, drive tracker) stays in registers, as in one function.
 ``march`` runs without numba's reference counting (``_nrt=False``: it
 allocates nothing), so the groups of arrays the pieces unpack cost nothing.
 The kernels the pieces call (``rk_step``, ``locate_event``, ...) are ordinary
-compiled functions.
+compiled functions, and so is the piece that runs once per event,
+``step_to_event``: its code stays out of the loop every step runs through.
 
 Besides the groups of :mod:`.kernel_layouts` (``method``, ``tableau``,
 ``sub``, ``field``, ``step``, ``rec``), the pieces share these, built once per
@@ -234,23 +237,34 @@ def march(y, istate, fstate, t_end, p, opts, method, sub, rec, buffers):
 
 
 # Entry points, each compiled on its first call (or loaded from the cache): they
-# allocate the work arrays and run the loop ``march``.  ``advance_hammer`` (DOP853,
-# no linear subsystem, no energy block: a plain ``simulate``, the FMU, the sweeps)
-# runs ``march_hammer``, the loop with the tableau and the empty subsystem bound
-# as constants (``numba_partial.bind``), so they fold into the loop and into every
-# piece inlined there, without numba re-typing a copy of the driver; ``advance``
-# serves every other combination (DP54, RK4, the energy block, the monolithic
-# reference).
+# allocate the work arrays and run the loop ``march``.  A system of the hammer and
+# the bit alone (no linear subsystem, no energy block: a plain ``simulate``, the FMU,
+# the sweeps) runs a copy of the loop with its method's tableau and the empty
+# subsystem bound as constants (``numba_partial.bind``), so they fold into the loop
+# and into every piece inlined there, without numba re-typing a copy of the driver:
+# ``advance_hammer`` (DOP853), ``advance_dp54`` and ``advance_rk4``.  With the
+# method given as an argument, RK4's fixed-step loop measured a quarter slower.
+# ``advance`` serves every other combination (the linear subsystem, the energy
+# block, the monolithic reference).
 
 #: the empty linear subsystem and no energy block: the ``sub`` group of a hammer-only system
 NO_SUB = (0, 0, np.zeros(1, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros((0, 2)),
           np.zeros(0), np.zeros(2))
-#: the method of ``advance_hammer``
-DOP853 = _T.METHODS["dop853"]
+#: the methods of the hammer-only entry points
+DOP853, DP54, RK4 = _T.METHODS["dop853"], _T.METHODS["dp54"], _T.METHODS["rk4"]
+#: the entry point of a hammer-only system, by ``SolverOptions.method``
+HAMMER_ENTRY = {"adaptive": "advance_hammer", "dp54": "advance_dp54", "rk4": "advance_rk4"}
+#: the loop each entry point runs
+ENTRY_LOOP = {"advance_hammer": "march_hammer", "advance_dp54": "march_dp54", "advance_rk4": "march_rk4",
+              "advance": "march"}
 
-#: ``march`` with DOP853, no linear subsystem and no energy block, all bound as constants
+#: ``march`` with a method, no linear subsystem and no energy block, all bound as constants
 march_hammer = njit(cache=True, _nrt=False, no_cpython_wrapper=True)(bind(
     march, "march_hammer", method=DOP853, sub=NO_SUB))
+march_dp54 = njit(cache=True, _nrt=False, no_cpython_wrapper=True)(bind(
+    march, "march_dp54", method=DP54, sub=NO_SUB))
+march_rk4 = njit(cache=True, _nrt=False, no_cpython_wrapper=True)(bind(
+    march, "march_rk4", method=RK4, sub=NO_SUB))
 
 
 @njit(cache=True, nogil=True)
@@ -277,3 +291,15 @@ def advance(y, istate, fstate, t_end, p, opts, method, sub, rec):
 def advance_hammer(y, istate, fstate, t_end, p, opts, rec):
     """:func:`advance` with DOP853, no linear subsystem and no energy block (``march_hammer``)."""
     return march_hammer(y, istate, fstate, t_end, p, opts, rec, scratch(DOP853, y.shape[0]))
+
+
+@njit(cache=True, nogil=True)
+def advance_dp54(y, istate, fstate, t_end, p, opts, rec):
+    """:func:`advance` with DP54, no linear subsystem and no energy block (``march_dp54``)."""
+    return march_dp54(y, istate, fstate, t_end, p, opts, rec, scratch(DP54, y.shape[0]))
+
+
+@njit(cache=True, nogil=True)
+def advance_rk4(y, istate, fstate, t_end, p, opts, rec):
+    """:func:`advance` with RK4, no linear subsystem and no energy block (``march_rk4``)."""
+    return march_rk4(y, istate, fstate, t_end, p, opts, rec, scratch(RK4, y.shape[0]))

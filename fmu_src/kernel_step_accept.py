@@ -64,7 +64,9 @@ def accept_step(span, ends, dense_ok, drive, n_act, field, ctx):
     return d_min, d1, r_y, True
 
 
-@njit(inline="always")
+# an ordinary call, not inlined: once per event, and kept out of the loop's code its
+# steps run through
+@njit(cache=True, _nrt=False, no_cpython_wrapper=True)
 def step_to_event(span, hit, dense_ok, refine, drive, n_act, field, ctx):
     """Move ``y`` from ``t`` to the event ``hit = (kind, t_hit, wtol)`` inside the step
     ``span = (t, t1, h)``.  Returns ``(confirmed, refine, drive)``.

@@ -16,17 +16,17 @@ import tempfile
 
 from . import numba_cache
 from . import numba_compile_ahead
+from .kernel_driver import ENTRY_LOOP
 from .presets import preset
 from .solver_options import SolverOptions
 from .stepping import Stepper
 
 __all__ = ["record", "record_all"]
 
-#: a scene that compiles each entry point (``Stepper`` picks the entry from the method)
-RECORD_METHOD = {"advance_hammer": "adaptive", "advance": "rk4"}
-#: the loop each entry point runs (``kernel_driver.march``): left to the compiling process, as the
-#: entry point is (a helper starting with it would type the same callees in the same order)
-ENTRY_LOOP = {"advance_hammer": "march_hammer", "advance": "march"}
+#: a scene that compiles each entry point, as ``(method, energy block)`` (``Stepper`` picks the entry
+#: from them: a hammer-only system runs its method's bound copy, the energy block the general one)
+RECORD_SCENE = {"advance_hammer": ("adaptive", False), "advance_dp54": ("dp54", False),
+                "advance_rk4": ("rk4", False), "advance": ("rk4", True)}
 
 
 def record(entry: str) -> list:
@@ -48,11 +48,14 @@ def record(entry: str) -> list:
             module = disp.py_func.__module__ or ""
             if module.startswith(prefix) and getattr(sys.modules[module], name, None) is disp \
                     and name not in (entry, ENTRY_LOOP[entry]):
+                # the loop each entry point runs is left to the compiling process, as the entry
+                # point is (a helper starting with it would type the same callees in the same order)
                 done.append((module[len(__package__) + 1:], name, tuple(ev.data["args"])))
 
     with event.install_listener("numba:compile", _Listener()):
         g = preset("paper-fig9")
-        st = Stepper(g, solver=SolverOptions(method=RECORD_METHOD[entry]))
+        method, energy = RECORD_SCENE[entry]
+        st = Stepper(g, solver=SolverOptions(method=method), energy=energy)
         if st.entry != entry:
             raise RuntimeError(f"the recording scene runs {st.entry}, not {entry}")
         st.advance(g.period)
@@ -69,7 +72,7 @@ def record_all() -> dict:
     write it to :data:`.numba_compile_ahead.PLAN_FILE`."""
     import numba  # noqa: PLC0415
     entries = {}
-    for entry in RECORD_METHOD:
+    for entry in RECORD_SCENE:
         with tempfile.TemporaryDirectory() as tmp:
             env = dict(os.environ, HAMMERBIT_CACHE_DIR=tmp)
             r = subprocess.run([sys.executable, "-c", f"from {__package__} import numba_compile_plan as c; "

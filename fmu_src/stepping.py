@@ -171,8 +171,10 @@ class Stepper:
             self._lin = (_EMPTY_I, _EMPTY_I[:0], _EMPTY_F, _EMPTY_H, _EMPTY_F, _EMPTY_G2)
         self.nz = nz
         self.ne = 4 if energy else 0
-        self.fast = solver.method == "adaptive" and nz == 0 and self.ne == 0
-        self.entry = "advance_hammer" if self.fast else "advance"
+        hammer_only = nz == 0 and self.ne == 0
+        self.fast = solver.method == "adaptive" and hammer_only
+        # the kernel entry point: a hammer-only system runs the loop with its method bound as a constant
+        self.entry = kernel_driver.HAMMER_ENTRY[solver.method] if hammer_only else "advance"
         n = 4 + nz + self.ne
         # y, istate and fstate are views of one buffer: snapshot() copies them in one call
         self.state_buffer = np.zeros(n + KL.N_ISTATE + KL.N_FSTATE)
@@ -271,11 +273,11 @@ class Stepper:
         # a second process compiles part of it
         helper = notice and self.compile_helper and numba_compile_ahead.start(self.entry)
         t0 = time.perf_counter()
-        if self.fast:
-            status = kernel_driver.advance_hammer(self.y, self.istate, self.fstate, t_end, self.p, self.opts,
-                                                  (poin, st, sa, lg))
-        else:
+        if self.entry == "advance":
             status = self._advance_general(t_end, poin, st, sa, lg)
+        else:
+            status = getattr(kernel_driver, self.entry)(self.y, self.istate, self.fstate, t_end, self.p, self.opts,
+                                                        (poin, st, sa, lg))
         if helper:
             numba_compile_ahead.finish()
         if notice:

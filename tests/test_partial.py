@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 from numba import njit
 
-from hammerbit.model import kernel_layouts
+from hammerbit.model import kernel_driver, kernel_layouts
 from hammerbit.model.presets import preset
 from hammerbit.model.numba_partial import bind
 from hammerbit.model.solver_options import SolverOptions
@@ -54,18 +54,23 @@ def test_unknown_parameter_is_refused():
         bind(_poly, "p", degree=3)
 
 
-def test_advance_hammer_equals_the_general_driver_bit_for_bit():
-    """The bound entry point (DOP853, no subsystem, no energy block, all constants) and the
-    general ``advance`` given the same arrays as arguments take identical steps."""
+@pytest.mark.parametrize("method", ["adaptive", "dp54", "rk4"])
+def test_bound_entry_points_equal_the_general_driver_bit_for_bit(method):
+    """Each hammer-only entry point (its method, no subsystem, no energy block, all constants)
+    and the general ``advance`` given the same arrays as arguments take identical steps."""
     g = preset("paper-fig9").replace(a=0.083)
-    o = SolverOptions(rtol=1e-8, atol=1e-10)
-    fast = Stepper(g, solver=o)
+    o = SolverOptions(method=method, rtol=1e-8, atol=1e-10)
+    bound = Stepper(g, solver=o)
     general = Stepper(g, solver=o)
-    assert fast.fast
-    general.fast = False
+    assert bound.entry == kernel_driver.HAMMER_ENTRY[method] != "advance"
+    assert bound.fast == (method == "adaptive")
+    general.entry = "advance"
     t_end = 40 * g.period
-    fast.advance(t_end)
-    general.advance(t_end)
-    assert np.array_equal(fast.y, general.y)
-    assert np.array_equal(fast.istate, general.istate)
-    assert fast.istate[kernel_layouts.I_STEPS] > 100
+    poin = {st: np.zeros((41, 5)) for st in (bound, general)}
+    for st in (bound, general):
+        st.advance(t_end, poincare=poin[st])
+    assert np.array_equal(bound.y, general.y)
+    assert np.array_equal(bound.istate, general.istate)
+    assert np.array_equal(bound.fstate, general.fstate)
+    assert np.array_equal(poin[bound], poin[general])
+    assert bound.istate[kernel_layouts.I_STEPS] > 100
