@@ -293,17 +293,6 @@ HB_MODEL_TERMINATE_RESET(((model *)c)->s)
 /* ------------------------------------------------------------------------------------------ */
 /* fmi2DoStep                                                                                   */
 /* ------------------------------------------------------------------------------------------ */
-/* a failed step to t_end: the state of its start put back (`kept`, freed here), and why logged */
-static fmi2Status put_back(model *m, sstate *kept, double t_end, const char *why) {
-    char a[40], b[40], reason[256];
-    hb_repr(kept->t, a, sizeof a);
-    hb_repr(t_end, b, sizeof b);
-    snprintf(reason, sizeof reason, "%s", why);   /* `why` may point into the state put back */
-    memcpy(m->s, kept, m->size);
-    free(kept);
-    return FAIL(m, "fmi2DoStep from t = %s s to %s s refused: %s; state unchanged", a, b, reason);
-}
-
 static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_prior) {
     (void)no_prior;
     model *m = c;
@@ -350,7 +339,7 @@ static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
     s->F_held = hs_exchange(s->order, given, h, s->modal, s->n, b->P ? b->P : m->tmp, xi, m->buf, m->tmp,
                             b->frow_r ? b->frow_r : m->tmp, b->d, b->G, b->irow, (double *)b->icol, eta,
                             b->frow_c, s->k3, s->th, s->wh, s->Fh, s->out, s->F_held, s->c, s->feed);
-    if (hb_kernel_raised()) return put_back(m, kept, t + h, "a kernel raised an exception");
+    if (hb_kernel_raised()) return hb_model_step_put_back(m, s, kept, m->size, t, t + h, "a kernel raised an exception");
     s->der_given = 0;             /* input derivatives hold for one step */
     memset(s->der_in, 0, sizeof s->der_in);
     s->t = t + h;
@@ -359,7 +348,7 @@ static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
     if (refused) {
         char why[300];
         snprintf(why, sizeof why, "the state it ends in would leave the FMU's range (%s)", refused);
-        return put_back(m, kept, t + h, why);
+        return hb_model_step_put_back(m, s, kept, m->size, t, t + h, why);
     }
     free(kept);
     return fmi2OK;

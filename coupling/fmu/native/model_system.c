@@ -224,21 +224,14 @@ static int64_t advance_run(model *m, double *y, int64_t *ist, double *fst, doubl
  * range, a hammer thrown metres from the bit) is not kept but refused with its reason, so that every
  * state the FMU holds can be restored; `kept` is the state before the step (freed here) */
 static fmi2Status refuse_if_unrestorable(model *m, sysstate *kept) {
-    sysstate *s = &m->s;
-    char why[SYS_WHY_SIZE], a[40], b[40];
-    const char *refused = sys_state_invalid(s, why, sizeof why);
+    char why[SYS_WHY_SIZE], reason[SYS_WHY_SIZE + 60];
+    const char *refused = sys_state_invalid(&m->s, why, sizeof why);
     if (!refused) {
         free(kept);
         return fmi2OK;
     }
-    hb_repr(kept->t, a, sizeof a);
-    hb_repr(s->t, b, sizeof b);
-    char reason[SYS_WHY_SIZE];
-    snprintf(reason, sizeof reason, "%s", refused);
-    memcpy(s, kept, sizeof *s);
-    free(kept);
-    return FAIL(m, "fmi2DoStep from t = %s s to %s s refused: the state it ends in would leave the FMU's range "
-                "(%s); state unchanged", a, b, reason);
+    snprintf(reason, sizeof reason, "the state it ends in would leave the FMU's range (%s)", refused);
+    return hb_model_step_put_back(m, &m->s, kept, sizeof m->s, kept->t, m->s.t, reason);
 }
 
 static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_prior) {
