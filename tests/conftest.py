@@ -9,9 +9,35 @@ import os
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
+import sys  # noqa: E402
+
 import pytest  # noqa: E402
 
 from shared_builds import shared_build  # noqa: E402
+
+#: where the test processes keep compiled bytecode when PYTHONDONTWRITEBYTECODE is set
+TEST_BYTECODE_DIR = "test-bytecode"
+
+
+def _keep_bytecode_outside_the_tree() -> None:
+    """With PYTHONDONTWRITEBYTECODE set (as many containers do), every worker would rewrite the
+    asserts of all ~100 test modules and compile the library again on every run: seconds of CPU per
+    worker.  This process keeps that bytecode under hammerbit's cache root instead, still writing
+    nothing beside the sources; its subprocesses keep the variable as the user set it."""
+    if not sys.dont_write_bytecode:
+        return
+    from hammerbit.model.numba_cache_place import untrusted, user_cache_root
+    path = os.path.join(user_cache_root(), TEST_BYTECODE_DIR)
+    try:
+        os.makedirs(path, mode=0o700, exist_ok=True)
+    except OSError:
+        return
+    if untrusted(path) is None and os.access(path, os.W_OK | os.X_OK):
+        sys.pycache_prefix = path
+        sys.dont_write_bytecode = False
+
+
+_keep_bytecode_outside_the_tree()
 
 try:
     from hypothesis import settings as _hypothesis_settings
@@ -111,7 +137,7 @@ SLOW_TESTS = {
     "tests/test_startup.py::test_kernels_load_without_scipy_linalg_and_blas_functions_still_compile":
         "tests/test_startup.py::test_kernels_load_without_scipy_linalg_and_the_blas_flag_is_numbas_own",
     "tests/test_studies.py::test_cli_map_interrupted_leaves_no_processes":
-        "tests/test_studies.py::test_ctrl_c_in_a_map_on_local_workers_exits_130_and_leaves_no_processes",
+        "tests/test_cli_interrupt.py::test_ctrl_c_early_and_in_a_cluster_map",
     "tests/test_studies.py::test_map_identical_on_a_dask_scheduler":
         "tests/test_studies.py::test_map_identical_on_every_executor",
     "tests/test_studies.py::test_map_identical_on_a_one_worker_dask_cluster":
@@ -119,9 +145,9 @@ SLOW_TESTS = {
     "tests/test_fmu_exit.py::test_a_few_process_runs_exit_0[simulate_ssp-plain]":
         "tests/test_fmu_exit.py::test_a_few_process_runs_exit_0[simulate_ssp-front]",
     "tests/test_fmu_exit.py::test_a_few_process_runs_exit_0[user_loop-plain]":
-        "tests/test_fmu_exit.py::test_a_few_process_runs_exit_0[user_loop-front]",
+        "tests/test_fmu_exit.py::test_a_few_process_runs_exit_0[simulate_ssp-front]",
     "tests/test_fmu.py::test_repeated_instantiation_and_exit_in_a_fresh_process":
-        "tests/test_fmu_exit.py::test_a_few_process_runs_exit_0[user_loop-front]",
+        "tests/test_fmu_exit.py::test_a_few_process_runs_exit_0[simulate_ssp-front]",
     "tests/test_optimize_constrained.py::test_contact_force_limit_binding_on_the_lab_rig_with_a_gap":
         "tests/test_optimize_constrained.py::test_static_threshold_binding_over_amplitude_and_preload",
     "tests/test_docs.py::test_python_blocks_run[docs/continuation.md]":
@@ -181,7 +207,7 @@ SLOW_TESTS = {
         "tests/test_modal_check.py::test_campbell_and_receptance_draw_in_si_without_saving",
     # a new process with the front (fmpy, a C host): one of each kind stays fast
     "tests/test_fmu_native.py::test_python_host_with_front_matches_and_exits_0":
-        "tests/test_fmu_exit.py::test_a_few_process_runs_exit_0[user_loop-front]",
+        "tests/test_fmu_exit.py::test_a_few_process_runs_exit_0[simulate_ssp-front]",
     "tests/test_string_fmu_front.py::test_a_native_c_host_runs_it_like_fmpy":
         "tests/test_fmu_native.py::test_c_host_steps_10_s_like_fmpy_and_exits_0",
     # 0.8 s of field string at 50 us with impacts; the fundamental's independence of the sampling
@@ -202,6 +228,63 @@ SLOW_TESTS = {
     # the optimizer against a brute-force oracle: 441 runs of a 2-D grid slow, a 1-D scan fast
     "tests/test_studies.py::test_optimizer_beats_every_feasible_cell_of_a_21x21_grid":
         "tests/test_studies.py::test_optimizer_known_optimum_on_the_threshold_not_the_papers_bounce_rule",
+    # the lab string's DrillingSystem (its build computes 20 s of reference results on a stiff
+    # string: seconds); the field string's FMI 3 build reaches the same refusals
+    "tests/test_fmu_own_states.py::test_every_state_an_fmu_steps_to_can_be_restored[built_system_fmu]":
+        "tests/test_fmu_own_states.py::test_every_state_an_fmu_steps_to_can_be_restored[built_field_system_fmu3]",
+    # Ctrl-C in a map on local workers, in this process (a 240-cell map started on two worker
+    # processes); the signal in a map on two local workers, in a new process, stays fast
+    "tests/test_studies.py::test_ctrl_c_in_a_map_on_local_workers_exits_130_and_leaves_no_processes":
+        "tests/test_cli_interrupt.py::test_ctrl_c_early_and_in_a_cluster_map",
+    # DrillingSystem.fmu against the library over 3 s of a stall and its reference; the stall
+    # verdict's rollback stays fast
+    "tests/test_system_fmu_regime.py::test_stall_off_resonance_is_the_librarys_verdict_at_every_second":
+        "tests/test_system_fmu_regime.py::test_stall_verdict_is_part_of_the_state",
+    # docs/make_calibration.py's search on a 2 x 3 grid against simulate per cell; the calibration's
+    # period sequences stay fast
+    "tests/test_paper_figures.py::test_calibration_search_agrees_with_simulate_cell_by_cell":
+        "tests/test_paper_figures.py::test_fig9_period_sequence_with_the_same_calibration",
+    # two 10 s co-simulations of the field string; the closed loop's stability stays fast
+    "tests/test_top.py::test_auto_driller_holds_the_wob_where_the_fixed_hook_unloads":
+        "tests/test_top.py::test_closed_loop_is_stable_around_the_default_tuning",
+    # a new process that runs a pythonfmu FMU and then builds one; a build carrying its binaries
+    # stays fast
+    "tests/test_string_fmu.py::test_a_build_after_running_a_pythonfmu_fmu_in_this_process_carries_its_binaries":
+        "tests/test_fmu.py::test_build_carries_the_runtime_and_its_compiled_kernels",
+    # the grazing curves against a 5 x 9 map at 300 periods; each point of the curve an orbit that
+    # grazes stays fast
+    "tests/test_continuation_grazing.py::test_the_curves_separate_the_maps_impacting_cells":
+        "tests/test_continuation_grazing.py::test_every_point_of_the_curve_is_an_orbit_that_grazes",
+    # new processes over both FMUs of the package: FMPy's runner on the package as built stays fast
+    "tests/test_fmu_exit.py::test_a_few_process_runs_exit_0[user_loop-front]":
+        "tests/test_fmu_exit.py::test_a_few_process_runs_exit_0[simulate_ssp-front]",
+    # a user's own Jacobi loop over the package, right and wrongly wired, against FMPy's runner;
+    # FMPy's runner against hammerbit's stays fast
+    "tests/test_ssp.py::test_a_users_own_jacobi_loop_is_fmpys_runner_and_the_wrong_wiring_is_not":
+        "tests/test_ssp.py::test_fmpy_runs_the_package_as_hammerbit_does",
+    # the continuation of a sliding onset, with corrected orbits either side of each point; the
+    # tension onset's location stays fast
+    "tests/test_continuation_touch.py::test_the_sliding_curve_separates_one_stick_phase_from_two":
+        "tests/test_continuation_touch.py::test_tension_onset_is_located_where_the_smallest_drive_changes_sign",
+    # FMPy's command line in a new process refusing a bad start value of the pythonfmu flavour;
+    # every declared bound of both flavours, in this process, stays fast
+    "tests/test_fmu_build.py::test_fmpy_simulate_with_a_bad_start_value_fails_naming_it":
+        "tests/test_fmu_audit.py::test_every_declared_bound_is_accepted_and_nothing_beyond_it",
+    # the fixed top's string FMU against the library step for step; the feed and auto-driller tops
+    # stay fast
+    "tests/test_string_fmu.py::test_string_fmu_equals_the_library_string_side_step_for_step[fixed]":
+        "tests/test_string_fmu.py::test_string_fmu_equals_the_library_string_side_step_for_step[auto-driller]",
+    # figures in every format matplotlib writes (seconds of rendering); the README's PNG stays fast
+    "tests/test_cli.py::test_plot_formats_follow_the_extension":
+        "tests/test_cli.py::test_readme_main_command",
+    # a real native build with the compiler cache and one without it (seconds of compiles); one
+    # compile through the cache against a fresh one in another directory stays fast
+    "tests/test_compile_cache.py::test_a_native_fmu_from_a_warm_cache_is_the_fmu_built_without_it":
+        "tests/test_compile_cache.py::test_a_hit_gives_the_bytes_of_a_fresh_compile_in_another_directory",
+    # a branch followed to its fold and runs either side of it; the runaway check against long runs
+    # at a located onset stays fast
+    "tests/test_continuation_bounds.py::test_a_fold_that_runs_from_its_orbit_do_not_confirm_is_no_runaway_onset":
+        "tests/test_continuation_bounds.py::test_the_located_runaway_onset_is_that_of_a_bisection_of_long_runs",
 }
 
 
@@ -244,27 +327,40 @@ def built_native_string_fmu3(tmp_path_factory):
 
 @pytest.fixture(scope="session")
 def built_system_fmu(tmp_path_factory):
-    """``DrillingSystem.fmu`` (native) of the lab string under the auto-driller, built once per session."""
+    """``DrillingSystem.fmu`` (native) of :func:`lab_system`, built once per session."""
+    from hammerbit.fmu.build_system import build_system_fmu
+    lab, config = lab_system()
+    return native_build(tmp_path_factory, "system", "DrillingSystem.fmu",
+                        lambda path: build_system_fmu(lab, config, path, log=lambda msg: None))
+
+
+def lab_system():
+    """``(string, config)`` of :func:`built_system_fmu`: the lab string under the auto-driller at
+    H = 1 ms.  (Its build takes seconds: the reference results of its 20 s default experiment,
+    from the library's Stepper on the lab string; the fast set uses the field string's build.)"""
     from hammerbit.cosim.config import CosimConfig, default_hammer
     from hammerbit.drillstring import load_string
     from hammerbit.drillstring.top import TopCondition
-    from hammerbit.fmu.build_system import build_system_fmu
     lab = load_string("lab")
-    config = CosimConfig(stop=1.0, step=1e-3, rig=default_hammer(lab), top=TopCondition.parse("auto-driller"))
-    return native_build(tmp_path_factory, "system", "DrillingSystem.fmu",
-                        lambda path: build_system_fmu(lab, config, path, log=lambda msg: None))
+    return lab, CosimConfig(stop=1.0, step=1e-3, rig=default_hammer(lab), top=TopCondition.parse("auto-driller"))
+
+
+def field_system():
+    """``(string, config)`` of :func:`built_field_system_fmu`: field-2200m under the auto-driller,
+    2 s at H = 10 ms."""
+    from hammerbit.cosim.config import CosimConfig, default_hammer
+    from hammerbit.drillstring import load_string
+    from hammerbit.drillstring.top import TopCondition
+    field = load_string("field-2200m")
+    return field, CosimConfig(stop=2.0, step=0.01, rig=default_hammer(field), top=TopCondition.parse("auto-driller"))
 
 
 def _field_system_build(version: int):
     """``build(path)`` of DrillingSystem.fmu (native, FMI ``version``) of field-2200m under the
     auto-driller, 2 s at H = 10 ms."""
     def build(path):
-        from hammerbit.cosim.config import CosimConfig, default_hammer
-        from hammerbit.drillstring import load_string
-        from hammerbit.drillstring.top import TopCondition
         from hammerbit.fmu.build_system import build_system_fmu
-        field = load_string("field-2200m")
-        config = CosimConfig(stop=2.0, step=0.01, rig=default_hammer(field), top=TopCondition.parse("auto-driller"))
+        field, config = field_system()
         return build_system_fmu(field, config, path, log=lambda msg: None, fmi_version=version)
     return build
 

@@ -31,7 +31,7 @@ pytest.importorskip("fmpy")
 
 #: the pythonfmu Drillstring (no FMU states: each of the 125 cells re-initialises it, seconds) in the slow set
 FMUS = ["built_fmu", "built_native_fmu", pytest.param("built_string_fmu", marks=pytest.mark.slow),
-        "built_native_string_fmu", "built_system_fmu"]
+        "built_native_string_fmu", "built_field_system_fmu"]
 STATES = ("instantiated", "init", "stepComplete", "terminated", "error")
 ALL = frozenset(STATES)
 #: FMI 2.0, section 4.2.4: the reachable columns of the Co-Simulation table, per function

@@ -107,7 +107,7 @@ def _assert_clean(runs: list) -> None:
 
 
 @pytest.mark.parametrize("flavour", ["front", "plain"])
-@pytest.mark.parametrize("code, n", [(SSP_RUN, 2), (USER_LOOP, 1)], ids=["simulate_ssp", "user_loop"])
+@pytest.mark.parametrize("code, n", [(SSP_RUN, 1), (USER_LOOP, 1)], ids=["simulate_ssp", "user_loop"])
 def test_a_few_process_runs_exit_0(packages, flavour, code, n):
     _assert_clean(_runs(code, packages[flavour], n))
 

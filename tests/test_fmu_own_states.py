@@ -143,7 +143,8 @@ def test_every_state_an_fmu_steps_to_can_be_restored(built, request, tmp_path):
         finally:
             run.close()
     assert accepted, f"{fixture}: every extreme input was refused"
-    if fixture == "built_system_fmu":
+    if fixture in ("built_system_fmu", "built_field_system_fmu3"):
         # the largest amplitude throws the hammer metres from the bit within a step or two: the
-        # case this test is known to reach (not a restatement of which inputs are refused)
+        # case this test is known to reach on both strings (not a restatement of which inputs are
+        # refused)
         assert refused >= 1

@@ -23,7 +23,7 @@ from fmu_spec import FMI_ERROR, FMI_OK, TYPES, Instance, extract, near_value, se
 
 pytest.importorskip("fmpy")
 
-FMUS = ["built_fmu", "built_native_fmu", "built_string_fmu", "built_native_string_fmu", "built_system_fmu"]
+FMUS = ["built_fmu", "built_native_fmu", "built_string_fmu", "built_native_string_fmu", "built_field_system_fmu"]
 #: value references no FMU declares beyond its own: one past the largest, and the largest of the type
 UNKNOWN_FROM_TOP = (1, 2 ** 32 - 1)
 #: a value of each type, to call a setter of the wrong type with

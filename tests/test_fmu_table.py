@@ -21,7 +21,8 @@ from hammerbit.model import fmu_description as D  # noqa: E402
 BUILDS = {
     "built_fmu": ("hammer", 2), "built_native_fmu": ("hammer", 2), "built_native_fmu3": ("hammer", 3),
     "built_string_fmu": ("string", 2), "built_native_string_fmu": ("string", 2),
-    "built_native_string_fmu3": ("string", 3), "built_system_fmu": ("system", 2),
+    "built_native_string_fmu3": ("string", 3), "built_field_system_fmu": ("system", 2),
+    "built_field_system_fmu3": ("system", 3),
 }
 TABLES = {"hammer": D.HAMMER_VARIABLES, "string": D.STRING_VARIABLES, "system": D.SYSTEM_VARIABLES}
 #: the type fmpy reports for an FMI 2.0 variable of each FMI 3 type
@@ -81,7 +82,7 @@ def _check_hammer_ranges(shipped: dict) -> None:
 
 
 def test_the_native_headers_give_the_shipped_value_references(built_native_fmu, built_native_string_fmu,
-                                                             built_system_fmu):
+                                                             built_field_system_fmu):
     """The value references the C models are compiled with (the headers, generated from the
     tables) are those of the shipped descriptions, every one of them."""
     from hammerbit.fmu.build_string import string_build
@@ -90,7 +91,7 @@ def test_the_native_headers_give_the_shipped_value_references(built_native_fmu, 
     from hammerbit.fmu.native_string import DEFAULT_STEPS, string_header
     headers = ((built_native_fmu, native_header({}, layout()), D.HAMMER_VARIABLES),
                (built_native_string_fmu, string_header(string_build("lab"), DEFAULT_STEPS), D.STRING_VARIABLES),
-               (built_system_fmu, _system_header(), D.SYSTEM_VARIABLES))
+               (built_field_system_fmu, _system_header(), D.SYSTEM_VARIABLES))
     for fmu, text, table in headers:
         shipped = {_c_name(name): v.valueReference for name, v in _shipped(fmu).items()}
         vrs = _header_vrs(text)
@@ -100,13 +101,9 @@ def test_the_native_headers_give_the_shipped_value_references(built_native_fmu, 
 
 
 def _system_header() -> str:
-    from hammerbit.cosim.config import CosimConfig, default_hammer
-    from hammerbit.drillstring import load_string
-    from hammerbit.drillstring.top import TopCondition
+    from conftest import field_system
     from hammerbit.fmu.build_system import system_data, system_header
-    lab = load_string("lab")
-    config = CosimConfig(stop=1.0, step=1e-3, rig=default_hammer(lab), top=TopCondition.parse("auto-driller"))
-    return system_header(system_data(lab, config))
+    return system_header(system_data(*field_system()))
 
 
 @pytest.mark.parametrize("which", ["hammer", "string"])

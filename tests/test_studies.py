@@ -357,9 +357,13 @@ def test_ctrl_c_in_a_map_on_local_workers_exits_130_and_leaves_no_processes(monk
 
         def update(self, n):
             CtrlC.done += n
-            # the map's processes; multiprocessing's resource tracker lives as long as this process
+            # the map's processes; multiprocessing's resource tracker and its fork server (a
+            # child of this process; the workers it forks carry its command line) live as long as
+            # this process, whichever test started them
             CtrlC.workers = [p for p in me.children(recursive=True) if p.pid not in before
-                             and "resource_tracker" not in " ".join(p.cmdline())]
+                             and "resource_tracker" not in " ".join(p.cmdline())
+                             and not ("forkserver import main" in " ".join(p.cmdline())
+                                      and p.ppid() == me.pid)]
             raise KeyboardInterrupt
 
         def close(self):

@@ -17,6 +17,26 @@ __all__ = ["FMUInstance", "FMI_OK", "FMI_WARNING", "FMI_DISCARD", "FMI_ERROR", "
 
 FMI_OK, FMI_WARNING, FMI_DISCARD, FMI_ERROR, FMI_FATAL = 0, 1, 2, 3, 4
 
+#: ``{(real path, size, mtime in ns): fmpy's ModelDescription}``: a master instantiates the same
+#: FMU again and again (a study's cells, a rollback), and parsing its description costs more than
+#: its step
+_DESCRIPTIONS: dict = {}
+_DESCRIPTIONS_KEPT = 16
+
+
+def model_description(path):
+    """fmpy's ``read_model_description`` of the FMU ``path``, parsed once per file version."""
+    from fmpy import read_model_description
+    st = os.stat(path)
+    key = (os.path.realpath(path), st.st_size, st.st_mtime_ns)
+    md = _DESCRIPTIONS.get(key)
+    if md is None:
+        md = read_model_description(str(path))
+        if len(_DESCRIPTIONS) >= _DESCRIPTIONS_KEPT:
+            _DESCRIPTIONS.pop(next(iter(_DESCRIPTIONS)))
+        _DESCRIPTIONS[key] = md
+    return md
+
 
 class FMUInstance:
     """One instance of a co-simulation FMU, set up to Initialization Mode or beyond.
@@ -57,11 +77,11 @@ class FMUInstance:
     def __init__(self, path, name: str = "hammer", *, start_time: float = 0.0, reals=None, booleans=None,
                  init: bool = True, setup: bool = True, logging: bool = True, unzipdir=None):
         import fmpy
-        from fmpy import extract, read_model_description
+        from fmpy import extract
         from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
                                fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
         self.path = str(path)
-        self.md = read_model_description(self.path)
+        self.md = model_description(self.path)
         self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
         self.var = {v.name: v for v in self.md.modelVariables}
         self._own_dir = unzipdir is None
