@@ -15,29 +15,43 @@ import pytest  # noqa: E402
 
 from shared_builds import shared_build  # noqa: E402
 
-#: where the test processes keep compiled bytecode when PYTHONDONTWRITEBYTECODE is set
+#: where the test processes keep the test modules' bytecode when PYTHONDONTWRITEBYTECODE is set
 TEST_BYTECODE_DIR = "test-bytecode"
 
 
-def _keep_bytecode_outside_the_tree() -> None:
-    """With PYTHONDONTWRITEBYTECODE set (as many containers do), every worker would rewrite the
-    asserts of all ~100 test modules and compile the library again on every run: seconds of CPU per
-    worker.  This process keeps that bytecode under hammerbit's cache root instead, still writing
-    nothing beside the sources; its subprocesses keep the variable as the user set it."""
+def _bytecode_dir():
+    """The directory for the test modules' bytecode, or None: with PYTHONDONTWRITEBYTECODE set (as
+    many containers do), every worker would rewrite the asserts of all ~100 test modules on every
+    run (seconds of CPU each); they are kept under hammerbit's cache root instead, nothing beside
+    the sources.  Only while test modules are collected: an FMU extracted later would leave
+    bytecode under its temporary path there on every run."""
     if not sys.dont_write_bytecode:
-        return
+        return None
     from hammerbit.model.numba_cache_place import untrusted, user_cache_root
     path = os.path.join(user_cache_root(), TEST_BYTECODE_DIR)
     try:
         os.makedirs(path, mode=0o700, exist_ok=True)
     except OSError:
+        return None
+    return path if untrusted(path) is None and os.access(path, os.W_OK | os.X_OK) else None
+
+
+_BYTECODE = _bytecode_dir()
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_make_collect_report(collector):
+    """A test module imported (its asserts rewritten) with its bytecode kept in :data:`_BYTECODE`."""
+    if _BYTECODE is None or not isinstance(collector, pytest.Module):
+        yield
         return
-    if untrusted(path) is None and os.access(path, os.W_OK | os.X_OK):
-        sys.pycache_prefix = path
-        sys.dont_write_bytecode = False
+    saved = sys.pycache_prefix, sys.dont_write_bytecode
+    sys.pycache_prefix, sys.dont_write_bytecode = _BYTECODE, False
+    try:
+        yield
+    finally:
+        sys.pycache_prefix, sys.dont_write_bytecode = saved
 
-
-_keep_bytecode_outside_the_tree()
 
 try:
     from hypothesis import settings as _hypothesis_settings
