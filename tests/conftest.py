@@ -261,10 +261,10 @@ SLOW_TESTS = {
     # two 10 s co-simulations of the field string; the closed loop's stability stays fast
     "tests/test_top.py::test_auto_driller_holds_the_wob_where_the_fixed_hook_unloads":
         "tests/test_top.py::test_closed_loop_is_stable_around_the_default_tuning",
-    # a new process that runs a pythonfmu FMU and then builds one; a build carrying its binaries
-    # stays fast
-    "tests/test_string_fmu.py::test_a_build_after_running_a_pythonfmu_fmu_in_this_process_carries_its_binaries":
-        "tests/test_fmu.py::test_build_carries_the_runtime_and_its_compiled_kernels",
+    # a pythonfmu FMU run and then a build in a new process, the FMU's directory deleted; the
+    # harder case, the directory kept, stays fast
+    "tests/test_string_fmu.py::test_a_build_after_running_a_pythonfmu_fmu_in_this_process_carries_its_binaries[deleted]":
+        "tests/test_string_fmu.py::test_a_build_after_running_a_pythonfmu_fmu_in_this_process_carries_its_binaries[kept]",
     # the grazing curves against a 5 x 9 map at 300 periods; each point of the curve an orbit that
     # grazes stays fast
     "tests/test_continuation_grazing.py::test_the_curves_separate_the_maps_impacting_cells":

@@ -210,15 +210,29 @@ def test_auto_driller_gain_parameter_equals_a_side_built_with_it(string_fmu, gai
     assert worst <= tol
 
 
-def test_a_build_after_running_a_pythonfmu_fmu_in_this_process_carries_its_binaries(built_string_fmu, tmp_path):
+@pytest.mark.parametrize("directory", ["deleted", "kept"])
+def test_a_build_after_running_a_pythonfmu_fmu_in_this_process_carries_its_binaries(built_string_fmu, tmp_path,
+                                                                                   directory):
     """A pythonfmu FMU run in a Python host imports the pythonfmu copy packed in its resources,
-    which stays in ``sys.modules`` after the FMU is gone; a build afterwards in the same process
-    still writes pythonfmu's binaries (it would otherwise write an FMU without any)."""
+    which stays in ``sys.modules`` after the FMU is freed, and leaves its resources directory on
+    ``sys.path``.  A build afterwards in the same process still writes pythonfmu's binaries (it
+    would otherwise write an FMU without any): after ``fmpy.simulate_fmu`` (the directory deleted),
+    and after a user's own loop that keeps its extraction directory (an import would find the
+    copy there again)."""
     import subprocess
     import sys
     import zipfile
-    code = ("import sys, fmpy\n"
-            f"fmpy.simulate_fmu({str(built_string_fmu)!r}, stop_time=0.01)\n"
+    run = {"deleted": f"fmpy.simulate_fmu({str(built_string_fmu)!r}, stop_time=0.01)\n",
+           "kept": ("from fmpy import extract, read_model_description\n"
+                    "from fmpy.fmi2 import FMU2Slave\n"
+                    f"md = read_model_description({str(built_string_fmu)!r})\n"
+                    f"d = extract({str(built_string_fmu)!r}, unzipdir={str(tmp_path / 'x')!r})\n"
+                    "s = FMU2Slave(guid=md.guid, unzipDirectory=d, modelIdentifier='Drillstring', instanceName='x')\n"
+                    "s.instantiate(); s.setupExperiment(startTime=0.0)\n"
+                    "s.enterInitializationMode(); s.exitInitializationMode(); s.doStep(0.0, 1e-3)\n"
+                    "s.terminate(); s.freeInstance()\n"
+                    "assert any(p.startswith(str(d)) for p in sys.path), 'the FMU left no path entry'\n")}[directory]
+    code = ("import sys, fmpy\n" + run +
             "assert 'resources' in sys.modules['pythonfmu'].__file__, 'the FMU did not shadow pythonfmu'\n"
             "from hammerbit.fmu.build_string import build_string_fmu\n"
             f"print(build_string_fmu('lab', {str(tmp_path / 'Drillstring.fmu')!r}))\n")

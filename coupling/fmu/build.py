@@ -297,17 +297,34 @@ def pythonfmu_builder():
     """pythonfmu's ``FmuBuilder``, from a pythonfmu package that carries its binaries.
 
     A pythonfmu FMU run in this process (fmpy in a Python host) imports the copy of pythonfmu
-    that pythonfmu's builder packs into the FMU's resources, and leaves it in ``sys.modules``
-    once the FMU is freed and its directory deleted: that copy has no binaries, so a build
-    through it would write an FMU without any.  Such a copy is forgotten first, so that the
-    import finds the installed package."""
+    that pythonfmu's builder packs into the FMU's resources: it stays in ``sys.modules`` once the
+    FMU is freed, and its resources directory stays on ``sys.path`` (while that directory exists,
+    an import finds the copy again).  That copy has no binaries, so a build through it would write
+    an FMU without any.  Such a copy is forgotten, and the package imported past every path entry
+    that holds one."""
     import sys
     loaded = [sys.modules.get(name) for name in ("pythonfmu", "pythonfmu.builder")]
-    if any(m is not None and not (Path(m.__file__).parent / "resources" / "binaries").is_dir() for m in loaded):
+    if any(m is not None and not _has_binaries(Path(m.__file__).parent) for m in loaded):
         for name in [n for n in sys.modules if n == "pythonfmu" or n.startswith("pythonfmu.")]:
             del sys.modules[name]
-    from pythonfmu import FmuBuilder
+    kept = list(sys.path)
+    sys.path[:] = [p for p in kept if not _shadows(Path(p or ".") / "pythonfmu")]
+    try:
+        from pythonfmu import FmuBuilder
+    finally:
+        sys.path[:] = kept
     return FmuBuilder
+
+
+def _has_binaries(package: Path) -> bool:
+    """The pythonfmu package directory ``package`` carries pythonfmu's binaries (an FMU's copy does
+    not, nor does one whose directory is gone)."""
+    return (package / "resources" / "binaries").is_dir()
+
+
+def _shadows(package: Path) -> bool:
+    """``package`` (``<sys.path entry>/pythonfmu``) is a copy an import would find first."""
+    return (package / "__init__.py").is_file() and not _has_binaries(package)
 
 
 def _native_front():
