@@ -72,3 +72,32 @@ def test_a_wrong_reference_is_caught(built_native_fmu, tmp_path):
             dst.writestr(item, data)
     with pytest.raises(AssertionError, match="bit_position"):
         compare_with_fmpy(bad)
+
+
+def test_the_slaves_outputs_are_recorded_whichever_pythonfmu_is_imported_now(monkeypatch, tmp_path):
+    """A pythonfmu FMU run in this process brings its own copy of pythonfmu; once a build has
+    forgotten it again, the library's slave (imported with the copy) and ``import pythonfmu``
+    hold different enumerations.  The reference results still record every output of the slave
+    (a second copy of the package stands in for the FMU's)."""
+    import importlib.util
+    import os
+    import sys
+
+    import pythonfmu
+    from hammerbit.fmu.reference_results import slave_results
+    from hammerbit.model.slave import HammerBitRock
+    for name in [n for n in sys.modules if n == "pythonfmu" or n.startswith("pythonfmu.")]:
+        monkeypatch.delitem(sys.modules, name)
+    spec = importlib.util.spec_from_file_location(
+        "pythonfmu", pythonfmu.__file__, submodule_search_locations=[os.path.dirname(pythonfmu.__file__)])
+    copy = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, "pythonfmu", copy)
+    spec.loader.exec_module(copy)
+    assert copy.Fmi2Causality is not pythonfmu.Fmi2Causality
+    md = (b'<fmiModelDescription><DefaultExperiment startTime="0" stopTime="0.05" stepSize="0.001"/>'
+          b'</fmiModelDescription>')
+    r = slave_results(HammerBitRock, "HammerBitRock", md, tmp_path)
+    declared = [v.name for v in HammerBitRock(instance_name="t", resources=str(tmp_path)).vars.values()
+                if v.causality.name == "output"]
+    assert declared and list(r.columns) == declared
+    assert np.allclose(r.time, np.linspace(0.0, 0.05, 6), rtol=0, atol=1e-15)        # a row every 0.01 s

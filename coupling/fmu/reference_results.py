@@ -124,10 +124,13 @@ def slave_results(slave_class, model_name: str, md_xml: bytes, resources) -> Ref
     """The outputs of ``md_xml`` over its default experiment from the library's slave class
     ``slave_class`` (a pythonfmu ``Fmi2Slave`` of :mod:`hammerbit.model`) run in this process with
     ``resources`` as its resources directory."""
-    from pythonfmu import Fmi2Causality
     exp = default_experiment(md_xml)
     slave = slave_class(instance_name="reference", resources=str(resources))
-    outputs = [v for v in slave.vars.values() if v.causality == Fmi2Causality.output]
+    # by name: the slave's enumeration is that of the pythonfmu it was imported with, which need
+    # not be the one ``import pythonfmu`` gives now (an FMU run in this process brings its own copy)
+    outputs = [v for v in slave.vars.values() if v.causality.name == "output"]
+    if not outputs:
+        raise RuntimeError(f"the library's {model_name} declares no outputs: no reference results to record")
     slave.setup_experiment(exp.start, exp.stop, exp.tolerance)
     slave.enter_initialization_mode()
     slave.exit_initialization_mode()
