@@ -376,7 +376,8 @@ def build_trivial_fmu(dest, n_outputs: int = 1):
     does nothing, so stepping it measures only the FMI/pythonfmu/fmpy calls.
     """
     from pathlib import Path
-    from pythonfmu import FmuBuilder
+    from hammerbit.fmu.build import pythonfmu_builder
+    FmuBuilder = pythonfmu_builder()       # the installed pythonfmu, not an FMU's copy
     dest = Path(dest)
     dest.mkdir(parents=True, exist_ok=True)
     script = dest / "trivialfloor.py"

@@ -531,7 +531,8 @@ class StatusStub(Fmi2Slave):
 @pytest.fixture(scope="module")
 def stub_dir(tmp_path_factory):
     _compiler_or_skip()
-    from pythonfmu import FmuBuilder
+    from hammerbit.fmu.build import pythonfmu_builder
+    FmuBuilder = pythonfmu_builder()       # the installed pythonfmu, not an FMU's copy
     src = tmp_path_factory.mktemp("stub_src")
     script = src / "hb_status_stub.py"
     script.write_text(STUB_SOURCE)
