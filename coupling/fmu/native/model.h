@@ -58,9 +58,9 @@ void hb_model_fill_states(hb_wrapper *w, fmi2GetFMUstateFn get, fmi2SetFMUstateF
  * fmi2Error with a message, through the logger of the instance m */
 fmi2Status hb_model_step_check(const void *m, const char *refusal, double t_now, double t, double h,
                                double tolerance);
-/* a refused fmi2DoStep from t_from to t_to: `kept` (the state of the step's start, `size` bytes)
- * copied back over `state` and freed, and `why` logged as the refusal (fmi2Error) */
-fmi2Status hb_model_step_put_back(const void *m, void *state, void *kept, size_t size, double t_from,
+/* a refused fmi2DoStep from t_from to t_to: `kept` (the state of the step's start, `size` bytes, the
+ * model's own copy) copied back over `state`, and `why` logged as the refusal (fmi2Error) */
+fmi2Status hb_model_step_put_back(const void *m, void *state, const void *kept, size_t size, double t_from,
                                   double t_to, const char *why);
 /* the FMU state of `size` bytes in `in` as a new malloc'd block in *state, if size is `expected` and
  * invalid(m, block) is NULL (else its reason); else fmi2Error with a message and *state unchanged */

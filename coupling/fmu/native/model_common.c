@@ -161,14 +161,13 @@ fmi2Status hb_model_get_integers(const void *m, const fmi2ValueReference vr[], s
     return fmi2OK;
 }
 
-fmi2Status hb_model_step_put_back(const void *m, void *state, void *kept, size_t size, double t_from,
+fmi2Status hb_model_step_put_back(const void *m, void *state, const void *kept, size_t size, double t_from,
                                   double t_to, const char *why) {
     char a[40], b[40], reason[320];
     hb_repr(t_from, a, sizeof a);
     hb_repr(t_to, b, sizeof b);
     snprintf(reason, sizeof reason, "%s", why);   /* `why` may point into the state put back */
     memcpy(state, kept, size);
-    free(kept);
     hb_model_log(m, fmi2Error, "fmi2DoStep from t = %s s to %s s refused: %s; state unchanged", a, b, reason);
     return fmi2Error;
 }

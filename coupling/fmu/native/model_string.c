@@ -221,11 +221,12 @@ static fmi2Component s_instantiate(fmi2String name, fmi2Type type, fmi2String gu
     }
     m->size = state_size(&m->tab);
     m->s = calloc(1, m->size);
+    m->kept = malloc(m->size);
     m->buf = calloc((size_t)m->tab.nmax + N_COEFFS, sizeof(double));
     m->tmp = calloc((size_t)m->tab.nmax + 1, sizeof(double));
-    if (!m->s || !m->buf || !m->tmp) {
+    if (!m->s || !m->kept || !m->buf || !m->tmp) {
         hs_log(m, fmi2Error, "fmi2Instantiate: out of memory");
-        free(m->s), free(m->buf), free(m->tmp), free(m->tab.b), free(m->tab.mem);
+        free(m->s), free(m->kept), free(m->buf), free(m->tmp), free(m->tab.b), free(m->tab.mem);
         hb_model_free(m);
         return NULL;
     }
@@ -238,7 +239,7 @@ static void s_free_instance(fmi2Component c) {
     if (!m) return;
     for (int i = 0; i < HS_STEP_CACHE; i++) free(m->cache[i].mem);
     free(m->work);
-    free(m->s), free(m->buf), free(m->tmp), free(m->tab.b), free(m->tab.mem);
+    free(m->s), free(m->kept), free(m->buf), free(m->tmp), free(m->tab.b), free(m->tab.mem);
     hb_model_free(m);
 }
 
@@ -308,8 +309,7 @@ static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
                     "unchanged", a, why);
     }
     /* kept to put back if the step fails or ends in a state fmi2SetFMUstate would refuse */
-    sstate *kept = malloc(m->size);
-    if (!kept) return FAIL(m, "fmi2DoStep: out of memory; state unchanged");
+    sstate *kept = m->kept;
     memcpy(kept, s, m->size);
     double x = 0.0, v = 0.0;      /* the first step: the hammer at rest in the static equilibrium */
     if (s->started) {
@@ -318,7 +318,6 @@ static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
         for (int i = 0; i < 2; i++)
             if (!(isfinite(vals[i]) && fabs(vals[i]) <= HS_INPUT_LIMIT)) {
                 hb_repr(vals[i], a, sizeof a);
-                free(kept);
                 return FAIL(m, "input '%s' = %s is out of range: allowed [-%g, %g] %s; step refused, "
                             "state unchanged", names[i], a, HS_INPUT_LIMIT, HS_INPUT_LIMIT, units[i]);
             }
@@ -350,7 +349,6 @@ static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
         snprintf(why, sizeof why, "the state it ends in would leave the FMU's range (%s)", refused);
         return hb_model_step_put_back(m, s, kept, m->size, t, t + h, why);
     }
-    free(kept);
     return fmi2OK;
 }
 /* ------------------------------------------------------------------------------------------ */

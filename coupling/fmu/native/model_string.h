@@ -89,6 +89,7 @@ typedef struct {
     double *work;                /* scratch of the dense exponential (allocated at its first use) */
     size_t size;
     sstate *s;
+    sstate *kept;                /* the state of a step's start, put back if the step is refused */
 } model;
 
 /* log a message with a status through the front's logger (model.h) */

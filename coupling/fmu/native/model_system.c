@@ -222,16 +222,13 @@ static int64_t advance_run(model *m, double *y, int64_t *ist, double *fst, doubl
 
 /* the end of a step: a state fmi2SetFMUstate would refuse (a bit run away beyond the physical
  * range, a hammer thrown metres from the bit) is not kept but refused with its reason, so that every
- * state the FMU holds can be restored; `kept` is the state before the step (freed here) */
-static fmi2Status refuse_if_unrestorable(model *m, sysstate *kept) {
+ * state the FMU holds can be restored; m->kept is the state before the step */
+static fmi2Status refuse_if_unrestorable(model *m) {
     char why[SYS_WHY_SIZE], reason[SYS_WHY_SIZE + 60];
     const char *refused = sys_state_invalid(&m->s, why, sizeof why);
-    if (!refused) {
-        free(kept);
-        return fmi2OK;
-    }
+    if (!refused) return fmi2OK;
     snprintf(reason, sizeof reason, "the state it ends in would leave the FMU's range (%s)", refused);
-    return hb_model_step_put_back(m, &m->s, kept, sizeof m->s, kept->t, m->s.t, reason);
+    return hb_model_step_put_back(m, &m->s, &m->kept, sizeof m->s, m->kept.t, m->s.t, reason);
 }
 
 static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_prior) {
@@ -254,17 +251,14 @@ static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
         return fmi2OK;
     }
     /* kept to put back if a solver fails: the state stays at t */
-    sysstate *kept = malloc(sizeof *kept);
-    if (!kept) return FAIL(m, "fmi2DoStep: out of memory; state unchanged");
-    memcpy(kept, s, sizeof *kept);
+    memcpy(&m->kept, s, sizeof *s);
     double tau_a = s->fst[HSYS_F_T], x2a = s->y[HSYS_V_HAMMER], x3a = s->y[HSYS_X_BIT];
     double x2a_shadow = s->shadow.y[HSYS_V_HAMMER], x3a_shadow = s->shadow.y[HSYS_X_BIT];
     int64_t bounces = s->ist[HSYS_I_COUNT0 + HSYS_EV_BOUNCE];
     int64_t st = advance_run(m, s->y, s->ist, s->fst, s->opts, tau_end);
     if (st == HSYS_ST_DONE) st = advance_run(m, s->shadow.y, s->shadow.ist, s->shadow.fst, s->shadow.opts, tau_end);
     if (st != HSYS_ST_DONE) {
-        memcpy(s, kept, sizeof *s);
-        free(kept);
+        memcpy(s, &m->kept, sizeof *s);
         hb_repr(s->t, a, sizeof a);
         return FAIL(m, "fmi2DoStep failed at t = %s s: the solver stopped (status %lld: an event storm, a "
                     "step below the time resolution or a non-finite state); state unchanged", a,
@@ -297,7 +291,7 @@ static fmi2Status s_do_step(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
     if (s->fst[HSYS_F_DRIVE_MIN] < 0.0) s->regime |= HB_REGIME_TENSION;
     sys_regime_step(m, s->mean_wob / HSYS_F0 * dtau, dtau);
     s->regime |= s->rg.verdict;
-    return refuse_if_unrestorable(m, kept);
+    return refuse_if_unrestorable(m);
 }
 
 /* ------------------------------------------------------------------------------------------ */

@@ -82,6 +82,7 @@ typedef struct {
     int64_t csr[HSYS_NZ + 1 + HSYS_NNZ];
     double H[2 * HSYS_NZ];
     sysstate s;
+    sysstate kept;               /* the state of a step's start, put back if the step is refused */
 } model;
 
 #define FAIL(m, ...) (hb_model_log((m), fmi2Error, __VA_ARGS__), fmi2Error)
