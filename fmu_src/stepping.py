@@ -171,10 +171,8 @@ class Stepper:
             self._lin = (_EMPTY_I, _EMPTY_I[:0], _EMPTY_F, _EMPTY_H, _EMPTY_F, _EMPTY_G2)
         self.nz = nz
         self.ne = 4 if energy else 0
-        hammer_only = nz == 0 and self.ne == 0
-        self.fast = solver.method == "adaptive" and hammer_only
         # the kernel entry point: a hammer-only system runs the loop with its method bound as a constant
-        self.entry = kernel_driver.HAMMER_ENTRY[solver.method] if hammer_only else "advance"
+        self.entry = kernel_driver.HAMMER_ENTRY[solver.method] if nz == 0 and self.ne == 0 else "advance"
         n = 4 + nz + self.ne
         # y, istate and fstate are views of one buffer: snapshot() copies them in one call
         self.state_buffer = np.zeros(n + KL.N_ISTATE + KL.N_FSTATE)
@@ -218,6 +216,11 @@ class Stepper:
         self.fstate[KL.F_T_STICK] = self.fstate[KL.F_T] if ist[KL.I_STICK] == KL.STICK else -1.0
 
     # ------------------------------------------------------------------
+    @property
+    def fast(self) -> bool:
+        """The entry point is ``advance_hammer`` (DOP853, the hammer and the bit alone): the FMU's."""
+        return self.entry == "advance_hammer"
+
     @property
     def time(self) -> float:
         """Current nondimensional time tau."""
