@@ -27,13 +27,9 @@ def _bytecode_dir():
     bytecode under its temporary path there on every run."""
     if not sys.dont_write_bytecode:
         return None
-    from hammerbit.model.numba_cache_place import untrusted, user_cache_root
-    path = os.path.join(user_cache_root(), TEST_BYTECODE_DIR)
-    try:
-        os.makedirs(path, mode=0o700, exist_ok=True)
-    except OSError:
-        return None
-    return path if untrusted(path) is None and os.access(path, os.W_OK | os.X_OK) else None
+    from hammerbit.fmu.compile_cache import cache_dir
+    path = cache_dir(TEST_BYTECODE_DIR)
+    return None if path is None else str(path)
 
 
 _BYTECODE = _bytecode_dir()

@@ -86,12 +86,13 @@ def cache_enabled() -> bool:
                      f"off) or 1 (on, the default)")
 
 
-def cache_dir():
-    """The cache's directory, created if need be; None when it cannot be used (not writable, or
-    writable by other users, whose entries would be shipped in the FMUs)."""
+def cache_dir(name: str = CACHE_DIR_NAME):
+    """The cache's directory (``name`` under the cache root), created if need be; None when it
+    cannot be used (not writable, or writable by other users, whose entries would be shipped in the
+    FMUs)."""
     from hammerbit.model.numba_cache_place import untrusted, user_cache_root
     root = Path(user_cache_root())
-    path = root / CACHE_DIR_NAME
+    path = root / name
     try:
         path.mkdir(mode=0o700, parents=True, exist_ok=True)
     except OSError:

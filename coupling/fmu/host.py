@@ -18,8 +18,7 @@ __all__ = ["FMUInstance", "FMI_OK", "FMI_WARNING", "FMI_DISCARD", "FMI_ERROR", "
 FMI_OK, FMI_WARNING, FMI_DISCARD, FMI_ERROR, FMI_FATAL = 0, 1, 2, 3, 4
 
 #: ``{(real path, size, mtime in ns): fmpy's ModelDescription}``: a master instantiates the same
-#: FMU again and again (a study's cells, a rollback), and parsing its description costs more than
-#: its step
+#: FMU again and again (a study's cells, a rollback), with the same description
 _DESCRIPTIONS: dict = {}
 _DESCRIPTIONS_KEPT = 16
 
