@@ -1,4 +1,6 @@
 """Shared pytest fixtures."""
+import contextlib
+import gc
 import os
 
 # One BLAS thread for the tests' small dense algebra (5x5 expm oracles, modal pencils): with
@@ -35,10 +37,10 @@ def _bytecode_dir():
 _BYTECODE = _bytecode_dir()
 
 
-@pytest.hookimpl(hookwrapper=True)
-def pytest_make_collect_report(collector):
-    """A test module imported (its asserts rewritten) with its bytecode kept in :data:`_BYTECODE`."""
-    if _BYTECODE is None or not isinstance(collector, pytest.Module):
+@contextlib.contextmanager
+def _bytecode_kept():
+    """Modules imported inside keep their bytecode (asserts rewritten) in :data:`_BYTECODE`."""
+    if _BYTECODE is None:
         yield
         return
     saved = sys.pycache_prefix, sys.dont_write_bytecode
@@ -49,8 +51,29 @@ def pytest_make_collect_report(collector):
         sys.pycache_prefix, sys.dont_write_bytecode = saved
 
 
+@pytest.hookimpl(hookwrapper=True)
+def pytest_make_collect_report(collector):
+    """A test module imported (its asserts rewritten) with its bytecode kept in :data:`_BYTECODE`."""
+    if not isinstance(collector, pytest.Module):
+        yield
+        return
+    with _bytecode_kept():
+        yield
+
+
+def pytest_collection_finish(session):
+    """What importing and collecting left (numba, scipy, llvmlite, the test modules: most of the
+    heap) moved out of the garbage collector's reach: every full collection during the run would
+    scan it again, seconds of CPU per worker for objects that live to the end anyway."""
+    gc.collect()
+    gc.freeze()
+
+
+# hypothesis is a pytest plugin's package, so pytest rewrites the asserts of each of its ~75
+# modules as they are imported: here, before any test module, in every process
 try:
-    from hypothesis import settings as _hypothesis_settings
+    with _bytecode_kept():
+        from hypothesis import settings as _hypothesis_settings
 except ImportError:  # pragma: no cover -- the property tests are skipped without hypothesis
     _hypothesis_settings = None
 if _hypothesis_settings is not None:
@@ -295,6 +318,29 @@ SLOW_TESTS = {
     # at a located onset stays fast
     "tests/test_continuation_bounds.py::test_a_fold_that_runs_from_its_orbit_do_not_confirm_is_no_runaway_onset":
         "tests/test_continuation_bounds.py::test_the_located_runaway_onset_is_that_of_a_bisection_of_long_runs",
+    # a new process loading the shipped kernels from two extraction directories; a new process with
+    # a read-only home loading them stays fast
+    "tests/test_fmu.py::test_a_new_process_loads_the_shipped_kernels":
+        "tests/test_fmu_build.py::test_cold_start_loads_the_shipped_kernels_with_a_read_only_home",
+    # the console's process boundary for `continue`; the same boundary for `simulate` stays fast
+    # (and `continue`'s refusals in this process: tests/test_careless_input.py)
+    "tests/test_continuation.py::test_bad_input_in_a_new_process_exits_2_without_a_traceback":
+        "tests/test_cli.py::test_bad_input_through_the_console_script",
+    # RK4 against solve_ivp on the impacting scene; the same comparison without impacts stays fast
+    # (the impacting scene's reference: tests/test_reference.py)
+    "tests/test_model.py::test_rk4_and_adaptive_agree_within_rk4_error[paper-fig12-0.06]":
+        "tests/test_model.py::test_rk4_and_adaptive_agree_within_rk4_error[paper-fig9-0.11]",
+    # one more C host in a new process, with python3 found on PATH; the C host that finds the
+    # FMU's Python stays fast
+    "tests/test_fmu_native.py::test_python3_on_path_is_found":
+        "tests/test_fmu_native.py::test_c_host_steps_10_s_like_fmpy_and_exits_0",
+    # 10,000 periods with impacts (the 100,000 are slow too); random scenes' invariants stay fast
+    "tests/test_stress.py::test_ten_thousand_periods":
+        "tests/test_stress.py::test_random_scenes_invariants_quick",
+    # DrillingSystem.fmu in FMI 3.0 with early return allowed (it declares none); the same run
+    # without it stays fast
+    "tests/test_fmi3_system.py::test_system_fmi3_run_equals_fmi2[True]":
+        "tests/test_fmi3_system.py::test_system_fmi3_run_equals_fmi2[False]",
 }
 
 

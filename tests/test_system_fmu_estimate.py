@@ -192,7 +192,7 @@ def test_the_modal_form_is_the_strings_matrix_or_refused():
     gets none."""
     from hammerbit.cosim.reference import monolithic_subsystem
     from hammerbit.cosim.string_side import StringSide
-    from hammerbit.fmu.build_system import modal_transform
+    from hammerbit.cosim.modal_form import modal_transform
     field = load_string("field-2200m")
     cfg = drilling_config(field, 1.0)
     side = StringSide(field, cfg)

@@ -4,8 +4,10 @@ The string with the interface spring is the linear subsystem of
 :class:`hammerbit.model.stepping.Stepper` (nondimensional: lengths in ``x0``,
 velocities in ``x0 Omega``, time ``tau = Omega t``, forces in ``F0``),
 integrated by the same adaptive event-located solver as the hammer at
-``config.rtol``.  A constant state (``z_c = 1``) carries the equilibrium
-offsets.  No exchange, no macro step: the answer the co-simulation converges to.
+``config.rtol``, its string block in real modal form where that form is well
+conditioned (:mod:`hammerbit.cosim.modal_form`: the same linear system, a
+sparse matrix instead of a dense one).  A constant state (``z_c = 1``) carries
+the equilibrium offsets.  No exchange, no macro step: the answer the co-simulation converges to.
 """
 from __future__ import annotations
 
@@ -46,6 +48,7 @@ def monolithic(string, config=None):
         ``interface_force``, ``step_size`` the sampling step; ``counts`` the
         events by kind; no estimate.
     """
+    from hammerbit.cosim.modal_form import in_modal_form
     from hammerbit.model import kernel_layouts
     from hammerbit.model.solver_options import SolverOptions
     from hammerbit.model.stepping import Stepper
@@ -56,6 +59,7 @@ def monolithic(string, config=None):
     s = rig.scales
     F0, x0, Om, v0 = s.friction_force, s.length, s.omega, s.velocity
     lin, x1eq = monolithic_subsystem(string, side, c)
+    lin, _ = in_modal_form(lin, side.n, c.rtol)   # the hammer sees only G . z, the same in both forms
     grp = rig.to_groups().replace(b=0.0)
     st = Stepper(grp, solver=SolverOptions(rtol=c.rtol, atol=c.rtol * 1e-2), linear=lin,
                  y0=[x1eq, 0.0, 0.0, 0.0])

@@ -22,49 +22,17 @@ remembers decompositions and exponentials across sides.
 """
 from __future__ import annotations
 
-import hashlib
 import math
-from collections import OrderedDict
 from typing import Optional
 
 import numpy as np
 
+from hammerbit.memo import digest, memo
 from hammerbit.model.string_kernels import string_step_dense, string_step_modal
 from hammerbit.model.string_step import ExactStep, one_blas_thread
 from hammerbit.model.string_step import StringState as RunState
 
 __all__ = ["StringSide", "StringState", "string_step_dense", "string_step_modal"]
-
-#: eigendecompositions and matrix exponentials of recent string models, shared by every side built
-#: from the same matrices (a sweep, a run and its reference, a study's repeated runs)
-_MEMO: "OrderedDict[bytes, object]" = OrderedDict()
-_MEMO_SIZE = 32
-
-
-def _memo(key: bytes, compute):
-    """``compute()``, remembered under ``key`` (its arrays made read-only: they are shared)."""
-    hit = _MEMO.get(key)
-    if hit is not None:
-        _MEMO.move_to_end(key)
-        return hit
-    value = compute()
-    for a in (value if isinstance(value, tuple) else (value,)):
-        if isinstance(a, np.ndarray):
-            a.setflags(write=False)
-    _MEMO[key] = value
-    while len(_MEMO) > _MEMO_SIZE:
-        _MEMO.popitem(last=False)
-    return value
-
-
-def _digest(tag: str, *arrays, extra=()) -> bytes:
-    h = hashlib.sha1(tag.encode())
-    for a in arrays:
-        a = np.ascontiguousarray(a)
-        h.update(repr((a.shape, a.dtype.str)).encode())
-        h.update(a.tobytes())
-    h.update(repr(extra).encode())
-    return h.digest()
 
 
 class StringSide(ExactStep):
@@ -139,10 +107,10 @@ class StringSide(ExactStep):
 
     # -- the library remembers decompositions and exponentials across sides --
     def decompose(self):
-        return _memo(_digest("eig", self.A1), super().decompose)
+        return memo(digest("eig", self.A1), super().decompose)
 
     def exponential(self, Z: np.ndarray, h: float) -> np.ndarray:
-        return _memo(_digest("expm", Z, extra=h), lambda: ExactStep.exponential(self, Z, h))
+        return memo(digest("expm", Z, extra=h), lambda: ExactStep.exponential(self, Z, h))
 
     def _eigen(self):
         return self.eigen()

@@ -84,11 +84,20 @@ class LoopCheck:
 
 
 def loop_eigenvalues(A: np.ndarray) -> np.ndarray:
-    """Eigenvalues of the closed-loop matrix ``A`` [1/s] (one BLAS thread: a small eigenproblem
-    runs many times slower on threads that share two busy cores)."""
+    """Eigenvalues of the closed-loop matrix ``A`` [1/s], read-only (remembered: every run and
+    study of a string under the auto-driller checks the same loop, tens of milliseconds each on a
+    field string)."""
+    from hammerbit.memo import digest, memo
+    A = np.ascontiguousarray(A, dtype=float)
+    return memo(digest("loop eigenvalues", A), lambda: _eigenvalues(A))
+
+
+def _eigenvalues(A: np.ndarray) -> np.ndarray:
+    """``np.linalg.eigvals`` on one BLAS thread: a small eigenproblem runs many times slower on
+    threads that share two busy cores."""
     from threadpoolctl import threadpool_limits
     with threadpool_limits(limits=1, user_api="blas"):
-        return np.linalg.eigvals(np.asarray(A, dtype=float))
+        return np.linalg.eigvals(A)
 
 
 def loop_margin(series_stiffness: float, kp: float, ki: float) -> float:

@@ -18,15 +18,10 @@ constant state's column, affinely, so the header carries that column's
 derivative with respect to each.
 
 The string's block of the subsystem is dense (the consistent mass matrix's
-inverse couples every node), so the build writes it in its real modal form,
-``z = T w`` with ``T`` the real eigenvectors (2 x 2 blocks for complex
-pairs): the same linear system with about five nonzeros a row instead of
-half of them, which makes the solver's steps some thirty times cheaper on
-field-2200m.  The form is used only where it is well conditioned: the
-matrix it is exact for differs from the string's by at most
-:data:`MODAL_PERTURBATION_PER_RTOL` times the solver's rtol (relative);
-elsewhere the physical form is kept.  The outputs read the string through
-rows transformed the same way (the hook load: ``row . T``).  The variables are those of
+inverse couples every node), so the build writes it in its real modal form
+where that is well conditioned (:mod:`hammerbit.cosim.modal_form`), as the
+reference does.  The outputs read the string through rows transformed the
+same way (the hook load: ``row . T``).  The variables are those of
 :data:`hammerbit.model.fmu_description.SYSTEM_VARIABLES`; the
 ``modelDescription.xml`` is generated from them.
 """
@@ -42,7 +37,7 @@ import numpy as np
 
 from hammerbit.fmu.guid import content_guid
 
-__all__ = ["MODEL_NAME", "SYSTEM_TOOL", "SYSTEM_SOURCES", "modal_transform", "system_data",
+__all__ = ["MODEL_NAME", "SYSTEM_TOOL", "SYSTEM_SOURCES", "system_data",
            "system_model_description", "system_header", "build_system_fmu"]
 
 MODEL_NAME = "DrillingSystem"
@@ -52,9 +47,6 @@ SYSTEM_TOOL = "hammerbit fmu build-system"
 RTOL_PER_TOLERANCE = 0.1
 #: the solver's atol is its rtol times this (as the reference's)
 ATOL_PER_RTOL = 1e-2
-#: the modal form is used when the matrix it is exact for is within this times the solver's rtol
-#: of the string's (largest entry, relative): a perturbation far below what the solver resolves
-MODAL_PERTURBATION_PER_RTOL = 1e-3
 
 
 def _sources():
@@ -80,57 +72,10 @@ def _with_impulse(lin):
     return LinearSubsystem(A=Ae, H=He, G=np.r_[lin.G, 0.0], g=np.asarray(lin.g, float), z0=np.r_[lin.z0, 0.0])
 
 
-def modal_transform(A, n: int, rtol: float):
-    """``(T, the string's block in modal form)`` for the first ``n`` states of ``A`` (the string),
-    ``T`` the real eigenvector matrix (:func:`scipy.linalg.cdf2rdf`, unit columns), or ``None``
-    when the form is not well conditioned (see :data:`MODAL_PERTURBATION_PER_RTOL`)."""
-    import scipy.linalg as sl
-    block = np.asarray(A, dtype=float)[:n, :n]
-    lam, vec = np.linalg.eig(block)
-    lam_r, T = sl.cdf2rdf(lam, vec / np.linalg.norm(vec, axis=0))
-    with np.errstate(all="ignore"):
-        exact_for = np.linalg.solve(T.T, (T @ lam_r).T).T          # T lam_r T^-1
-    perturbation = np.max(np.abs(exact_for - block)) / max(np.max(np.abs(block)), np.finfo(float).tiny)
-    if not (np.all(np.isfinite(exact_for)) and perturbation <= MODAL_PERTURBATION_PER_RTOL * rtol):
-        return None
-    return T, lam_r
-
-
-def _in_modal_form(ext, n: int, rtol: float):
-    """``(subsystem, Tz)``: ``ext`` with its string block (the first ``n`` states) in real modal
-    form, ``z = Tz w``; ``(ext, None)`` where that form is not well conditioned.
-
-    On one BLAS thread: the eigenproblem (hundreds of states) runs tens of times slower on threads
-    that share two busy cores (12 s instead of 0.3 s for field-2200m), and its result does not
-    depend on the machine's thread count."""
-    from threadpoolctl import threadpool_limits
-    with threadpool_limits(limits=1, user_api="blas"):
-        return _modal_subsystem(ext, n, rtol)
-
-
-def _modal_subsystem(ext, n: int, rtol: float):
-    from hammerbit.model.stepping import LinearSubsystem
-    A = np.asarray(ext.A, dtype=float)
-    modal = modal_transform(A, n, rtol)
-    if modal is None:
-        return ext, None
-    T, lam_r = modal
-    nz = A.shape[0]
-    Tz = np.eye(nz)
-    Tz[:n, :n] = T
-    Am = A.copy()
-    Am[:n, :n] = lam_r
-    Am[:n, n:] = np.linalg.solve(T, A[:n, n:])
-    Am[n:, :n] = A[n:, :n] @ T
-    # entries that are rounding of an exact zero (the eigenvectors' tiny components) are dropped
-    Am[np.abs(Am) < np.finfo(float).eps * np.max(np.abs(Am))] = 0.0
-    return LinearSubsystem(A=Am, H=np.linalg.solve(Tz, ext.H), G=np.asarray(ext.G) @ Tz,
-                           g=np.asarray(ext.g, dtype=float), z0=np.linalg.solve(Tz, ext.z0)), Tz
-
-
 def system_data(string, config, *, tolerance: float = 1e-3) -> dict:
     """The arrays and scalars of the FMU for ``string`` and ``config`` (a
     :class:`~hammerbit.cosim.config.CosimConfig`: rig, WOB, interface, top condition)."""
+    from hammerbit.cosim.modal_form import in_modal_form
     from hammerbit.cosim.reference import monolithic_subsystem
     from hammerbit.cosim.string_side import StringSide
     from hammerbit.model import kernel_layouts as KL
@@ -143,7 +88,7 @@ def system_data(string, config, *, tolerance: float = 1e-3) -> dict:
     rtol = tolerance * RTOL_PER_TOLERANCE
     physical = _with_impulse(lin0)
     n = side.n
-    ext0, Tz = _in_modal_form(physical, n, rtol)
+    ext0, Tz = in_modal_form(physical, n, rtol)
     Tz_inv_rows = (lambda v: v) if Tz is None else (lambda v: np.linalg.solve(Tz, v))
     ic, iq = n + 1, n + 2
     nz = iq + 1
