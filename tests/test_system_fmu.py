@@ -155,7 +155,11 @@ def test_whole_run_in_one_step(field_auto_fmu, field_auto_ref):
 
 def schedule_reference(string, cfg, schedule, stop):
     """A Stepper run of the monolithic subsystem with the inputs of ``schedule`` ({time: {amplitude,
-    wob_set_point}}) changed there: one Stepper per set point, the state carried over."""
+    wob_set_point}}) changed there: one Stepper per set point, the state carried over.  Each set
+    point's subsystem is built whole (its constant column from the set point, not from the FMU's
+    affine column) and stepped, as :func:`~hammerbit.cosim.reference.monolithic` steps it, in the
+    string's modal form where that is well conditioned."""
+    from hammerbit.cosim.modal_form import in_modal_form
     from hammerbit.cosim.reference import monolithic_subsystem
     from hammerbit.cosim.string_side import StringSide
     from hammerbit.model import kernel_layouts as L
@@ -174,6 +178,7 @@ def schedule_reference(string, cfg, schedule, stop):
         inputs = schedule[times[i]]
         dW = inputs.get("wob_set_point", side.wob + dW) - side.wob
         lin, x1eq = monolithic_subsystem(string, side, cfg, set_point_offset=dW)
+        lin, _ = in_modal_form(lin, side.n, REF_RTOL)   # as the monolithic reference steps it
         new = Stepper(grp, solver=SolverOptions(rtol=REF_RTOL, atol=REF_RTOL * 1e-2), linear=lin,
                       y0=[x1eq, 0.0, 0.0, 0.0])
         if snap is not None:
