@@ -10,6 +10,7 @@ reported at a communication point is not reported again).
 """
 from __future__ import annotations
 
+import re
 import zipfile
 
 import numpy as np
@@ -68,9 +69,10 @@ class Inst:
 @pytest.mark.parametrize("seed", [1, 2])
 def test_fmi3_adversarial_sequences_end_as_the_clean_run(fmu3_dir, seed):
     """Bad calls (absurd inputs, bad steps and communication points, fixed parameters, bad
-    tolerances, unknown or mistyped value references) are each fmi3Error with a message and change
-    nothing; after each the host restores the state saved before it (fmi3SetFMUState, the recovery
-    from fmi3Error), and the fuzzed instance ends bit-identical to the clean one."""
+    tolerances, unknown or mistyped value references) are each fmi3Error with a message in FMI
+    3.0's names and change nothing; after each the host restores the state saved before it
+    (fmi3SetFMUState, the recovery from fmi3Error), and the fuzzed instance ends bit-identical to
+    the clean one."""
     rng = np.random.default_rng(seed)
     steps = [float(h) for h in rng.choice([1e-4, 1e-3, 5e-3, 2e-2], size=80)]
     clean, fuzzed = Inst(fmu3_dir, reals={"tolerance": 1e-8}), Inst(fmu3_dir, reals={"tolerance": 1e-8})
@@ -83,6 +85,10 @@ def test_fmi3_adversarial_sequences_end_as_the_clean_run(fmu3_dir, seed):
             fuzzed.step(h)
         assert fuzzed.outputs() == clean.outputs()
         assert len(kinds) >= 4
+        # the host is an FMI 3.0 host: the messages name FMI 3.0's functions and statuses
+        said = [m for _, m in fuzzed.s.messages]
+        assert any("fmi3SetFMUState" in m or "fmi3SetFloat64" in m or "fmi3DoStep" in m for m in said), said
+        assert not [m for m in said if re.search(r"\bfmi2", m)], [m for m in said if "fmi2" in m][:3]
     finally:
         clean.close()
         fuzzed.close()

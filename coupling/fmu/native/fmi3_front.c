@@ -12,6 +12,7 @@
  *     part of locating it), so fmi3UpdateDiscreteStates has nothing left to update there.
  *   - neither: the FMI 2.0 step, the same calls and the same bits.
  * Model Exchange: the FMI 2.0 front's Model Exchange, the kernels' event indicators. */
+#include <ctype.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -36,19 +37,71 @@ void hb3_log(hb3_inst *I, fmi3Status st, const char *fmt, ...) {
     I->log(I->env, st, CATS[st <= fmi3Fatal ? st : fmi3Fatal], buf);
 }
 
+/* FMI 2.0 names in the messages of the layers below, as an FMI 3.0 host calls them */
+static const char *const FMI3_NAMES[][2] = {
+    {"fmi2SetupExperiment", "fmi3EnterInitializationMode"},
+    {"fmi2EnterInitializationMode", "fmi3EnterInitializationMode"},
+    {"fmi2ExitInitializationMode", "fmi3ExitInitializationMode"},
+    {"fmi2Terminate", "fmi3Terminate"}, {"fmi2Reset", "fmi3Reset"}, {"fmi2FreeInstance", "fmi3FreeInstance"},
+    {"fmi2GetReal", "fmi3GetFloat64"}, {"fmi2SetReal", "fmi3SetFloat64"},
+    {"fmi2GetInteger", "fmi3GetInt32"}, {"fmi2SetInteger", "fmi3SetInt32"},
+    {"fmi2GetBoolean", "fmi3GetBoolean"}, {"fmi2SetBoolean", "fmi3SetBoolean"},
+    {"fmi2GetString", "fmi3GetString"}, {"fmi2SetString", "fmi3SetString"},
+    {"fmi2GetFMUstate", "fmi3GetFMUState"}, {"fmi2SetFMUstate", "fmi3SetFMUState"},
+    {"fmi2FreeFMUstate", "fmi3FreeFMUState"}, {"fmi2SerializedFMUstateSize", "fmi3SerializedFMUStateSize"},
+    {"fmi2SerializeFMUstate", "fmi3SerializeFMUState"}, {"fmi2DeSerializeFMUstate", "fmi3DeserializeFMUState"},
+    {"fmi2GetDirectionalDerivative", "fmi3GetDirectionalDerivative"},
+    {"fmi2GetRealOutputDerivatives", "fmi3GetOutputDerivatives"}, {"fmi2DoStep", "fmi3DoStep"},
+    {"fmi2SetTime", "fmi3SetTime"}, {"fmi2SetContinuousStates", "fmi3SetContinuousStates"},
+    {"fmi2GetContinuousStates", "fmi3GetContinuousStates"},
+    {"fmi2GetDerivatives", "fmi3GetContinuousStateDerivatives"},
+    {"fmi2GetEventIndicators", "fmi3GetEventIndicators"},
+    {"fmi2GetNominalsOfContinuousStates", "fmi3GetNominalsOfContinuousStates"},
+    {"fmi2EnterEventMode", "fmi3EnterEventMode"}, {"fmi2NewDiscreteStates", "fmi3UpdateDiscreteStates"},
+    {"fmi2EnterContinuousTimeMode", "fmi3EnterContinuousTimeMode"},
+    {"fmi2CompletedIntegratorStep", "fmi3CompletedIntegratorStep"},
+    {"fmi2OK", "fmi3OK"}, {"fmi2Warning", "fmi3Warning"}, {"fmi2Discard", "fmi3Discard"},
+    {"fmi2Error", "fmi3Error"}, {"fmi2Fatal", "fmi3Fatal"},
+};
+
+/* ``in`` with each whole FMI 2.0 name of FMI3_NAMES replaced by its FMI 3.0 name, into ``out`` */
+static void fmi3_wording(const char *in, char *out, size_t n) {
+    size_t o = 0;
+    while (*in && o + 1 < n) {
+        const char *to = NULL;
+        size_t len = 0;
+        for (size_t k = 0; strncmp(in, "fmi2", 4) == 0 && k < sizeof FMI3_NAMES / sizeof FMI3_NAMES[0]; k++) {
+            size_t l = strlen(FMI3_NAMES[k][0]);
+            if (strncmp(in, FMI3_NAMES[k][0], l) == 0 && !isalnum((unsigned char)in[l])) {
+                to = FMI3_NAMES[k][1];
+                len = l;
+                break;
+            }
+        }
+        if (!to) {
+            out[o++] = *in++;
+            continue;
+        }
+        for (; *to && o + 1 < n; to++) out[o++] = *to;
+        in += len;
+    }
+    out[o] = '\0';
+}
+
 /* the FMI 2.0 front's messages to the host: its format expanded (it escapes '%' for a printf-like
- * logger, which FMI 3.0's is not) */
+ * logger, which FMI 3.0's is not), in FMI 3.0's names */
 static void logger2(fmi2ComponentEnvironment env, fmi2String name, fmi2Status st, fmi2String cat,
                     fmi2String message, ...) {
     (void)name;
     hb3_inst *I = env;
     if (!I || !I->log || !message) return;
-    char buf[2048];
+    char buf[2048], worded[2048];
     va_list ap;
     va_start(ap, message);
     vsnprintf(buf, sizeof buf, message, ap);
     va_end(ap);
-    I->log(I->env, st <= fmi2Fatal ? (fmi3Status)st : fmi3Error, cat ? cat : "logAll", buf);
+    fmi3_wording(buf, worded, sizeof worded);
+    I->log(I->env, st <= fmi2Fatal ? (fmi3Status)st : fmi3Error, cat ? cat : "logAll", worded);
 }
 
 int hb3_allowed(hb3_inst *I, unsigned mask, const char *fn) {
