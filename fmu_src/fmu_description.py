@@ -179,7 +179,8 @@ SYSTEM_VARIABLES = (
     FmuVariable("tolerance", "Float64", "parameter", "", "relative accuracy of penetration and mean "
                    "WOB against the monolithic reference (the solver runs at rtol = tolerance / 10)",
                    1e-3, 1e-8, 0.1),
-    FmuVariable("amplitude", "Float64", "input", "N", "amplitude of the hammer's harmonic force", None, 0.0),
+    FmuVariable("amplitude", "Float64", "input", "N", "amplitude of the hammer's harmonic force", None, 0.0,
+                1e9),
     FmuVariable("frequency", "Float64", "input", "Hz", "frequency of the harmonic force (the phase is "
                    "kept continuous when it changes)", None, 1e-3, 1e4),
     FmuVariable("wob_set_point", "Float64", "input", "N", "the auto-driller's WOB set point (only "

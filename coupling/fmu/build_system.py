@@ -149,6 +149,17 @@ _LAYOUT = ("N_P", "N_ISTATE", "N_FSTATE", "N_OPTS", "I_STICK", "I_CONTACT", "I_B
            "CLAMPED", "ST_DONE", "ST_MAX_STEPS", "P_B", "P_FEXT", "X_HAMMER", "V_HAMMER", "X_BIT", "V_BIT")
 
 
+def _bounds(v, data: dict) -> tuple:
+    """``(min, max)`` of a variable as the FMU enforces them (None: unbounded): the table's, and the
+    build's for the inputs it sizes (the set point up to the buoyed weight, the feed within the
+    largest feed)."""
+    if v.name == "wob_set_point":
+        return v.min, float(data["buoyed"])
+    if v.name == "feed_velocity":
+        return -float(data["max_feed"]), float(data["max_feed"])
+    return v.min, v.max
+
+
 def _starts(data: dict) -> dict:
     return {"tolerance": data["tolerance"], "amplitude": data["amplitude"], "frequency": data["frequency"],
             "wob_set_point": data["wob"], "feed_velocity": data["feed"]}
@@ -185,10 +196,11 @@ def system_model_description(data: dict, guid: str) -> bytes:
         t = {}
         if v.unit:
             t["unit"] = v.unit
-        if v.min is not None:
-            t["min"] = repr(float(v.min))
-        if v.max is not None:
-            t["max"] = repr(float(v.max))
+        lo, hi = _bounds(v, data)
+        if lo is not None:
+            t["min"] = repr(float(lo))
+        if hi is not None:
+            t["max"] = repr(float(hi))
         if v.causality != "output":
             t["start"] = repr(float(starts[v.name]))
         if v.name in _UNUSED_INPUTS.get(data["top"], ()):
@@ -246,10 +258,11 @@ def system_header(data: dict) -> str:
     lines += [f"#define HSYS_{k} {float(v)!r}" for k, v in reals.items()]
     for v in SYSTEM_VARIABLES:
         if v.causality != "output":
+            lo, hi = _bounds(v, data)
             lines.append(f"#define HSYS_START_{v.name} {float(_starts(data)[v.name])!r}")
-            lines.append(f"#define HSYS_MIN_{v.name} {float(v.min)!r}" if v.min is not None else
+            lines.append(f"#define HSYS_MIN_{v.name} {float(lo)!r}" if lo is not None else
                          f"#define HSYS_MIN_{v.name} (-HUGE_VAL)")
-            lines.append(f"#define HSYS_MAX_{v.name} {float(v.max)!r}" if v.max is not None else
+            lines.append(f"#define HSYS_MAX_{v.name} {float(hi)!r}" if hi is not None else
                          f"#define HSYS_MAX_{v.name} HUGE_VAL")
     lines.append(f"#define HSYS_TOP_TEXT {c_string(data['top'])}")
     lines += [_array("int64_t", "HSYS_CSR", data["csr"]), _array("double", "HSYS_AX", data["ax"]),

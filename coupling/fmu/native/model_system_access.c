@@ -11,9 +11,11 @@
 /* ------------------------------------------------------------------------------------------ */
 /* Inputs                                                                                      */
 /* ------------------------------------------------------------------------------------------ */
+/* the ranges the modelDescription declares (hsys_data.h, from the table and the build) */
 static const double MIN_IN[N_INPUTS] = {HSYS_MIN_amplitude, HSYS_MIN_frequency, HSYS_MIN_wob_set_point,
-                                        -HSYS_MAX_FEED};
-static const double MAX_IN[N_INPUTS] = {1e9, HSYS_MAX_frequency, HSYS_BUOYED, HSYS_MAX_FEED};
+                                        HSYS_MIN_feed_velocity};
+static const double MAX_IN[N_INPUTS] = {HSYS_MAX_amplitude, HSYS_MAX_frequency, HSYS_MAX_wob_set_point,
+                                        HSYS_MAX_feed_velocity};
 static const char *const IN_NAME[N_INPUTS] = {"amplitude", "frequency", "wob_set_point", "feed_velocity"};
 static const char *const IN_UNIT[N_INPUTS] = {"N", "Hz", "N", "m/s"};
 
