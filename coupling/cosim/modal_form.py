@@ -3,9 +3,9 @@
 The string's block of the monolithic subsystem (:func:`hammerbit.cosim.reference.monolithic_subsystem`)
 is dense: the consistent mass matrix's inverse couples every node.  In its real
 modal form, ``z = T w`` with ``T`` the real eigenvectors (2 x 2 blocks for
-complex pairs), it is the same linear system with about five nonzeros a row
-instead of half of them, which makes an explicit solver's steps some thirty
-times cheaper on field-2200m.  The form is used only where it is well
+complex pairs), it is the same linear system with at most two nonzeros a row
+in the string's block instead of half of them (tests/test_system_fmu_estimate.py),
+so an explicit solver's steps cost far less.  The form is used only where it is well
 conditioned: the matrix it is exact for differs from the string's by at most
 :data:`MODAL_PERTURBATION_PER_RTOL` times the solver's rtol (relative);
 elsewhere the physical form is kept.  Both the monolithic reference and
@@ -57,11 +57,10 @@ def in_modal_form(ext, n: int, rtol: float):
     string block (the first ``n`` states) in real modal form, ``z = Tz w``; ``(ext, None)`` where
     that form is not well conditioned.  The hammer's link force ``G . z`` is the same in both.
 
-    On one BLAS thread: the eigenproblem (hundreds of states) runs tens of times slower on threads
-    that share two busy cores (12 s instead of 0.3 s for field-2200m), and its result does not
-    depend on the machine's thread count."""
-    from threadpoolctl import threadpool_limits
-    with threadpool_limits(limits=1, user_api="blas"):
+    On one BLAS thread: the eigenproblem (hundreds of states) runs many times slower on threads
+    that share two busy cores, and its result does not depend on the machine's thread count."""
+    from hammerbit.model.string_step import one_blas_thread
+    with one_blas_thread():
         return _modal_subsystem(ext, n, rtol)
 
 

@@ -85,8 +85,8 @@ class LoopCheck:
 
 def loop_eigenvalues(A: np.ndarray) -> np.ndarray:
     """Eigenvalues of the closed-loop matrix ``A`` [1/s], read-only (remembered: every run and
-    study of a string under the auto-driller checks the same loop, tens of milliseconds each on a
-    field string)."""
+    study of a string under the auto-driller checks the same loop, a dense eigenproblem of the
+    whole string)."""
     from hammerbit.memo import digest, memo
     A = np.ascontiguousarray(A, dtype=float)
     return memo(digest("loop eigenvalues", A), lambda: _eigenvalues(A))
@@ -95,8 +95,8 @@ def loop_eigenvalues(A: np.ndarray) -> np.ndarray:
 def _eigenvalues(A: np.ndarray) -> np.ndarray:
     """``np.linalg.eigvals`` on one BLAS thread: a small eigenproblem runs many times slower on
     threads that share two busy cores."""
-    from threadpoolctl import threadpool_limits
-    with threadpool_limits(limits=1, user_api="blas"):
+    from hammerbit.model.string_step import one_blas_thread
+    with one_blas_thread():
         return np.linalg.eigvals(A)
 
 
