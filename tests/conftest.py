@@ -64,13 +64,13 @@ def pytest_make_collect_report(collector):
 def pytest_collection_finish(session):
     """What importing and collecting left (numba, scipy, llvmlite, the test modules: most of the
     heap) moved out of the garbage collector's reach: every full collection during the run would
-    scan it again, seconds of CPU per worker for objects that live to the end anyway."""
+    scan it again, for objects that live to the end anyway."""
     gc.collect()
     gc.freeze()
 
 
-# hypothesis is a pytest plugin's package, so pytest rewrites the asserts of each of its ~75
-# modules as they are imported: here, before any test module, in every process
+# hypothesis is a pytest plugin's package, so pytest rewrites the asserts of each of its modules
+# as they are imported: here, before any test module, in every process
 try:
     with _bytecode_kept():
         from hypothesis import settings as _hypothesis_settings
