@@ -165,7 +165,9 @@ class FmuVariable:
     unit: str           #: SI unit ("" for counts, codes and where the description names it)
     description: str
     start: object = None  #: parameters and inputs: the start value (None: the build's value)
-    min: object = None    #: None: unbounded, or the build's
+    #: a number; the name of a build value (``buoyed_weight``, ``max_feed``; ``-name`` its negative),
+    #: which the build declares and enforces; None: unbounded, or the build's own range
+    min: object = None
     max: object = None
     #: a number; or the rig scale that sizes the variable (``length``, ``velocity``,
     #: ``friction_force``: :class:`~.params.Scales` fields), or ``rig`` (the rig parameter's own
@@ -184,9 +186,9 @@ SYSTEM_VARIABLES = (
     FmuVariable("frequency", "Float64", "input", "Hz", "frequency of the harmonic force (the phase is "
                    "kept continuous when it changes)", None, 1e-3, 1e4),
     FmuVariable("wob_set_point", "Float64", "input", "N", "the auto-driller's WOB set point (only "
-                   "with the auto-driller; other top conditions refuse a change)", None, 0.0),
+                   "with the auto-driller; other top conditions refuse a change)", None, 0.0, "buoyed_weight"),
     FmuVariable("feed_velocity", "Float64", "input", "m/s", "the block's downward velocity (only with "
-                   "the feed; other top conditions refuse a change)", None),
+                   "the feed; other top conditions refuse a change)", None, "-max_feed", "max_feed"),
     FmuVariable("bit_position", "Float64", "output", "m", "bit position (down positive)"),
     FmuVariable("rate_of_penetration", "Float64", "output", "m/s", "mean bit velocity over the last "
                    "communication step"),

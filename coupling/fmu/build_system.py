@@ -149,15 +149,19 @@ _LAYOUT = ("N_P", "N_ISTATE", "N_FSTATE", "N_OPTS", "I_STICK", "I_CONTACT", "I_B
            "CLAMPED", "ST_DONE", "ST_MAX_STEPS", "P_B", "P_FEXT", "X_HAMMER", "V_HAMMER", "X_BIT", "V_BIT")
 
 
+#: the build values a bound of the table may name, and their keys in :func:`system_data`'s dict
+_BUILD_BOUNDS = {"buoyed_weight": "buoyed", "max_feed": "max_feed"}
+
+
 def _bounds(v, data: dict) -> tuple:
-    """``(min, max)`` of a variable as the FMU enforces them (None: unbounded): the table's, and the
-    build's for the inputs it sizes (the set point up to the buoyed weight, the feed within the
-    largest feed)."""
-    if v.name == "wob_set_point":
-        return v.min, float(data["buoyed"])
-    if v.name == "feed_velocity":
-        return -float(data["max_feed"]), float(data["max_feed"])
-    return v.min, v.max
+    """``(min, max)`` of a variable as the FMU declares and enforces them (None: unbounded): the
+    table's, a named build value resolved from ``data``."""
+    def value(bound):
+        if not isinstance(bound, str):
+            return bound
+        sign = -1.0 if bound.startswith("-") else 1.0
+        return sign * float(data[_BUILD_BOUNDS[bound.lstrip("-")]])
+    return value(v.min), value(v.max)
 
 
 def _starts(data: dict) -> dict:
