@@ -72,11 +72,19 @@ STEP_CACHE = 8
 def one_blas_thread():
     """The string's dense linear algebra on one BLAS thread (a context): a 441-state eigenproblem
     is several times slower with the default thread pool on a loaded machine, and one thread
-    gives the same bits in every process."""
+    gives the same bits in every process, whatever its core count.
+
+    threadpoolctl limits the BLAS libraries loaded when the limit is set, so scipy's (loaded with
+    ``scipy.linalg``, which the bodies import where they need it) is loaded first: else the first
+    body in a process would run on every core and give other bits than the later ones."""
     try:
         from threadpoolctl import threadpool_limits  # noqa: PLC0415 -- optional in an FMU's host
     except ImportError:
         return contextlib.nullcontext()
+    try:
+        import scipy.linalg  # noqa: F401, PLC0415 -- loads scipy's BLAS (see above)
+    except ImportError:
+        pass
     return threadpool_limits(limits=1, user_api="blas")
 
 

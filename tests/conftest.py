@@ -341,6 +341,10 @@ SLOW_TESTS = {
     # without it stays fast
     "tests/test_fmi3_system.py::test_system_fmi3_run_equals_fmi2[True]":
         "tests/test_fmi3_system.py::test_system_fmi3_run_equals_fmi2[False]",
+    # the field string's matrix twice in a new process with the BLAS's own threads (eigenproblems);
+    # the limit covering a BLAS loaded inside it, in a new process, stays fast
+    "tests/test_blas_threads.py::test_the_first_string_side_of_a_process_has_the_bits_of_every_later_one":
+        "tests/test_blas_threads.py::test_a_blas_loaded_inside_the_limit_runs_one_thread",
 }
 
 

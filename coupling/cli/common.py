@@ -351,7 +351,7 @@ def interruptible(fn, *args, **kwargs):
 
 
 def one_blas_thread(func):
-    """``func`` with BLAS/LAPACK limited to one thread (threadpoolctl).
+    """``func`` with BLAS/LAPACK limited to one thread (:func:`hammerbit.model.string_step.one_blas_thread`).
 
     The eigenproblems of ``modes`` and ``check`` are small (hundreds to a few
     thousand degrees of freedom): their threads hand work over more than they
@@ -361,10 +361,7 @@ def one_blas_thread(func):
 
     @functools.wraps(func)
     def wrapper(*args, **kwargs):
-        try:
-            from threadpoolctl import threadpool_limits
-        except ImportError:  # pragma: no cover -- an optional speed-up
-            return func(*args, **kwargs)
-        with threadpool_limits(limits=1, user_api="blas"):
+        from hammerbit.model.string_step import one_blas_thread as limited  # noqa: PLC0415 -- numba
+        with limited():
             return func(*args, **kwargs)
     return wrapper
