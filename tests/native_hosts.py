@@ -5,11 +5,11 @@ from __future__ import annotations
 
 import os
 import shutil
-import subprocess
 from pathlib import Path
 
 import fmpy
 import pytest
+from cached_compile import compile_c
 
 from hammerbit.fmu.native import find_compiler
 from hammerbit.fmu.native_build import MINGW_CC
@@ -23,9 +23,8 @@ FMI_HEADERS = Path(fmpy.__file__).parent / "c-code"
 def linux_host(tmp: Path) -> Path:
     """The C host built for Linux into ``tmp`` with the system C compiler."""
     exe = tmp / "fmu_native_host"
-    subprocess.run([find_compiler(), "-O1", "-I", str(FMI_HEADERS), "-o", str(exe), str(HOST_SOURCE),
-                    "-ldl", "-lpthread"], check=True)
-    return exe
+    return compile_c([find_compiler(), "-O1", "-I", str(FMI_HEADERS), "-o", str(exe), str(HOST_SOURCE),
+                      "-ldl", "-lpthread"], exe, tmp)
 
 
 def ecos_or_skip(tmp: Path) -> tuple[Path, Path]:
@@ -59,6 +58,6 @@ def windows_host_or_skip(dll: Path, tmp: Path) -> tuple[str, Path]:
     if not wine:
         pytest.skip("no wine (Debian: wine64) to run the Windows host")
     exe = tmp / "fmu_native_host.exe"
-    subprocess.run([MINGW_CC, "-O1", "-I", str(FMI_HEADERS), "-o", str(exe), str(HOST_SOURCE), "-static",
-                    "-lpthread"], check=True)
+    compile_c([MINGW_CC, "-O1", "-I", str(FMI_HEADERS), "-o", str(exe), str(HOST_SOURCE), "-static", "-lpthread"],
+              exe, tmp)
     return wine, exe

@@ -16,6 +16,7 @@ from fmpy import read_model_description  # noqa: E402
 
 from hammerbit.fmu.native import find_compiler  # noqa: E402
 from hammerbit.fmu.native_build import AARCH64_CC, MINGW_CC  # noqa: E402
+from cached_compile import compile_c  # noqa: E402
 
 HOST_SOURCE = Path(__file__).resolve().parent / "fmi3_host.c"
 FMI_HEADERS = Path(fmpy.__file__).parent / "c-code"
@@ -45,8 +46,7 @@ def fmu3_dir(built_native_fmu3, tmp_path_factory):
 
 
 def _host(cc, out: Path, *extra) -> Path:
-    subprocess.run([cc, "-O1", "-I", str(FMI_HEADERS), "-o", str(out), str(HOST_SOURCE), *extra], check=True)
-    return out
+    return compile_c([cc, "-O1", "-I", str(FMI_HEADERS), "-o", str(out), str(HOST_SOURCE), *extra], out, out.parent)
 
 
 def _values(stdout: str) -> list:

@@ -15,6 +15,7 @@ import pytest
 
 from hammerbit.fmu.c_description import c_formula, description_header, write_description_header
 from hammerbit.fmu.native_build import C_FLAGS
+from cached_compile import compile_c
 from hammerbit.model import fmu_description as D
 from hammerbit.model.params import RigParameters
 
@@ -64,8 +65,7 @@ def test_c_formulas_give_the_bits_of_python(tmp_path):
     write_description_header(tmp_path)
     (tmp_path / "harness.c").write_text(HARNESS)
     exe = tmp_path / "harness"
-    subprocess.run(["cc", *C_FLAGS, "-I", str(tmp_path), "-o", str(exe), str(tmp_path / "harness.c"), "-lm"],
-                   check=True)
+    compile_c(["cc", *C_FLAGS, "-I", str(tmp_path), "-o", str(exe), str(tmp_path / "harness.c"), "-lm"], exe, tmp_path)
     rows = _random_rigs(3000)
     out = subprocess.run([str(exe)], input=rows.tobytes(), capture_output=True, check=True).stdout
     c = np.frombuffer(out, dtype=np.float64).reshape(len(rows), -1)

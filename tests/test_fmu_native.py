@@ -30,6 +30,7 @@ from hammerbit.fmu.native import (FrontBuildError, build_front, find_compiler,  
                                   generate_header, read_model_description as read_spec)
 from fmu_slave import FMI_DISCARD, FMI_ERROR, FMI_OK, Slave  # noqa: E402
 from native_hosts import ecos_or_skip  # noqa: E402
+from cached_compile import compile_c  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 HOST_SOURCE = HERE / "fmu_native_host.c"
@@ -145,9 +146,8 @@ def c_host(tmp_path_factory):
     _shared_libpython_or_skip()
     include = Path(fmpy.__file__).parent / "c-code"
     exe = tmp_path_factory.mktemp("host") / "fmu_native_host"
-    subprocess.run([cc, "-O1", "-I", str(include), "-o", str(exe), str(HOST_SOURCE), "-ldl", "-lpthread"],
-                   check=True, capture_output=True)
-    return exe
+    return compile_c([cc, "-O1", "-I", str(include), "-o", str(exe), str(HOST_SOURCE), "-ldl", "-lpthread"],
+                     exe, exe.parent)
 
 
 @pytest.fixture(scope="module")

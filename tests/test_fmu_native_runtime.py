@@ -34,6 +34,7 @@ from hammerbit.model.params import RigParameters  # noqa: E402
 from hammerbit.model.presets import preset  # noqa: E402
 from hammerbit.model.solver_options import SolverOptions  # noqa: E402
 from hammerbit.model.stepping import Stepper  # noqa: E402
+from cached_compile import compile_c  # noqa: E402
 
 ID = "HammerBitRock"
 RIG = RigParameters()
@@ -457,7 +458,7 @@ def test_a_kernel_object_needing_more_than_the_shim_is_refused_naming_the_symbol
     src.write_text("double PyNumber_Float(double);\ndouble hb_k(double x) { return PyNumber_Float(x) + exp(x); }\n"
                    "double exp(double);\n")
     obj = tmp_path / "kernels_linux64.o"
-    subprocess.run([cc, "-c", "-fPIC", "-o", str(obj), str(src)], check=True, capture_output=True)
+    compile_c([cc, "-c", "-fPIC", "-o", str(obj), str(src)], obj, tmp_path)
     with pytest.raises(NativeBuildError, match=r"kernels_linux64\.o needs symbols no shim provides: "
                                                r"\['PyNumber_Float'\]"):
         link_binary("linux64", cc, obj, tmp_path, tmp_path / "out.so")

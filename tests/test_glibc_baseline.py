@@ -16,6 +16,8 @@ from pathlib import Path
 
 import pytest
 
+from cached_compile import compile_c
+
 from hammerbit.fmu.build import WRAPPER_SUFFIX
 
 BASELINE = (2, 17)
@@ -83,9 +85,9 @@ def test_the_shim_binds_the_oldest_math_versions_and_keeps_the_results(tmp_path)
                    "double k(double x) { return exp(x) + 3.0 * log(x) + 5.0 * pow(x, 1.25); }\n")
     cc = find_compiler()
     plain, shimmed = tmp_path / "plain.so", tmp_path / "shimmed.so"
-    subprocess.run([cc, "-O2", "-fPIC", "-shared", "-o", str(plain), str(src), "-lm"], check=True)
-    subprocess.run([cc, "-O2", "-fPIC", "-shared", "-o", str(shimmed), str(src), str(GLIBC_COMPAT_SOURCE),
-                    "-Wl," + ",".join(f"--wrap={n}" for n in GLIBC_WRAPPED), "-lm"], check=True)
+    compile_c([cc, "-O2", "-fPIC", "-shared", "-o", str(plain), str(src), "-lm"], plain, tmp_path)
+    compile_c([cc, "-O2", "-fPIC", "-shared", "-o", str(shimmed), str(src), str(GLIBC_COMPAT_SOURCE),
+               "-Wl," + ",".join(f"--wrap={n}" for n in GLIBC_WRAPPED), "-lm"], shimmed, tmp_path)
     if not too_new(version_references(plain)):
         pytest.skip("this machine's glibc is older than 2.29: exp binds no new version to avoid")
     assert too_new(version_references(shimmed)) == []

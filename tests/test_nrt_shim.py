@@ -9,6 +9,8 @@ import textwrap
 
 import pytest
 
+from cached_compile import compile_c
+
 from hammerbit.fmu.native import SOURCE_DIR, FrontBuildError, find_compiler
 
 OPS = 200_000
@@ -88,7 +90,7 @@ def test_shim_blocks_never_overlap_and_are_aligned(tmp_path):
         pytest.skip(str(e))
     src, exe = tmp_path / "driver.c", tmp_path / "driver"
     src.write_text(_DRIVER)
-    subprocess.run([cc, "-O1", "-std=gnu11", "-I", str(SOURCE_DIR), "-o", str(exe), str(src),
-                    str(SOURCE_DIR / "nrt_shim.c"), "-lpthread"], check=True, capture_output=True)
+    compile_c([cc, "-O1", "-std=gnu11", "-I", str(SOURCE_DIR), "-o", str(exe), str(src),
+               str(SOURCE_DIR / "nrt_shim.c"), "-lpthread"], exe, tmp_path)
     r = subprocess.run([str(exe)], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0 and r.stdout.strip() == "ok", r.stdout + r.stderr
