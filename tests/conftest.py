@@ -196,13 +196,13 @@ SLOW_TESTS = {
     "tests/test_cosim_adaptive.py::test_tighter_tolerance_smaller_steps_smaller_error":
         "tests/test_cosim_adaptive.py::test_adaptive_meets_its_tolerance_on_a_drilling_case",
     "tests/test_figure_worker.py::test_simulate_plot_is_the_same_with_and_without_the_worker":
-        "tests/test_figure_worker.py::test_worker_saves_what_this_process_saves_and_raises_what_it_raises",
+        "tests/test_figure_worker.py::test_a_worker_that_dies_without_an_answer_leaves_the_drawing_to_the_caller",
     "tests/test_reference.py::test_penetration_matches_independent_reference[rtol-1e-10-no_impact]":
         "tests/test_reference.py::test_penetration_matches_independent_reference[rtol-1e-10-impact]",
     "tests/test_system_fmu_safety.py::test_fuzzed_states_never_crash_or_hang_the_host":
         "tests/test_system_fmu_safety.py::test_a_few_fuzzed_states_never_crash_or_hang_the_host",
     "tests/test_fmu_fuzz.py::test_fuzzed_states_never_crash_or_hang_the_host[built_string_fmu]":
-        "tests/test_fmu_fuzz.py::test_fuzzed_states_never_crash_or_hang_the_host[built_fmu]",
+        "tests/test_fmu_fuzz.py::test_fuzzed_states_never_crash_or_hang_the_host[built_native_string_fmu]",
     "tests/test_fmu_fuzz.py::test_fuzzed_states_never_crash_or_hang_the_host[built_native_string_fmu3]":
         "tests/test_fmu_fuzz.py::test_fuzzed_states_never_crash_or_hang_the_host[built_native_string_fmu]",
     "tests/test_fmi3_system.py::test_system_reference_results_equal_its_run_in_fmpy[3]":
@@ -345,6 +345,24 @@ SLOW_TESTS = {
     # the limit covering a BLAS loaded inside it, in a new process, stays fast
     "tests/test_blas_threads.py::test_the_first_string_side_of_a_process_has_the_bits_of_every_later_one":
         "tests/test_blas_threads.py::test_a_blas_loaded_inside_the_limit_runs_one_thread",
+    # new processes that start interpreters of their own (about a second of imports and kernel
+    # loads each), one fast check of each kind kept:
+    # - fuzzing the pythonfmu flavour (an FMU instance per state); the native flavours' stay fast
+    "tests/test_fmu_fuzz.py::test_fuzzed_states_never_crash_or_hang_the_host[built_fmu]":
+        "tests/test_fmu_fuzz.py::test_fuzzed_states_never_crash_or_hang_the_host[built_native_fmu]",
+    # - a C host's two threads starting the FMU's Python; the host's 10 s run stays fast
+    "tests/test_fmu_native.py::test_c_host_threads_start_python_once_and_agree":
+        "tests/test_fmu_native.py::test_c_host_steps_10_s_like_fmpy_and_exits_0",
+    # - continuation's kernels loaded by a later process; the cache index read by a later process
+    #   stays fast
+    "tests/test_continuation_cache.py::test_a_later_process_loads_the_compiled_kernels":
+        "tests/test_numba_internals.py::test_the_cache_index_says_cached_or_not",
+    # - the FMU runtime's compile switch in a new process; the switch off, in this one, stays fast
+    "tests/test_compile_ahead.py::test_the_fmu_runtime_starts_no_helper_and_leaves_the_switch_alone":
+        "tests/test_compile_ahead.py::test_no_helper_when_disabled",
+    # - the figure worker's process saving a figure; one that dies without an answer stays fast
+    "tests/test_figure_worker.py::test_worker_saves_what_this_process_saves_and_raises_what_it_raises":
+        "tests/test_figure_worker.py::test_a_worker_that_dies_without_an_answer_leaves_the_drawing_to_the_caller",
 }
 
 

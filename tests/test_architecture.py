@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from source_trees import parse
+from source_trees import nodes, parse
 
 ROOT = Path(__file__).resolve().parents[1]
 #: source directory -> the package it is imported as (pyproject.toml's package-dir)
@@ -75,8 +75,7 @@ def _imports(module: str) -> tuple:
 
 
 def _find_imports(module: str):
-    tree = parse(MODULES[module].read_text(encoding="utf-8"))
-    for node in ast.walk(tree):
+    for node in nodes(MODULES[module].read_text(encoding="utf-8")):
         if isinstance(node, ast.Import):
             for a in node.names:
                 if a.name in MODULES:
@@ -172,7 +171,7 @@ def _function_lengths(source: str) -> list:
     """``(name, def line, lines from the def line to the last, decorated inline='always')`` of every
     function in ``source``, nested ones included (and counted in the function around them too)."""
     out = []
-    for node in ast.walk(parse(source)):
+    for node in nodes(source):
         if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
             inlined = any(isinstance(d, ast.Call) and any(k.arg == "inline" and getattr(k.value, "value", None)
                                                           == "always" for k in d.keywords)
@@ -267,10 +266,9 @@ def _kernel_params(source: str) -> dict:
     """{function name: number of parameters} of the functions compiled by numba in ``source``:
     decorated with ``njit``/``jit``/``cfunc`` (bare or called), or passed to one as
     ``njit(...)(f)`` or ``njit(...)(bind(f, ...))``."""
-    tree = parse(source)
-    defs = {n.name: n for n in ast.walk(tree) if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef))}
+    defs = {n.name: n for n in nodes(source) if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef))}
     compiled = {name for name, d in defs.items() if any(_compiler_name(dec) for dec in d.decorator_list)}
-    for node in ast.walk(tree):
+    for node in nodes(source):
         if isinstance(node, ast.Call) and isinstance(node.func, ast.Call) and _compiler_name(node.func) \
                 and node.args:
             target = node.args[0]

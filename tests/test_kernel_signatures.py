@@ -11,7 +11,7 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
-from source_trees import parse
+from source_trees import nodes, parse
 
 ROOT = Path(__file__).resolve().parents[1]
 #: most arguments a kernel takes (issue 26: "no kernel call passes more than about 10 arguments")
@@ -43,7 +43,7 @@ def _kernels() -> dict:
     """{name: (file, line, parameter count)} of every numba kernel in :data:`SCOPE`."""
     out = {}
     for path in _files():
-        for node in ast.walk(parse(path.read_text(encoding="utf-8"))):
+        for node in nodes(path.read_text(encoding="utf-8")):
             if isinstance(node, ast.FunctionDef) and any(
                     _decorator_name(d) in KERNEL_DECORATORS for d in node.decorator_list):
                 out[node.name] = (path.relative_to(ROOT), node.lineno, _param_count(node))
@@ -67,7 +67,7 @@ def test_no_kernel_is_called_with_more_than_ten_arguments():
     names = set(_kernels())
     bad = []
     for path in sorted(ROOT.glob("coupling/**/*.py")) + sorted(ROOT.glob("fmu_src/*.py")):
-        for node in ast.walk(parse(path.read_text(encoding="utf-8"))):
+        for node in nodes(path.read_text(encoding="utf-8")):
             if not isinstance(node, ast.Call):
                 continue
             f = node.func
