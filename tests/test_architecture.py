@@ -141,6 +141,16 @@ def test_the_checks_see_the_library():
     assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
 
 
+def test_the_checks_walk_every_node_of_a_file():
+    """The shared walk (:func:`source_trees.nodes`) is :func:`ast.walk` of a fresh parse, node for
+    node, on the longest modules (a walk cut short would pass every check below)."""
+    longest = sorted(MODULES.values(), key=lambda p: len(p.read_bytes()))[-3:]
+    for path in longest:
+        source = path.read_text(encoding="utf-8")
+        fresh = [ast.dump(n) for n in ast.walk(ast.parse(source))]
+        assert [ast.dump(n) for n in nodes(source)] == fresh, path
+
+
 def test_no_module_is_longer_than_the_limit():
     long = {m: n for m, p in MODULES.items() if m not in GENERATED
             and (n := len(p.read_text(encoding="utf-8").splitlines())) > OVER_THE_LIMIT.get(m, MAX_LINES)}
