@@ -31,16 +31,20 @@ _TESTS = textwrap.dedent('''
 ''')
 
 
-def test_each_test_gets_its_own_and_its_subprocesses_cpu(tmp_path):
+def _run_made_up(tmp_path, tests: str, env: dict) -> None:
+    """Run ``tests`` as the only test file of a pytest of its own in ``tmp_path``, with the plugin."""
     (tmp_path / "pytest.ini").write_text("[pytest]\n")         # not this repository's configuration
-    (tmp_path / "test_made_up.py").write_text(_TESTS)
-    rows = tmp_path / "rows"
-    rows.mkdir()
-    env = dict(ENV, **{DIR_VARIABLE: str(rows)})
+    (tmp_path / "test_made_up.py").write_text(tests)
     r = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-p", "benchmarks.pytest_cpu",
                         "test_made_up.py"],
                        capture_output=True, text=True, env=env, cwd=tmp_path, timeout=300)
     assert r.returncode == 0, r.stdout + r.stderr
+
+
+def test_each_test_gets_its_own_and_its_subprocesses_cpu(tmp_path):
+    rows = tmp_path / "rows"
+    rows.mkdir()
+    _run_made_up(tmp_path, _TESTS, dict(ENV, **{DIR_VARIABLE: str(rows)}))
     got = summarise(rows, total_cpu_s=5.0, most=2)
     by_name = {row["test"].split("::")[-1]: row for row in got["largest"]}
     assert got["tests"] == 2
@@ -50,11 +54,5 @@ def test_each_test_gets_its_own_and_its_subprocesses_cpu(tmp_path):
 
 
 def test_without_its_directory_the_plugin_writes_nothing(tmp_path):
-    (tmp_path / "pytest.ini").write_text("[pytest]\n")
-    (tmp_path / "test_made_up.py").write_text("def test_nothing():\n    pass\n")
-    env = ENV
-    r = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-p", "benchmarks.pytest_cpu",
-                        "test_made_up.py"],
-                       capture_output=True, text=True, env=env, cwd=tmp_path, timeout=300)
-    assert r.returncode == 0, r.stdout + r.stderr
+    _run_made_up(tmp_path, "def test_nothing():\n    pass\n", ENV)
     assert list(tmp_path.rglob("cpu-*.tsv")) == []
