@@ -9,6 +9,7 @@ step.
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -225,12 +226,20 @@ def test_unused_input_refused_and_unchanged(field_auto_fmu):
 
 def test_every_input_takes_its_declared_range_and_nothing_beyond(field_auto_fmu):
     """The bounds the modelDescription declares for each input are the FMU's own: each bound is
-    accepted, the next double beyond it refused (fmi2Error, the input unchanged)."""
+    accepted, the next double beyond it refused (fmi2Error, the input unchanged), with a message
+    that names the input, its value and the unit the modelDescription declares."""
+    import zipfile
+    import xml.etree.ElementTree as ET
     from test_fmu_audit import _declared
     inputs = {name: (lo, hi) for name, (causality, lo, hi) in _declared(field_auto_fmu).items()
               if causality == "input"}
     assert set(inputs) == {"amplitude", "frequency", "wob_set_point", "feed_velocity"}
-    s = Slave(field_auto_fmu)
+    with zipfile.ZipFile(field_auto_fmu) as zf:
+        root = ET.fromstring(zf.read("modelDescription.xml"))
+    units = {sv.get("name"): sv.find("Real").get("unit") for sv in root.iter("ScalarVariable")
+             if sv.get("name") in inputs}
+    log = []
+    s = Slave(field_auto_fmu, logger=log)
     try:
         st = s.fmu.getFMUstate()
         for name, (lo, hi) in inputs.items():
@@ -239,9 +248,13 @@ def test_every_input_takes_its_declared_range_and_nothing_beyond(field_auto_fmu)
                 s.set(**{name: bound})
                 assert s.real(name)[0] == bound, (name, bound)
                 s.fmu.setFMUstate(st)
+                del log[:]
                 with pytest.raises(Exception):
                     s.set(**{name: math.nextafter(bound, beyond)})
                 assert s.real(name)[0] == start, (name, bound)
+                said = " ".join(log)
+                assert f"input '{name}' = {math.nextafter(bound, beyond)!r}" in said, said
+                assert re.search(rf"allowed (\[\S+, \S+\]|\S+) {re.escape(units[name])}\b", said), (said, units)
                 s.fmu.setFMUstate(st)
         s.step(0.01)                      # the instance still runs
         s.fmu.freeFMUstate(st)

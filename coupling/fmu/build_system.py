@@ -263,6 +263,8 @@ def system_header(data: dict) -> str:
     for v in SYSTEM_VARIABLES:
         if v.causality != "output":
             lo, hi = _bounds(v, data)
+            lines.append(f"#define HSYS_NAME_{v.name} {c_string(v.name)}")
+            lines.append(f"#define HSYS_UNIT_{v.name} {c_string(v.unit)}")
             lines.append(f"#define HSYS_START_{v.name} {float(_starts(data)[v.name])!r}")
             lines.append(f"#define HSYS_MIN_{v.name} {float(lo)!r}" if lo is not None else
                          f"#define HSYS_MIN_{v.name} (-HUGE_VAL)")

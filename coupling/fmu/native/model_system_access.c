@@ -11,13 +11,15 @@
 /* ------------------------------------------------------------------------------------------ */
 /* Inputs                                                                                      */
 /* ------------------------------------------------------------------------------------------ */
-/* the ranges the modelDescription declares (hsys_data.h, from the table and the build) */
+/* the names, units and ranges the modelDescription declares (hsys_data.h, from the table and the build) */
 static const double MIN_IN[N_INPUTS] = {HSYS_MIN_amplitude, HSYS_MIN_frequency, HSYS_MIN_wob_set_point,
                                         HSYS_MIN_feed_velocity};
 static const double MAX_IN[N_INPUTS] = {HSYS_MAX_amplitude, HSYS_MAX_frequency, HSYS_MAX_wob_set_point,
                                         HSYS_MAX_feed_velocity};
-static const char *const IN_NAME[N_INPUTS] = {"amplitude", "frequency", "wob_set_point", "feed_velocity"};
-static const char *const IN_UNIT[N_INPUTS] = {"N", "Hz", "N", "m/s"};
+static const char *const IN_NAME[N_INPUTS] = {HSYS_NAME_amplitude, HSYS_NAME_frequency, HSYS_NAME_wob_set_point,
+                                               HSYS_NAME_feed_velocity};
+static const char *const IN_UNIT[N_INPUTS] = {HSYS_UNIT_amplitude, HSYS_UNIT_frequency, HSYS_UNIT_wob_set_point,
+                                               HSYS_UNIT_feed_velocity};
 
 const char *sys_input_refused(const sysstate *s, int idx, double v, char *buf, size_t n) {
     char r[40], r2[40];
@@ -33,8 +35,8 @@ const char *sys_input_refused(const sysstate *s, int idx, double v, char *buf, s
     if (unused && v != SYS_START_IN[idx]) {
         hb_repr(SYS_START_IN[idx], r2, sizeof r2);
         snprintf(buf, n, "input '%s' = %s has no effect with the top condition '%s' this FMU was built "
-                 "with (only %s uses it); allowed %s (rebuild with --top %s)", IN_NAME[idx], r,
-                 HSYS_TOP_TEXT, idx == IN_FEED_VELOCITY ? "the feed" : "the auto-driller", r2,
+                 "with (only %s uses it); allowed %s %s (rebuild with --top %s)", IN_NAME[idx], r,
+                 HSYS_TOP_TEXT, idx == IN_FEED_VELOCITY ? "the feed" : "the auto-driller", r2, IN_UNIT[idx],
                  idx == IN_FEED_VELOCITY ? "feed:RATE" : "auto-driller");
         return buf;
     }
