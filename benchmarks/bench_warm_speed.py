@@ -7,6 +7,9 @@ benchmark checks that commit out into a temporary git worktree, then runs the
 probe :mod:`benchmarks.warm_speed` in a fresh process of each checkout,
 alternating, ``rounds`` times: the best time per scene over all rounds is
 compared, as the ratio this / before (1.0 = the same speed; goal <= 1.03).
+Each probe also returns the digests of every scene's result, field by field:
+the fields both checkouts return must be bit-identical between them, and in
+every round of each (goal: every scene).
 Both checkouts run from their sources on the same Python (the packages are
 mapped onto ``hammerbit`` and ``hammerbit.model`` as the editable install
 does), with the same kernels' numba cache rules; the first call of each probe
@@ -101,6 +104,21 @@ def compare(base: list, ours: list) -> dict:
     return out
 
 
+def compare_bits(base: list, ours: list) -> dict:
+    """Per scene, the result fields of both checkouts (``{field: digest}`` per round): ``identical``
+    (every round of both the same digest), ``differ`` (fields both return, other bits between the
+    checkouts or between rounds), ``only_before``/``only_ours`` (fields one checkout's result lacks)."""
+    out = {}
+    for scene in ours[0]:
+        b = [r[scene] for r in base]
+        o = [r[scene] for r in ours]
+        common = sorted(set(b[0]) & set(o[0]))
+        same = [f for f in common if len({r.get(f) for r in b + o}) == 1]
+        out[scene] = {"identical": same, "differ": [f for f in common if f not in same],
+                      "only_before": sorted(set(b[0]) - set(o[0])), "only_ours": sorted(set(o[0]) - set(b[0]))}
+    return out
+
+
 def _figure(scenes: dict, baseline: str):
     import matplotlib
     matplotlib.use("Agg")
@@ -156,7 +174,9 @@ def run(quick: bool = False, *, verbose: bool = True) -> dict:
                 log(f"round {k + 1}/{rounds}: {time.perf_counter() - t0:.1f} s, load {os.getloadavg()[0]:.1f}")
         finally:
             _git("worktree", "remove", "--force", base_root)
-    scenes = compare(base, ours)
+    scenes = compare([r["seconds"] for r in base], [r["seconds"] for r in ours])
+    bits = compare_bits([r["digests"] for r in base], [r["digests"] for r in ours])
+    differ = {scene: b["differ"] for scene, b in bits.items() if b["differ"]}
     context_only = baseline in BASELINES_WITHOUT_FLAGS
     judged = {k: v for k, v in scenes.items() if not (context_only and k.endswith(AS_CALLED))}
     worst = max(s["ratio"] for s in judged.values())
@@ -174,10 +194,17 @@ def run(quick: bool = False, *, verbose: bool = True) -> dict:
     summary.append(summary_row(f"warm speed against {baseline}, the same work: geometric mean / worst ratio over "
                                "the scenes", f"{geo:.3f}x / {worst:.3f}x", goal=f"<= {GOAL_RATIO}x",
                                met=worst <= GOAL_RATIO, command=cmd))
+    fields = sum(len(b["identical"]) + len(b["differ"]) for b in bits.values())
+    summary.append(summary_row(
+        f"results against {baseline}: scenes whose result fields (all that both return, "
+        f"{fields} in all) are bit-identical between the checkouts and their rounds",
+        f"{len(bits) - len(differ)} of {len(bits)}", goal="all", met=not differ, command=cmd))
     for scene, s in scenes.items():
-        log(f"{scene}: {s['ours_s'] * 1e3:.3f} ms vs {s['before_s'] * 1e3:.3f} ms, ratio {s['ratio']:.3f}")
+        log(f"{scene}: {s['ours_s'] * 1e3:.3f} ms vs {s['before_s'] * 1e3:.3f} ms, ratio {s['ratio']:.3f}; "
+            + (f"bits differ in {', '.join(differ[scene])}" if scene in differ else
+               f"{len(bits[scene]['identical'])} result fields bit-identical"))
     res = {"benchmark": NAME, "baseline": baseline, "head": head, "rounds": rounds, "repeats": repeats,
-           "scenes": scenes, "before_rounds": base, "ours_rounds": ours, "geo_mean_ratio": geo,
+           "scenes": scenes, "bits": bits, "before_rounds": base, "ours_rounds": ours, "geo_mean_ratio": geo,
            "worst_ratio": worst, "goal_ratio": GOAL_RATIO, "machine": machine_info(), "summary": summary}
     save_result(NAME, res, _figure(scenes, baseline))
     return res

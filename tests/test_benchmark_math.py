@@ -228,6 +228,64 @@ def test_warm_speed_compares_the_best_of_each_checkout_over_all_rounds():
     assert got["t"] == {"before_s": 5.0, "ours_s": 4.0, "ratio": 0.8}
 
 
+def test_warm_speed_digests_tell_every_bit_apart_and_leave_wall_time_out():
+    """One bit of one array, one count, one flag each change that field's digest alone; the wall
+    time changes none; a nested dataclass is compared field by field, so a field added to it
+    leaves the others comparable."""
+    import copy
+    import dataclasses
+    from benchmarks.warm_speed import result_digests
+
+    @dataclasses.dataclass
+    class Flags:
+        code: int
+        bounce: bool
+
+    @dataclasses.dataclass
+    class Flags2(Flags):
+        stall: bool = False
+
+    @dataclasses.dataclass
+    class Result:
+        final: np.ndarray
+        counts: dict
+        peak: float
+        flags: object
+        wall_time_s: float
+
+    base = Result(np.array([0.1, 0.2, 0.3]), {"impact": 3, "stick": 2}, 1.5, Flags(1, False), 0.25)
+    d0 = result_digests(base)
+    assert set(d0) == {"final", "counts", "peak", "flags.code", "flags.bounce"}
+    assert result_digests(copy.deepcopy(base)) == d0
+    changes = {"final": lambda r: r.final.__setitem__(1, np.nextafter(r.final[1], 1.0)),
+               "counts": lambda r: r.counts.__setitem__("stick", 3),
+               "peak": lambda r: setattr(r, "peak", np.nextafter(1.5, 2.0)),
+               "flags.bounce": lambda r: setattr(r.flags, "bounce", True)}
+    for field, change in changes.items():
+        r = copy.deepcopy(base)
+        change(r)
+        d = result_digests(r)
+        assert [k for k in d0 if d[k] != d0[k]] == [field], field
+    r = copy.deepcopy(base)
+    r.wall_time_s = 9.0
+    assert result_digests(r) == d0
+    r.flags = Flags2(1, False)
+    d = result_digests(r)
+    assert {k: d[k] for k in d0} == d0 and set(d) - set(d0) == {"flags.stall"}
+    r.final = r.final.astype(np.float32)                  # the same values in another type: other bits
+    assert result_digests(r)["final"] != d0["final"]
+
+
+def test_warm_speed_bits_compare_the_fields_both_return_in_every_round():
+    from benchmarks.bench_warm_speed import compare_bits
+    base = [{"s": {"a": "1", "b": "2", "old": "9"}}, {"s": {"a": "1", "b": "2", "old": "9"}}]
+    ours = [{"s": {"a": "1", "b": "2", "new": "7"}}, {"s": {"a": "1", "b": "3", "new": "7"}}]
+    got = compare_bits(base, ours)["s"]
+    assert got == {"identical": ["a"], "differ": ["b"], "only_before": ["old"], "only_ours": ["new"]}
+    ours[1]["s"]["b"] = "2"
+    assert compare_bits(base, ours)["s"]["differ"] == []
+
+
 def test_warm_speed_boot_maps_a_checkout_without_installing_it(tmp_path):
     """The probe of the code before runs on that checkout's sources, not on the installed package."""
     import subprocess
