@@ -20,6 +20,23 @@ HOST_SOURCE = Path(__file__).resolve().parent / "fmu_native_host.c"
 FMI_HEADERS = Path(fmpy.__file__).parent / "c-code"
 
 
+#: the BLAS library's configuration, kept in a clean environment: OpenBLAS picks its kernels by
+#: ``OPENBLAS_CORETYPE`` (else by the CPU), and another kernel gives other bits than the Python host's
+BLAS_VARIABLE_PREFIXES = ("OPENBLAS_", "GOTO", "OMP_", "MKL_")
+
+
+def host_env(**extra) -> dict:
+    """A clean environment for a native host that starts Python: HOME (numba cache), PATH, the
+    caches' directories and the BLAS configuration only; no PYTHONPATH, no LD_PRELOAD."""
+    env = {"HOME": os.environ.get("HOME", "/tmp"), "PATH": "/usr/bin:/bin"}
+    for key, value in os.environ.items():
+        if key in ("HAMMERBIT_CACHE_DIR", "XDG_CACHE_HOME", "NUMBA_CACHE_DIR") or key.startswith(
+                BLAS_VARIABLE_PREFIXES):
+            env[key] = value
+    env.update(extra)
+    return env
+
+
 def linux_host(tmp: Path) -> Path:
     """The C host built for Linux into ``tmp`` with the system C compiler."""
     exe = tmp / "fmu_native_host"

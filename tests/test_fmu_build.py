@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import site
 import subprocess
 import sys
 import textwrap
@@ -172,6 +173,12 @@ def test_fmu_build_from_a_wheel_install(tmp_path):
     subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", str(venv)], check=True,
                    timeout=300)
     py = venv / "bin" / "python"
+    if sys.prefix != sys.base_prefix:
+        # the tests run in a virtual environment, whose packages the new one's system site lacks:
+        # its site directories as plain paths (their .pth files, such as an editable install's, unread)
+        site_dir = subprocess.run([str(py), "-c", "import site; print(site.getsitepackages()[0])"],
+                                  capture_output=True, text=True, check=True, timeout=60).stdout.strip()
+        Path(site_dir, "_tests_parent_environment.pth").write_text("\n".join(site.getsitepackages()) + "\n")
     r = subprocess.run([str(py), "-m", "pip", "install", "--no-deps", "-q", str(wheel)], capture_output=True,
                        text=True, timeout=600)
     assert r.returncode == 0, r.stderr

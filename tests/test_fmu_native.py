@@ -29,7 +29,7 @@ from fmpy.fmi2 import fmi2LastSuccessfulTime, fmi2Terminated  # noqa: E402
 from hammerbit.fmu.native import (FrontBuildError, build_front, find_compiler,  # noqa: E402
                                   generate_header, read_model_description as read_spec)
 from fmu_slave import FMI_DISCARD, FMI_ERROR, FMI_OK, Slave  # noqa: E402
-from native_hosts import ecos_or_skip  # noqa: E402
+from native_hosts import ecos_or_skip, host_env  # noqa: E402
 from cached_compile import compile_c  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
@@ -79,15 +79,6 @@ def zip_dir(src: Path, fmu: Path) -> Path:
                 zf.write(p, p.relative_to(src).as_posix())
     return fmu
 
-
-def host_env(**extra) -> dict:
-    """A clean environment: HOME (numba cache) and PATH only; no PYTHONPATH, no LD_PRELOAD."""
-    env = {"HOME": os.environ.get("HOME", "/tmp"), "PATH": "/usr/bin:/bin"}
-    for key in ("HAMMERBIT_CACHE_DIR", "XDG_CACHE_HOME", "NUMBA_CACHE_DIR"):
-        if key in os.environ:
-            env[key] = os.environ[key]
-    env.update(extra)
-    return env
 
 
 def run_host(host: Path, fmu_dir: Path, *, uri=None, guid=None, env=None, **opts):

@@ -7,7 +7,6 @@ is the same FMU with pythonfmu's binary alone, run in fmpy (a Python host).
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 import zipfile
@@ -16,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from fmu_slave import Slave
-from native_hosts import linux_host
+from native_hosts import host_env, linux_host
 
 pytest.importorskip("fmpy")
 
@@ -73,10 +72,7 @@ def test_a_native_c_host_runs_it_like_fmpy(dirs, tmp_path):
     vr = {v.name: v.valueReference for v in md.modelVariables}
     rest = json.loads((front / "resources" / "string_info.json").read_text())["hammer_position_at_rest"]
     host = linux_host(tmp_path)
-    env = {"HOME": os.environ.get("HOME", "/tmp"), "PATH": "/usr/bin:/bin", "HAMMERBIT_PYTHON": sys.executable}
-    for key in ("HAMMERBIT_CACHE_DIR", "XDG_CACHE_HOME", "NUMBA_CACHE_DIR"):
-        if key in os.environ:
-            env[key] = os.environ[key]
+    env = host_env(HAMMERBIT_PYTHON=sys.executable)
     proc = subprocess.run([str(host), str(front / "binaries" / "linux64" / f"{ID}.so"),
                            (front / "resources").as_uri(), md.guid, f"steps={STEPS}", f"h={H!r}",
                            "out=" + ",".join(str(vr[n]) for n in OUT),
