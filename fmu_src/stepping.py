@@ -19,6 +19,7 @@ from . import kernel_driver
 from . import kernel_forces
 from . import kernel_layouts as KL
 from . import numba_compile_ahead
+from . import numba_compile_lock
 from .numba_compile_notice import compile_done, compile_notice, kernels_cached, notice_checked
 from .params import Groups
 from .solver_errors import raise_for_status
@@ -272,20 +273,31 @@ class Stepper:
         st = sample_times if sample_times is not None else NO_SAMPLE_TIMES
         sa = samples if samples is not None else NO_SAMPLES
         lg = log if log is not None else NO_LOG
-        notice = not notice_checked(self.entry) and compile_notice(self.entry)
-        # a second process compiles part of it
-        helper = notice and self.compile_helper and numba_compile_ahead.start(self.entry)
-        t0 = time.perf_counter()
+        if not notice_checked(self.entry) and compile_notice(self.entry):
+            self._first_compile()
+        return self.check_status(self._call(t_end, (poin, st, sa, lg)))
+
+    def _call(self, t_end: float, rec) -> int:
+        """The kernel entry point's call: the state advanced to ``t_end``, recording into ``rec``."""
         if self.entry == "advance":
-            status = self._advance_general(t_end, poin, st, sa, lg)
-        else:
-            status = getattr(kernel_driver, self.entry)(self.y, self.istate, self.fstate, t_end, self.p, self.opts,
-                                                        (poin, st, sa, lg))
-        if helper:
-            numba_compile_ahead.finish()
-        if notice:
-            compile_done(time.perf_counter() - t0)
-        return self.check_status(status)
+            return self._advance_general(t_end, *rec)
+        return getattr(kernel_driver, self.entry)(self.y, self.istate, self.fstate, t_end, self.p, self.opts, rec)
+
+    def _first_compile(self) -> None:
+        """Compile the entry point (a cache miss) with a call that does not move the state: under
+        its compile lock, so a process that missed the cache at the same time waits and loads it,
+        with a second process compiling part of it (:mod:`.numba_compile_ahead`)."""
+        t0 = time.perf_counter()
+        snap = self.snapshot()
+        with numba_compile_lock.compiling(self.entry):
+            helper = self.compile_helper and not kernels_cached(self.entry) and numba_compile_ahead.start(self.entry)
+            try:
+                self._call(self.fstate[KL.F_T], (NO_POINCARE, NO_SAMPLE_TIMES, NO_SAMPLES, NO_LOG))
+            finally:
+                self.restore(snap)
+                if helper:
+                    numba_compile_ahead.finish()
+        compile_done(time.perf_counter() - t0)
 
     def load(self) -> bool:
         """Load the compiled kernel this stepper runs, if numba has it cached; True if it did.
