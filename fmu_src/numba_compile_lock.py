@@ -23,7 +23,7 @@ try:
 except ImportError:  # pragma: no cover -- Windows: no flock, no lock
     fcntl = None
 
-__all__ = ["compiling", "lock_path"]
+__all__ = ["compiling", "lock_path", "file_lock"]
 
 #: the lock file of an entry point: ``<cache root>/<entry><LOCK_SUFFIX>``
 LOCK_SUFFIX = ".compile-lock"
@@ -34,10 +34,16 @@ def lock_path(entry: str) -> str:
     return os.path.join(numba_cache.cache_root(), entry + LOCK_SUFFIX)
 
 
-@contextlib.contextmanager
 def compiling(entry: str):
     """Hold the compile lock of ``entry`` (after any other process holding it has let go)."""
-    fd = _open(entry)
+    return file_lock(lock_path(entry))
+
+
+@contextlib.contextmanager
+def file_lock(path: str):
+    """Hold an exclusive lock on the file ``path`` (created, with its directory, if missing); where
+    it cannot be created, or without ``fcntl``, go on unlocked."""
+    fd = _open(path)
     try:
         if fd is not None:
             fcntl.flock(fd, fcntl.LOCK_EX)
@@ -47,11 +53,11 @@ def compiling(entry: str):
             os.close(fd)            # releases the lock
 
 
-def _open(entry: str):
+def _open(path: str):
     if fcntl is None:
         return None
     try:
-        os.makedirs(numba_cache.cache_root(), exist_ok=True)
-        return os.open(lock_path(entry), os.O_RDWR | os.O_CREAT, 0o644)
+        os.makedirs(os.path.dirname(path), exist_ok=True)
+        return os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
     except OSError:                 # a read-only cache: compile unlocked
         return None

@@ -96,3 +96,38 @@ def test_two_processes_on_an_empty_cache_compile_the_entry_point_once(tmp_path):
     saved = [len(re.findall(r"data saved to .*kernel_driver\.advance_hammer-", o[0] + o[1])) for o in outs]
     assert sorted(saved) == [0, 1], saved
     assert outs[0][0].splitlines()[-1] == outs[1][0].splitlines()[-1]
+
+
+def test_builds_of_the_same_native_kernels_at_the_same_time_compile_them_once(monkeypatch, tmp_path):
+    """Two builds of one kernel set at once (two FMUs built in parallel): one compiles, the other
+    waits for the kept objects and copies them."""
+    import json
+    import threading
+    from hammerbit.fmu import native_kernels as nk
+    monkeypatch.setattr(nk, "_kept_dir", lambda key: (tmp_path / "kept").mkdir(exist_ok=True) or tmp_path / "kept")
+    started, release, compiles = threading.Event(), threading.Event(), []
+
+    def compile_once(out_dir, platforms, **kw):
+        compiles.append(out_dir)
+        started.set()
+        release.wait(60)
+        for plat in platforms:
+            (out_dir / f"kernels_{plat}.o").write_bytes(b"object " + plat.encode())
+        return {"layout": {"n": 1}, "sizes": [len(compiles)]}
+    monkeypatch.setattr(nk, "_compile_objects", compile_once)
+    results = {}
+
+    def build(name):
+        results[name] = nk.build_objects(tmp_path / name, platforms=("linux64",))
+    first = threading.Thread(target=build, args=("a",))
+    first.start()
+    assert started.wait(60)
+    second = threading.Thread(target=build, args=("b",))
+    second.start()
+    second.join(0.5)            # without the lock the second build would be compiling by now
+    release.set()
+    first.join(60)
+    second.join(60)
+    assert len(compiles) == 1
+    assert results["a"] == results["b"] == json.loads((tmp_path / "kept" / "summary.json").read_text())
+    assert (tmp_path / "b" / "kernels_linux64.o").read_bytes() == b"object linux64"

@@ -395,6 +395,10 @@ def sources_key(platforms, kernels: str = "hammer") -> str:
     return h.hexdigest()[:16]
 
 
+#: the lock file of a kept entry, held while one build compiles it
+KEPT_LOCK = ".compile-lock"
+
+
 def _kept_dir(key: str):
     """``<user cache>/native-kernels/<key>`` (None if the user cache cannot be written)."""
     from hammerbit.model.numba_cache_place import user_cache_root
@@ -414,23 +418,28 @@ def build_objects(out_dir, platforms=("linux64", "win64"), *, python: str = sys.
     CPU (``NUMBA_CPU_NAME=generic``) into an empty cache directory, so the IR
     of every kernel is at hand.  The objects are kept in the user cache
     (``native-kernels/<hash of the sources and versions>``), so a rebuild of
-    the same sources takes seconds.  Raises :class:`KernelBuildError`.
+    the same sources takes seconds, and builds of the same sources at the same time
+    (two FMUs built in parallel) compile them once: the others wait for the kept
+    objects.  Raises :class:`KernelBuildError`.
     """
+    from hammerbit.model.numba_compile_lock import file_lock
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     kept = _kept_dir(sources_key(platforms, kernels))
-    summary = kept / "summary.json" if kept else None
-    if summary is not None and summary.is_file():
-        for plat in platforms:
-            shutil.copyfile(kept / f"kernels_{plat}.o", out_dir / f"kernels_{plat}.o")
-        return json.loads(summary.read_text())
-    result = _compile_objects(out_dir, platforms, python=python, timeout=timeout, kernels=kernels)
-    if kept is not None:
+    if kept is None:
+        return _compile_objects(out_dir, platforms, python=python, timeout=timeout, kernels=kernels)
+    with file_lock(str(kept / KEPT_LOCK)):
+        summary = kept / "summary.json"
+        if summary.is_file():
+            for plat in platforms:
+                shutil.copyfile(kept / f"kernels_{plat}.o", out_dir / f"kernels_{plat}.o")
+            return json.loads(summary.read_text())
+        result = _compile_objects(out_dir, platforms, python=python, timeout=timeout, kernels=kernels)
         for plat in platforms:
             shutil.copyfile(out_dir / f"kernels_{plat}.o", kept / f"kernels_{plat}.o")
         tmp = kept / "summary.json.tmp"
         tmp.write_text(json.dumps(result))
-        os.replace(tmp, kept / "summary.json")     # last: a complete entry or none
+        os.replace(tmp, summary)     # last: a complete entry or none
     return result
 
 
