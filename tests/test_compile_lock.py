@@ -99,12 +99,16 @@ def test_two_processes_on_an_empty_cache_compile_the_entry_point_once(tmp_path):
 
 
 def test_builds_of_the_same_native_kernels_at_the_same_time_compile_them_once(monkeypatch, tmp_path):
-    """Two builds of one kernel set at once (two FMUs built in parallel): one compiles, the other
-    waits for the kept objects and copies them."""
+    """Two builds of one kernel set at once (two FMUs built in parallel): one compiles, for every
+    platform, the other waits for the kept objects and copies those it asked for; a build for
+    other platforms later compiles nothing."""
     import json
     import threading
     from hammerbit.fmu import native_kernels as nk
-    monkeypatch.setattr(nk, "_kept_dir", lambda key: (tmp_path / "kept").mkdir(exist_ok=True) or tmp_path / "kept")
+    def kept_dir(key):
+        (tmp_path / "kept" / key).mkdir(parents=True, exist_ok=True)
+        return tmp_path / "kept" / key
+    monkeypatch.setattr(nk, "_kept_dir", kept_dir)
     started, release, compiles = threading.Event(), threading.Event(), []
 
     def compile_once(out_dir, platforms, **kw):
@@ -113,7 +117,7 @@ def test_builds_of_the_same_native_kernels_at_the_same_time_compile_them_once(mo
         release.wait(60)
         for plat in platforms:
             (out_dir / f"kernels_{plat}.o").write_bytes(b"object " + plat.encode())
-        return {"layout": {"n": 1}, "sizes": [len(compiles)]}
+        return {"layout": {"n": len(compiles)}, "sizes": {plat: len(plat) for plat in platforms}}
     monkeypatch.setattr(nk, "_compile_objects", compile_once)
     results = {}
 
@@ -129,5 +133,12 @@ def test_builds_of_the_same_native_kernels_at_the_same_time_compile_them_once(mo
     first.join(60)
     second.join(60)
     assert len(compiles) == 1
-    assert results["a"] == results["b"] == json.loads((tmp_path / "kept" / "summary.json").read_text())
+    assert results["a"] == results["b"] == {"layout": {"n": 1}, "sizes": {"linux64": 7}}
     assert (tmp_path / "b" / "kernels_linux64.o").read_bytes() == b"object linux64"
+    assert sorted(p.name for p in (tmp_path / "b").iterdir()) == ["kernels_linux64.o"]
+    # the kept entry holds every platform: another selection compiles nothing
+    assert nk.build_objects(tmp_path / "c", platforms=("aarch64-linux", "win64")) == {
+        "layout": {"n": 1}, "sizes": {"aarch64-linux": 13, "win64": 5}}
+    assert len(compiles) == 1
+    with pytest.raises(nk.KernelBuildError, match=r"\['win32'\] are out of range: allowed"):
+        nk.build_objects(tmp_path / "d", platforms=("linux64", "win32"))

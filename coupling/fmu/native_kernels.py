@@ -418,29 +418,33 @@ def build_objects(out_dir, platforms=("linux64", "win64"), *, python: str = sys.
     CPU (``NUMBA_CPU_NAME=generic``) into an empty cache directory, so the IR
     of every kernel is at hand.  The objects are kept in the user cache
     (``native-kernels/<hash of the sources and versions>``), so a rebuild of
-    the same sources takes seconds, and builds of the same sources at the same time
-    (two FMUs built in parallel) compile them once: the others wait for the kept
-    objects.  Raises :class:`KernelBuildError`.
+    the same sources takes seconds.  The kept entry holds every platform of
+    :data:`TARGETS` (the kernels' numba compile, the costly part, is the same
+    for all; each object is one more code generation), so an FMI 3.0 build after
+    an FMI 2.0 one, or one for other platforms, compiles nothing; and builds of
+    the same sources at the same time (FMUs built in parallel) compile them once:
+    the others wait for the kept objects.  Raises :class:`KernelBuildError`.
     """
     from hammerbit.model.numba_compile_lock import file_lock
+    unknown = sorted(set(platforms) - set(TARGETS))
+    if unknown:
+        raise KernelBuildError(f"platforms {unknown} are out of range: allowed {sorted(TARGETS)}")
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    kept = _kept_dir(sources_key(platforms, kernels))
+    kept = _kept_dir(sources_key(sorted(TARGETS), kernels))
     if kept is None:
         return _compile_objects(out_dir, platforms, python=python, timeout=timeout, kernels=kernels)
     with file_lock(str(kept / KEPT_LOCK)):
         summary = kept / "summary.json"
-        if summary.is_file():
-            for plat in platforms:
-                shutil.copyfile(kept / f"kernels_{plat}.o", out_dir / f"kernels_{plat}.o")
-            return json.loads(summary.read_text())
-        result = _compile_objects(out_dir, platforms, python=python, timeout=timeout, kernels=kernels)
+        if not summary.is_file():
+            everything = _compile_objects(kept, list(TARGETS), python=python, timeout=timeout, kernels=kernels)
+            tmp = kept / "summary.json.tmp"
+            tmp.write_text(json.dumps(everything))
+            os.replace(tmp, summary)     # last: a complete entry or none
         for plat in platforms:
-            shutil.copyfile(out_dir / f"kernels_{plat}.o", kept / f"kernels_{plat}.o")
-        tmp = kept / "summary.json.tmp"
-        tmp.write_text(json.dumps(result))
-        os.replace(tmp, summary)     # last: a complete entry or none
-    return result
+            shutil.copyfile(kept / f"kernels_{plat}.o", out_dir / f"kernels_{plat}.o")
+        result = json.loads(summary.read_text())
+    return {"layout": result["layout"], "sizes": {p: result["sizes"][p] for p in platforms}}
 
 
 def _compile_objects(out_dir: Path, platforms, *, python: str, timeout: float, kernels: str) -> dict:
