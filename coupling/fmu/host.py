@@ -6,10 +6,10 @@ that keeps every message (status, text), sets start values, and gives
 variables by name.  Importing it imports neither numba nor the model, so an
 FMU loaded through it can still use its shipped (portable) compiled kernels.
 
-The instances of one FMU file (one version of it: path, size, modification
-time) share one extraction directory, as libcosim's and most hosts' instances
-share one loaded binary: a study's cells and a master's instances skip the
-unzipping (half of instantiating a pythonfmu FMU).  A directory no instance
+The instances of one FMU file (one version of it: :func:`_file_version`) share
+one extraction directory and so one loaded binary, as libcosim's and most
+hosts' instances do: a study's cells and a master's instances skip the
+unzipping and the loading.  A directory no instance
 uses is kept for the next one, up to :data:`UNUSED_EXTRACTIONS_KEPT` of them,
 and removed at the latest when the process exits.
 """
