@@ -4,9 +4,10 @@ pytest-xdist gives each worker its own session, so a session fixture would build
 once per worker; the workers' base temporary directories share a parent for the run, and a file
 lock there makes one build serve them all.  A build that fails marks nothing, so the next worker
 tries again (and fails the same way, in its own tests)."""
-import fcntl
 import os
 from pathlib import Path
+
+from hammerbit.model.numba_compile_lock import file_lock
 
 
 def shared_dir(tmp_path_factory, name: str) -> Path:
@@ -22,8 +23,7 @@ def shared_build(tmp_path_factory, name: str, filename: str, build):
     (a path), from whichever worker built it."""
     d = shared_dir(tmp_path_factory, name)
     d.mkdir(parents=True, exist_ok=True)
-    with open(d.parent / f"{name}.lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)          # released when the file closes
+    with file_lock(str(d.parent / f"{name}.lock")):
         done = d / ".built"
         if not done.exists():
             result = build(d / filename)

@@ -80,7 +80,6 @@ def zip_dir(src: Path, fmu: Path) -> Path:
     return fmu
 
 
-
 def run_host(host: Path, fmu_dir: Path, *, uri=None, guid=None, env=None, **opts):
     md = read_model_description(str(fmu_dir / "modelDescription.xml"))
     uri = uri or (fmu_dir / "resources").as_uri()
